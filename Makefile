@@ -1,0 +1,37 @@
+# `make demo` and `make test` bootstrap .venv from nothing (Python >= 3.11 + a Rust toolchain).
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+RUST_SOURCES := $(shell find crates -name '*.rs' -o -name 'Cargo.toml') Cargo.toml
+BUILT  := $(VENV)/.built
+
+.PHONY: demo test test-rust test-python bench clean
+
+$(BIN)/python:
+	$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "Python >= 3.11 is required"'
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install -q --upgrade pip
+	$(BIN)/python -m pip install -q "maturin>=1.7,<2" "numpy>=1.26" "scipy>=1.11" "matplotlib>=3.8" "pytest>=8" "hypothesis>=6.100"
+
+# The extension is rebuilt (release, LTO) whenever a Rust source changes.
+$(BUILT): $(BIN)/python $(RUST_SOURCES) pyproject.toml
+	VIRTUAL_ENV=$(abspath $(VENV)) $(BIN)/maturin develop --release --extras test
+	touch $@
+
+demo: $(BUILT)
+	$(BIN)/python -m piezohyst demo
+
+test: test-rust test-python
+
+test-rust:
+	cargo build -p piezohyst-core            # no_std: the core without its std feature
+	cargo test -p piezohyst-core
+
+test-python: $(BUILT)
+	$(BIN)/python -m pytest
+
+bench: $(BUILT)
+	$(BIN)/python bench/pi_batch.py
+
+clean:
+	rm -rf $(VENV) target

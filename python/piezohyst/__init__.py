@@ -1,0 +1,48 @@
+"""piezohyst — model, identify and compensate the hysteresis of piezoelectric actuators.
+
+The hot loops run in a Rust core (``piezohyst._core``); this package holds the models'
+Python interface, batch evaluation, files and the command line.
+
+Examples
+--------
+>>> import numpy as np
+>>> import piezohyst as ph
+>>> model = ph.mpi_seed2()
+>>> v = 0.5 + 0.4 * np.sin(np.linspace(0, 4 * np.pi, 400))
+>>> y = model.simulate(v)
+>>> v_back = model.inverse().simulate(y)
+>>> bool(np.max(np.abs(v_back - v)) < 1e-9)
+True
+"""
+from . import _core
+from .batch import batch_rmse, batch_simulate
+from .creep import Creep
+from .differential import BoucWen, Dahl, Duhem
+from .model import SCHEMA_VERSION, HysteresisModel, Inverse, load_model, model_from_dict
+from .pi import PI, SEED2_TABLE1, Envelope, GeneralizedPI, GeneralizedPlay, PlayOperator, RateDependentPI, mpi_seed2
+from .preisach import Preisach
+
+__version__ = _core.__version__
+
+__all__ = [
+    "BoucWen",
+    "Creep",
+    "Dahl",
+    "Duhem",
+    "Envelope",
+    "GeneralizedPI",
+    "GeneralizedPlay",
+    "HysteresisModel",
+    "Inverse",
+    "PI",
+    "PlayOperator",
+    "Preisach",
+    "RateDependentPI",
+    "SCHEMA_VERSION",
+    "SEED2_TABLE1",
+    "batch_rmse",
+    "batch_simulate",
+    "load_model",
+    "model_from_dict",
+    "mpi_seed2",
+]

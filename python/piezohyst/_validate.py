@@ -1,0 +1,56 @@
+"""Argument checks shared by the public API: each error names the argument and the value."""
+from __future__ import annotations
+
+import numbers
+
+import numpy as np
+
+
+def as_record(x, name: str, *, min_length: int = 1) -> np.ndarray:
+    """A finite 1-D float64 record (a copy the caller may keep)."""
+    if isinstance(x, (str, bytes)):
+        raise TypeError(f"{name} must be a 1-D array of numbers, got {type(x).__name__}")
+    try:
+        a = np.array(x, dtype=np.float64, copy=True)
+    except (TypeError, ValueError) as e:
+        raise TypeError(f"{name} must be a 1-D array of numbers: {e}") from None
+    if a.ndim != 1:
+        raise ValueError(f"{name} must be 1-D, got shape {a.shape}")
+    if a.size < min_length:
+        raise ValueError(f"{name} has {a.size} samples, at least {min_length} needed")
+    bad = np.flatnonzero(~np.isfinite(a))
+    if bad.size:
+        raise ValueError(f"{name}[{bad[0]}] = {a[bad[0]]} is not finite")
+    return a
+
+
+def as_vector(x, name: str, *, length: int | None = None, allow_empty: bool = True) -> np.ndarray:
+    """A finite 1-D float64 parameter vector."""
+    a = as_record(x, name, min_length=0 if allow_empty else 1)
+    if length is not None and a.size != length:
+        raise ValueError(f"{name} has length {a.size}, expected {length}")
+    return a
+
+
+def as_scalar(x, name: str, *, positive: bool = False, nonnegative: bool = False) -> float:
+    """A finite real scalar."""
+    if isinstance(x, bool) or not isinstance(x, (numbers.Real, np.floating, np.integer)):
+        raise TypeError(f"{name} must be a real number, got {x!r}")
+    v = float(x)
+    if not np.isfinite(v):
+        raise ValueError(f"{name} = {v} is not finite")
+    if positive and not v > 0:
+        raise ValueError(f"{name} = {v} must be > 0")
+    if nonnegative and v < 0:
+        raise ValueError(f"{name} = {v} must be >= 0")
+    return v
+
+
+def as_int(x, name: str, *, minimum: int = 0) -> int:
+    """An integer >= minimum."""
+    if isinstance(x, bool) or not isinstance(x, (numbers.Integral, np.integer)):
+        raise TypeError(f"{name} must be an integer, got {x!r}")
+    v = int(x)
+    if v < minimum:
+        raise ValueError(f"{name} = {v} must be >= {minimum}")
+    return v
