@@ -10,6 +10,9 @@ def as_record(x, name: str, *, min_length: int = 1) -> np.ndarray:
     """A finite 1-D float64 record (a copy the caller may keep)."""
     if isinstance(x, (str, bytes)):
         raise TypeError(f"{name} must be a 1-D array of numbers, got {type(x).__name__}")
+    raw = np.asarray(x) if not isinstance(x, np.ndarray) else x
+    if raw.dtype.kind in "cbUSO" and raw.dtype.kind != "O":
+        raise TypeError(f"{name} must be real numbers, got dtype {raw.dtype}")
     try:
         a = np.array(x, dtype=np.float64, copy=True)
     except (TypeError, ValueError) as e:

@@ -99,7 +99,7 @@ class HysteresisModel:
         -------
         ndarray, shape (N,)
         """
-        v = as_record(input, "input", min_length=0)
+        v = as_record(input, "input")
         st = self.initial_state() if initial_state is None else self._checked_state(initial_state, "initial_state")
         return _core.simulate(self.family, list(self.dims), self._row, v, st)
 
@@ -253,7 +253,7 @@ class Inverse:
 
         Raises ``ValueError`` naming the sample if a desired value cannot be reached.
         """
-        yd = as_record(desired, "desired", min_length=0)
+        yd = as_record(desired, "desired")
         m = self.model
         st = m.initial_state() if initial_state is None else m._checked_state(initial_state, "initial_state")
         return _core.inverse(m.family, list(m.dims), m._row, yd, st, 0.0)

@@ -125,6 +125,10 @@ class PlayOperator(PI):
     def parameters(self) -> dict:
         return {"threshold": self.threshold}
 
+    @classmethod
+    def _from_parameters(cls, p, units):
+        return cls(**p, units=units)
+
 
 _register(PlayOperator)
 

@@ -58,7 +58,7 @@ impl fmt::Display for ModelError {
             Length(n, e, g) => write!(f, "{n} has length {g}, expected {e}"),
             NotInvertible(i, s) => write!(
                 f,
-                "weights are not invertible: partial sum S[{i}] = p0 + weights[0..{i}] = {s} must be > 0"
+                "weights are not invertible: partial sum S[{i}] = p0 + sum(weights[:{i}]) = {s} must be > 0 (no inverse exists)"
             ),
             EnvelopeNotMonotone(n, v, d) => write!(
                 f,

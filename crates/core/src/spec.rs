@@ -63,7 +63,8 @@ impl Family {
             "pi" | "rdpi" | "preisach" => 2,
             "gpi" => 4,
             "creep" => 1,
-            _ => 0,
+            "boucwen" | "duhem" | "dahl" => 0,
+            _ => return Err(ModelError::Structure("family (unknown name)", 0)),
         };
         if dims.len() != want {
             return Err(ModelError::Length("dims", want, dims.len()));
