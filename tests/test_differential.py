@@ -95,3 +95,13 @@ def test_duhem_closed_form_matches_ode(alpha):
 def test_bouc_wen_benchmark_form():
     m = ph.BoucWen.from_benchmark(5e4, 1e3, 0.8, -1.1, 1.0)
     assert (m.a, m.beta, m.gamma, m.n) == (5e4, 800.0, -1100.0, 1.0)
+
+
+def test_bouc_wen_per_sample_inverse():
+    # y = d w - h is increasing when d exceeds the largest dh/dw = a + (beta - gamma) * a / (beta - gamma)
+    m = ph.BoucWen(1.0, 2.0, 0.5, d=2.5)
+    v = 1.5 * np.sin(np.linspace(0, 12, 600)) * np.linspace(1, 0.3, 600)
+    yd = m.simulate(v)
+    v_found = m.inverse().simulate(yd)
+    assert np.max(np.abs(m.simulate(v_found) - yd)) <= 1e-9
+    assert np.max(np.abs(v_found - v)) <= 1e-9

@@ -4,7 +4,6 @@ import numpy as np
 import numpy.typing as npt
 
 __version__: str
-LANES: int
 
 Array1 = npt.NDArray[np.float64]
 Array2 = npt.NDArray[np.float64]

@@ -4,27 +4,32 @@
 //! batch result is bit-identical to simulating each set alone.
 use crate::math::clamp;
 
-/// Parameter sets processed together.
+/// Narrowest lane width the batch engine uses (wider ones: 16, 32).
 pub const LANES: usize = 8;
 
-/// One lane-vector of `f64`.
-pub type Lanes = [f64; LANES];
-
-/// Classical PI for `LANES` parameter sets: `r`, `w`, `z` are `[operator][lane]`; the
+/// Classical PI for `L` parameter sets: `r`, `w`, `z` are `[operator][lane]`; the
 /// outputs of `v[k]` go to `y[k]` (`y.len() >= v.len()`). Kept free of callbacks so the
-/// compiler sees plain element-wise loops.
+/// compiler sees plain element-wise loops. Wider `L` (16, 32) keeps more independent work
+/// in flight per sample; the caller picks it from the number of parameter sets.
 #[inline(always)]
-pub fn pi_lanes(p0: &Lanes, r: &[Lanes], w: &[Lanes], z: &mut [Lanes], v: &[f64], y: &mut [Lanes]) {
+pub fn pi_lanes<const L: usize>(
+    p0: &[f64; L],
+    r: &[[f64; L]],
+    w: &[[f64; L]],
+    z: &mut [[f64; L]],
+    v: &[f64],
+    y: &mut [[f64; L]],
+) {
     let n = r.len().min(w.len()).min(z.len());
     let (r, w, z) = (&r[..n], &w[..n], &mut z[..n]);
     for (yk, &vk) in y.iter_mut().zip(v) {
-        let mut acc = [0.0; LANES];
-        for l in 0..LANES {
+        let mut acc = [0.0; L];
+        for l in 0..L {
             acc[l] = p0[l] * vk;
         }
         for i in 0..n {
             let (ri, wi, zi) = (&r[i], &w[i], &mut z[i]);
-            for l in 0..LANES {
+            for l in 0..L {
                 zi[l] = clamp(zi[l], vk - ri[l], vk + ri[l]);
                 acc[l] += wi[l] * zi[l];
             }

@@ -3,7 +3,7 @@
 //! entry points release the GIL and spread parameter sets over rayon's threads.
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyUntypedArrayMethods, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1};
-use piezohyst_core::batch::{pi_lanes, LANES};
+use piezohyst_core::batch::pi_lanes;
 use piezohyst_core::inverse::{inverse_simulate, solve_increasing};
 use piezohyst_core::pi::Pi;
 use piezohyst_core::spec::{Family, Model};
@@ -251,14 +251,14 @@ fn run_one(fam: Family, row: &[f64], v: &[f64], sink: &mut Sink<'_>) -> Result<(
     })
 }
 
-/// `LANES` classical-PI parameter sets at once. Rows must already be valid.
+/// `L` classical-PI parameter sets at once (rows already valid, at most `L`).
 #[inline(always)]
-fn pi_group_body(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
-    let mut p0 = [0.0; LANES];
-    let mut r = vec![[0.0; LANES]; n];
-    let mut w = vec![[0.0; LANES]; n];
-    let mut z = vec![[0.0; LANES]; n];
-    for l in 0..LANES {
+fn pi_group_body<const L: usize>(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
+    let mut p0 = [0.0; L];
+    let mut r = vec![[0.0; L]; n];
+    let mut w = vec![[0.0; L]; n];
+    let mut z = vec![[0.0; L]; n];
+    for l in 0..L {
         let row = rows[l.min(rows.len() - 1)]; // pad with the last set
         p0[l] = row[0];
         for i in 0..n {
@@ -268,10 +268,10 @@ fn pi_group_body(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: 
     }
     let used = rows.len();
     let nv = v.len();
-    // samples go through in blocks so the kernel stays a plain loop
-    const BLOCK: usize = 512;
-    let mut y = [[0.0; LANES]; BLOCK];
-    let mut sse = [0.0; LANES];
+    // samples go through in short blocks so the outputs stay in L1
+    const BLOCK: usize = 16;
+    let mut y = [[0.0; L]; BLOCK];
+    let mut sse = [0.0; L];
     for (b, vb) in v.chunks(BLOCK).enumerate() {
         let k0 = b * BLOCK;
         pi_lanes(&p0, &r, &w, &mut z, vb, &mut y);
@@ -285,7 +285,7 @@ fn pi_group_body(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: 
             }
             Some(t) => {
                 for (yk, &tk) in y[..vb.len()].iter().zip(&t[k0..]) {
-                    for l in 0..LANES {
+                    for l in 0..L {
                         let e = yk[l] - tk;
                         sse[l] += e * e;
                     }
@@ -300,29 +300,36 @@ fn pi_group_body(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: 
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-unsafe fn pi_group_avx512(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
-    pi_group_body(n, rows, v, out, target)
+unsafe fn pi_group_avx512<const L: usize>(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
+    pi_group_body::<L>(n, rows, v, out, target)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn pi_group_avx2(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
-    pi_group_body(n, rows, v, out, target)
+unsafe fn pi_group_avx2<const L: usize>(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
+    pi_group_body::<L>(n, rows, v, out, target)
 }
 
 /// Same arithmetic on every path (no FMA contraction): the instruction set only changes
 /// the speed, never the bits.
-fn pi_group(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
+fn pi_group<const L: usize>(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
     #[cfg(target_arch = "x86_64")]
     {
         if std::is_x86_feature_detected!("avx512f") {
-            return unsafe { pi_group_avx512(n, rows, v, out, target) };
+            return unsafe { pi_group_avx512::<L>(n, rows, v, out, target) };
         }
         if std::is_x86_feature_detected!("avx2") {
-            return unsafe { pi_group_avx2(n, rows, v, out, target) };
+            return unsafe { pi_group_avx2::<L>(n, rows, v, out, target) };
         }
     }
-    pi_group_body(n, rows, v, out, target)
+    pi_group_body::<L>(n, rows, v, out, target)
+}
+
+/// Lane width for `s` parameter sets: as wide as possible (more independent work per
+/// sample) while still giving every rayon thread a group.
+fn lane_width(s: usize) -> usize {
+    let threads = rayon::current_num_threads().max(1);
+    [32, 16].into_iter().find(|&l| s >= l * threads).unwrap_or(8)
 }
 
 /// Check rows; returns per-row validity or the first error (with its row index).
@@ -355,15 +362,20 @@ fn batch_core(
     let mut errs: Vec<Option<ModelError>> = vec![None; s];
     match fam {
         Family::Pi { n, creep: 0 } => {
-            // groups of LANES valid rows; invalid rows are left for the caller
+            // groups of `lanes` valid rows; invalid rows are left for the caller
             let idx: Vec<usize> = (0..s).filter(|&j| valid[j]).collect();
-            let groups: Vec<&[usize]> = idx.chunks(LANES).collect();
+            let lanes = lane_width(idx.len());
+            let groups: Vec<&[usize]> = idx.chunks(lanes).collect();
             let results: Vec<(Vec<usize>, Vec<f64>)> = groups
                 .par_iter()
                 .map(|g| {
                     let rows: Vec<&[f64]> = g.iter().map(|&j| &params[j * p..(j + 1) * p]).collect();
                     let mut buf = vec![0.0; g.len() * per];
-                    pi_group(n, &rows, v, &mut buf, target);
+                    match lanes {
+                        32 => pi_group::<32>(n, &rows, v, &mut buf, target),
+                        16 => pi_group::<16>(n, &rows, v, &mut buf, target),
+                        _ => pi_group::<8>(n, &rows, v, &mut buf, target),
+                    }
                     (g.to_vec(), buf)
                 })
                 .collect();
@@ -493,7 +505,6 @@ fn thread_count() -> usize {
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
-    m.add("LANES", LANES)?;
     m.add_function(wrap_pyfunction!(family_sizes, m)?)?;
     m.add_function(wrap_pyfunction!(validate, m)?)?;
     m.add_function(wrap_pyfunction!(initial_state, m)?)?;
