@@ -278,19 +278,18 @@ impl Dahl {
         let t = self.sigma / self.h_c * abs(du);
         let x = if self.a == 1.0 {
             x0 * exp(-t)
+        } else if x0 == 0.0 {
+            0.0 // saturated in this direction: x stays at 0
         } else {
+            // x^e = x0^e - e t (e = 1 - a), written as x = x0 (1 + u)^(1/e) with
+            // u = -e t x0^(-e), evaluated through log1p so that it stays accurate as a -> 1
+            // (the form (x0^e - e t)^(1/e) loses about log10(1/|e|) digits)
             let e = 1.0 - self.a;
-            let base = pow(x0, e) - e * t;
-            if self.a < 1.0 {
-                if base <= 0.0 {
-                    0.0
-                } else {
-                    pow(base, 1.0 / e)
-                }
-            } else if x0 == 0.0 {
-                0.0
+            let u = -e * t * pow(x0, -e);
+            if u <= -1.0 {
+                0.0 // a < 1: saturation reached within this increment
             } else {
-                pow(base, 1.0 / e)
+                x0 * exp(libm::log1p(u) / e)
             }
         };
         s * self.h_c * (1.0 - x)

@@ -52,8 +52,12 @@ impl<'a> GeneralizedPi<'a> {
         }
         check_finite("weights", weights)?;
         let (lo, hi) = input_range;
-        if lo.is_nan() || hi.is_nan() || !(lo < hi) {
-            return Err(ModelError::NotFinite("input_range", 0, lo));
+        if lo.is_nan() || hi.is_nan() {
+            let (i, x) = if lo.is_nan() { (0, lo) } else { (1, hi) };
+            return Err(ModelError::NotFinite("input_range", i, x));
+        }
+        if !(lo < hi) {
+            return Err(ModelError::NotIncreasing("input_range", 1, hi));
         }
         rising.check_increasing("rising", lo, hi)?;
         falling.check_increasing("falling", lo, hi)?;

@@ -78,6 +78,10 @@ pub fn solve_increasing<F: Fn(f64) -> (f64, f64)>(f: F, target: f64, guess: f64)
     }
     // refine inside [lo, hi], r_lo < 0 < r_hi
     let mut x = if abs(r_lo) < abs(r_hi) { lo } else { hi };
+    // bracket widths one and two iterations ago: Newton must at least halve the bracket
+    // every two steps, else it is cycling (e.g. across the inflexion of an S-shaped curve,
+    // where it can alternate between two points forever) and we bisect
+    let (mut width_1, mut width_2) = (hi - lo, f64::INFINITY);
     for _ in 0..MAX_REFINEMENTS {
         let (y, d) = f(x);
         let r = y - target;
@@ -91,8 +95,12 @@ pub fn solve_increasing<F: Fn(f64) -> (f64, f64)>(f: F, target: f64, guess: f64)
             hi = x;
             r_hi = r;
         }
+        let width = hi - lo;
+        let slow = width > 0.5 * width_2;
+        width_2 = width_1;
+        width_1 = width;
         let mut next = if d > 0.0 && d.is_finite() { x - r / d } else { f64::NAN };
-        if !(next > lo && next < hi) {
+        if slow || !(next > lo && next < hi) {
             next = lo + 0.5 * (hi - lo);
         }
         if next <= lo || next >= hi {

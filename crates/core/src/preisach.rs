@@ -188,7 +188,16 @@ impl<'a> Preisach<'a> {
             // reversal: v_prev becomes an extremum, unless it sits in saturation
             // (falling out of negative saturation leaves nothing to remember)
             let all_down = !rising && len == 0 && v_prev <= self.lo;
-            if !all_down {
+            // v_prev is wiped at once (with the last stored extremum as its partner) when v
+            // already passes that extremum; it then needs no slot, and nothing is forgotten
+            let wiped_at_once = if rising {
+                len >= 1 && ext[len - 1] <= v
+            } else {
+                len >= 2 && ext[len - 1] >= v
+            };
+            if wiped_at_once {
+                len -= 1;
+            } else if !all_down {
                 if len == self.memory {
                     len = self.forget_smallest_loop(ext, len);
                 }

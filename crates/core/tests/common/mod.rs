@@ -3,7 +3,7 @@
 
 use piezohyst_core::Hysteresis;
 use proptest::prelude::*;
-use proptest::test_runner::Config;
+use proptest::test_runner::{Config, TestCaseError};
 
 /// Proptest configuration: `cases` cases, no regression files written into the source tree.
 pub fn cfg(cases: u32) -> Config {
@@ -63,15 +63,22 @@ pub fn pick(y: &[f64], idx: &[usize]) -> Vec<f64> {
     idx.iter().map(|&i| y[i]).collect()
 }
 
-/// Largest absolute value.
+/// Largest absolute value; NaN if any value is NaN (so a comparison against it fails).
 pub fn max_abs(x: &[f64]) -> f64 {
-    x.iter().fold(0.0f64, |m, v| m.max(v.abs()))
+    x.iter().fold(0.0f64, |m, v| if m.is_nan() || v.is_nan() { f64::NAN } else { m.max(v.abs()) })
 }
 
-/// Largest absolute difference.
+/// Largest absolute difference; NaN if any difference is NaN or any value is not finite
+/// (so `max_diff(..) <= tol` fails on a diverged record).
 pub fn max_diff(a: &[f64], b: &[f64]) -> f64 {
     assert_eq!(a.len(), b.len());
-    a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
+    a.iter().zip(b).fold(0.0f64, |m, (x, y)| {
+        if m.is_nan() || !x.is_finite() || !y.is_finite() {
+            f64::NAN
+        } else {
+            m.max((x - y).abs())
+        }
+    })
 }
 
 /// Assert two records are bit-identical, naming the first differing sample.
@@ -80,6 +87,15 @@ pub fn assert_bits_eq(a: &[f64], b: &[f64], what: &str) {
     for (k, (x, y)) in a.iter().zip(b).enumerate() {
         assert!(x.to_bits() == y.to_bits(), "{what}: sample {k} differs: {x:e} vs {y:e}");
     }
+}
+
+/// As [`assert_bits_eq`], for use inside proptest bodies (returns the failure).
+pub fn prop_bits_eq(a: &[f64], b: &[f64], what: &str) -> Result<(), TestCaseError> {
+    prop_assert_eq!(a.len(), b.len(), "{}: lengths differ", what);
+    for (k, (x, y)) in a.iter().zip(b).enumerate() {
+        prop_assert!(x.to_bits() == y.to_bits(), "{}: sample {} differs: {:e} vs {:e}", what, k, x, y);
+    }
+    Ok(())
 }
 
 /// Strictly increasing thresholds from positive increments: `first + cumsum(increments)`.
@@ -110,6 +126,28 @@ pub fn rk4<F: Fn(f64, f64) -> f64>(f: F, mut x: f64, t0: f64, dt_total: f64, ste
         let k3 = f(t + 0.5 * h, x + 0.5 * h * k2);
         let k4 = f(t + h, x + h * k3);
         x += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+    }
+    x
+}
+
+/// RK4 as [`rk4`], but a step in which `x` changes sign (where `|x|` makes the right-hand
+/// side non-smooth) is redone with `refine` sub-steps, so the kink costs no accuracy.
+pub fn rk4_sign_refined<F: Fn(f64, f64) -> f64>(
+    f: F,
+    mut x: f64,
+    t0: f64,
+    dt_total: f64,
+    steps: usize,
+    refine: usize,
+) -> f64 {
+    let h = dt_total / steps as f64;
+    for i in 0..steps {
+        let t = t0 + h * i as f64;
+        let x1 = rk4(&f, x, t, h, 1);
+        if !x1.is_finite() {
+            return f64::NAN; // diverged: let the comparison fail fast
+        }
+        x = if x != 0.0 && x1.signum() != x.signum() { rk4(&f, x, t, h, refine) } else { x1 };
     }
     x
 }
