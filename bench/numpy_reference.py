@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["pi_batch_rmse", "block_size"]
+__all__ = ["pi_batch_rmse", "pi_batch_rmse_per_step", "block_size"]
 
 DEFAULT_BUDGET = 512 * 1024  # bytes for the three (B, S, n) block buffers
 
@@ -99,3 +99,25 @@ def pi_batch_rmse_scalar(params, v, target, n: int) -> np.ndarray:
             sse += (y - tk) ** 2
         out[s] = np.sqrt(sse / len(v))
     return out
+
+
+def pi_batch_rmse_per_step(params, v, target, n: int) -> np.ndarray:
+    """The straightforward form of the reference: per sample, the whole ``(S, n)`` play
+    update and the weighted sum as array operations (what a NumPy user writes first).
+    Same model; no blocking of the non-recurrent parts."""
+    params = np.asarray(params, dtype=np.float64)
+    p0 = params[:, 0]
+    r = params[:, 1 : 1 + n]
+    w = params[:, 1 + n : 1 + 2 * n]
+    z = np.zeros_like(r)
+    lo = np.empty_like(r)
+    hi = np.empty_like(r)
+    sse = np.zeros(params.shape[0])
+    for vk, tk in zip(v.tolist(), target.tolist()):
+        np.subtract(vk, r, out=lo)
+        np.add(vk, r, out=hi)
+        np.minimum(z, hi, out=z)
+        np.maximum(z, lo, out=z)
+        e = p0 * vk + np.einsum("ij,ij->i", w, z) - tk
+        sse += e * e
+    return np.sqrt(sse / len(v))

@@ -44,6 +44,11 @@ import tempfile
 import time
 from pathlib import Path
 
+# Neither side calls BLAS (the reference uses ufuncs and einsum without optimize). An idle
+# OpenBLAS thread pool still polls, and on a 2-core machine it competes with rayon's
+# threads, so the pool is kept at one thread in this process and in the workers.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
@@ -158,6 +163,7 @@ def worker(spec: dict) -> dict:
 def run_worker(threads: int, spec: dict) -> dict:
     env = dict(os.environ)
     env["RAYON_NUM_THREADS"] = str(threads)
+    env["OPENBLAS_NUM_THREADS"] = "1"
     proc = subprocess.run(
         [sys.executable, str(Path(__file__).resolve()), "--worker", json.dumps(spec)],
         env=env, capture_output=True, text=True, check=False,
@@ -291,6 +297,7 @@ def main(argv=None) -> int:
     # interleaved rounds: piezohyst (fresh process per thread count), then NumPy
     rust_rounds = {t: [] for t in THREADS}
     np_rounds = {wl["name"]: [] for wl in WORKLOADS}
+    step_rounds = {wl["name"]: [] for wl in WORKLOADS}
     for _ in range(rounds):
         for t in THREADS:
             rust_rounds[t].append(run_worker(t, spec))
@@ -304,6 +311,11 @@ def main(argv=None) -> int:
                 times.append(time.perf_counter() - t0)
                 assert np.array_equal(res, refs[wl["name"]]), "NumPy reference is not deterministic"
             np_rounds[wl["name"]].append(times)
+            # the straightforward per-step form, once per round (it is the slow one)
+            t0 = time.perf_counter()
+            res = numpy_reference.pi_batch_rmse_per_step(params, v, target, wl["n"])
+            step_rounds[wl["name"]].append(time.perf_counter() - t0)
+            np.testing.assert_allclose(res, refs[wl["name"]], rtol=RTOL, atol=0)
 
     results = []
     for wl in WORKLOADS:
@@ -321,6 +333,10 @@ def main(argv=None) -> int:
                 "reps": len(np_times), "warmup_s": np_warm[name],
                 "times_s_by_round": np_rounds[name],
                 "median_s": statistics.median(np_times), "min_s": min(np_times),
+            },
+            "numpy_per_step": {
+                "times_s": step_rounds[name], "median_s": statistics.median(step_rounds[name]),
+                "updates_per_s": updates / statistics.median(step_rounds[name]),
             },
             "piezohyst": {},
         }
@@ -357,12 +373,19 @@ def main(argv=None) -> int:
         entry["speedup"] = {"1_thread_vs_numpy": r1 / np_rate, "2_thread_vs_numpy": r2 / np_rate,
                             "2_thread_vs_1_thread": r2 / r1,
                             "best_2_thread_vs_best_numpy": entry["piezohyst"]["2_thread"]["updates_per_s_best"]
-                            / entry["numpy"]["updates_per_s_best"]}
+                            / entry["numpy"]["updates_per_s_best"],
+                            "2_thread_vs_numpy_per_step": r2 / entry["numpy_per_step"]["updates_per_s"]}
         entry["targets"] = {
             "updates_per_s_2_thread_ge_1e9": r2 >= TARGET_UPDATES_PER_S,
             "speedup_2_thread_vs_numpy_ge_100": r2 / np_rate >= TARGET_SPEEDUP,
+            "speedup_2_thread_vs_numpy_per_step_ge_100":
+                entry["speedup"]["2_thread_vs_numpy_per_step"] >= TARGET_SPEEDUP,
         }
-        entry["targets"]["pass"] = all(entry["targets"].values())
+        tg = entry["targets"]
+        tg["pass_against_tuned_reference"] = tg["updates_per_s_2_thread_ge_1e9"] and tg["speedup_2_thread_vs_numpy_ge_100"]
+        tg["pass_against_per_step_reference"] = (tg["updates_per_s_2_thread_ge_1e9"]
+                                                 and tg["speedup_2_thread_vs_numpy_per_step_ge_100"])
+        tg["pass"] = tg["pass_against_tuned_reference"]
         results.append(entry)
 
     head = next(e for e in results if e["name"] == HEADLINE)
@@ -372,6 +395,7 @@ def main(argv=None) -> int:
         "machine": info,
         "versions": vers,
         "method": {
+            "blas": "OPENBLAS_NUM_THREADS=1 everywhere: no BLAS call is timed, and an idle pool competes with rayon on 2 cores",
             "unit": "play-operator updates per second; one batch_rmse call = S*N*n updates",
             "statistic": "median of repetitions (min and raw times also given)",
             "piezohyst_call": "piezohyst.batch.batch_rmse('pi', params, v, target, dims=[n, 0]) "
@@ -385,6 +409,9 @@ def main(argv=None) -> int:
             "numpy_reference": "bench/numpy_reference.py: vectorized over (S, n), Python loop "
                                "over time only, blocked bounds/weighted sum, single-threaded; "
                                "full-length record, no scaling",
+            "numpy_per_step_reference": "bench/numpy_reference.py::pi_batch_rmse_per_step: the "
+                                        "straightforward form (per sample: bounds, min, max, "
+                                        "weighted sum over (S, n)); timed once per round",
             "numpy_reps": f"per round and case: at least ceil({args.numpy_reps}/{rounds}), more "
                           f"for fast calls (~{args.min_time}s, at most {args.max_reps}), after one "
                           "warm-up call",
@@ -412,24 +439,27 @@ def main(argv=None) -> int:
     print(f"PI batch RMSE throughput (play-operator updates/s, median) — {info['cpu_model']}, "
           f"{info['cpu_count']} CPUs, numpy {vers['numpy']}, piezohyst {vers['piezohyst']}")
     hdr = (f"{'workload':<12} {'S':>5} {'n':>2} {'N':>6} | {'piezohyst 1T':>12} {'piezohyst 2T':>12} "
-           f"{'2T/1T':>5} | {'NumPy':>7} | {'1T/np':>6} {'2T/np':>6} | {'>=1e9':>5} {'>=100x':>6}")
+           f"{'2T/1T':>5} | {'NumPy':>7} {'per-step':>8} | {'2T/np':>6} {'2T/step':>7} | {'>=1e9':>5} {'>=100x':>6} {'(step)':>6}")
     print(hdr)
     print("-" * len(hdr))
     for e in results:
         p1 = e["piezohyst"]["1_thread"]["updates_per_s"]
         p2 = e["piezohyst"]["2_thread"]["updates_per_s"]
         print(f"{e['name']:<12} {e['S']:>5} {e['n']:>2} {e['N']:>6} | {fmt_rate(p1):>12} {fmt_rate(p2):>12} "
-              f"{e['speedup']['2_thread_vs_1_thread']:>5.2f} | {fmt_rate(e['numpy']['updates_per_s']):>7} | "
-              f"{e['speedup']['1_thread_vs_numpy']:>5.1f}x {e['speedup']['2_thread_vs_numpy']:>5.1f}x | "
+              f"{e['speedup']['2_thread_vs_1_thread']:>5.2f} | {fmt_rate(e['numpy']['updates_per_s']):>7} "
+              f"{fmt_rate(e['numpy_per_step']['updates_per_s']):>8} | "
+              f"{e['speedup']['2_thread_vs_numpy']:>5.1f}x {e['speedup']['2_thread_vs_numpy_per_step']:>6.1f}x | "
               f"{yes[e['targets']['updates_per_s_2_thread_ge_1e9']]:>5} "
-              f"{yes[e['targets']['speedup_2_thread_vs_numpy_ge_100']]:>6}")
+              f"{yes[e['targets']['speedup_2_thread_vs_numpy_ge_100']]:>6} "
+              f"{yes[e['targets']['speedup_2_thread_vs_numpy_per_step_ge_100']]:>6}")
     worst = max(e["piezohyst"][f"{t}_thread"]["max_rel_diff_vs_numpy"] for e in results for t in THREADS)
     print(f"RMSE check: piezohyst == NumPy reference to rtol {RTOL:g} for all sets (max rel diff "
           f"{worst:.1e}); 1T/2T bit-identical: "
           f"{all(e['threads_bitwise_identical'] for e in results)}")
     print(f"Headline {HEADLINE}: {yes[head['targets']['pass']]} "
           f"(>=1e9/s: {yes[head['targets']['updates_per_s_2_thread_ge_1e9']]}, "
-          f">=100x NumPy: {yes[head['targets']['speedup_2_thread_vs_numpy_ge_100']]}). "
+          f">=100x tuned NumPy: {yes[head['targets']['speedup_2_thread_vs_numpy_ge_100']]}, "
+          f">=100x per-step NumPy: {yes[head['targets']['speedup_2_thread_vs_numpy_per_step_ge_100']]}). "
           f"Wrote {args.out} in {payload['wall_time_s']} s.")
     return 0
 

@@ -6,21 +6,25 @@ import numbers
 import numpy as np
 
 
-def as_record(x, name: str, *, min_length: int = 1) -> np.ndarray:
-    """A finite 1-D float64 record (a copy the caller may keep)."""
+def as_record(x, name: str, *, min_length: int = 1, copy: bool = True, finite: bool = True) -> np.ndarray:
+    """A finite 1-D float64 record: a copy the caller may keep, or (``copy=False``) a
+    read-only view when the data is already float64. ``finite=False`` leaves the
+    NaN/Inf check to the Rust core, which reports it with the same wording."""
     if isinstance(x, (str, bytes)):
         raise TypeError(f"{name} must be a 1-D array of numbers, got {type(x).__name__}")
     raw = np.asarray(x) if not isinstance(x, np.ndarray) else x
     if raw.dtype.kind in "cbUSO" and raw.dtype.kind != "O":
         raise TypeError(f"{name} must be real numbers, got dtype {raw.dtype}")
     try:
-        a = np.array(x, dtype=np.float64, copy=True)
+        a = np.array(x, dtype=np.float64, copy=True) if copy else np.ascontiguousarray(x, dtype=np.float64)
     except (TypeError, ValueError) as e:
         raise TypeError(f"{name} must be a 1-D array of numbers: {e}") from None
     if a.ndim != 1:
         raise ValueError(f"{name} must be 1-D, got shape {a.shape}")
     if a.size < min_length:
         raise ValueError(f"{name} has {a.size} samples, at least {min_length} needed")
+    if not finite:
+        return a
     bad = np.flatnonzero(~np.isfinite(a))
     if bad.size:
         raise ValueError(f"{name}[{bad[0]}] = {a[bad[0]]} is not finite")

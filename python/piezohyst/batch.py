@@ -61,7 +61,7 @@ def batch_simulate(model, params, input, *, dims=None):
     """
     family, d = _family(model, dims)
     width, _ = _core.family_sizes(family, d)
-    v = as_record(input, "input")
+    v = as_record(input, "input", copy=False, finite=False)
     return _core.batch_simulate(family, d, _params(params, width), v)
 
 
@@ -85,8 +85,8 @@ def batch_rmse(model, params, input, target, *, dims=None, invalid_cost=None):
     """
     family, d = _family(model, dims)
     width, _ = _core.family_sizes(family, d)
-    v = as_record(input, "input")
-    t = as_record(target, "target")
+    v = as_record(input, "input", copy=False, finite=False)
+    t = as_record(target, "target", copy=False, finite=False)
     if t.shape != v.shape:
         raise ValueError(f"target has length {t.size}, input has length {v.size}; they must match")
     if invalid_cost is not None:

@@ -37,3 +37,31 @@ pub fn pi_lanes<const L: usize>(
         *yk = acc;
     }
 }
+
+/// [`pi_lanes`] with the operator count `N` known at compile time: the operator loop
+/// unrolls and the play states stay in registers. Same arithmetic, same order, same bits.
+#[inline(always)]
+pub fn pi_lanes_fixed<const L: usize, const N: usize>(
+    p0: &[f64; L],
+    r: &[[f64; L]; N],
+    w: &[[f64; L]; N],
+    z: &mut [[f64; L]; N],
+    v: &[f64],
+    y: &mut [[f64; L]],
+) {
+    let mut zz = *z;
+    for (yk, &vk) in y.iter_mut().zip(v) {
+        let mut acc = [0.0; L];
+        for l in 0..L {
+            acc[l] = p0[l] * vk;
+        }
+        for i in 0..N {
+            for l in 0..L {
+                zz[i][l] = clamp(zz[i][l], vk - r[i][l], vk + r[i][l]);
+                acc[l] += w[i][l] * zz[i][l];
+            }
+        }
+        *yk = acc;
+    }
+    *z = zz;
+}

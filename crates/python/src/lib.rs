@@ -3,7 +3,7 @@
 //! entry points release the GIL and spread parameter sets over rayon's threads.
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyUntypedArrayMethods, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1};
-use piezohyst_core::batch::pi_lanes;
+use piezohyst_core::batch::{pi_lanes, pi_lanes_fixed};
 use piezohyst_core::inverse::{inverse_simulate, solve_increasing};
 use piezohyst_core::pi::Pi;
 use piezohyst_core::spec::{Family, Model};
@@ -251,63 +251,115 @@ fn run_one(fam: Family, row: &[f64], v: &[f64], sink: &mut Sink<'_>) -> Result<(
     })
 }
 
-/// `L` classical-PI parameter sets at once (rows already valid, at most `L`).
+/// Samples go through the lane kernels in short blocks so the outputs stay in L1.
+const BLOCK: usize = 16;
+
+/// Hand one block of lane outputs to the caller's sink: either rows of `out` (`(used, nv)`
+/// row-major) or the running sums of squared errors against `target`.
 #[inline(always)]
-fn pi_group_body<const L: usize>(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
+fn drain_block<const L: usize>(
+    y: &[[f64; L]],
+    k0: usize,
+    used: usize,
+    nv: usize,
+    out: &mut [f64],
+    target: Option<&[f64]>,
+    sse: &mut [f64; L],
+) {
+    match target {
+        None => {
+            for l in 0..used {
+                for (j, yk) in y.iter().enumerate() {
+                    out[l * nv + k0 + j] = yk[l];
+                }
+            }
+        }
+        Some(t) => {
+            for (yk, &tk) in y.iter().zip(&t[k0..]) {
+                for l in 0..L {
+                    let e = yk[l] - tk;
+                    sse[l] += e * e;
+                }
+            }
+        }
+    }
+}
+
+/// Lane-major parameters of up to `L` rows (padded with the last row).
+fn gather<const L: usize>(n: usize, rows: &[&[f64]], r: &mut [[f64; L]], w: &mut [[f64; L]]) -> [f64; L] {
     let mut p0 = [0.0; L];
-    let mut r = vec![[0.0; L]; n];
-    let mut w = vec![[0.0; L]; n];
-    let mut z = vec![[0.0; L]; n];
     for l in 0..L {
-        let row = rows[l.min(rows.len() - 1)]; // pad with the last set
+        let row = rows[l.min(rows.len() - 1)];
         p0[l] = row[0];
         for i in 0..n {
             r[i][l] = row[1 + i];
             w[i][l] = row[1 + n + i];
         }
     }
-    let used = rows.len();
-    let nv = v.len();
-    // samples go through in short blocks so the outputs stay in L1
-    const BLOCK: usize = 16;
+    p0
+}
+
+/// `L` classical-PI parameter sets at once (rows already valid, at most `L`), any `n`.
+#[inline(always)]
+fn pi_group_body<const L: usize>(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
+    let mut r = vec![[0.0; L]; n];
+    let mut w = vec![[0.0; L]; n];
+    let mut z = vec![[0.0; L]; n];
+    let p0 = gather(n, rows, &mut r, &mut w);
     let mut y = [[0.0; L]; BLOCK];
     let mut sse = [0.0; L];
     for (b, vb) in v.chunks(BLOCK).enumerate() {
-        let k0 = b * BLOCK;
         pi_lanes(&p0, &r, &w, &mut z, vb, &mut y);
-        match target {
-            None => {
-                for l in 0..used {
-                    for (j, yk) in y[..vb.len()].iter().enumerate() {
-                        out[l * nv + k0 + j] = yk[l];
-                    }
-                }
-            }
-            Some(t) => {
-                for (yk, &tk) in y[..vb.len()].iter().zip(&t[k0..]) {
-                    for l in 0..L {
-                        let e = yk[l] - tk;
-                        sse[l] += e * e;
-                    }
-                }
-            }
-        }
+        drain_block(&y[..vb.len()], b * BLOCK, rows.len(), v.len(), out, target, &mut sse);
     }
     if target.is_some() {
-        out[..used].copy_from_slice(&sse[..used]);
+        out[..rows.len()].copy_from_slice(&sse[..rows.len()]);
     }
+}
+
+/// As [`pi_group_body`] with `N` operators fixed at compile time (states in registers).
+#[inline(always)]
+fn pi_group_fixed<const L: usize, const N: usize>(rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
+    let mut r = [[0.0; L]; N];
+    let mut w = [[0.0; L]; N];
+    let mut z = [[0.0; L]; N];
+    let p0 = gather(N, rows, &mut r, &mut w);
+    let mut y = [[0.0; L]; BLOCK];
+    let mut sse = [0.0; L];
+    for (b, vb) in v.chunks(BLOCK).enumerate() {
+        pi_lanes_fixed(&p0, &r, &w, &mut z, vb, &mut y);
+        drain_block(&y[..vb.len()], b * BLOCK, rows.len(), v.len(), out, target, &mut sse);
+    }
+    if target.is_some() {
+        out[..rows.len()].copy_from_slice(&sse[..rows.len()]);
+    }
+}
+
+/// Dispatch on the operator count: the common sizes (1..=12, seed 2 uses 9) get an
+/// unrolled kernel, larger ones the general loop.
+#[inline(always)]
+fn pi_group_any<const L: usize>(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
+    macro_rules! fixed {
+        ($($n:literal)*) => {
+            match n {
+                $($n => pi_group_fixed::<L, $n>(rows, v, out, target),)*
+                _ => pi_group_body::<L>(n, rows, v, out, target),
+            }
+        };
+    }
+    fixed!(1 2 3 4 5 6 7 8 9 10 11 12)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 unsafe fn pi_group_avx512<const L: usize>(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
-    pi_group_body::<L>(n, rows, v, out, target)
+    pi_group_any::<L>(n, rows, v, out, target)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 unsafe fn pi_group_avx2<const L: usize>(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
-    pi_group_body::<L>(n, rows, v, out, target)
+    pi_group_any::<L>(n, rows, v, out, target)
 }
 
 /// Same arithmetic on every path (no FMA contraction): the instruction set only changes
@@ -322,14 +374,18 @@ fn pi_group<const L: usize>(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64
             return unsafe { pi_group_avx2::<L>(n, rows, v, out, target) };
         }
     }
-    pi_group_body::<L>(n, rows, v, out, target)
+    pi_group_any::<L>(n, rows, v, out, target)
 }
 
 /// Lane width for `s` parameter sets: as wide as possible (more independent work per
 /// sample) while still giving every rayon thread a group.
 fn lane_width(s: usize) -> usize {
     let threads = rayon::current_num_threads().max(1);
-    [32, 16].into_iter().find(|&l| s >= l * threads).unwrap_or(8)
+    if s >= 16 * threads {
+        16
+    } else {
+        8
+    }
 }
 
 /// Check rows; returns per-row validity or the first error (with its row index).
@@ -372,7 +428,6 @@ fn batch_core(
                     let rows: Vec<&[f64]> = g.iter().map(|&j| &params[j * p..(j + 1) * p]).collect();
                     let mut buf = vec![0.0; g.len() * per];
                     match lanes {
-                        32 => pi_group::<32>(n, &rows, v, &mut buf, target),
                         16 => pi_group::<16>(n, &rows, v, &mut buf, target),
                         _ => pi_group::<8>(n, &rows, v, &mut buf, target),
                     }
