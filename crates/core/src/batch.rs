@@ -4,13 +4,12 @@
 //! batch result is bit-identical to simulating each set alone.
 use crate::math::clamp;
 
-/// Narrowest lane width the batch engine uses (wider ones: 16, 32).
+/// Lane width the batch engine uses.
 pub const LANES: usize = 8;
 
 /// Classical PI for `L` parameter sets: `r`, `w`, `z` are `[operator][lane]`; the
 /// outputs of `v[k]` go to `y[k]` (`y.len() >= v.len()`). Kept free of callbacks so the
-/// compiler sees plain element-wise loops. Wider `L` (16, 32) keeps more independent work
-/// in flight per sample; the caller picks it from the number of parameter sets.
+/// compiler sees plain element-wise loops.
 #[inline(always)]
 pub fn pi_lanes<const L: usize>(
     p0: &[f64; L],

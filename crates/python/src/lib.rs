@@ -377,16 +377,9 @@ fn pi_group<const L: usize>(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64
     pi_group_any::<L>(n, rows, v, out, target)
 }
 
-/// Lane width for `s` parameter sets: as wide as possible (more independent work per
-/// sample) while still giving every rayon thread a group.
-fn lane_width(s: usize) -> usize {
-    let threads = rayon::current_num_threads().max(1);
-    if s >= 16 * threads {
-        16
-    } else {
-        8
-    }
-}
+/// Parameter sets per lane group: with the operator count unrolled, 8 lanes (one AVX-512
+/// register per operator) keep every play state in registers; wider groups spill.
+const GROUP: usize = 8;
 
 /// Check rows; returns per-row validity or the first error (with its row index).
 fn check_rows(fam: Family, params: &[f64], s: usize, raise: bool) -> PyResult<Vec<bool>> {
@@ -418,19 +411,15 @@ fn batch_core(
     let mut errs: Vec<Option<ModelError>> = vec![None; s];
     match fam {
         Family::Pi { n, creep: 0 } => {
-            // groups of `lanes` valid rows; invalid rows are left for the caller
+            // groups of GROUP valid rows; invalid rows are left for the caller
             let idx: Vec<usize> = (0..s).filter(|&j| valid[j]).collect();
-            let lanes = lane_width(idx.len());
-            let groups: Vec<&[usize]> = idx.chunks(lanes).collect();
+            let groups: Vec<&[usize]> = idx.chunks(GROUP).collect();
             let results: Vec<(Vec<usize>, Vec<f64>)> = groups
                 .par_iter()
                 .map(|g| {
                     let rows: Vec<&[f64]> = g.iter().map(|&j| &params[j * p..(j + 1) * p]).collect();
                     let mut buf = vec![0.0; g.len() * per];
-                    match lanes {
-                        16 => pi_group::<16>(n, &rows, v, &mut buf, target),
-                        _ => pi_group::<8>(n, &rows, v, &mut buf, target),
-                    }
+                    pi_group::<GROUP>(n, &rows, v, &mut buf, target);
                     (g.to_vec(), buf)
                 })
                 .collect();
