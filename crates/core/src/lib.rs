@@ -13,6 +13,7 @@
 #![cfg_attr(not(feature = "std"), no_std)]
 
 pub mod batch;
+pub mod boucwen_benchmark;
 pub mod creep;
 pub mod differential;
 pub mod envelope;

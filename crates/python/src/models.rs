@@ -1,0 +1,564 @@
+//! Hysteresis models: every model is addressed by its family name, dims and one flat
+//! parameter row (see `piezohyst_core::spec`). Batch entry points release the GIL and
+//! spread parameter sets over rayon's threads.
+use numpy::ndarray::Array2;
+use numpy::{IntoPyArray, PyUntypedArrayMethods, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1};
+use piezohyst_core::batch::{pi_lanes, pi_lanes_fixed};
+use piezohyst_core::inverse::{inverse_simulate, solve_increasing};
+use piezohyst_core::pi::Pi;
+use piezohyst_core::spec::{Family, Model};
+use piezohyst_core::{Hysteresis, ModelError};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use rayon::prelude::*;
+
+fn err(e: ModelError) -> PyErr {
+    PyValueError::new_err(e.to_string())
+}
+
+fn family(name: &str, dims: Vec<usize>) -> PyResult<Family> {
+    Family::parse(name, &dims).map_err(|e| match e {
+        ModelError::Structure("family (unknown name)", _) => PyValueError::new_err(format!(
+            "family = {name:?} is unknown; expected one of pi, gpi, rdpi, creep, preisach, boucwen, duhem, dahl"
+        )),
+        e => err(e),
+    })
+}
+
+fn slice<'a>(a: &'a PyReadonlyArray1<'_, f64>, name: &str) -> PyResult<&'a [f64]> {
+    a.as_slice().map_err(|_| PyValueError::new_err(format!("{name} must be a contiguous float64 array")))
+}
+
+fn check_finite(name: &str, xs: &[f64]) -> PyResult<()> {
+    match xs.iter().position(|x| !x.is_finite()) {
+        Some(k) => Err(PyValueError::new_err(format!("{name}[{k}] = {} is not finite", xs[k]))),
+        None => Ok(()),
+    }
+}
+
+fn check_output(ys: &[f64]) -> PyResult<()> {
+    match ys.iter().position(|y| !y.is_finite()) {
+        Some(k) => Err(PyValueError::new_err(format!(
+            "the model output diverged at sample {k} (value {}); the parameters do not keep it bounded for this input",
+            ys[k]
+        ))),
+        None => Ok(()),
+    }
+}
+
+fn with_model<R>(
+    fam: Family,
+    params: &[f64],
+    f: impl FnOnce(&Model<'_>) -> Result<R, ModelError>,
+) -> Result<R, ModelError> {
+    let mut scratch = vec![0.0; fam.scratch_len()];
+    let model = fam.build(params, &mut scratch)?;
+    f(&model)
+}
+
+fn state_slice<'a>(fam: Family, st: &'a mut PyReadwriteArray1<'_, f64>) -> PyResult<&'a mut [f64]> {
+    let s = st
+        .as_slice_mut()
+        .map_err(|_| PyValueError::new_err("state must be a contiguous float64 array"))?;
+    if s.len() != fam.state_len() {
+        return Err(PyValueError::new_err(format!(
+            "state has length {}, expected {} for this model",
+            s.len(),
+            fam.state_len()
+        )));
+    }
+    check_finite("state", s)?;
+    Ok(s)
+}
+
+/// `(param_len, state_len)` of a family.
+#[pyfunction]
+fn family_sizes(name: &str, dims: Vec<usize>) -> PyResult<(usize, usize)> {
+    let fam = family(name, dims)?;
+    Ok((fam.param_len(), fam.state_len()))
+}
+
+/// Validate a parameter row; raises ValueError naming the offending parameter.
+#[pyfunction]
+fn validate(name: &str, dims: Vec<usize>, params: PyReadonlyArray1<'_, f64>) -> PyResult<()> {
+    let fam = family(name, dims)?;
+    with_model(fam, slice(&params, "params")?, |_| Ok(())).map_err(err)
+}
+
+/// The relaxed initial state.
+#[pyfunction]
+fn initial_state<'py>(
+    py: Python<'py>,
+    name: &str,
+    dims: Vec<usize>,
+    params: PyReadonlyArray1<'py, f64>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let fam = family(name, dims)?;
+    let mut st = vec![0.0; fam.state_len()];
+    with_model(fam, slice(&params, "params")?, |m| {
+        m.reset(&mut st);
+        Ok(())
+    })
+    .map_err(err)?;
+    Ok(st.into_pyarray(py))
+}
+
+/// Simulate from `state` (updated in place); returns the outputs.
+#[pyfunction]
+fn simulate<'py>(
+    py: Python<'py>,
+    name: &str,
+    dims: Vec<usize>,
+    params: PyReadonlyArray1<'py, f64>,
+    input: PyReadonlyArray1<'py, f64>,
+    mut state: PyReadwriteArray1<'py, f64>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let fam = family(name, dims)?;
+    let p = slice(&params, "params")?;
+    let v = slice(&input, "input")?;
+    check_finite("input", v)?;
+    let st = state_slice(fam, &mut state)?;
+    let mut y = vec![0.0; v.len()];
+    py.detach(|| {
+        with_model(fam, p, |m| {
+            for (yk, &vk) in y.iter_mut().zip(v) {
+                *yk = m.step(st, vk);
+            }
+            Ok(())
+        })
+    })
+    .map_err(err)?;
+    check_output(&y)?;
+    Ok(y.into_pyarray(py))
+}
+
+/// Exact per-sample inverse from `state` (the forward state, updated in place).
+#[pyfunction]
+fn inverse<'py>(
+    py: Python<'py>,
+    name: &str,
+    dims: Vec<usize>,
+    params: PyReadonlyArray1<'py, f64>,
+    desired: PyReadonlyArray1<'py, f64>,
+    mut state: PyReadwriteArray1<'py, f64>,
+    guess: f64,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let fam = family(name, dims)?;
+    let p = slice(&params, "params")?;
+    let yd = slice(&desired, "desired")?;
+    check_finite("desired", yd)?;
+    if !guess.is_finite() {
+        return Err(PyValueError::new_err(format!("guess = {guess} is not finite")));
+    }
+    let st = state_slice(fam, &mut state)?;
+    let mut v = vec![0.0; yd.len()];
+    py.detach(|| with_model(fam, p, |m| inverse_simulate(m, st, yd, &mut v, guess)))
+        .map_err(err)?;
+    Ok(v.into_pyarray(py))
+}
+
+/// Analytic inverse PI parameters `(p0', thresholds', weights')` (SPEC §2.1).
+#[pyfunction]
+fn pi_analytic_inverse<'py>(
+    py: Python<'py>,
+    p0: f64,
+    thresholds: PyReadonlyArray1<'py, f64>,
+    weights: PyReadonlyArray1<'py, f64>,
+) -> PyResult<(f64, Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
+    let r = slice(&thresholds, "thresholds")?;
+    let w = slice(&weights, "weights")?;
+    let m = Pi::new(p0, r, w).map_err(err)?;
+    let mut ri = vec![0.0; r.len()];
+    let mut wi = vec![0.0; r.len()];
+    let p0i = m.analytic_inverse(&mut ri, &mut wi).map_err(err)?;
+    Ok((p0i, ri.into_pyarray(py), wi.into_pyarray(py)))
+}
+
+/// `g^{-1}(y)` element-wise for an envelope (kind 0 identity, 1 polynomial, 2 tanh).
+#[pyfunction]
+fn envelope_inverse<'py>(
+    py: Python<'py>,
+    kind: usize,
+    coefficients: [f64; 4],
+    values: PyReadonlyArray1<'py, f64>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let g = piezohyst_core::envelope::Envelope::from_code(kind, coefficients).map_err(err)?;
+    let ys = slice(&values, "values")?;
+    check_finite("values", ys)?;
+    let mut out = Vec::with_capacity(ys.len());
+    let mut guess = 0.0;
+    for (k, &y) in ys.iter().enumerate() {
+        let v = g.inverse(y, guess).ok_or_else(|| {
+            PyValueError::new_err(format!("values[{k}] = {y} is outside the range of the envelope"))
+        })?;
+        out.push(v);
+        guess = v;
+    }
+    Ok(out.into_pyarray(py))
+}
+
+/// `g(v)` element-wise for an envelope.
+#[pyfunction]
+fn envelope_eval<'py>(
+    py: Python<'py>,
+    kind: usize,
+    coefficients: [f64; 4],
+    values: PyReadonlyArray1<'py, f64>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let g = piezohyst_core::envelope::Envelope::from_code(kind, coefficients).map_err(err)?;
+    let vs = slice(&values, "values")?;
+    Ok(vs.iter().map(|&v| g.eval(v)).collect::<Vec<_>>().into_pyarray(py))
+}
+
+/// Solve `f(v) = y` for an increasing polynomial `f` (used by tests of the solver).
+#[pyfunction]
+fn solve_cubic_increasing(coefficients: [f64; 4], y: f64, guess: f64) -> Option<f64> {
+    let c = coefficients;
+    solve_increasing(
+        |v| (c[0] + v * (c[1] + v * (c[2] + v * c[3])), c[1] + v * (2.0 * c[2] + 3.0 * c[3] * v)),
+        y,
+        guess,
+    )
+}
+
+// ---------------------------------------------------------------------------------------
+// batch evaluation
+
+enum Sink<'a> {
+    Outputs(&'a mut [f64]),
+    Rmse { target: &'a [f64], sse: f64 },
+}
+
+/// One parameter set through the generic model (any family).
+fn run_one(fam: Family, row: &[f64], v: &[f64], sink: &mut Sink<'_>) -> Result<(), ModelError> {
+    with_model(fam, row, |m| {
+        let mut st = vec![0.0; fam.state_len()];
+        m.reset(&mut st);
+        match sink {
+            Sink::Outputs(out) => {
+                for (o, &vk) in out.iter_mut().zip(v) {
+                    *o = m.step(&mut st, vk);
+                }
+            }
+            Sink::Rmse { target, sse } => {
+                for (&t, &vk) in target.iter().zip(v) {
+                    let e = m.step(&mut st, vk) - t;
+                    *sse += e * e;
+                }
+            }
+        }
+        Ok(())
+    })
+}
+
+/// Samples go through the lane kernels in short blocks so the outputs stay in L1.
+const BLOCK: usize = 16;
+
+/// Hand one block of lane outputs to the caller's sink: either rows of `out` (`(used, nv)`
+/// row-major) or the running sums of squared errors against `target`.
+#[inline(always)]
+fn drain_block<const L: usize>(
+    y: &[[f64; L]],
+    k0: usize,
+    used: usize,
+    nv: usize,
+    out: &mut [f64],
+    target: Option<&[f64]>,
+    sse: &mut [f64; L],
+) {
+    match target {
+        None => {
+            for l in 0..used {
+                for (j, yk) in y.iter().enumerate() {
+                    out[l * nv + k0 + j] = yk[l];
+                }
+            }
+        }
+        Some(t) => {
+            for (yk, &tk) in y.iter().zip(&t[k0..]) {
+                for l in 0..L {
+                    let e = yk[l] - tk;
+                    sse[l] += e * e;
+                }
+            }
+        }
+    }
+}
+
+/// Lane-major parameters of up to `L` rows (padded with the last row).
+fn gather<const L: usize>(n: usize, rows: &[&[f64]], r: &mut [[f64; L]], w: &mut [[f64; L]]) -> [f64; L] {
+    let mut p0 = [0.0; L];
+    for l in 0..L {
+        let row = rows[l.min(rows.len() - 1)];
+        p0[l] = row[0];
+        for i in 0..n {
+            r[i][l] = row[1 + i];
+            w[i][l] = row[1 + n + i];
+        }
+    }
+    p0
+}
+
+/// `L` classical-PI parameter sets at once (rows already valid, at most `L`), any `n`.
+#[inline(always)]
+fn pi_group_body<const L: usize>(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
+    let mut r = vec![[0.0; L]; n];
+    let mut w = vec![[0.0; L]; n];
+    let mut z = vec![[0.0; L]; n];
+    let p0 = gather(n, rows, &mut r, &mut w);
+    let mut y = [[0.0; L]; BLOCK];
+    let mut sse = [0.0; L];
+    for (b, vb) in v.chunks(BLOCK).enumerate() {
+        pi_lanes(&p0, &r, &w, &mut z, vb, &mut y);
+        drain_block(&y[..vb.len()], b * BLOCK, rows.len(), v.len(), out, target, &mut sse);
+    }
+    if target.is_some() {
+        out[..rows.len()].copy_from_slice(&sse[..rows.len()]);
+    }
+}
+
+/// As [`pi_group_body`] with `N` operators fixed at compile time (states in registers).
+#[inline(always)]
+fn pi_group_fixed<const L: usize, const N: usize>(rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
+    let mut r = [[0.0; L]; N];
+    let mut w = [[0.0; L]; N];
+    let mut z = [[0.0; L]; N];
+    let p0 = gather(N, rows, &mut r, &mut w);
+    let mut y = [[0.0; L]; BLOCK];
+    let mut sse = [0.0; L];
+    for (b, vb) in v.chunks(BLOCK).enumerate() {
+        pi_lanes_fixed(&p0, &r, &w, &mut z, vb, &mut y);
+        drain_block(&y[..vb.len()], b * BLOCK, rows.len(), v.len(), out, target, &mut sse);
+    }
+    if target.is_some() {
+        out[..rows.len()].copy_from_slice(&sse[..rows.len()]);
+    }
+}
+
+/// Dispatch on the operator count: the common sizes (1..=12, seed 2 uses 9) get an
+/// unrolled kernel, larger ones the general loop.
+#[inline(always)]
+fn pi_group_any<const L: usize>(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
+    macro_rules! fixed {
+        ($($n:literal)*) => {
+            match n {
+                $($n => pi_group_fixed::<L, $n>(rows, v, out, target),)*
+                _ => pi_group_body::<L>(n, rows, v, out, target),
+            }
+        };
+    }
+    fixed!(1 2 3 4 5 6 7 8 9 10 11 12)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn pi_group_avx512<const L: usize>(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
+    pi_group_any::<L>(n, rows, v, out, target)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn pi_group_avx2<const L: usize>(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
+    pi_group_any::<L>(n, rows, v, out, target)
+}
+
+/// Same arithmetic on every path (no FMA contraction): the instruction set only changes
+/// the speed, never the bits.
+fn pi_group<const L: usize>(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::is_x86_feature_detected!("avx512f") {
+            return unsafe { pi_group_avx512::<L>(n, rows, v, out, target) };
+        }
+        if std::is_x86_feature_detected!("avx2") {
+            return unsafe { pi_group_avx2::<L>(n, rows, v, out, target) };
+        }
+    }
+    pi_group_any::<L>(n, rows, v, out, target)
+}
+
+/// Parameter sets per lane group: with the operator count unrolled, 8 lanes (one AVX-512
+/// register per operator) keep every play state in registers; wider groups spill.
+const GROUP: usize = 8;
+
+/// Check rows; returns per-row validity or the first error (with its row index).
+fn check_rows(fam: Family, params: &[f64], s: usize, raise: bool) -> PyResult<Vec<bool>> {
+    let p = fam.param_len();
+    let mut ok = Vec::with_capacity(s);
+    for j in 0..s {
+        let row = &params[j * p..(j + 1) * p];
+        match with_model(fam, row, |_| Ok(())) {
+            Ok(()) => ok.push(true),
+            Err(e) if raise => return Err(PyValueError::new_err(format!("params[{j}]: {e}"))),
+            Err(_) => ok.push(false),
+        }
+    }
+    Ok(ok)
+}
+
+fn batch_core(
+    fam: Family,
+    params: &[f64],
+    s: usize,
+    v: &[f64],
+    target: Option<&[f64]>,
+    valid: &[bool],
+    out: &mut [f64],
+) -> Vec<Option<ModelError>> {
+    let p = fam.param_len();
+    let nv = v.len();
+    let per = if target.is_some() { 1 } else { nv };
+    let mut errs: Vec<Option<ModelError>> = vec![None; s];
+    match fam {
+        Family::Pi { n, creep: 0 } => {
+            // groups of GROUP valid rows; invalid rows are left for the caller
+            let idx: Vec<usize> = (0..s).filter(|&j| valid[j]).collect();
+            let groups: Vec<&[usize]> = idx.chunks(GROUP).collect();
+            let results: Vec<(Vec<usize>, Vec<f64>)> = groups
+                .par_iter()
+                .map(|g| {
+                    let rows: Vec<&[f64]> = g.iter().map(|&j| &params[j * p..(j + 1) * p]).collect();
+                    let mut buf = vec![0.0; g.len() * per];
+                    pi_group::<GROUP>(n, &rows, v, &mut buf, target);
+                    (g.to_vec(), buf)
+                })
+                .collect();
+            for (g, buf) in results {
+                for (l, &j) in g.iter().enumerate() {
+                    out[j * per..(j + 1) * per].copy_from_slice(&buf[l * per..(l + 1) * per]);
+                }
+            }
+        }
+        _ => {
+            out.par_chunks_mut(per).zip(errs.par_iter_mut()).enumerate().for_each(|(j, (o, e))| {
+                if !valid[j] {
+                    return;
+                }
+                let row = &params[j * p..(j + 1) * p];
+                let mut sink = match target {
+                    None => Sink::Outputs(o),
+                    Some(t) => Sink::Rmse { target: t, sse: 0.0 },
+                };
+                if let Err(x) = run_one(fam, row, v, &mut sink) {
+                    *e = Some(x);
+                }
+                if let Sink::Rmse { sse, .. } = sink {
+                    o[0] = sse;
+                }
+            });
+        }
+    }
+    errs
+}
+
+fn batch_inputs<'a>(
+    fam: Family,
+    params: &'a PyReadonlyArray2<'_, f64>,
+    input: &'a PyReadonlyArray1<'_, f64>,
+) -> PyResult<(&'a [f64], usize, &'a [f64])> {
+    let shape = params.shape();
+    if shape[1] != fam.param_len() {
+        return Err(PyValueError::new_err(format!(
+            "params has shape ({}, {}), expected (S, {}) for this family",
+            shape[0],
+            shape[1],
+            fam.param_len()
+        )));
+    }
+    let p = params
+        .as_slice()
+        .map_err(|_| PyValueError::new_err("params must be a C-contiguous float64 array"))?;
+    let v = slice(input, "input")?;
+    check_finite("input", v)?;
+    if v.is_empty() {
+        return Err(PyValueError::new_err("input is empty"));
+    }
+    Ok((p, shape[0], v))
+}
+
+/// `(S, N)` outputs of `S` parameter sets on one input record (GIL released, rayon).
+#[pyfunction]
+fn batch_simulate<'py>(
+    py: Python<'py>,
+    name: &str,
+    dims: Vec<usize>,
+    params: PyReadonlyArray2<'py, f64>,
+    input: PyReadonlyArray1<'py, f64>,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let fam = family(name, dims)?;
+    let (p, s, v) = batch_inputs(fam, &params, &input)?;
+    let valid = check_rows(fam, p, s, true)?;
+    let mut out = vec![0.0; s * v.len()];
+    let errs = py.detach(|| batch_core(fam, p, s, v, None, &valid, &mut out));
+    if let Some((j, e)) = errs.iter().enumerate().find_map(|(j, e)| e.map(|e| (j, e))) {
+        return Err(PyValueError::new_err(format!("params[{j}]: {e}")));
+    }
+    let arr = Array2::from_shape_vec((s, v.len()), out).expect("shape matches length");
+    Ok(arr.into_pyarray(py))
+}
+
+/// `(S,)` RMSE of `S` parameter sets against `target` (GIL released, rayon). Invalid rows
+/// raise, or cost `invalid_cost` if given; a diverging simulation costs +inf.
+#[pyfunction]
+#[pyo3(signature = (name, dims, params, input, target, invalid_cost=None))]
+fn batch_rmse<'py>(
+    py: Python<'py>,
+    name: &str,
+    dims: Vec<usize>,
+    params: PyReadonlyArray2<'py, f64>,
+    input: PyReadonlyArray1<'py, f64>,
+    target: PyReadonlyArray1<'py, f64>,
+    invalid_cost: Option<f64>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let fam = family(name, dims)?;
+    let (p, s, v) = batch_inputs(fam, &params, &input)?;
+    let t = slice(&target, "target")?;
+    check_finite("target", t)?;
+    if t.len() != v.len() {
+        return Err(PyValueError::new_err(format!(
+            "target has length {}, input has length {}; they must match",
+            t.len(),
+            v.len()
+        )));
+    }
+    let valid = check_rows(fam, p, s, invalid_cost.is_none())?;
+    let mut sse = vec![0.0; s];
+    let errs = py.detach(|| batch_core(fam, p, s, v, Some(t), &valid, &mut sse));
+    let n = v.len() as f64;
+    let bad = invalid_cost.unwrap_or(f64::INFINITY);
+    let out: Vec<f64> = (0..s)
+        .map(|j| {
+            if !valid[j] || errs[j].is_some() {
+                bad
+            } else if sse[j].is_finite() {
+                (sse[j] / n).sqrt()
+            } else {
+                f64::INFINITY
+            }
+        })
+        .collect();
+    Ok(out.into_pyarray(py))
+}
+
+/// Number of threads rayon uses for batch calls.
+#[pyfunction]
+fn thread_count() -> usize {
+    rayon::current_num_threads()
+}
+
+/// Add this module's functions to the extension module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(family_sizes, m)?)?;
+    m.add_function(wrap_pyfunction!(validate, m)?)?;
+    m.add_function(wrap_pyfunction!(initial_state, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(inverse, m)?)?;
+    m.add_function(wrap_pyfunction!(pi_analytic_inverse, m)?)?;
+    m.add_function(wrap_pyfunction!(envelope_inverse, m)?)?;
+    m.add_function(wrap_pyfunction!(envelope_eval, m)?)?;
+    m.add_function(wrap_pyfunction!(solve_cubic_increasing, m)?)?;
+    m.add_function(wrap_pyfunction!(batch_simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(batch_rmse, m)?)?;
+    m.add_function(wrap_pyfunction!(thread_count, m)?)?;
+    Ok(())
+}
