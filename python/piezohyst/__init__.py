@@ -16,16 +16,47 @@ True
 """
 from . import _core
 from .batch import batch_rmse, batch_simulate
+from .boucwen_benchmark import BoucWenBenchmark, load_train_multisine
 from .creep import Creep
 from .differential import BoucWen, Dahl, Duhem
 from .model import SCHEMA_VERSION, HysteresisModel, Inverse, load_model, model_from_dict
 from .pi import PI, SEED2_TABLE1, Envelope, GeneralizedPI, GeneralizedPlay, PlayOperator, RateDependentPI, mpi_seed2
+from .control import PID, OpenLoop
+from .flexure import A7075_YOUNGS_MODULUS, CemfCoefficients, FlexureStage, LeafSpring, seed1_stage
 from .preisach import Preisach
+from .references import chirp, multisine, sine, staircase, triangle, variable_amplitude_sine
+from .simulation import ClosedLoopResult, closed_loop, closed_loop_batch
+from .stage import Amplifier, Sensor, Stage, StageInfo, StageParameters, StageResponse, virtual_stage
 
 __version__ = _core.__version__
 
 __all__ = [
+    "A7075_YOUNGS_MODULUS",
+    "Amplifier",
+    "CemfCoefficients",
+    "ClosedLoopResult",
+    "FlexureStage",
+    "LeafSpring",
+    "OpenLoop",
+    "PID",
+    "Sensor",
+    "Stage",
+    "StageInfo",
+    "StageParameters",
+    "StageResponse",
+    "chirp",
+    "closed_loop",
+    "closed_loop_batch",
+    "load_train_multisine",
+    "multisine",
+    "seed1_stage",
+    "sine",
+    "staircase",
+    "triangle",
+    "variable_amplitude_sine",
+    "virtual_stage",
     "BoucWen",
+    "BoucWenBenchmark",
     "Creep",
     "Dahl",
     "Duhem",

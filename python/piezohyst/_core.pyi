@@ -45,3 +45,37 @@ def batch_rmse(
 
 def thread_count() -> int:
     """Threads rayon uses for batch calls."""
+
+def boucwen_benchmark_integrate(params: Array1, input: Array1, h: float, state: Array1) -> tuple[Array1, Array1]:
+    """Bouc–Wen benchmark by Newmark (average acceleration) + trapezoidal ``z``: ``(y, z)`` at
+    ``t_0 + (i+1) h`` for ``input[i]``; ``params = [mass, damping, stiffness, alpha, beta, gamma,
+    delta, nu]``, ``state = [y, dy, ddy, z]`` at ``t_0`` (updated in place)."""
+
+def boucwen_benchmark_decimate(x: Array1, factor: int) -> Array1:
+    """MATLAB ``decimate(x, p, 'fir')`` for each prime factor ``p`` of ``factor`` (increasing)."""
+
+STAGE_PARAM_LEN: int
+STAGE_STATE_LEN: int
+MAX_TERMS: int
+
+def stage_simulate(
+    params: Array1, ts: float, substeps: int, tolerance: float, command: Array1, state: Array1
+) -> tuple[Array1, Array1, Array1]:
+    """Open-loop stage under a held command per period: ``(position at each period start,
+    amplifier voltage, CEMF voltage at each period end)``; ``state`` updated in place."""
+
+def closed_loop(
+    stage_params: Array1, ts: float, substeps: int, tolerance: float, sensor_quantization: float,
+    sensor_noise: float, sensor_delay: int, controller_kind: str, controller_params: Array1,
+    reference: Array1, velocity: Array1, acceleration: Array1, initial_state: Array1, seed: int,
+) -> dict:
+    """One closed-loop run: dict of ``command, voltage, position, measured, terms, term_names,
+    final_state``."""
+
+def closed_loop_batch(
+    stage_params: Array1, ts: float, substeps: int, tolerance: float, sensor_quantization: float,
+    sensor_noise: float, sensor_delay: int,
+    scenarios: list[tuple[str, Array1, Array1, Array1, Array1, int]], initial_state: Array1,
+) -> list[dict]:
+    """Many scenarios ``(controller_kind, controller_params, reference, velocity, acceleration,
+    seed)`` in parallel (GIL released, rayon)."""

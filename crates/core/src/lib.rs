@@ -13,6 +13,8 @@
 #![cfg_attr(not(feature = "std"), no_std)]
 
 pub mod batch;
+pub mod closed_loop;
+pub mod control;
 pub mod boucwen_benchmark;
 pub mod creep;
 pub mod differential;
@@ -20,11 +22,15 @@ pub mod envelope;
 pub mod error;
 pub mod generalized;
 pub mod inverse;
+pub mod linalg;
 mod math;
 pub mod pi;
 pub mod preisach;
+pub mod sensor;
 pub mod rate;
+pub mod rng;
 pub mod spec;
+pub mod stage;
 
 pub use error::ModelError;
 

@@ -4,11 +4,13 @@ use pyo3::prelude::*;
 
 mod boucwen_benchmark;
 mod models;
+mod plant;
 
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     models::register(m)?;
     boucwen_benchmark::register(m)?;
+    plant::register(m)?;
     Ok(())
 }

@@ -1,0 +1,58 @@
+//! Time the closed loop on the virtual stage's values (a quick check during development;
+//! the benchmark of record is bench/closed_loop.py):
+//! `cargo run --release -p piezohyst-core --example closed_loop_speed`.
+use piezohyst_core::closed_loop::{run, Record};
+use piezohyst_core::control::{Limits, Pid, MAX_TERMS};
+use piezohyst_core::sensor::Sensor;
+use piezohyst_core::stage::{HysteresisDrive, Stage, StageParams, StageState, MAX_CREEP};
+use std::time::Instant;
+
+fn main() {
+    let mut taus = [1.0; MAX_CREEP];
+    let mut weights = [0.0; MAX_CREEP];
+    taus[..5].copy_from_slice(&[0.01, 0.1, 1.0, 10.0, 100.0]);
+    weights[..5].copy_from_slice(&[0.015; 5]);
+    let p = StageParams {
+        mass: 0.0714,
+        damping: 2.0 * 0.03 * (7.333e7f64 * 0.0714).sqrt(),
+        stiffness: 7.333e7,
+        tem: 10.5,
+        capacitance: 1.8e-6,
+        hyst_alpha: 1.25e5,
+        hyst_beta: 8000.0,
+        hyst_gamma: 3000.0,
+        hyst_drive: HysteresisDrive::Charge,
+        electrostriction: 3.3e-4,
+        creep_taus: taus,
+        creep_weights: weights,
+        creep_terms: 5,
+        amp_min: -20.0,
+        amp_max: 150.0,
+        amp_bandwidth: 3000.0,
+        amp_slew: 1.4e5,
+    };
+    let ts = 1e-4;
+    let n = 100_000; // 10 s
+    let r: Vec<f64> = (0..n).map(|k| 5e-6 * (1.0 - (2.0 * std::f64::consts::PI * 10.0 * k as f64 * ts).cos())).collect();
+    let z = vec![0.0; n];
+    for (substeps, tol) in [(1, f64::INFINITY), (1, 0.05), (1, 0.01), (2, f64::INFINITY)] {
+        let stage = Stage::new(p, ts, substeps, tol).unwrap();
+        let sensor = Sensor::new(1e-7, if std::env::var("NONOISE").is_ok() { 0.0 } else { 1e-8 }, 1).unwrap();
+        let pid = Pid::new(1e6, 5e9, 0.0, 1e-4, ts, 1.0 / (10.5 / 7.333e7), 0.0, Limits::new(-20.0, 150.0).unwrap()).unwrap();
+        let (mut c, mut va, mut x, mut y) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        let mut terms = vec![0.0; n * MAX_TERMS];
+        let mut best = f64::INFINITY;
+        for _ in 0..3 {
+            let mut st = StageState::ZERO;
+            let mut sst = sensor.state(0.0, 1);
+            let mut cst = piezohyst_core::control::Controller::initial_state(&pid, 0.0);
+            let t0 = Instant::now();
+            run(&stage, &mut st, &sensor, &mut sst, &pid, &mut cst, &r, &z, &z, Record {
+                command: &mut c, voltage: &mut va, position: &mut x, measured: &mut y, terms: &mut terms,
+            });
+            best = best.min(t0.elapsed().as_secs_f64());
+        }
+        let rmse = (r.iter().zip(&x).map(|(a, b)| (a - b) * (a - b)).sum::<f64>() / n as f64).sqrt();
+        println!("substeps {substeps} tolerance {tol}: {:.0} ns/step, real-time factor {:.0}x, rmse {:.3e}", best / n as f64 * 1e9, n as f64 * ts / best, rmse);
+    }
+}

@@ -1,0 +1,55 @@
+//! The closed-loop engine: controller at its sample time, amplifier and stage with
+//! sub-steps, sensor with noise, quantization and delay (SPEC §3.2, issue 3).
+//!
+//! Per sample `k` (time `k Ts`): the sensor samples the true position `x_k` and hands the
+//! controller the reading it took `delay` samples ago; the controller returns a command;
+//! the amplifier and stage advance one period under it. Recorded at `k`: reference, command,
+//! amplifier output at the end of the period, `x_k`, the reading, and the controller terms.
+use crate::control::{Controller, Reference, MAX_TERMS};
+use crate::sensor::{Sensor, SensorState};
+use crate::stage::{Stage, StageState};
+
+/// Where a run writes its signals; every slice has the run's length (`terms`: `MAX_TERMS`
+/// per sample, row-major).
+pub struct Record<'a> {
+    /// Voltage command, V.
+    pub command: &'a mut [f64],
+    /// Amplifier output at the end of each period, V.
+    pub voltage: &'a mut [f64],
+    /// True position at each sample, m.
+    pub position: &'a mut [f64],
+    /// Sensor reading the controller used, m.
+    pub measured: &'a mut [f64],
+    /// Controller internal terms.
+    pub terms: &'a mut [f64],
+}
+
+/// Run a whole reference. `reference`, `velocity`, `acceleration` are the desired signals
+/// per sample. Stops at the shortest slice.
+#[allow(clippy::too_many_arguments)]
+pub fn run<C: Controller>(
+    stage: &Stage,
+    stage_state: &mut StageState,
+    sensor: &Sensor,
+    sensor_state: &mut SensorState,
+    controller: &C,
+    controller_state: &mut C::State,
+    reference: &[f64],
+    velocity: &[f64],
+    acceleration: &[f64],
+    rec: Record<'_>,
+) {
+    let n = reference.len().min(velocity.len()).min(acceleration.len()).min(rec.command.len());
+    for k in 0..n {
+        let x = stage_state.x;
+        let y = sensor.read(sensor_state, x);
+        let r = Reference { x: reference[k], v: velocity[k], a: acceleration[k] };
+        let out = controller.step(controller_state, &r, y);
+        stage.advance(stage_state, out.u);
+        rec.command[k] = out.u;
+        rec.voltage[k] = stage_state.va;
+        rec.position[k] = x;
+        rec.measured[k] = y;
+        rec.terms[k * MAX_TERMS..(k + 1) * MAX_TERMS].copy_from_slice(&out.terms);
+    }
+}

@@ -1,0 +1,572 @@
+//! Piezo-driven flexure stage with counter-electromotive-force (CEMF) hysteresis, creep,
+//! electrostriction and a drive amplifier (SPEC §2.6, §3.1, §3.2). SI units throughout:
+//! m, s, V, N, F (farad), C (coulomb).
+//!
+//! ```text
+//! m x'' + b x' + k x = Tem (Va - Vh + Vcr + e2 Va^2)         mechanics (force from the stack)
+//! q    = Cz (Va - Vh) + Tem x                                 charge on the stack
+//! dVh  = alpha dq - beta |dq| Vh - gamma dq |Vh|              CEMF: Bouc–Wen (n = 1) on charge
+//! Vcr  = sum_j c_j w_j,  tau_j w_j' = Va - w_j                creep: lags over decades
+//! tau_a Va' = u - Va, |Va'| <= slew, vmin <= u <= vmax         amplifier
+//! ```
+//! The input-driven variant replaces `dq` by `dVa` in the CEMF law.
+//!
+//! ## Integration
+//! One call advances one controller period `ts` (the command `u` is held) in `substeps`
+//! equal sub-steps of length `h`. The linear part is discretized exactly: amplifier and
+//! mechanics together (3 states, `u` held, the nonlinear forcing first-order held) while
+//! the amplifier is not slew-limited, mechanics alone with the amplifier voltage
+//! first-order held while it is (then `Va` is an exact ramp). The CEMF voltage follows the
+//! charge through the exact Bouc–Wen increment of §2.5; the algebraic loop
+//! `dq = Tem dx + Cz (dVa - dVh)` is solved by Newton on the increment. Each sub-step is a
+//! predictor (forcing held at its start value) and a corrector (forcing first-order held
+//! between the start and the predicted end), then the CEMF voltage is re-solved from the
+//! corrected motion. The error is O(h^2) in the coupling only; `bench/closed_loop.py`
+//! reports it against `scipy.integrate.solve_ivp` as a function of `substeps`.
+use crate::differential::bouc_wen_1_exact;
+use crate::error::{check_scalar, ModelError};
+use crate::linalg::{expm, Mat};
+use crate::math::{abs, exp};
+
+
+/// Most creep lags a stage can have.
+pub const MAX_CREEP: usize = 8;
+
+/// What drives the CEMF hysteresis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum HysteresisDrive {
+    /// The stack charge (seed 1's model, algebraic loop closed exactly).
+    Charge,
+    /// The amplifier voltage (the simpler input-driven variant).
+    Voltage,
+}
+
+/// Physical parameters (the contents of a stage file).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StageParams {
+    /// Equivalent moving mass `m`, kg.
+    pub mass: f64,
+    /// Equivalent damping `b`, N s/m.
+    pub damping: f64,
+    /// Equivalent stiffness `k`, N/m.
+    pub stiffness: f64,
+    /// Electromechanical transformation ratio `Tem`, N/V.
+    pub tem: f64,
+    /// Stack capacitance `Cz`, F.
+    pub capacitance: f64,
+    /// CEMF Bouc–Wen `alpha` (V/C for charge drive, V/V for voltage drive).
+    pub hyst_alpha: f64,
+    /// CEMF Bouc–Wen `beta` (1/C or 1/V).
+    pub hyst_beta: f64,
+    /// CEMF Bouc–Wen `gamma` (1/C or 1/V).
+    pub hyst_gamma: f64,
+    /// Charge or voltage drive of the CEMF law.
+    pub hyst_drive: HysteresisDrive,
+    /// Electrostriction `e2`, 1/V: extra force `Tem e2 Va^2`.
+    pub electrostriction: f64,
+    /// Creep lag time constants, s (first `creep_terms` used).
+    pub creep_taus: [f64; MAX_CREEP],
+    /// Creep weights `c_j` (dimensionless, per volt of drive).
+    pub creep_weights: [f64; MAX_CREEP],
+    /// Number of creep lags in use.
+    pub creep_terms: usize,
+    /// Amplifier output limits, V.
+    pub amp_min: f64,
+    /// Amplifier upper limit, V.
+    pub amp_max: f64,
+    /// Amplifier -3 dB bandwidth, Hz (`inf`: ideal).
+    pub amp_bandwidth: f64,
+    /// Amplifier slew-rate limit, V/s (`inf`: none).
+    pub amp_slew: f64,
+}
+
+/// Mechanical state and everything the integrator carries.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StageState {
+    /// Amplifier output voltage, V.
+    pub va: f64,
+    /// Position, m.
+    pub x: f64,
+    /// Velocity, m/s.
+    pub v: f64,
+    /// CEMF voltage, V.
+    pub vh: f64,
+    /// Creep lag outputs, V.
+    pub creep: [f64; MAX_CREEP],
+}
+
+impl StageState {
+    /// At rest, everything at zero.
+    pub const ZERO: StageState = StageState { va: 0.0, x: 0.0, v: 0.0, vh: 0.0, creep: [0.0; MAX_CREEP] };
+
+    /// Number of `f64` in [`StageState::to_array`].
+    pub const LEN: usize = 4 + MAX_CREEP;
+
+    /// Flat copy `[va, x, v, vh, creep...]`.
+    pub fn to_array(&self) -> [f64; Self::LEN] {
+        let mut a = [0.0; Self::LEN];
+        a[0] = self.va;
+        a[1] = self.x;
+        a[2] = self.v;
+        a[3] = self.vh;
+        a[4..].copy_from_slice(&self.creep);
+        a
+    }
+
+    /// From the flat layout of [`StageState::to_array`].
+    pub fn from_array(a: &[f64]) -> Result<Self, ModelError> {
+        if a.len() != Self::LEN {
+            return Err(ModelError::Length("state", Self::LEN, a.len()));
+        }
+        crate::error::check_finite("state", a)?;
+        let mut creep = [0.0; MAX_CREEP];
+        creep.copy_from_slice(&a[4..]);
+        Ok(StageState { va: a[0], x: a[1], v: a[2], vh: a[3], creep })
+    }
+}
+
+/// Exact discretization over `h` of `z' = A z + B u + E d(t)` with `u` held and `d` linear
+/// from `d0` to `d1`: `z1 = phi z0 + gu u + g0 d0 + g1 d1`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Discrete<const N: usize> {
+    phi: Mat<N>,
+    gu: [f64; N],
+    g0: [f64; N],
+    g1: [f64; N],
+}
+
+impl<const N: usize> Discrete<N> {
+    /// Van Loan: exponential of `[[A, B, E, 0], [0, 0, 0, 0], [0, 0, 0, 1], [0, 0, 0, 0]]`.
+    fn new<const M: usize>(a: &Mat<N>, b: &[f64; N], e: &[f64; N], h: f64) -> Self {
+        debug_assert!(M == N + 3);
+        let mut m = [[0.0; M]; M];
+        for i in 0..N {
+            for j in 0..N {
+                m[i][j] = a[i][j] * h;
+            }
+            m[i][N] = b[i] * h;
+            m[i][N + 1] = e[i] * h;
+        }
+        m[N + 1][N + 2] = h; // d(t) = d0 + s * (d1 - d0)/h, with s the slope state
+        let x = expm(&m);
+        let mut phi = [[0.0; N]; N];
+        let (mut gu, mut ge, mut gs) = ([0.0; N], [0.0; N], [0.0; N]);
+        for i in 0..N {
+            phi[i].copy_from_slice(&x[i][..N]);
+            gu[i] = x[i][N];
+            ge[i] = x[i][N + 1];
+            gs[i] = x[i][N + 2] / h; // per unit of (d1 - d0)
+        }
+        let mut g0 = [0.0; N];
+        let mut g1 = [0.0; N];
+        for i in 0..N {
+            g0[i] = ge[i] - gs[i];
+            g1[i] = gs[i];
+        }
+        Discrete { phi, gu, g0, g1 }
+    }
+
+    #[inline(always)]
+    fn apply(&self, z: &[f64; N], u: f64, d0: f64, d1: f64) -> [f64; N] {
+        let mut out = [0.0; N];
+        for i in 0..N {
+            let mut acc = self.gu[i] * u + self.g0[i] * d0 + self.g1[i] * d1;
+            for j in 0..N {
+                acc += self.phi[i][j] * z[j];
+            }
+            out[i] = acc;
+        }
+        out
+    }
+}
+
+/// Sub-step refinement levels: level `j` splits a period into `substeps * 2^j` sub-steps.
+pub const LEVELS: usize = 11;
+
+/// Everything that depends on the sub-step length `h`, precomputed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Level {
+    h: f64,
+    /// mechanics alone: z = [x, v], u unused, d = force/mass (first-order held)
+    mech: Discrete<2>,
+    /// amplifier + mechanics: z = [Va, x, v], u = command (held), d = extra force/mass
+    amp_mech: Discrete<3>,
+    amp_decay: f64,
+    /// creep lag update for a first-order-held input: w1 = e w0 + (1 - e) va0 + b (va1 - va0)
+    creep_e: [f64; MAX_CREEP],
+    creep_b: [f64; MAX_CREEP],
+}
+
+impl Level {
+    fn new(p: &StageParams, amp_ideal: bool, amp_tau: f64, h: f64) -> Self {
+        let (m, b, k) = (p.mass, p.damping, p.stiffness);
+        let mech = Discrete::new::<5>(&[[0.0, 1.0], [-k / m, -b / m]], &[0.0, 0.0], &[0.0, 1.0], h);
+        let amp_mech = if amp_ideal {
+            Discrete::new::<6>(&[[0.0; 3]; 3], &[0.0; 3], &[0.0; 3], h)
+        } else {
+            let a = [[-1.0 / amp_tau, 0.0, 0.0], [0.0, 0.0, 1.0], [p.tem / m, -k / m, -b / m]];
+            Discrete::new::<6>(&a, &[1.0 / amp_tau, 0.0, 0.0], &[0.0, 0.0, 1.0], h)
+        };
+        let amp_decay = if amp_ideal { 0.0 } else { exp(-h / amp_tau) };
+        let (mut creep_e, mut creep_b) = ([1.0; MAX_CREEP], [0.0; MAX_CREEP]);
+        for j in 0..p.creep_terms {
+            let x = h / p.creep_taus[j];
+            creep_e[j] = exp(-x);
+            // b = 1 - (1 - e^-x)/x, by its series where the difference would cancel
+            creep_b[j] = if x < 1e-3 {
+                x * (0.5 - x * (1.0 / 6.0 - x * (1.0 / 24.0 - x / 120.0)))
+            } else {
+                1.0 + crate::math::expm1(-x) / x
+            };
+        }
+        Level { h, mech, amp_mech, amp_decay, creep_e, creep_b }
+    }
+}
+
+/// A stage prepared for one controller period `ts`.
+///
+/// A period is integrated in `substeps` sub-steps, refined by powers of two (up to
+/// `2^(LEVELS-1)`) when the charge driving the CEMF would change by more than
+/// `tolerance / (beta + gamma)` in one sub-step: the coupling error is second order in
+/// that change, so fast voltage changes get short sub-steps and smooth motion stays cheap.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Stage {
+    /// The physics.
+    pub params: StageParams,
+    /// Controller period, s.
+    pub ts: f64,
+    /// Minimum sub-steps per period.
+    pub substeps: usize,
+    /// Largest CEMF exponent change `(beta + gamma) |dq|` allowed in one sub-step.
+    pub tolerance: f64,
+    levels: [Level; LEVELS],
+    amp_ideal: bool,
+    amp_tau: f64,
+}
+
+fn positive(name: &'static str, x: f64) -> Result<(), ModelError> {
+    if x.is_nan() {
+        return Err(ModelError::NotFinite(name, usize::MAX, x));
+    }
+    if !(x > 0.0) {
+        return Err(ModelError::NotPositive(name, usize::MAX, x));
+    }
+    Ok(())
+}
+
+impl StageParams {
+    /// Check every parameter is physical.
+    pub fn validate(&self) -> Result<(), ModelError> {
+        for (name, x) in [
+            ("mass", self.mass),
+            ("stiffness", self.stiffness),
+            ("tem", self.tem),
+            ("capacitance", self.capacitance),
+        ] {
+            check_scalar(name, x)?;
+            positive(name, x)?;
+        }
+        for (name, x) in [
+            ("damping", self.damping),
+            ("hyst_alpha", self.hyst_alpha),
+            ("hyst_beta", self.hyst_beta),
+            ("hyst_gamma", self.hyst_gamma),
+            ("electrostriction", self.electrostriction),
+            ("amp_min", self.amp_min),
+            ("amp_max", self.amp_max),
+        ] {
+            check_scalar(name, x)?;
+        }
+        if self.damping < 0.0 {
+            return Err(ModelError::Negative("damping", usize::MAX, self.damping));
+        }
+        if !(self.amp_max > self.amp_min) {
+            return Err(ModelError::NotIncreasing("amp_max (must exceed amp_min)", usize::MAX, self.amp_max));
+        }
+        positive("amp_bandwidth", self.amp_bandwidth)?;
+        positive("amp_slew", self.amp_slew)?;
+        if self.creep_terms > MAX_CREEP {
+            return Err(ModelError::Structure("creep_terms", self.creep_terms));
+        }
+        for j in 0..self.creep_terms {
+            let (t, c) = (self.creep_taus[j], self.creep_weights[j]);
+            if !(t > 0.0) || t.is_infinite() {
+                return Err(ModelError::NotPositive("creep_taus", j, t));
+            }
+            if !c.is_finite() {
+                return Err(ModelError::NotFinite("creep_weights", j, c));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Sub-steps per controller period are capped so a typo cannot hang a simulation.
+pub const MAX_SUBSTEPS: usize = 10_000;
+
+impl Stage {
+    /// Prepare the stage for controller period `ts` with at least `substeps` sub-steps and
+    /// refinement `tolerance` (> 0; `inf` never refines).
+    pub fn new(params: StageParams, ts: f64, substeps: usize, tolerance: f64) -> Result<Self, ModelError> {
+        params.validate()?;
+        check_scalar("ts", ts)?;
+        positive("ts", ts)?;
+        if substeps == 0 || substeps > MAX_SUBSTEPS {
+            return Err(ModelError::Structure("substeps", substeps));
+        }
+        positive("tolerance", tolerance)?;
+        let p = &params;
+        let amp_ideal = p.amp_bandwidth.is_infinite();
+        let amp_tau = if amp_ideal { 0.0 } else { 1.0 / (2.0 * core::f64::consts::PI * p.amp_bandwidth) };
+        let mut levels = [Level::new(p, amp_ideal, amp_tau, ts / substeps as f64); LEVELS];
+        for (j, level) in levels.iter_mut().enumerate().skip(1) {
+            *level = Level::new(p, amp_ideal, amp_tau, ts / (substeps << j) as f64);
+        }
+        Ok(Stage { params, ts, substeps, tolerance, levels, amp_ideal, amp_tau })
+    }
+
+    /// Clamp a command to the amplifier's range.
+    #[inline]
+    pub fn saturate(&self, u: f64) -> f64 {
+        crate::math::clamp(u, self.params.amp_min, self.params.amp_max)
+    }
+
+    #[inline]
+    fn creep_voltage(&self, w: &[f64; MAX_CREEP]) -> f64 {
+        let mut s = 0.0;
+        for j in 0..self.params.creep_terms {
+            s += self.params.creep_weights[j] * w[j];
+        }
+        s
+    }
+
+    /// Forcing (acceleration) that is not in the exact linear part.
+    #[inline]
+    fn extra_accel(&self, va: f64, vh: f64, vcr: f64, with_va: bool) -> f64 {
+        let p = &self.params;
+        let lin = if with_va { va } else { 0.0 };
+        p.tem / p.mass * (lin - vh + vcr + p.electrostriction * va * va)
+    }
+
+    /// Slope `dVh/dq` of the CEMF law at `vh` for a charge increment of sign `s`.
+    #[inline(always)]
+    fn cemf_slope(&self, vh: f64, s: f64) -> f64 {
+        let p = &self.params;
+        p.hyst_alpha - p.hyst_beta * s * vh - p.hyst_gamma * abs(vh)
+    }
+
+    /// Charge (or voltage) increment driving the CEMF, before its own feedback.
+    #[inline(always)]
+    fn drive_increment(&self, dx: f64, va0: f64, va1: f64) -> f64 {
+        let p = &self.params;
+        match p.hyst_drive {
+            HysteresisDrive::Voltage => va1 - va0,
+            HysteresisDrive::Charge => p.tem * dx + p.capacitance * (va1 - va0),
+        }
+    }
+
+    /// First-order estimate of the CEMF voltage after the motion (no exponentials): the
+    /// predictor's value.
+    #[inline(always)]
+    fn cemf_linear(&self, vh0: f64, dx: f64, va0: f64, va1: f64) -> f64 {
+        let q = self.drive_increment(dx, va0, va1);
+        let g = self.cemf_slope(vh0, crate::math::sign(q));
+        match self.params.hyst_drive {
+            HysteresisDrive::Voltage => vh0 + g * q,
+            HysteresisDrive::Charge => vh0 + g * q / (1.0 + self.params.capacitance * g),
+        }
+    }
+
+    /// CEMF voltage after the stack moved by `dx` while the amplifier went `va0 -> va1`,
+    /// through the exact Bouc–Wen increment. For charge drive the loop
+    /// `dq = q_ext - Cz dVh`, `dVh = BW(vh0, dq) - vh0` is solved by Newton from the
+    /// linearized solution (one or two steps reach rounding level: the correction is
+    /// second order in the increment).
+    #[inline]
+    fn cemf(&self, vh0: f64, dx: f64, va0: f64, va1: f64) -> f64 {
+        let p = &self.params;
+        let q_ext = self.drive_increment(dx, va0, va1);
+        if q_ext == 0.0 {
+            return vh0;
+        }
+        let bw = |dq: f64| bouc_wen_1_exact(vh0, dq, p.hyst_alpha, p.hyst_beta, p.hyst_gamma);
+        if p.hyst_drive == HysteresisDrive::Voltage {
+            return bw(q_ext);
+        }
+        let cz = p.capacitance;
+        let s = crate::math::sign(q_ext);
+        let g0 = self.cemf_slope(vh0, s);
+        // With Vh ~ vh0 + g0 dq (1 - c dq / 2), c = beta s + gamma sign(vh0), the balance
+        // b dq - e dq^2 = q_ext (b = 1 + Cz g0, e = Cz c g0 / 2) has the root
+        // dq = l (1 + k + 2 k^2 + ...), l = q_ext / b, k = e l / b: a guess off by O(k^3).
+        let c = p.hyst_beta * s + p.hyst_gamma * crate::math::sign(vh0);
+        let inv_b = 1.0 / (1.0 + cz * g0);
+        let lin = q_ext * inv_b;
+        let k = 0.5 * cz * c * g0 * lin * inv_b;
+        let mut dq = if abs(k) < 0.1 { lin * (1.0 + k * (1.0 + 2.0 * k)) } else { lin };
+        // one Newton step with the starting slope (its error is second order too) takes
+        // the residual to rounding level
+        let vh = bw(dq);
+        let r = dq - q_ext + cz * (vh - vh0);
+        dq -= r * inv_b;
+        bw(dq)
+    }
+
+    /// Amplifier output after `h` toward command `u`; returns `(va1, exponential)` where
+    /// `exponential` says the path was the unlimited first-order response (or ideal).
+    #[inline]
+    fn amplifier(&self, lv: &Level, va0: f64, u: f64) -> (f64, bool) {
+        let p = &self.params;
+        let slew = p.amp_slew;
+        if self.amp_ideal {
+            if slew.is_infinite() {
+                return (u, true);
+            }
+            let step = slew * lv.h;
+            let d = u - va0;
+            return (if abs(d) <= step { u } else { va0 + step * crate::math::sign(d) }, false);
+        }
+        let gap = u - va0;
+        if slew.is_infinite() || abs(gap) <= slew * self.amp_tau {
+            return (u - gap * lv.amp_decay, true);
+        }
+        // slew-limited ramp until |u - Va| = slew * tau, then the exponential
+        let s = crate::math::sign(gap);
+        let t_ramp = (abs(gap) - slew * self.amp_tau) / slew;
+        if t_ramp >= lv.h {
+            (va0 + s * slew * lv.h, false)
+        } else {
+            let rest = lv.h - t_ramp;
+            (u - s * slew * self.amp_tau * exp(-rest / self.amp_tau), false)
+        }
+    }
+
+    /// Advance one controller period with command `u` (saturated to the amplifier range).
+    /// Returns the position at the end of the period.
+    pub fn advance(&self, st: &mut StageState, u: f64) -> f64 {
+        let u = self.saturate(u);
+        if self.amp_ideal && self.params.amp_slew.is_infinite() && u != st.va {
+            // the voltage steps at the start of the period: charge jumps, position does not
+            st.vh = self.cemf(st.vh, 0.0, st.va, u);
+            st.va = u;
+        }
+        let level = self.refinement(st, u);
+        let lv = &self.levels[level];
+        for _ in 0..(self.substeps << level) {
+            self.substep(lv, st, u);
+        }
+        st.x
+    }
+
+    /// Refinement level for this period: the charge the CEMF will see, estimated from the
+    /// amplifier's remaining travel and the current velocity, split finely enough.
+    #[inline]
+    fn refinement(&self, st: &StageState, u: f64) -> usize {
+        if self.tolerance.is_infinite() {
+            return 0;
+        }
+        let p = &self.params;
+        let travel = abs(u - st.va);
+        let travel = if self.amp_ideal { 0.0 } else { travel };
+        let drive = match p.hyst_drive {
+            HysteresisDrive::Charge => p.capacitance * travel + p.tem * abs(st.v) * self.ts,
+            HysteresisDrive::Voltage => travel,
+        };
+        let exponent = (abs(p.hyst_beta) + abs(p.hyst_gamma)) * drive / self.substeps as f64;
+        let mut level = 0;
+        let mut limit = self.tolerance;
+        while exponent > limit && level + 1 < LEVELS {
+            level += 1;
+            limit *= 2.0;
+        }
+        level
+    }
+
+    #[inline]
+    fn substep(&self, lv: &Level, st: &mut StageState, u: f64) {
+        let (va1, exponential) = self.amplifier(lv, st.va, u);
+        let use3 = exponential && !self.amp_ideal;
+        let (va0, x0, v0, vh0) = (st.va, st.x, st.v, st.vh);
+        let vcr0 = self.creep_voltage(&st.creep);
+        let mut w1 = st.creep;
+        for j in 0..self.params.creep_terms {
+            w1[j] = lv.creep_e[j] * w1[j] + (1.0 - lv.creep_e[j]) * va0 + lv.creep_b[j] * (va1 - va0);
+        }
+        let vcr1 = self.creep_voltage(&w1);
+        let d0 = self.extra_accel(va0, vh0, vcr0, !use3);
+        let motion = |vh1: f64| -> (f64, f64) {
+            let d1 = self.extra_accel(va1, vh1, vcr1, !use3);
+            if use3 {
+                let z = lv.amp_mech.apply(&[va0, x0, v0], u, d0, d1);
+                (z[1], z[2])
+            } else {
+                let z = lv.mech.apply(&[x0, v0], 0.0, d0, d1);
+                (z[0], z[1])
+            }
+        };
+        // predictor: CEMF held; corrector: CEMF first-order held to its linearized
+        // predicted end; then the exact CEMF from the corrected motion
+        let (xp, _) = motion(vh0);
+        let vh_p = self.cemf_linear(vh0, xp - x0, va0, va1);
+        let (x1, v1) = motion(vh_p);
+        st.vh = self.cemf(vh0, x1 - x0, va0, va1);
+        st.va = va1;
+        st.x = x1;
+        st.v = v1;
+        st.creep = w1;
+    }
+
+    /// Longest sub-step length `ts / substeps`, s.
+    pub fn sub_step_length(&self) -> f64 {
+        self.levels[0].h
+    }
+}
+
+/// Length of the flat parameter layout of [`StageParams::from_slice`].
+pub const PARAM_LEN: usize = 15 + 2 * MAX_CREEP;
+
+impl StageParams {
+    /// From the flat layout `[mass, damping, stiffness, tem, capacitance, hyst_alpha,
+    /// hyst_beta, hyst_gamma, drive (0 charge, 1 voltage), electrostriction, amp_min,
+    /// amp_max, amp_bandwidth, amp_slew, creep_terms, creep_taus[8], creep_weights[8]]`,
+    /// validated.
+    pub fn from_slice(p: &[f64]) -> Result<Self, ModelError> {
+        if p.len() != PARAM_LEN {
+            return Err(ModelError::Length("stage parameters", PARAM_LEN, p.len()));
+        }
+        let drive = match p[8] {
+            x if x == 0.0 => HysteresisDrive::Charge,
+            x if x == 1.0 => HysteresisDrive::Voltage,
+            x => return Err(ModelError::NotFinite("hyst_drive (0 charge, 1 voltage)", usize::MAX, x)),
+        };
+        let terms = p[14];
+        if !(terms >= 0.0 && terms <= MAX_CREEP as f64 && terms == libm::floor(terms)) {
+            return Err(ModelError::Structure("creep_terms", if terms.is_finite() && terms >= 0.0 { terms as usize } else { usize::MAX }));
+        }
+        let mut taus = [1.0; MAX_CREEP];
+        let mut weights = [0.0; MAX_CREEP];
+        taus.copy_from_slice(&p[15..15 + MAX_CREEP]);
+        weights.copy_from_slice(&p[15 + MAX_CREEP..]);
+        let params = StageParams {
+            mass: p[0],
+            damping: p[1],
+            stiffness: p[2],
+            tem: p[3],
+            capacitance: p[4],
+            hyst_alpha: p[5],
+            hyst_beta: p[6],
+            hyst_gamma: p[7],
+            hyst_drive: drive,
+            electrostriction: p[9],
+            amp_min: p[10],
+            amp_max: p[11],
+            amp_bandwidth: p[12],
+            amp_slew: p[13],
+            creep_terms: terms as usize,
+            creep_taus: taus,
+            creep_weights: weights,
+        };
+        params.validate()?;
+        Ok(params)
+    }
+}

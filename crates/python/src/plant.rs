@@ -1,0 +1,299 @@
+//! Stage, sensor and closed-loop bindings. A stage is a flat parameter array (layout in
+//! `piezohyst_core::stage::StageParams::from_slice`); a controller is a kind name and a
+//! flat array. Batch runs release the GIL and put one scenario per rayon task.
+use numpy::ndarray::Array2;
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadwriteArray1};
+use piezohyst_core::closed_loop::{run, Record};
+use piezohyst_core::control::{Controller, Limits, OpenLoop, Pid, MAX_TERMS};
+use piezohyst_core::sensor::Sensor;
+use piezohyst_core::stage::{Stage, StageParams, StageState};
+use piezohyst_core::ModelError;
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use rayon::prelude::*;
+
+fn err(e: ModelError) -> PyErr {
+    PyValueError::new_err(e.to_string())
+}
+
+fn slice<'a>(a: &'a PyReadonlyArray1<'_, f64>, name: &str) -> PyResult<&'a [f64]> {
+    a.as_slice().map_err(|_| PyValueError::new_err(format!("{name} must be a contiguous float64 array")))
+}
+
+fn finite(name: &str, xs: &[f64]) -> PyResult<()> {
+    match xs.iter().position(|x| !x.is_finite()) {
+        Some(k) => Err(PyValueError::new_err(format!("{name}[{k}] = {} is not finite", xs[k]))),
+        None => Ok(()),
+    }
+}
+
+fn stage(params: &[f64], ts: f64, substeps: usize, tolerance: f64) -> PyResult<Stage> {
+    let p = StageParams::from_slice(params).map_err(err)?;
+    Stage::new(p, ts, substeps, tolerance).map_err(err)
+}
+
+/// Simulate the stage open loop under a held voltage command per period; `state` (12
+/// values `[va, x, v, vh, creep[8]]`) is updated in place. Returns `(position at the start
+/// of each period, amplifier voltage at the end, CEMF voltage at the end)`.
+#[pyfunction]
+#[allow(clippy::type_complexity)]
+fn stage_simulate<'py>(
+    py: Python<'py>,
+    params: PyReadonlyArray1<'py, f64>,
+    ts: f64,
+    substeps: usize,
+    tolerance: f64,
+    command: PyReadonlyArray1<'py, f64>,
+    mut state: PyReadwriteArray1<'py, f64>,
+) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
+    let st = stage(slice(&params, "params")?, ts, substeps, tolerance)?;
+    let u = slice(&command, "command")?;
+    finite("command", u)?;
+    let s = state.as_slice_mut().map_err(|_| PyValueError::new_err("state must be a contiguous float64 array"))?;
+    let mut ss = StageState::from_array(s).map_err(err)?;
+    let n = u.len();
+    let (mut x, mut va, mut vh) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    py.detach(|| {
+        for k in 0..n {
+            x[k] = ss.x;
+            st.advance(&mut ss, u[k]);
+            va[k] = ss.va;
+            vh[k] = ss.vh;
+        }
+    });
+    s.copy_from_slice(&ss.to_array());
+    if let Some(k) = x.iter().position(|v| !v.is_finite()) {
+        return Err(PyValueError::new_err(format!("the stage simulation diverged at sample {k}")));
+    }
+    Ok((x.into_pyarray(py), va.into_pyarray(py), vh.into_pyarray(py)))
+}
+
+/// A controller of any kind (enum dispatch; each arm is monomorphized).
+#[derive(Clone, Copy)]
+enum AnyController {
+    OpenLoop(OpenLoop),
+    Pid(Pid),
+}
+
+fn controller(kind: &str, p: &[f64]) -> PyResult<AnyController> {
+    finite("controller parameters", p)?;
+    let need = |n: usize| -> PyResult<()> {
+        if p.len() != n {
+            return Err(PyValueError::new_err(format!(
+                "controller {kind:?} takes {n} parameters, got {}",
+                p.len()
+            )));
+        }
+        Ok(())
+    };
+    match kind {
+        "open_loop" => {
+            need(4)?;
+            let limits = Limits::new(p[2], p[3]).map_err(err)?;
+            Ok(AnyController::OpenLoop(OpenLoop { gain: p[0], offset: p[1], limits }))
+        }
+        "pid" => {
+            need(9)?;
+            let limits = Limits::new(p[7], p[8]).map_err(err)?;
+            Ok(AnyController::Pid(Pid::new(p[0], p[1], p[2], p[3], p[4], p[5], p[6], limits).map_err(err)?))
+        }
+        _ => Err(PyValueError::new_err(format!("controller = {kind:?} is unknown; expected open_loop or pid"))),
+    }
+}
+
+/// One scenario's inputs.
+struct Scenario<'a> {
+    reference: &'a [f64],
+    velocity: &'a [f64],
+    acceleration: &'a [f64],
+    seed: u64,
+    controller: AnyController,
+}
+
+/// One scenario's signals.
+struct Signals {
+    command: Vec<f64>,
+    voltage: Vec<f64>,
+    position: Vec<f64>,
+    measured: Vec<f64>,
+    terms: Vec<f64>,
+    final_state: StageState,
+}
+
+fn run_any<C: Controller>(stage: &Stage, sensor: &Sensor, c: &C, sc: &Scenario<'_>, init: StageState) -> Signals {
+    let n = sc.reference.len();
+    let mut sig = Signals {
+        command: vec![0.0; n],
+        voltage: vec![0.0; n],
+        position: vec![0.0; n],
+        measured: vec![0.0; n],
+        terms: vec![0.0; n * MAX_TERMS],
+        final_state: init,
+    };
+    let mut st = init;
+    let mut sst = sensor.state(st.x, sc.seed);
+    let mut cst = c.initial_state(st.x);
+    run(
+        stage,
+        &mut st,
+        sensor,
+        &mut sst,
+        c,
+        &mut cst,
+        sc.reference,
+        sc.velocity,
+        sc.acceleration,
+        Record {
+            command: &mut sig.command,
+            voltage: &mut sig.voltage,
+            position: &mut sig.position,
+            measured: &mut sig.measured,
+            terms: &mut sig.terms,
+        },
+    );
+    sig.final_state = st;
+    sig
+}
+
+fn run_scenario(stage: &Stage, sensor: &Sensor, sc: &Scenario<'_>, init: StageState) -> Signals {
+    match &sc.controller {
+        AnyController::OpenLoop(c) => run_any(stage, sensor, c, sc, init),
+        AnyController::Pid(c) => run_any(stage, sensor, c, sc, init),
+    }
+}
+
+fn term_names(c: &AnyController) -> &'static [&'static str] {
+    match c {
+        AnyController::OpenLoop(c) => c.term_names(),
+        AnyController::Pid(c) => c.term_names(),
+    }
+}
+
+fn signals_dict<'py>(py: Python<'py>, sig: Signals, names: &'static [&'static str]) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    let n = sig.command.len();
+    d.set_item("command", sig.command.into_pyarray(py))?;
+    d.set_item("voltage", sig.voltage.into_pyarray(py))?;
+    d.set_item("position", sig.position.into_pyarray(py))?;
+    d.set_item("measured", sig.measured.into_pyarray(py))?;
+    let terms = Array2::from_shape_vec((n, MAX_TERMS), sig.terms).expect("shape");
+    let terms: Bound<'py, PyArray2<f64>> = terms.into_pyarray(py);
+    d.set_item("terms", terms)?;
+    d.set_item("term_names", names.to_vec())?;
+    d.set_item("final_state", sig.final_state.to_array().to_vec())?;
+    Ok(d)
+}
+
+fn sensor(q: f64, noise: f64, delay: usize) -> PyResult<Sensor> {
+    Sensor::new(q, noise, delay).map_err(err)
+}
+
+fn scenario_arrays<'a>(
+    r: &'a PyReadonlyArray1<'_, f64>,
+    v: &'a PyReadonlyArray1<'_, f64>,
+    a: &'a PyReadonlyArray1<'_, f64>,
+) -> PyResult<(&'a [f64], &'a [f64], &'a [f64])> {
+    let (r, v, a) = (slice(r, "reference")?, slice(v, "velocity")?, slice(a, "acceleration")?);
+    finite("reference", r)?;
+    finite("velocity", v)?;
+    finite("acceleration", a)?;
+    if v.len() != r.len() || a.len() != r.len() {
+        return Err(PyValueError::new_err(format!(
+            "reference, velocity and acceleration must have equal lengths, got {}, {}, {}",
+            r.len(),
+            v.len(),
+            a.len()
+        )));
+    }
+    Ok((r, v, a))
+}
+
+/// Run one closed loop. Returns a dict of signals.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+fn closed_loop<'py>(
+    py: Python<'py>,
+    stage_params: PyReadonlyArray1<'py, f64>,
+    ts: f64,
+    substeps: usize,
+    tolerance: f64,
+    sensor_quantization: f64,
+    sensor_noise: f64,
+    sensor_delay: usize,
+    controller_kind: &str,
+    controller_params: PyReadonlyArray1<'py, f64>,
+    reference: PyReadonlyArray1<'py, f64>,
+    velocity: PyReadonlyArray1<'py, f64>,
+    acceleration: PyReadonlyArray1<'py, f64>,
+    initial_state: PyReadonlyArray1<'py, f64>,
+    seed: u64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let st = stage(slice(&stage_params, "stage_params")?, ts, substeps, tolerance)?;
+    let se = sensor(sensor_quantization, sensor_noise, sensor_delay)?;
+    let c = controller(controller_kind, slice(&controller_params, "controller_params")?)?;
+    let (r, v, a) = scenario_arrays(&reference, &velocity, &acceleration)?;
+    let init = StageState::from_array(slice(&initial_state, "initial_state")?).map_err(err)?;
+    let sc = Scenario { reference: r, velocity: v, acceleration: a, seed, controller: c };
+    let sig = py.detach(|| run_scenario(&st, &se, &sc, init));
+    if let Some(k) = sig.position.iter().position(|x| !x.is_finite()) {
+        return Err(PyValueError::new_err(format!("the closed loop diverged at sample {k}")));
+    }
+    signals_dict(py, sig, term_names(&c))
+}
+
+/// Run many closed-loop scenarios on one stage in parallel (GIL released, rayon).
+/// `scenarios` is a list of `(controller_kind, controller_params, reference, velocity,
+/// acceleration, seed)`; returns a list of dicts as `closed_loop`.
+#[pyfunction]
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+fn closed_loop_batch<'py>(
+    py: Python<'py>,
+    stage_params: PyReadonlyArray1<'py, f64>,
+    ts: f64,
+    substeps: usize,
+    tolerance: f64,
+    sensor_quantization: f64,
+    sensor_noise: f64,
+    sensor_delay: usize,
+    scenarios: Vec<(
+        String,
+        PyReadonlyArray1<'py, f64>,
+        PyReadonlyArray1<'py, f64>,
+        PyReadonlyArray1<'py, f64>,
+        PyReadonlyArray1<'py, f64>,
+        u64,
+    )>,
+    initial_state: PyReadonlyArray1<'py, f64>,
+) -> PyResult<Vec<Bound<'py, PyDict>>> {
+    let st = stage(slice(&stage_params, "stage_params")?, ts, substeps, tolerance)?;
+    let se = sensor(sensor_quantization, sensor_noise, sensor_delay)?;
+    let init = StageState::from_array(slice(&initial_state, "initial_state")?).map_err(err)?;
+    let mut list = Vec::with_capacity(scenarios.len());
+    for (j, (kind, cp, r, v, a, seed)) in scenarios.iter().enumerate() {
+        let prefix = |e: PyErr| PyValueError::new_err(format!("scenarios[{j}]: {}", e.value(py)));
+        let c = controller(kind, slice(cp, "controller_params").map_err(prefix)?).map_err(prefix)?;
+        let (r, v, a) = scenario_arrays(r, v, a).map_err(prefix)?;
+        list.push(Scenario { reference: r, velocity: v, acceleration: a, seed: *seed, controller: c });
+    }
+    let results: Vec<Signals> = py.detach(|| list.par_iter().map(|sc| run_scenario(&st, &se, sc, init)).collect());
+    let mut out = Vec::with_capacity(results.len());
+    for (j, (sig, sc)) in results.into_iter().zip(&list).enumerate() {
+        if let Some(k) = sig.position.iter().position(|x| !x.is_finite()) {
+            return Err(PyValueError::new_err(format!("scenarios[{j}]: the closed loop diverged at sample {k}")));
+        }
+        out.push(signals_dict(py, sig, term_names(&sc.controller))?);
+    }
+    Ok(out)
+}
+
+/// Add this module's functions to the extension module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(stage_simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(closed_loop, m)?)?;
+    m.add_function(wrap_pyfunction!(closed_loop_batch, m)?)?;
+    m.add("STAGE_PARAM_LEN", piezohyst_core::stage::PARAM_LEN)?;
+    m.add("STAGE_STATE_LEN", StageState::LEN)?;
+    m.add("MAX_TERMS", MAX_TERMS)?;
+    Ok(())
+}
