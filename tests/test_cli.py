@@ -32,3 +32,24 @@ def test_demo_refuses_to_overwrite_without_force(tmp_path):
     assert out.stderr.strip().count("\n") == 0 and "--force" in out.stderr
     assert (tmp_path / "report" / "mpi_loops.png").read_bytes() == b"mine"
     assert run("demo", "--out", "report", "--force", cwd=tmp_path).returncode == 0
+
+
+def test_stage_info_measures_the_virtual_stage_within_the_spec_ranges(tmp_path):
+    out = run("stage", "info", "--json", cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    info = json.loads(out.stdout)
+    assert 18 <= info["stroke_um"] <= 22                       # SPEC 3.2: ~20 um at 150 V
+    assert 10 <= info["hysteresis_percent_1hz_full_range"] <= 15
+    assert 1 <= info["creep_percent_per_decade"] <= 2
+    assert abs(info["natural_frequency_hz"] - 5100) < 60        # SPEC 3.1: ~5.1 kHz
+    # the charge coupling stiffens the stack: the measured resonance sits a little higher
+    assert info["natural_frequency_hz"] < info["first_resonance_hz"] < 6000
+
+
+def test_stage_info_bad_file_is_one_line_error(tmp_path):
+    bad = tmp_path / "stage.json"
+    bad.write_text('{"mechanics": {"mass": -1, "stiffness": 1e7, "damping_ratio": 0.03, "tem": 10}, '
+                   '"cemf": {"alpha": 1, "beta": 1, "gamma": 1}}')
+    out = run("stage", "info", "--stage", str(bad), cwd=tmp_path)
+    assert out.returncode == 2
+    assert out.stderr.strip().count("\n") == 0 and "mass = -1.0 must be > 0" in out.stderr
