@@ -194,6 +194,7 @@ struct Level {
     amp_decay: f64,
     /// creep lag update for a first-order-held input: w1 = e w0 + (1 - e) va0 + b (va1 - va0)
     creep_e: [f64; MAX_CREEP],
+    creep_1me: [f64; MAX_CREEP],
     creep_b: [f64; MAX_CREEP],
 }
 
@@ -208,10 +209,11 @@ impl Level {
             Discrete::new::<6>(&a, &[1.0 / amp_tau, 0.0, 0.0], &[0.0, 0.0, 1.0], h)
         };
         let amp_decay = if amp_ideal { 0.0 } else { exp(-h / amp_tau) };
-        let (mut creep_e, mut creep_b) = ([1.0; MAX_CREEP], [0.0; MAX_CREEP]);
+        let (mut creep_e, mut creep_1me, mut creep_b) = ([1.0; MAX_CREEP], [0.0; MAX_CREEP], [0.0; MAX_CREEP]);
         for j in 0..p.creep_terms {
             let x = h / p.creep_taus[j];
             creep_e[j] = exp(-x);
+            creep_1me[j] = -crate::math::expm1(-x);
             // b = 1 - (1 - e^-x)/x, by its series where the difference would cancel
             creep_b[j] = if x < 1e-3 {
                 x * (0.5 - x * (1.0 / 6.0 - x * (1.0 / 24.0 - x / 120.0)))
@@ -219,7 +221,7 @@ impl Level {
                 1.0 + crate::math::expm1(-x) / x
             };
         }
-        Level { h, mech, amp_mech, amp_decay, creep_e, creep_b }
+        Level { h, mech, amp_mech, amp_decay, creep_e, creep_1me, creep_b }
     }
 }
 
@@ -331,15 +333,6 @@ impl Stage {
         crate::math::clamp(u, self.params.amp_min, self.params.amp_max)
     }
 
-    #[inline]
-    fn creep_voltage(&self, w: &[f64; MAX_CREEP]) -> f64 {
-        let mut s = 0.0;
-        for j in 0..self.params.creep_terms {
-            s += self.params.creep_weights[j] * w[j];
-        }
-        s
-    }
-
     /// Forcing (acceleration) that is not in the exact linear part.
     #[inline]
     fn extra_accel(&self, va: f64, vh: f64, vcr: f64, with_va: bool) -> f64 {
@@ -404,8 +397,12 @@ impl Stage {
         let lin = q_ext * inv_b;
         let k = 0.5 * cz * c * g0 * lin * inv_b;
         let mut dq = if abs(k) < 0.1 { lin * (1.0 + k * (1.0 + 2.0 * k)) } else { lin };
-        // one Newton step with the starting slope (its error is second order too) takes
-        // the residual to rounding level
+        // the guess is off by O(k^3) relative: below 1e-12 when |k| < 1e-4 (the common case
+        // of small sub-steps); otherwise one Newton step with the starting slope (its own
+        // error is second order) takes the residual to rounding level
+        if abs(k) < 1e-4 {
+            return bw(dq);
+        }
         let vh = bw(dq);
         let r = dq - q_ext + cz * (vh - vh0);
         dq -= r * inv_b;
@@ -487,33 +484,34 @@ impl Stage {
         let (va1, exponential) = self.amplifier(lv, st.va, u);
         let use3 = exponential && !self.amp_ideal;
         let (va0, x0, v0, vh0) = (st.va, st.x, st.v, st.vh);
-        let vcr0 = self.creep_voltage(&st.creep);
-        let mut w1 = st.creep;
+        let (mut vcr0, mut vcr1) = (0.0, 0.0);
         for j in 0..self.params.creep_terms {
-            w1[j] = lv.creep_e[j] * w1[j] + (1.0 - lv.creep_e[j]) * va0 + lv.creep_b[j] * (va1 - va0);
+            let c = self.params.creep_weights[j];
+            let w0 = st.creep[j];
+            let w1 = lv.creep_e[j] * w0 + lv.creep_1me[j] * va0 + lv.creep_b[j] * (va1 - va0);
+            vcr0 += c * w0;
+            vcr1 += c * w1;
+            st.creep[j] = w1;
         }
-        let vcr1 = self.creep_voltage(&w1);
+        // the end state is affine in the end forcing d1: z1 = base + g1 d1
         let d0 = self.extra_accel(va0, vh0, vcr0, !use3);
-        let motion = |vh1: f64| -> (f64, f64) {
-            let d1 = self.extra_accel(va1, vh1, vcr1, !use3);
-            if use3 {
-                let z = lv.amp_mech.apply(&[va0, x0, v0], u, d0, d1);
-                (z[1], z[2])
-            } else {
-                let z = lv.mech.apply(&[x0, v0], 0.0, d0, d1);
-                (z[0], z[1])
-            }
+        let (base_x, base_v, g1x, g1v) = if use3 {
+            let z = lv.amp_mech.apply(&[va0, x0, v0], u, d0, 0.0);
+            (z[1], z[2], lv.amp_mech.g1[1], lv.amp_mech.g1[2])
+        } else {
+            let z = lv.mech.apply(&[x0, v0], 0.0, d0, 0.0);
+            (z[0], z[1], lv.mech.g1[0], lv.mech.g1[1])
         };
         // predictor: CEMF held; corrector: CEMF first-order held to its linearized
         // predicted end; then the exact CEMF from the corrected motion
-        let (xp, _) = motion(vh0);
+        let xp = base_x + g1x * self.extra_accel(va1, vh0, vcr1, !use3);
         let vh_p = self.cemf_linear(vh0, xp - x0, va0, va1);
-        let (x1, v1) = motion(vh_p);
+        let d1 = self.extra_accel(va1, vh_p, vcr1, !use3);
+        let (x1, v1) = (base_x + g1x * d1, base_v + g1v * d1);
         st.vh = self.cemf(vh0, x1 - x0, va0, va1);
         st.va = va1;
         st.x = x1;
         st.v = v1;
-        st.creep = w1;
     }
 
     /// Longest sub-step length `ts / substeps`, s.
