@@ -129,7 +129,7 @@ def _prepare(stage, controller, reference, velocity, acceleration):
 
 def _result(stage, x, d, controller) -> ClosedLoopResult:
     names = list(d["term_names"])
-    terms = {n: d["terms"][:, i].copy() for i, n in enumerate(names)}
+    terms = {n: d["terms"][:, i] for i, n in enumerate(names)}
     return ClosedLoopResult(
         time=np.arange(x.size) * stage.sample_time, reference=x, command=d["command"], voltage=d["voltage"],
         position=d["position"], measured=d["measured"], terms=terms, final_state=np.asarray(d["final_state"]),

@@ -180,7 +180,7 @@ class Stage:
     sensor: Sensor = Sensor()
     sample_time: float = 1e-4
     substeps: int = 1
-    tolerance: float = 0.01
+    tolerance: float = 0.05
     name: str = ""
 
     def __post_init__(self):
@@ -220,7 +220,7 @@ class Stage:
             sensor = Sensor(s.get("quantization", 0.0), s.get("noise_std", 0.0), s.get("delay", 0))
             loop = d.get("loop", {})
             return cls(params, amp, sensor, loop.get("sample_time", 1e-4), loop.get("substeps", 1),
-                       _inf(loop.get("tolerance", 0.01)), d.get("name", ""))
+                       _inf(loop.get("tolerance", 0.05)), d.get("name", ""))
         except KeyError as e:
             raise ValueError(f"stage description is missing {e.args[0]!r}") from None
 

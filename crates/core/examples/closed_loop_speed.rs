@@ -2,7 +2,7 @@
 //! the benchmark of record is bench/closed_loop.py):
 //! `cargo run --release -p piezohyst-core --example closed_loop_speed`.
 use piezohyst_core::closed_loop::{run, Record};
-use piezohyst_core::control::{Limits, Pid, MAX_TERMS};
+use piezohyst_core::control::{Limits, Pid};
 use piezohyst_core::sensor::Sensor;
 use piezohyst_core::stage::{HysteresisDrive, Stage, StageParams, StageState, MAX_CREEP};
 use std::time::Instant;
@@ -40,7 +40,7 @@ fn main() {
         let sensor = Sensor::new(1e-7, if std::env::var("NONOISE").is_ok() { 0.0 } else { 1e-8 }, 1).unwrap();
         let pid = Pid::new(1e6, 5e9, 0.0, 1e-4, ts, 1.0 / (10.5 / 7.333e7), 0.0, Limits::new(-20.0, 150.0).unwrap()).unwrap();
         let (mut c, mut va, mut x, mut y) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-        let mut terms = vec![0.0; n * MAX_TERMS];
+        let mut terms = vec![0.0; n * 5];
         let mut best = f64::INFINITY;
         for _ in 0..3 {
             let mut st = StageState::ZERO;

@@ -9,8 +9,8 @@ use crate::control::{Controller, Reference, MAX_TERMS};
 use crate::sensor::{Sensor, SensorState};
 use crate::stage::{Stage, StageState};
 
-/// Where a run writes its signals; every slice has the run's length (`terms`: `MAX_TERMS`
-/// per sample, row-major).
+/// Where a run writes its signals; every slice has the run's length (`terms`: the
+/// controller's `term_names().len()` values per sample, row-major).
 pub struct Record<'a> {
     /// Voltage command, V.
     pub command: &'a mut [f64],
@@ -40,6 +40,8 @@ pub fn run<C: Controller>(
     rec: Record<'_>,
 ) {
     let n = reference.len().min(velocity.len()).min(acceleration.len()).min(rec.command.len());
+    let width = controller.term_names().len().min(MAX_TERMS);
+    let n = n.min(rec.terms.len() / width.max(1));
     for k in 0..n {
         let x = stage_state.x;
         let y = sensor.read(sensor_state, x);
@@ -50,6 +52,6 @@ pub fn run<C: Controller>(
         rec.voltage[k] = stage_state.va;
         rec.position[k] = x;
         rec.measured[k] = y;
-        rec.terms[k * MAX_TERMS..(k + 1) * MAX_TERMS].copy_from_slice(&out.terms);
+        rec.terms[k * width..(k + 1) * width].copy_from_slice(&out.terms[..width]);
     }
 }

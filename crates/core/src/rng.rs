@@ -46,7 +46,7 @@ impl Rng {
         (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
     }
 
-    /// Standard normal deviate.
+    /// Standard normal deviate by the Marsaglia polar method (two per logarithm).
     pub fn normal(&mut self) -> f64 {
         if self.has_spare {
             self.has_spare = false;

@@ -51,10 +51,16 @@ impl Sensor {
         SensorState { line: [q; MAX_DELAY + 1], head: 0, rng: Rng::new(seed) }
     }
 
+    /// Mid-tread quantization (round half to even). Adding and removing 1.5 * 2^52 rounds
+    /// to the nearest integer in two additions, exactly, for |x / q| < 2^51; beyond that
+    /// (readings of more than 10^15 steps) the value is already an integer multiple.
     #[inline]
     fn quantize(&self, x: f64) -> f64 {
+        const SHIFT: f64 = 6755399441055744.0; // 1.5 * 2^52
         if self.quantization > 0.0 {
-            libm::round(x * self.inv_quantization) * self.quantization
+            let t = x * self.inv_quantization;
+            let r = if crate::math::abs(t) < 2251799813685248.0 { (t + SHIFT) - SHIFT } else { t };
+            r * self.quantization
         } else {
             x
         }

@@ -180,6 +180,14 @@ impl<const N: usize> Discrete<N> {
     }
 }
 
+/// CEMF slopes at a sub-step's start (see `Stage::cemf_start`).
+#[derive(Debug, Clone, Copy)]
+struct CemfStart {
+    vh0: f64,
+    g: [f64; 2],
+    inv_b: [f64; 2],
+}
+
 /// Sub-step refinement levels: level `j` splits a period into `substeps * 2^j` sub-steps.
 pub const LEVELS: usize = 11;
 
@@ -358,26 +366,36 @@ impl Stage {
         }
     }
 
+    /// The CEMF law's slope `G` and the loop factor `1 / (1 + Cz G)` at the sub-step's
+    /// start, for a rising (`[0]`) and a falling (`[1]`) charge: computed from the start
+    /// state alone, so no division waits for the motion.
+    #[inline(always)]
+    fn cemf_start(&self, vh0: f64) -> CemfStart {
+        let g = [self.cemf_slope(vh0, 1.0), self.cemf_slope(vh0, -1.0)];
+        let cz = match self.params.hyst_drive {
+            HysteresisDrive::Charge => self.params.capacitance,
+            HysteresisDrive::Voltage => 0.0,
+        };
+        CemfStart { vh0, g, inv_b: [1.0 / (1.0 + cz * g[0]), 1.0 / (1.0 + cz * g[1])] }
+    }
+
     /// First-order estimate of the CEMF voltage after the motion (no exponentials): the
     /// predictor's value.
     #[inline(always)]
-    fn cemf_linear(&self, vh0: f64, dx: f64, va0: f64, va1: f64) -> f64 {
+    fn cemf_linear(&self, at: &CemfStart, dx: f64, va0: f64, va1: f64) -> f64 {
         let q = self.drive_increment(dx, va0, va1);
-        let g = self.cemf_slope(vh0, crate::math::sign(q));
-        match self.params.hyst_drive {
-            HysteresisDrive::Voltage => vh0 + g * q,
-            HysteresisDrive::Charge => vh0 + g * q / (1.0 + self.params.capacitance * g),
-        }
+        let i = (q < 0.0) as usize;
+        at.vh0 + at.g[i] * q * at.inv_b[i]
     }
 
     /// CEMF voltage after the stack moved by `dx` while the amplifier went `va0 -> va1`,
     /// through the exact Bouc–Wen increment. For charge drive the loop
-    /// `dq = q_ext - Cz dVh`, `dVh = BW(vh0, dq) - vh0` is solved by Newton from the
-    /// linearized solution (one or two steps reach rounding level: the correction is
-    /// second order in the increment).
+    /// `dq = q_ext - Cz dVh`, `dVh = BW(vh0, dq) - vh0` is solved from its second-order
+    /// expansion, refined by one Newton step when that is not already at rounding level.
     #[inline]
-    fn cemf(&self, vh0: f64, dx: f64, va0: f64, va1: f64) -> f64 {
+    fn cemf(&self, at: &CemfStart, dx: f64, va0: f64, va1: f64) -> f64 {
         let p = &self.params;
+        let vh0 = at.vh0;
         let q_ext = self.drive_increment(dx, va0, va1);
         if q_ext == 0.0 {
             return vh0;
@@ -387,19 +405,19 @@ impl Stage {
             return bw(q_ext);
         }
         let cz = p.capacitance;
-        let s = crate::math::sign(q_ext);
-        let g0 = self.cemf_slope(vh0, s);
+        let i = (q_ext < 0.0) as usize;
+        let s = if i == 0 { 1.0 } else { -1.0 };
+        let (g0, inv_b) = (at.g[i], at.inv_b[i]);
         // With Vh ~ vh0 + g0 dq (1 - c dq / 2), c = beta s + gamma sign(vh0), the balance
         // b dq - e dq^2 = q_ext (b = 1 + Cz g0, e = Cz c g0 / 2) has the root
         // dq = l (1 + k + 2 k^2 + ...), l = q_ext / b, k = e l / b: a guess off by O(k^3).
         let c = p.hyst_beta * s + p.hyst_gamma * crate::math::sign(vh0);
-        let inv_b = 1.0 / (1.0 + cz * g0);
         let lin = q_ext * inv_b;
         let k = 0.5 * cz * c * g0 * lin * inv_b;
         let mut dq = if abs(k) < 0.1 { lin * (1.0 + k * (1.0 + 2.0 * k)) } else { lin };
-        // the guess is off by O(k^3) relative: below 1e-12 when |k| < 1e-4 (the common case
-        // of small sub-steps); otherwise one Newton step with the starting slope (its own
-        // error is second order) takes the residual to rounding level
+        // below |k| = 1e-4 the guess is within 1e-12 relative (the common case of small
+        // sub-steps); otherwise one Newton step with the starting slope (its own error is
+        // second order) takes the residual to rounding level
         if abs(k) < 1e-4 {
             return bw(dq);
         }
@@ -444,7 +462,7 @@ impl Stage {
         let u = self.saturate(u);
         if self.amp_ideal && self.params.amp_slew.is_infinite() && u != st.va {
             // the voltage steps at the start of the period: charge jumps, position does not
-            st.vh = self.cemf(st.vh, 0.0, st.va, u);
+            st.vh = self.cemf(&self.cemf_start(st.vh), 0.0, st.va, u);
             st.va = u;
         }
         let level = self.refinement(st, u);
@@ -504,11 +522,12 @@ impl Stage {
         };
         // predictor: CEMF held; corrector: CEMF first-order held to its linearized
         // predicted end; then the exact CEMF from the corrected motion
+        let at = self.cemf_start(vh0);
         let xp = base_x + g1x * self.extra_accel(va1, vh0, vcr1, !use3);
-        let vh_p = self.cemf_linear(vh0, xp - x0, va0, va1);
+        let vh_p = self.cemf_linear(&at, xp - x0, va0, va1);
         let d1 = self.extra_accel(va1, vh_p, vcr1, !use3);
         let (x1, v1) = (base_x + g1x * d1, base_v + g1v * d1);
-        st.vh = self.cemf(vh0, x1 - x0, va0, va1);
+        st.vh = self.cemf(&at, x1 - x0, va0, va1);
         st.va = va1;
         st.x = x1;
         st.v = v1;

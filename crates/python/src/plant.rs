@@ -128,7 +128,7 @@ fn run_any<C: Controller>(stage: &Stage, sensor: &Sensor, c: &C, sc: &Scenario<'
         voltage: vec![0.0; n],
         position: vec![0.0; n],
         measured: vec![0.0; n],
-        terms: vec![0.0; n * MAX_TERMS],
+        terms: vec![0.0; n * c.term_names().len().min(MAX_TERMS)],
         final_state: init,
     };
     let mut st = init;
@@ -173,11 +173,12 @@ fn term_names(c: &AnyController) -> &'static [&'static str] {
 fn signals_dict<'py>(py: Python<'py>, sig: Signals, names: &'static [&'static str]) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     let n = sig.command.len();
+    let k = names.len().min(MAX_TERMS);
     d.set_item("command", sig.command.into_pyarray(py))?;
     d.set_item("voltage", sig.voltage.into_pyarray(py))?;
     d.set_item("position", sig.position.into_pyarray(py))?;
     d.set_item("measured", sig.measured.into_pyarray(py))?;
-    let terms = Array2::from_shape_vec((n, MAX_TERMS), sig.terms).expect("shape");
+    let terms = Array2::from_shape_vec((n, k), sig.terms).expect("shape");
     let terms: Bound<'py, PyArray2<f64>> = terms.into_pyarray(py);
     d.set_item("terms", terms)?;
     d.set_item("term_names", names.to_vec())?;
