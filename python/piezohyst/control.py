@@ -20,6 +20,13 @@ def _limits(u_min, u_max, stage):
     hi = stage.amplifier.v_max if u_max is None else as_scalar(u_max, "u_max")
     if not hi > lo:
         raise ValueError(f"u_min = {lo} must be < u_max = {hi}")
+    a = stage.amplifier
+    # limits beyond the amplifier would let it clip where the controller cannot see it
+    # (the integrator would wind up)
+    if lo < a.v_min:
+        raise ValueError(f"u_min = {lo} V is below the amplifier's v_min = {a.v_min} V")
+    if hi > a.v_max:
+        raise ValueError(f"u_max = {hi} V is above the amplifier's v_max = {a.v_max} V")
     return lo, hi
 
 

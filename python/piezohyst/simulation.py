@@ -188,7 +188,10 @@ def closed_loop_batch(stage, scenarios, *, rng=None, initial_state=None) -> list
             controller, reference = item
         except (TypeError, ValueError):
             raise TypeError(f"scenarios[{j}] must be a (controller, reference) pair") from None
-        x, v, a, kind, params = _prepare(stage, controller, reference, None, None)
+        try:
+            x, v, a, kind, params = _prepare(stage, controller, reference, None, None)
+        except (ValueError, TypeError) as e:
+            raise type(e)(f"scenarios[{j}]: {e}") from None
         prepared.append((x, controller))
         core.append((kind, params, x, v, a, int(seeds_rng.integers(0, 2**63 - 1))))
     s = stage.sensor

@@ -198,11 +198,13 @@ class Stage:
     @classmethod
     def from_dict(cls, d: dict) -> "Stage":
         """Build from the stage-file layout (see ``data/virtual_stage.json``)."""
+        if not isinstance(d, dict):
+            raise ValueError(f"a stage description must be a JSON object, got {type(d).__name__}")
         try:
             mech, cemf = d["mechanics"], d["cemf"]
-            m, k = float(mech["mass"]), float(mech["stiffness"])
+            m, k = _number(mech, "mass"), _number(mech, "stiffness")
             if "damping" in mech:
-                b = float(mech["damping"])
+                b = _number(mech, "damping")
             else:
                 zeta = as_scalar(mech["damping_ratio"], "damping_ratio", nonnegative=True)
                 b = 2 * zeta * math.sqrt(abs(k) * abs(m))
@@ -366,6 +368,13 @@ def _loop_width(u, x):
     xu = np.interp(grid, u[up][iu], x[up][iu])
     xd = np.interp(grid, u[down][idn], x[down][idn])
     return rng, float(np.max(np.abs(xd - xu)) / rng)
+
+
+def _number(section: dict, key: str) -> float:
+    x = section[key]
+    if isinstance(x, bool) or not isinstance(x, (int, float)):
+        raise ValueError(f"{key} = {x!r} must be a number")
+    return float(x)
 
 
 def _inf(x):

@@ -20,6 +20,10 @@ pub fn pow(x: f64, y: f64) -> f64 {
     libm::pow(x, y)
 }
 #[inline(always)]
+pub fn sqrt(x: f64) -> f64 {
+    libm::sqrt(x)
+}
+#[inline(always)]
 pub fn abs(x: f64) -> f64 {
     libm::fabs(x)
 }

@@ -252,6 +252,7 @@ pub struct Stage {
     levels: [Level; LEVELS],
     amp_ideal: bool,
     amp_tau: f64,
+    omega_n: f64,
 }
 
 fn positive(name: &'static str, x: f64) -> Result<(), ModelError> {
@@ -332,7 +333,8 @@ impl Stage {
         for (j, level) in levels.iter_mut().enumerate().skip(1) {
             *level = Level::new(p, amp_ideal, amp_tau, ts / (substeps << j) as f64);
         }
-        Ok(Stage { params, ts, substeps, tolerance, levels, amp_ideal, amp_tau })
+        let omega_n = crate::math::sqrt(p.stiffness / p.mass);
+        Ok(Stage { params, ts, substeps, tolerance, levels, amp_ideal, amp_tau, omega_n })
     }
 
     /// Clamp a command to the amplifier's range.
@@ -481,13 +483,21 @@ impl Stage {
             return 0;
         }
         let p = &self.params;
-        let travel = abs(u - st.va);
-        let travel = if self.amp_ideal { 0.0 } else { travel };
+        let travel = if self.amp_ideal { 0.0 } else { abs(u - st.va) };
+        // The stack may swing inside the period even when the period starts at rest (the
+        // resonance rings after a step): bound the motion by the velocity plus the
+        // distance from the quasi-static position times the natural frequency, plus the
+        // quasi-static motion the amplifier's travel causes.
+        let x_static = p.tem / p.stiffness * (st.va - st.vh + p.electrostriction * st.va * st.va);
+        let motion = (abs(st.v) + self.omega_n * abs(st.x - x_static)) * self.ts + p.tem / p.stiffness * travel;
         let drive = match p.hyst_drive {
-            HysteresisDrive::Charge => p.capacitance * travel + p.tem * abs(st.v) * self.ts,
+            HysteresisDrive::Charge => p.capacitance * travel + p.tem * motion,
             HysteresisDrive::Voltage => travel,
         };
-        let exponent = (abs(p.hyst_beta) + abs(p.hyst_gamma)) * drive / self.substeps as f64;
+        // dimensionless nonlinearity per period: the CEMF exponent change, and the relative
+        // change of the electrostrictive gain (its force is first-order held too)
+        let exponent = ((abs(p.hyst_beta) + abs(p.hyst_gamma)) * drive + 2.0 * abs(p.electrostriction) * travel)
+            / self.substeps as f64;
         let mut level = 0;
         let mut limit = self.tolerance;
         while exponent > limit && level + 1 < LEVELS {
