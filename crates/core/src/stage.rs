@@ -488,7 +488,11 @@ impl Stage {
         // resonance rings after a step): bound the motion by the velocity plus the
         // distance from the quasi-static position times the natural frequency, plus the
         // quasi-static motion the amplifier's travel causes.
-        let x_static = p.tem / p.stiffness * (st.va - st.vh + p.electrostriction * st.va * st.va);
+        let mut vcr = 0.0;
+        for j in 0..p.creep_terms {
+            vcr += p.creep_weights[j] * st.creep[j];
+        }
+        let x_static = p.tem / p.stiffness * (st.va - st.vh + vcr + p.electrostriction * st.va * st.va);
         let motion = (abs(st.v) + self.omega_n * abs(st.x - x_static)) * self.ts + p.tem / p.stiffness * travel;
         let drive = match p.hyst_drive {
             HysteresisDrive::Charge => p.capacitance * travel + p.tem * motion,
