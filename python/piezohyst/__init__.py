@@ -23,6 +23,7 @@ from .model import SCHEMA_VERSION, HysteresisModel, Inverse, load_model, model_f
 from .pi import PI, SEED2_TABLE1, Envelope, GeneralizedPI, GeneralizedPlay, PlayOperator, RateDependentPI, mpi_seed2
 from .control import PID, OpenLoop
 from .flexure import A7075_YOUNGS_MODULUS, CemfCoefficients, FlexureStage, LeafSpring, seed1_stage
+from .optimize import CSS, DE, MPSO, PSO, IntermediateResult, OptimizeResult, Optimizer, minimize
 from .preisach import Preisach
 from .references import chirp, multisine, sine, staircase, triangle, variable_amplitude_sine
 from .simulation import ClosedLoopResult, closed_loop, closed_loop_batch
@@ -57,6 +58,14 @@ __all__ = [
     "virtual_stage",
     "BoucWen",
     "BoucWenBenchmark",
+    "CSS",
+    "DE",
+    "IntermediateResult",
+    "MPSO",
+    "OptimizeResult",
+    "Optimizer",
+    "PSO",
+    "minimize",
     "Creep",
     "Dahl",
     "Duhem",

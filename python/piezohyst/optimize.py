@@ -444,7 +444,7 @@ class Optimizer:
         raise NotImplementedError
 
     @property
-    def _progress(self) -> float:
+    def _it_fraction(self) -> float:
         """``it / it_max`` with ``it`` the 0-based index of the population just evaluated."""
         return (self._iteration - 1) / self.max_iterations
 
@@ -647,7 +647,7 @@ class CSS(Optimizer):
             self._V = np.zeros((N, D))
             return self._lower + rng.random((N, D)) * self._range
         _, _, F = css_forces(X, f, a=self.a, eps=self.eps, rand=rng.random((N, N)))
-        t = self._progress
+        t = self._it_fraction
         ka, kv = 0.5 * (1.0 + t), 0.5 * (1.0 - t)
         r1 = rng.random((N, 1))
         r2 = rng.random((N, 1))
@@ -751,7 +751,7 @@ class PSO(Optimizer):
         g = int(np.argmin(self._Pf))
         return self._P[g]
 
-    def _social(self, X):
+    def _random_particle_term(self, X):
         return 0.0
 
     def _tell(self, X, f):
@@ -761,7 +761,7 @@ class PSO(Optimizer):
         r1 = rng.random((S, D))
         r2 = rng.random((S, D))
         V = (self.inertia(self._iteration - 1) * self._V
-             + self.c1 * r1 * (self._P - X) + self.c2 * r2 * (G - X) + self._social(X))
+             + self.c1 * r1 * (self._P - X) + self.c2 * r2 * (G - X) + self._random_particle_term(X))
         V = np.clip(V, -self._vlim, self._vlim)
         Xn = X + V
         low, high = Xn < self._lower, Xn > self._upper
@@ -817,7 +817,7 @@ class MPSO(PSO):
         """``w(t) = w_min + (w_max - w_min) (1 - t/T)^2``, ``T = max_iterations``."""
         return self.w_min + (self.w_max - self.w_min) * (1.0 - it / self.max_iterations) ** 2
 
-    def _social(self, X):
+    def _random_particle_term(self, X):
         S, D = X.shape
         k = (np.arange(S) + self._rng.integers(1, S, size=S)) % S  # uniform over the others
         r3 = self._rng.random((S, D))
@@ -1064,7 +1064,12 @@ def minimize(fun_batch, bounds, method="css", *, population_size=None, max_itera
     Notes
     -----
     ``KeyboardInterrupt`` during the run stops it cleanly: the best point so far is returned
-    with ``success=False, message="interrupted"`` (no polish).
+    with ``success=False, message="interrupted"`` (no polish). The polish, when asked for,
+    also follows a stop by the callback or by ``tol`` (as in SciPy's DE).
+
+    Results depend only on ``rng`` and on the costs: with the same seed and a deterministic
+    ``fun_batch`` (such as :func:`piezohyst.batch_rmse`, whose values do not depend on the
+    thread count) two runs give identical histories.
 
     Examples
     --------
