@@ -48,6 +48,9 @@ class OpenLoop:
     u_min: float | None = None
     u_max: float | None = None
 
+    #: the step uses only the reference position
+    uses_reference_derivatives = False
+
     def core(self, stage):
         gain = 1.0 / stage.params.static_gain if self.gain is None else as_scalar(self.gain, "gain")
         lo, hi = _limits(self.u_min, self.u_max, stage)
@@ -74,6 +77,9 @@ class PID:
     offset: float = 0.0
     u_min: float | None = None
     u_max: float | None = None
+
+    #: the step uses only the reference position
+    uses_reference_derivatives = False
 
     def core(self, stage):
         for name in ("kp", "ki", "kd"):

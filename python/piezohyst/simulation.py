@@ -4,7 +4,7 @@ sub-steps, sensor with noise, quantization and delay. The loop runs in the Rust 
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -46,7 +46,16 @@ class ClosedLoopResult:
     terms: dict
     final_state: np.ndarray
     controller: str = ""
-    metrics: dict = field(default_factory=dict)
+
+    @property
+    def metrics(self) -> dict:
+        """RMSE and max error of ``reference - position`` (m, and % of the reference range);
+        computed on first use."""
+        cached = self.__dict__.get("_metrics")
+        if cached is None:
+            cached = _metrics(self.reference, self.position)
+            object.__setattr__(self, "_metrics", cached)
+        return cached
 
     @property
     def error(self) -> np.ndarray:
@@ -97,9 +106,17 @@ def _metrics(reference, position) -> dict:
     return {"rmse": rmse, "max_error": emax, "rmse_percent": 100 * rmse / span, "max_error_percent": 100 * emax / span}
 
 
-def _derivatives(x, ts, velocity, acceleration):
-    v = np.gradient(x, ts) if velocity is None else as_record(velocity, "velocity")
-    a = np.gradient(v, ts) if acceleration is None else as_record(acceleration, "acceleration")
+def _derivatives(x, ts, velocity, acceleration, needed):
+    """Reference velocity and acceleration: given, or central differences when the controller
+    uses them, or zeros (which cost nothing) when it does not."""
+    if velocity is not None:
+        v = as_record(velocity, "velocity")
+    else:
+        v = np.gradient(x, ts) if needed else np.zeros_like(x)
+    if acceleration is not None:
+        a = as_record(acceleration, "acceleration")
+    else:
+        a = np.gradient(v, ts) if needed else np.zeros_like(x)
     return v, a
 
 
@@ -120,7 +137,8 @@ def _prepare(stage, controller, reference, velocity, acceleration):
         raise TypeError(f"controller must be a piezohyst controller (OpenLoop, PID, ...), got {type(controller).__name__}")
     x = as_record(reference, "reference", min_length=2)
     _check_reference(stage, x)
-    v, a = _derivatives(x, stage.sample_time, velocity, acceleration)
+    v, a = _derivatives(x, stage.sample_time, velocity, acceleration,
+                        getattr(controller, "uses_reference_derivatives", True))
     if v.size != x.size or a.size != x.size:
         raise ValueError(f"velocity/acceleration must have the reference's length {x.size}")
     kind, params = controller.core(stage)
@@ -133,7 +151,7 @@ def _result(stage, x, d, controller) -> ClosedLoopResult:
     return ClosedLoopResult(
         time=np.arange(x.size) * stage.sample_time, reference=x, command=d["command"], voltage=d["voltage"],
         position=d["position"], measured=d["measured"], terms=terms, final_state=np.asarray(d["final_state"]),
-        controller=type(controller).__name__, metrics=_metrics(x, d["position"]),
+        controller=type(controller).__name__,
     )
 
 
