@@ -376,7 +376,7 @@ def test_from_file_reads_a_written_file(tmp_path):
 
 
 def test_packaged_file_loads_and_overrides(tmp_path):
-    d = json.loads(resources.files("piezohyst").joinpath("data/virtual_stage.json").read_text())
+    d = json.loads(resources.files("piezohyst").joinpath("presets/virtual_stage.json").read_text())
     assert Stage.from_dict(d) == virtual_stage()
     d["mechanics"]["mass"] = 0.05
     d["amplifier"]["bandwidth"] = "inf"
@@ -463,7 +463,7 @@ def test_non_physical_values_are_named(path, value, message):
 
 
 def test_negative_damping_ratio_is_named():
-    d = json.loads(resources.files("piezohyst").joinpath("data/virtual_stage.json").read_text())
+    d = json.loads(resources.files("piezohyst").joinpath("presets/virtual_stage.json").read_text())
     d["mechanics"]["damping_ratio"] = -0.1
     with pytest.raises(ValueError, match=r"damping_ratio = -0\.1 must be >= 0"):
         Stage.from_dict(d)

@@ -18,6 +18,7 @@ from . import _core
 from .batch import batch_rmse, batch_simulate
 from .boucwen_benchmark import BoucWenBenchmark, load_train_multisine
 from .creep import Creep
+from .data import Record, load_record, load_yan9a_model_record
 from .differential import BoucWen, Dahl, Duhem
 from .model import SCHEMA_VERSION, HysteresisModel, Inverse, load_model, model_from_dict
 from .pi import PI, SEED2_TABLE1, Envelope, GeneralizedPI, GeneralizedPlay, PlayOperator, RateDependentPI, mpi_seed2
@@ -48,7 +49,9 @@ __all__ = [
     "chirp",
     "closed_loop",
     "closed_loop_batch",
+    "load_record",
     "load_train_multisine",
+    "load_yan9a_model_record",
     "multisine",
     "seed1_stage",
     "sine",
@@ -65,6 +68,7 @@ __all__ = [
     "OptimizeResult",
     "Optimizer",
     "PSO",
+    "Record",
     "minimize",
     "Creep",
     "Dahl",

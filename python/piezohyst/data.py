@@ -421,12 +421,11 @@ class _ContainerTable:
     """Named arrays (NPZ, MAT, HDF5) and optionally one 2-D matrix whose columns are
     addressed by index (``dataset``; rows are samples)."""
 
-    def __init__(self, source: str, kind: str, variables: dict, lookup, matrix_name: str | None, *, sep: str):
+    def __init__(self, source: str, kind: str, variables: dict, lookup, matrix_name: str | None):
         self.source = source
         self.kind = kind
         self.variables = variables  # name -> shape, numeric arrays only (for listings)
         self._lookup = lookup  # name -> np.ndarray (raises KeyError)
-        self.sep = sep
         self.matrix = None
         self.matrix_name = matrix_name
         if matrix_name is not None:
@@ -523,7 +522,7 @@ def _open_npz(path: Path, dataset):
             arrays = {k: np.asarray(z[k]) for k in z.files}
     except Exception as e:  # a corrupt archive raises from zipfile, zlib, numpy.lib.format ...
         raise ValueError(f"{path}: not a readable NPZ archive ({type(e).__name__}: {e})") from None
-    return _ContainerTable(str(path), "NPZ", _numeric_shapes(arrays), _dict_lookup(arrays), dataset, sep="")
+    return _ContainerTable(str(path), "NPZ", _numeric_shapes(arrays), _dict_lookup(arrays), dataset)
 
 
 def _open_npy(path: Path, dataset):
@@ -538,7 +537,7 @@ def _open_npy(path: Path, dataset):
     if a.dtype.kind not in "fiu":
         raise TypeError(f"{path}: the array must hold real numbers, got dtype {a.dtype}")
     arrays = {"array": a}
-    return _ContainerTable(str(path), "npy", {"array": a.shape}, _dict_lookup(arrays), "array", sep="")
+    return _ContainerTable(str(path), "npy", {"array": a.shape}, _dict_lookup(arrays), "array")
 
 
 def _flatten_mat(d: Mapping, prefix: str, out: dict) -> None:
@@ -572,7 +571,7 @@ def _open_mat(path: Path, dataset):
     def lookup(name: str) -> np.ndarray:
         return _dict_lookup(arrays)(name.replace("/", "."))
 
-    return _ContainerTable(str(path), "MAT", _numeric_shapes(arrays), lookup, dataset, sep=".")
+    return _ContainerTable(str(path), "MAT", _numeric_shapes(arrays), lookup, dataset)
 
 
 def _import_h5py():
@@ -640,7 +639,7 @@ class _Hdf5Source:
 def _open_hdf5(path: Path, dataset, matlab: bool = False):
     src = _Hdf5Source(path, matlab)
     try:
-        table = _ContainerTable(str(path), src.kind, src.shapes, src.lookup, dataset, sep="/")
+        table = _ContainerTable(str(path), src.kind, src.shapes, src.lookup, dataset)
     except BaseException:
         src.file.close()
         raise

@@ -9,7 +9,7 @@ The physics (integrated in the Rust core, ``crates/core/src/stage.rs``)::
     Vcr = sum_j c_j w_j,   tau_j w_j' = Va - w_j          (creep)
     tau_a Va' = u - Va, |Va'| <= slew, u in [min, max]   (amplifier)
 
-The default virtual stage is ``data/virtual_stage.json`` inside the package; every number
+The default virtual stage is ``presets/virtual_stage.json`` inside the package; every number
 in it can be overridden from a file of the same layout (:meth:`Stage.from_file`).
 """
 from __future__ import annotations
@@ -197,7 +197,7 @@ class Stage:
     # -- files --------------------------------------------------------------------------
     @classmethod
     def from_dict(cls, d: dict) -> "Stage":
-        """Build from the stage-file layout (see ``data/virtual_stage.json``)."""
+        """Build from the stage-file layout (see ``presets/virtual_stage.json``)."""
         if not isinstance(d, dict):
             raise ValueError(f"a stage description must be a JSON object, got {type(d).__name__}")
         try:
@@ -386,6 +386,6 @@ def _json_inf(x):
 
 
 def virtual_stage() -> Stage:
-    """The default virtual stage (``piezohyst/data/virtual_stage.json``)."""
-    text = resources.files("piezohyst").joinpath("data/virtual_stage.json").read_text()
+    """The default virtual stage (``piezohyst/presets/virtual_stage.json``)."""
+    text = resources.files("piezohyst").joinpath("presets/virtual_stage.json").read_text()
     return Stage.from_dict(json.loads(text))
