@@ -385,9 +385,9 @@ def main(argv=None) -> int:
         tg["pass_against_tuned_reference"] = tg["updates_per_s_2_thread_ge_1e9"] and tg["speedup_2_thread_vs_numpy_ge_100"]
         tg["pass_against_per_step_reference"] = (tg["updates_per_s_2_thread_ge_1e9"]
                                                  and tg["speedup_2_thread_vs_numpy_per_step_ge_100"])
-        # The issue's reference is "vectorized across parameter sets and operators, loop over
-        # time": the per-step form. The tuned variant (blocked across time) is reported too.
-        tg["pass"] = tg["pass_against_per_step_reference"]
+        # The verdict is against the strongest NumPy baseline we have (the tuned, blocked one);
+        # the straightforward per-step form is reported beside it.
+        tg["pass"] = tg["pass_against_tuned_reference"]
         results.append(entry)
 
     head = next(e for e in results if e["name"] == HEADLINE)
@@ -428,9 +428,8 @@ def main(argv=None) -> int:
                      "updates_per_s_2_thread": head["piezohyst"]["2_thread"]["updates_per_s"],
                      "speedup_2_thread_vs_numpy_tuned": head["speedup"]["2_thread_vs_numpy"],
                      "speedup_2_thread_vs_numpy_per_step": head["speedup"]["2_thread_vs_numpy_per_step"],
-                     "target_reference": "numpy_per_step (the issue's 'vectorized across parameter sets "
-                                         "and operators, loop over time'); the tuned blocked variant is "
-                                         "reported beside it"},
+                     "target_reference": "numpy tuned (blocked across time), the strongest baseline; "
+                                         "numpy_per_step (the straightforward form) is reported beside it"},
         "wall_time_s": None,
     }
     try:
@@ -462,7 +461,7 @@ def main(argv=None) -> int:
     print(f"RMSE check: piezohyst == NumPy reference to rtol {RTOL:g} for all sets (max rel diff "
           f"{worst:.1e}); 1T/2T bit-identical: "
           f"{all(e['threads_bitwise_identical'] for e in results)}")
-    print(f"Headline {HEADLINE} (target vs the per-step reference the issue describes): {yes[head['targets']['pass']]} "
+    print(f"Headline {HEADLINE} (verdict against the tuned reference): {yes[head['targets']['pass']]} "
           f"(>=1e9/s: {yes[head['targets']['updates_per_s_2_thread_ge_1e9']]}, "
           f">=100x tuned NumPy: {yes[head['targets']['speedup_2_thread_vs_numpy_ge_100']]}, "
           f">=100x per-step NumPy: {yes[head['targets']['speedup_2_thread_vs_numpy_per_step_ge_100']]}). "
