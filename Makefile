@@ -32,6 +32,8 @@ test-python: $(BUILT)
 
 bench: $(BUILT)
 	$(BIN)/python bench/pi_batch.py
+	$(BIN)/python bench/closed_loop.py
+	$(BIN)/python bench/report.py
 
 clean:
 	rm -rf $(VENV) target
