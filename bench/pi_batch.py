@@ -36,11 +36,9 @@ import hashlib
 import json
 import math
 import os
-import platform
 import statistics
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -56,6 +54,7 @@ if str(HERE) not in sys.path:
     sys.path.insert(0, str(HERE))
 
 import numpy_reference  # noqa: E402
+from common import machine_info, n_reps, versions, write_json_atomic  # noqa: E402
 
 DEFAULT_OUT = HERE / "results" / "pi_batch.json"
 RTOL = 1e-12
@@ -119,12 +118,6 @@ def data_digest(params, v, target) -> str:
     return h.hexdigest()
 
 
-def n_reps(first_call_s: float, min_reps: int, min_time: float, max_reps: int) -> int:
-    """At least min_reps repetitions, more for fast calls (about min_time seconds in all)."""
-    want = math.ceil(min_time / max(first_call_s, 1e-9))
-    return int(max(min_reps, min(max_reps, want)))
-
-
 # ------------------------------------------------------------------------------- worker
 
 
@@ -181,78 +174,7 @@ def run_worker(threads: int, spec: dict) -> dict:
 # ------------------------------------------------------------------------------ machine
 
 
-def machine_info() -> dict:
-    cpu_model, flags = None, set()
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                key, _, val = line.partition(":")
-                key = key.strip()
-                if key == "model name" and cpu_model is None:
-                    cpu_model = val.strip()
-                elif key == "flags" and not flags:
-                    flags = set(val.split())
-    except OSError:
-        pass
-    try:
-        affinity = len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        affinity = None
-    try:
-        load = list(os.getloadavg())
-    except OSError:
-        load = None
-    return {
-        "cpu_model": cpu_model or platform.processor() or None,
-        "cpu_count": os.cpu_count(),
-        "cpus_usable": affinity,
-        "simd": sorted(f for f in flags if f in {"avx2", "fma", "avx512f"}),
-        "platform": platform.platform(),
-        "python": platform.python_version(),
-        "loadavg_at_start": load,
-    }
-
-
-def versions() -> dict:
-    from importlib import metadata
-
-    from piezohyst import _core
-
-    try:
-        dist = metadata.version("piezohyst")
-    except metadata.PackageNotFoundError:
-        dist = None
-    try:
-        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=HERE, capture_output=True,
-                                text=True, check=True).stdout.strip() or None
-    except (OSError, subprocess.CalledProcessError):
-        commit = None
-    return {"numpy": np.__version__, "piezohyst": dist, "piezohyst_core": _core.__version__,
-            "lane_widths": "8, 16 or 32 parameter sets per group, chosen from S and the thread count", "git_commit": commit}
-
-
 # --------------------------------------------------------------------------------- main
-
-
-def write_json_atomic(path: Path, payload: dict) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".tmp")
-    try:
-        umask = os.umask(0)
-        os.umask(umask)
-        os.fchmod(fd, 0o666 & ~umask)
-        with os.fdopen(fd, "w") as f:
-            json.dump(payload, f, indent=2)
-            f.write("\n")
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
 
 
 def fmt_rate(x: float) -> str:
