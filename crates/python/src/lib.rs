@@ -5,6 +5,7 @@ use pyo3::prelude::*;
 mod boucwen_benchmark;
 mod models;
 mod plant;
+mod util;
 
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {

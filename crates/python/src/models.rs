@@ -10,11 +10,10 @@ use piezohyst_core::spec::{Family, Model};
 use piezohyst_core::{Hysteresis, ModelError};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+
+use crate::util::{check_finite, err, slice};
 use rayon::prelude::*;
 
-fn err(e: ModelError) -> PyErr {
-    PyValueError::new_err(e.to_string())
-}
 
 fn family(name: &str, dims: Vec<usize>) -> PyResult<Family> {
     Family::parse(name, &dims).map_err(|e| match e {
@@ -25,16 +24,7 @@ fn family(name: &str, dims: Vec<usize>) -> PyResult<Family> {
     })
 }
 
-fn slice<'a>(a: &'a PyReadonlyArray1<'_, f64>, name: &str) -> PyResult<&'a [f64]> {
-    a.as_slice().map_err(|_| PyValueError::new_err(format!("{name} must be a contiguous float64 array")))
-}
 
-fn check_finite(name: &str, xs: &[f64]) -> PyResult<()> {
-    match xs.iter().position(|x| !x.is_finite()) {
-        Some(k) => Err(PyValueError::new_err(format!("{name}[{k}] = {} is not finite", xs[k]))),
-        None => Ok(()),
-    }
-}
 
 fn check_output(ys: &[f64]) -> PyResult<()> {
     match ys.iter().position(|y| !y.is_finite()) {

@@ -7,26 +7,15 @@ use piezohyst_core::closed_loop::{run, Record};
 use piezohyst_core::control::{Controller, Limits, OpenLoop, Pid, MAX_TERMS};
 use piezohyst_core::sensor::Sensor;
 use piezohyst_core::stage::{Stage, StageParams, StageState};
-use piezohyst_core::ModelError;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+
+use crate::util::{check_finite, err, slice};
 use pyo3::types::PyDict;
 use rayon::prelude::*;
 
-fn err(e: ModelError) -> PyErr {
-    PyValueError::new_err(e.to_string())
-}
 
-fn slice<'a>(a: &'a PyReadonlyArray1<'_, f64>, name: &str) -> PyResult<&'a [f64]> {
-    a.as_slice().map_err(|_| PyValueError::new_err(format!("{name} must be a contiguous float64 array")))
-}
 
-fn finite(name: &str, xs: &[f64]) -> PyResult<()> {
-    match xs.iter().position(|x| !x.is_finite()) {
-        Some(k) => Err(PyValueError::new_err(format!("{name}[{k}] = {} is not finite", xs[k]))),
-        None => Ok(()),
-    }
-}
 
 fn stage(params: &[f64], ts: f64, substeps: usize, tolerance: f64) -> PyResult<Stage> {
     let p = StageParams::from_slice(params).map_err(err)?;
@@ -49,7 +38,7 @@ fn stage_simulate<'py>(
 ) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
     let st = stage(slice(&params, "params")?, ts, substeps, tolerance)?;
     let u = slice(&command, "command")?;
-    finite("command", u)?;
+    check_finite("command", u)?;
     let s = state.as_slice_mut().map_err(|_| PyValueError::new_err("state must be a contiguous float64 array"))?;
     let mut ss = StageState::from_array(s).map_err(err)?;
     let n = u.len();
@@ -77,7 +66,7 @@ enum AnyController {
 }
 
 fn controller(kind: &str, p: &[f64]) -> PyResult<AnyController> {
-    finite("controller parameters", p)?;
+    check_finite("controller parameters", p)?;
     let need = |n: usize| -> PyResult<()> {
         if p.len() != n {
             return Err(PyValueError::new_err(format!(
@@ -196,9 +185,9 @@ fn scenario_arrays<'a>(
     a: &'a PyReadonlyArray1<'_, f64>,
 ) -> PyResult<(&'a [f64], &'a [f64], &'a [f64])> {
     let (r, v, a) = (slice(r, "reference")?, slice(v, "velocity")?, slice(a, "acceleration")?);
-    finite("reference", r)?;
-    finite("velocity", v)?;
-    finite("acceleration", a)?;
+    check_finite("reference", r)?;
+    check_finite("velocity", v)?;
+    check_finite("acceleration", a)?;
     if v.len() != r.len() || a.len() != r.len() {
         return Err(PyValueError::new_err(format!(
             "reference, velocity and acceleration must have equal lengths, got {}, {}, {}",
