@@ -19,7 +19,7 @@ $(BUILT): $(BIN)/python $(RUST_SOURCES) pyproject.toml
 	touch $@
 
 demo: $(BUILT)
-	$(BIN)/python -m piezohyst demo
+	$(BIN)/python -m piezohyst demo --force   # regenerates ./piezohyst-report
 
 test: test-rust test-python
 
