@@ -37,7 +37,7 @@ class ClosedLoopResult:
     amplifier output at the end of the period; ``terms`` the controller's internal terms.
     """
 
-    time: np.ndarray
+    sample_time: float
     reference: np.ndarray
     command: np.ndarray
     voltage: np.ndarray
@@ -46,6 +46,11 @@ class ClosedLoopResult:
     terms: dict
     final_state: np.ndarray
     controller: str = ""
+
+    @property
+    def time(self) -> np.ndarray:
+        """Sample instants, s."""
+        return np.arange(self.reference.size) * self.sample_time
 
     @property
     def metrics(self) -> dict:
@@ -108,16 +113,21 @@ def _metrics(reference, position) -> dict:
 
 def _derivatives(x, ts, velocity, acceleration, needed):
     """Reference velocity and acceleration: given, or central differences when the controller
-    uses them, or zeros (which cost nothing) when it does not."""
+    uses them, or empty (the core reads zeros) when it does not."""
     if velocity is not None:
         v = as_record(velocity, "velocity")
     else:
-        v = np.gradient(x, ts) if needed else np.zeros_like(x)
+        v = np.gradient(x, ts) if needed else _EMPTY
     if acceleration is not None:
         a = as_record(acceleration, "acceleration")
+    elif needed or velocity is not None:
+        a = np.gradient(v, ts) if v.size else _EMPTY
     else:
-        a = np.gradient(v, ts) if needed else np.zeros_like(x)
+        a = _EMPTY
     return v, a
+
+
+_EMPTY = np.zeros(0)
 
 
 def _check_reference(stage, x):
@@ -139,7 +149,7 @@ def _prepare(stage, controller, reference, velocity, acceleration):
     _check_reference(stage, x)
     v, a = _derivatives(x, stage.sample_time, velocity, acceleration,
                         getattr(controller, "uses_reference_derivatives", True))
-    if v.size != x.size or a.size != x.size:
+    if v.size not in (0, x.size) or a.size not in (0, x.size):
         raise ValueError(f"velocity/acceleration must have the reference's length {x.size}")
     kind, params = controller.core(stage)
     return x, v, a, kind, params
@@ -149,7 +159,7 @@ def _result(stage, x, d, controller) -> ClosedLoopResult:
     names = list(d["term_names"])
     terms = {n: d["terms"][:, i] for i, n in enumerate(names)}
     return ClosedLoopResult(
-        time=np.arange(x.size) * stage.sample_time, reference=x, command=d["command"], voltage=d["voltage"],
+        sample_time=stage.sample_time, reference=x, command=d["command"], voltage=d["voltage"],
         position=d["position"], measured=d["measured"], terms=terms, final_state=np.asarray(d["final_state"]),
         controller=type(controller).__name__,
     )

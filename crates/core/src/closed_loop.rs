@@ -25,7 +25,8 @@ pub struct Record<'a> {
 }
 
 /// Run a whole reference. `reference`, `velocity`, `acceleration` are the desired signals
-/// per sample. Stops at the shortest slice.
+/// per sample; an empty `velocity` or `acceleration` means zeros (for controllers that do
+/// not use them). Stops at the shortest of the other slices.
 #[allow(clippy::too_many_arguments)]
 pub fn run<C: Controller>(
     stage: &Stage,
@@ -39,13 +40,18 @@ pub fn run<C: Controller>(
     acceleration: &[f64],
     rec: Record<'_>,
 ) {
-    let n = reference.len().min(velocity.len()).min(acceleration.len()).min(rec.command.len());
+    let len_or_any = |s: &[f64]| if s.is_empty() { usize::MAX } else { s.len() };
+    let n = reference.len().min(len_or_any(velocity)).min(len_or_any(acceleration)).min(rec.command.len());
     let width = controller.term_names().len().min(MAX_TERMS);
     let n = n.min(rec.terms.len() / width.max(1));
     for k in 0..n {
         let x = stage_state.x;
         let y = sensor.read(sensor_state, x);
-        let r = Reference { x: reference[k], v: velocity[k], a: acceleration[k] };
+        let r = Reference {
+            x: reference[k],
+            v: if velocity.is_empty() { 0.0 } else { velocity[k] },
+            a: if acceleration.is_empty() { 0.0 } else { acceleration[k] },
+        };
         let out = controller.step(controller_state, &r, y);
         stage.advance(stage_state, out.u);
         rec.command[k] = out.u;

@@ -188,9 +188,10 @@ fn scenario_arrays<'a>(
     check_finite("reference", r)?;
     check_finite("velocity", v)?;
     check_finite("acceleration", a)?;
-    if v.len() != r.len() || a.len() != r.len() {
+    // empty derivatives stand for zeros
+    if (!v.is_empty() && v.len() != r.len()) || (!a.is_empty() && a.len() != r.len()) {
         return Err(PyValueError::new_err(format!(
-            "reference, velocity and acceleration must have equal lengths, got {}, {}, {}",
+            "velocity and acceleration must be empty or as long as the reference, got {}, {}, {}",
             r.len(),
             v.len(),
             a.len()
