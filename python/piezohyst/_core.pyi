@@ -43,6 +43,9 @@ def batch_rmse(
 ) -> Array1:
     """``(S,)`` RMSE of ``S`` parameter rows against ``target`` (GIL released, rayon)."""
 
+def regressors(name: str, dims: list[int], params: Array1, input: Array1) -> Array2:
+    """``(N, m)`` regressors of a row's linear parameters over ``input`` from rest."""
+
 def thread_count() -> int:
     """Threads rayon uses for batch calls."""
 

@@ -156,6 +156,59 @@ impl<'a> Preisach<'a> {
         mass
     }
 
+    /// Add `sign *` the fraction of each cell inside `{ b <= beta <= alpha <= a }` to `out`
+    /// (one slot per cell): the cell-by-cell form of [`Preisach::everett`], whose weighted
+    /// sum it is.
+    fn everett_cells(&self, a: f64, b: f64, sign: f64, out: &mut [f64]) {
+        let a = if a > self.hi { self.hi } else { a };
+        let b = if b < self.lo { self.lo } else { b };
+        if !(a > b) {
+            return;
+        }
+        let (ia, fa) = self.cell_of(a);
+        let (jb, fb) = self.cell_of(b);
+        for i in jb..=ia {
+            let a_hi = if i == ia { fa } else { 1.0 };
+            let a_lo = if i == jb { fb } else { 0.0 };
+            if !(a_hi > a_lo) {
+                continue;
+            }
+            let row_frac = a_hi - a_lo;
+            if i > jb {
+                out[cell_index(i, jb)] += sign * row_frac * (1.0 - fb);
+                for j in jb + 1..i {
+                    out[cell_index(i, j)] += sign * row_frac;
+                }
+            }
+            let start = if i == jb { fb } else { 0.0 };
+            let span = a_hi - start;
+            out[cell_index(i, i)] += sign * span * span;
+        }
+    }
+
+    /// Fraction of each cell's relays that are up (one slot per cell, overwritten): the
+    /// regressors of the weights, `output = offset + slope v + weights . fractions`.
+    pub fn cell_fractions(&self, state: &[f64], out: &mut [f64]) {
+        out.iter_mut().for_each(|x| *x = 0.0);
+        let v = state[0];
+        let len = state[1] as usize;
+        let ext = &state[2..2 + len];
+        let n = ext.len() + 1;
+        let at = |k: usize| if k < ext.len() { ext[k] } else { v };
+        let mut k = 0;
+        let mut m_prev = self.lo;
+        while k < n {
+            let big = at(k);
+            self.everett_cells(big, m_prev, 1.0, out);
+            if k + 1 < n {
+                let m = at(k + 1);
+                self.everett_cells(big, m, -1.0, out);
+                m_prev = m;
+            }
+            k += 2;
+        }
+    }
+
     /// Output for the extrema `ext` followed by the current input `v` (max-first).
     fn output(&self, ext: &[f64], v: f64) -> f64 {
         // y = sum over maxima M_k of E(M_k, m_{k-1}) - E(M_k, m_k), m_0 = lo

@@ -311,3 +311,69 @@ impl Invertible for Model<'_> {
         }
     }
 }
+
+impl Family {
+    /// Number of regressor columns of [`Model::regressors_step`] (see there).
+    pub fn regressor_count(&self) -> usize {
+        let base = match *self {
+            Family::Pi { n, .. } => 1 + n,
+            Family::Gpi { n, .. } => 4 + n,
+            Family::Rdpi { n, .. } => 1 + 2 * n,
+            Family::Creep { .. } => 0,
+            Family::Preisach { levels, .. } => 2 + cell_count(levels),
+            Family::BoucWen | Family::Duhem | Family::Dahl => 0,
+        };
+        base + self.creep_terms()
+    }
+}
+
+impl Model<'_> {
+    /// Advance one sample and write the regressors: the quantities the output is linear in
+    /// once the structure (thresholds, envelopes, rate terms, creep time constants) is fixed.
+    /// Columns: PI `[v, z_1..z_n]`; GPI/MPI `[1, v, v^2, v^3, z_1..z_n]`; RDPI
+    /// `[v, z_1..z_n, rate z_1..rate z_n]`; Preisach `[1, v, cell fractions...]`; then the
+    /// creep lag outputs `[w_1..w_m]`. The output equals the row's linear parameters dotted
+    /// with them. Returns `false` for models that are not linear in any parameters.
+    pub fn regressors_step(&self, state: &mut [f64], v: f64, out: &mut [f64]) -> bool {
+        let (a, b) = state.split_at_mut(self.base_len());
+        let used = match &self.base {
+            Base::Pi(m) => {
+                m.step(a, v);
+                out[0] = v;
+                out[1..1 + a.len()].copy_from_slice(a);
+                1 + a.len()
+            }
+            Base::Gpi(m) => {
+                m.step(a, v);
+                out[..4].copy_from_slice(&[1.0, v, v * v, v * v * v]);
+                out[4..4 + a.len()].copy_from_slice(a);
+                4 + a.len()
+            }
+            Base::Rdpi(m) => {
+                m.step(a, v);
+                let n = m.thresholds.len();
+                let rate = a[n + 1];
+                out[0] = v;
+                for i in 0..n {
+                    out[1 + i] = a[i];
+                    out[1 + n + i] = rate * a[i];
+                }
+                1 + 2 * n
+            }
+            Base::Preisach(m) => {
+                m.step(a, v);
+                out[0] = 1.0;
+                out[1] = v;
+                m.cell_fractions(a, &mut out[2..2 + cell_count(m.levels)]);
+                2 + cell_count(m.levels)
+            }
+            Base::Nothing => 0,
+            _ => return false,
+        };
+        if let Some(c) = &self.creep {
+            c.step(b, v);
+            out[used..used + b.len()].copy_from_slice(b);
+        }
+        true
+    }
+}

@@ -530,6 +530,45 @@ fn batch_rmse<'py>(
     Ok(out.into_pyarray(py))
 }
 
+/// Regressors of a row's linear parameters over an input record, from the relaxed state:
+/// `(N, m)` (columns in `piezohyst_core::spec::Model::regressors_step`).
+#[pyfunction]
+fn regressors<'py>(
+    py: Python<'py>,
+    name: &str,
+    dims: Vec<usize>,
+    params: PyReadonlyArray1<'py, f64>,
+    input: PyReadonlyArray1<'py, f64>,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let fam = family(name, dims)?;
+    let p = slice(&params, "params")?;
+    let v = slice(&input, "input")?;
+    check_finite("input", v)?;
+    let m = fam.regressor_count();
+    if m == 0 {
+        return Err(PyValueError::new_err(format!("family = {name:?} has no linear parameters to regress on")));
+    }
+    let mut out = vec![0.0; v.len() * m];
+    let ok = py
+        .detach(|| {
+            with_model(fam, p, |model| {
+                let mut st = vec![0.0; fam.state_len()];
+                model.reset(&mut st);
+                let mut ok = true;
+                for (k, &vk) in v.iter().enumerate() {
+                    ok &= model.regressors_step(&mut st, vk, &mut out[k * m..(k + 1) * m]);
+                }
+                Ok(ok)
+            })
+        })
+        .map_err(err)?;
+    if !ok {
+        return Err(PyValueError::new_err(format!("family = {name:?} has no linear parameters to regress on")));
+    }
+    let arr = Array2::from_shape_vec((v.len(), m), out).expect("shape matches length");
+    Ok(arr.into_pyarray(py))
+}
+
 /// Number of threads rayon uses for batch calls.
 #[pyfunction]
 fn thread_count() -> usize {
@@ -550,5 +589,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(batch_simulate, m)?)?;
     m.add_function(wrap_pyfunction!(batch_rmse, m)?)?;
     m.add_function(wrap_pyfunction!(thread_count, m)?)?;
+    m.add_function(wrap_pyfunction!(regressors, m)?)?;
     Ok(())
 }

@@ -1,0 +1,156 @@
+"""Identification by least squares over the linear parameters (SPEC §4).
+
+With the structure fixed — thresholds, envelopes, rate terms, creep time constants, the
+Preisach grid — the output of a PI-type or Preisach model is linear in its weights and
+polynomial coefficients. The regressors (operator outputs, cell fractions, lag outputs) come
+from the Rust core in one pass; the weights come from a bounded least-squares solve
+(``scipy.optimize.lsq_linear``), non-negative where the model needs it (play and Preisach
+weights). This is the inner, exact step of variable projection; the metaheuristics of
+:mod:`piezohyst.optimize` search the few nonlinear parameters around it.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import lsq_linear
+
+from . import _core
+from ._validate import as_int, as_record
+from .creep import Creep
+from .pi import PI, GeneralizedPI, RateDependentPI
+from .preisach import Preisach
+
+__all__ = ["FitResult", "fit_linear", "fit_metrics", "identify_pi", "identify_mpi", "identify_preisach"]
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """A fitted model with its free-run error on the data it was fitted to."""
+
+    model: object
+    metrics: dict
+    wall_time: float
+
+    def __repr__(self) -> str:
+        m = self.metrics
+        return (f"FitResult({type(self.model).__name__}, rmse={m['rmse']:.4g} ({m['rmse_percent']:.3g} % of range), "
+                f"max_error={m['max_error']:.4g} ({m['max_error_percent']:.3g} %), {self.wall_time * 1e3:.1f} ms)")
+
+
+def fit_metrics(predicted, measured) -> dict:
+    """RMSE and max error of the free-run simulation, also in % of the measured range."""
+    e = np.asarray(predicted) - np.asarray(measured)
+    span = float(np.ptp(measured)) or 1.0
+    rmse = float(np.sqrt(np.mean(e**2)))
+    emax = float(np.max(np.abs(e)))
+    return {"rmse": rmse, "max_error": emax, "rmse_percent": 100 * rmse / span, "max_error_percent": 100 * emax / span}
+
+
+def _layout(model):
+    """Column bounds ``(lb, ub)`` of the regressors and a function mapping the solution back
+    to a model of the same structure."""
+    inf = np.inf
+    creep = getattr(model, "creep", None)
+    m_creep = 0 if creep is None else creep.terms
+
+    def with_creep(theta_tail):
+        return None if creep is None else Creep(creep.ts, creep.taus, theta_tail)
+
+    if isinstance(model, RateDependentPI):
+        n = model.thresholds.size
+        lb = np.r_[0.0, np.zeros(n), np.full(n, -inf), np.zeros(m_creep)]
+
+        def build(t):
+            return RateDependentPI(model.thresholds, t[1:1 + n], model.ts, t[0], model.beta, t[1 + n:1 + 2 * n],
+                                   model.filter_tau, creep=with_creep(t[1 + 2 * n:]), units=model.units)
+    elif isinstance(model, GeneralizedPI):
+        n = model.thresholds.size
+        lb = np.r_[np.full(4, -inf), np.zeros(n), np.zeros(m_creep)]
+
+        def build(t):
+            return GeneralizedPI(model.thresholds, t[4:4 + n], t[:4], model.rising, model.falling, model.input_range,
+                                 creep=with_creep(t[4 + n:]), units=model.units)
+    elif isinstance(model, PI):
+        n = model.thresholds.size
+        lb = np.r_[0.0, np.zeros(n), np.zeros(m_creep)]
+
+        def build(t):
+            return PI(model.thresholds, t[1:1 + n], t[0], creep=with_creep(t[1 + n:]), units=model.units)
+    elif isinstance(model, Preisach):
+        cells = model.weights.size
+        lb = np.r_[-inf, 0.0, np.zeros(cells)]
+
+        def build(t):
+            return Preisach(model.levels, model.input_range, t[2:], t[0], t[1], model.memory, units=model.units)
+    else:
+        raise TypeError(f"model must be PI, GeneralizedPI, RateDependentPI or Preisach, got {type(model).__name__}")
+    return lb, np.full(lb.size, inf), build
+
+
+def fit_linear(model, input, output) -> FitResult:
+    """Fit the linear parameters of ``model`` (its weights, linear term / polynomial, creep
+    weights; Preisach offset, slope and cell weights) to a record, keeping its structure.
+
+    Play weights, Preisach weights and slopes are constrained non-negative (a Preisach
+    density is a mass; non-negative play weights keep the PI model invertible).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst import PI, fit_linear
+    >>> truth = PI([0.1, 0.3, 0.6], [0.5, 0.2, 0.1], p0=0.8)
+    >>> v = np.sin(np.linspace(0, 12, 1200)) * np.linspace(1, 0.3, 1200)
+    >>> fit = fit_linear(PI([0.1, 0.3, 0.6], [0, 0, 0], p0=1.0), v, truth.simulate(v))
+    >>> np.allclose(fit.model.weights, truth.weights, atol=1e-9), round(fit.model.p0, 9)
+    (True, 0.8)
+    """
+    t0 = time.perf_counter()
+    v = as_record(input, "input", min_length=2)
+    y = as_record(output, "output", min_length=2)
+    if y.size != v.size:
+        raise ValueError(f"output has {y.size} samples, input has {v.size}; they must match")
+    lb, ub, build = _layout(model)
+    A = _core.regressors(model.family, list(model.dims), model.to_row(), v)
+    scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-300)   # equilibrate the columns
+    sol = lsq_linear(A / scale, y, bounds=(lb * scale, ub * scale), method="bvls", lsmr_tol=None)
+    theta = sol.x / scale
+    fitted = build(theta)
+    return FitResult(fitted, fit_metrics(fitted.simulate(v), y), time.perf_counter() - t0)
+
+
+def _default_thresholds(v, n):
+    span = float(np.ptp(v))
+    if not span > 0:
+        raise ValueError("input is constant: there is no hysteresis to identify")
+    return np.arange(1, n + 1) * span / (2.0 * (n + 1))
+
+
+def identify_pi(input, output, *, operators=9, thresholds=None, creep=None) -> FitResult:
+    """Classical PI with ``operators`` thresholds spread over half the input range (or the
+    given ones), weights and linear term by non-negative least squares."""
+    v = as_record(input, "input", min_length=2)
+    r = _default_thresholds(v, as_int(operators, "operators", minimum=1)) if thresholds is None else thresholds
+    return fit_linear(PI(r, np.zeros(len(r)), 1.0, creep=creep), v, output)
+
+
+def identify_mpi(input, output, *, operators=9, thresholds=None, rising=None, falling=None, creep=None) -> FitResult:
+    """Seed 2's MPI (cubic input polynomial + generalized plays) with the envelopes given
+    (identity by default); polynomial and weights by bounded least squares."""
+    v = as_record(input, "input", min_length=2)
+    r = _default_thresholds(v, as_int(operators, "operators", minimum=1)) if thresholds is None else thresholds
+    lo, hi = float(v.min()), float(v.max())
+    pad = 0.5 * (hi - lo)
+    model = GeneralizedPI(r, np.zeros(len(r)), (0.0, 0.0, 0.0, 0.0), rising, falling, (lo - pad, hi + pad), creep=creep)
+    return fit_linear(model, v, output)
+
+
+def identify_preisach(input, output, *, levels=12, input_range=None, memory=64) -> FitResult:
+    """Discretized Preisach on a ``levels x levels`` grid over the input range; offset, slope
+    and cell weights (non-negative) by least squares."""
+    v = as_record(input, "input", min_length=2)
+    lo, hi = (float(v.min()), float(v.max())) if input_range is None else input_range
+    n = as_int(levels, "levels", minimum=1)
+    model = Preisach(n, (lo, hi), np.zeros(n * (n + 1) // 2), memory=memory)
+    return fit_linear(model, v, output)
