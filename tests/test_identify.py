@@ -70,3 +70,31 @@ def test_real_record_one_cycle():
     mpi = ph.identify_mpi(v, y)
     assert pre.metrics["rmse_percent"] < 0.3 and pre.metrics["max_error_percent"] < 1.0   # measured 0.25 / 0.93
     assert mpi.metrics["rmse_percent"] < 1.6                                               # measured 1.45
+
+
+@pytest.mark.parametrize("method", ["de", "css"])
+def test_identify_bouc_wen_recovers_the_parameters(method):
+    truth = ph.BoucWen(1.2, 3.0, 1.0, d=2.0)
+    v = 1.5 * np.sin(np.linspace(0, 30, 3000)) * np.linspace(1, 0.3, 3000)
+    res = ph.identify(v, truth.simulate(v), "boucwen", optimizer=method, rng=1, max_iterations=150)
+    m = res.model
+    np.testing.assert_allclose([m.a, m.beta, m.gamma, m.d], [1.2, 3.0, 1.0, 2.0], rtol=1e-3)
+    assert res.train["rmse_percent"] < 1e-3 and res.history["best_cost"].size >= 1
+    # same seed, same result
+    again = ph.identify(v, truth.simulate(v), "boucwen", optimizer=method, rng=1, max_iterations=150)
+    assert again.model == res.model
+
+
+def test_identify_reports_validation_metrics():
+    truth = ph.mpi_seed2()
+    v_train, v_val = drive(2000, 1), drive(1500, 2)
+    res = ph.identify(v_train, truth.simulate(v_train), "mpi", validate=(v_val, truth.simulate(v_val)))
+    assert res.train["rmse_percent"] < 0.5 and res.validation["rmse_percent"] < 0.5
+    assert set(res.to_dict()) == {"method", "wall_time_s", "train", "validation"}
+
+
+def test_identify_bad_input():
+    with pytest.raises(ValueError, match="model = 'spline' is unknown"):
+        ph.identify([0.0, 1.0], [0.0, 1.0], "spline")
+    with pytest.raises(ValueError, match="fs is required"):
+        ph.identify(drive(100), drive(100), "rdpi")

@@ -22,7 +22,8 @@ from .creep import Creep
 from .pi import PI, GeneralizedPI, RateDependentPI
 from .preisach import Preisach
 
-__all__ = ["FitResult", "fit_linear", "fit_metrics", "identify_pi", "identify_mpi", "identify_preisach"]
+__all__ = ["FitResult", "IdentificationResult", "KINDS", "fit_linear", "fit_metrics", "identify", "identify_mpi",
+           "identify_pi", "identify_preisach"]
 
 
 @dataclass(frozen=True)
@@ -154,3 +155,123 @@ def identify_preisach(input, output, *, levels=12, input_range=None, memory=64) 
     n = as_int(levels, "levels", minimum=1)
     model = Preisach(n, (lo, hi), np.zeros(n * (n + 1) // 2), memory=memory)
     return fit_linear(model, v, output)
+
+
+@dataclass(frozen=True)
+class IdentificationResult:
+    """What :func:`identify` returns: the model, its free-run metrics on the training record
+    (and the validation record when given), the optimizer history and the wall time."""
+
+    model: object
+    train: dict
+    validation: dict | None
+    method: str
+    wall_time: float
+    history: dict | None = None
+
+    @property
+    def metrics(self) -> dict:
+        return {"train": self.train, "validation": self.validation}
+
+    def to_dict(self) -> dict:
+        """JSON-ready report (the model file's ``fit`` section)."""
+        return {"method": self.method, "wall_time_s": self.wall_time, "train": self.train,
+                "validation": self.validation}
+
+    def plot(self, input, output):
+        """Loop, fit and residual for a record (matplotlib figure)."""
+        import matplotlib.pyplot as plt
+
+        v = as_record(input, "input")
+        y = as_record(output, "output")
+        yp = self.model.simulate(v)
+        fig, ax = plt.subplots(1, 3, figsize=(13, 3.8))
+        ax[0].plot(v, y, lw=0.8, label="measured")
+        ax[0].plot(v, yp, lw=0.8, label="model")
+        ax[0].set(xlabel="input", ylabel="output", title="hysteresis loop")
+        ax[0].legend()
+        ax[1].plot(y, lw=0.8, label="measured")
+        ax[1].plot(yp, lw=0.8, label="model")
+        ax[1].set(xlabel="sample", title="fit")
+        ax[2].plot(yp - y, lw=0.8)
+        ax[2].set(xlabel="sample", title="residual")
+        fig.tight_layout()
+        return fig
+
+
+#: Model kinds :func:`identify` accepts.
+KINDS = ("pi", "gpi", "mpi", "rdpi", "preisach", "boucwen")
+
+
+def _boucwen_bounds(v, y):
+    """Search box for Bouc–Wen ``(a, beta, gamma, n = 1, d)`` from the data's scales."""
+    dv = float(np.ptp(v)) or 1.0
+    gain = float(np.ptp(y)) / dv
+    return [(0.0, 4 * gain), (1e-3 / dv, 50.0 / dv), (-50.0 / dv, 50.0 / dv), (1.0, 1.0), (0.0, 4 * gain)]
+
+
+def identify(input, output, model="mpi", *, fs=None, operators=9, levels=12, optimizer="ls", rng=None,
+             max_iterations=200, population_size=None, validate=None, progress=False, callback=None):
+    """Identify a hysteresis model from an input/output record (free-run simulation error).
+
+    Parameters
+    ----------
+    input, output : array_like
+        The training record.
+    model : str
+        One of ``KINDS``. ``pi``, ``gpi``/``mpi``, ``rdpi`` and ``preisach`` are fitted by
+        least squares over their linear parameters with a default structure (thresholds over
+        half the input range; a grid over the input range); ``boucwen`` by a population
+        optimizer over all its parameters, each population evaluated in one Rust batch call.
+    fs : float, optional
+        Sample rate, Hz (needed by ``rdpi``).
+    optimizer : str
+        ``"ls"`` for the linear families; ``"css"``, ``"pso"``, ``"mpso"`` or ``"de"`` for
+        Bouc–Wen (``"ls"`` there means ``"de"``).
+    validate : (input, output), optional
+        A held-out record; its metrics are reported, it is not fitted.
+
+    Returns
+    -------
+    IdentificationResult
+    """
+    t0 = time.perf_counter()
+    if model not in KINDS:
+        raise ValueError(f"model = {model!r} is unknown; expected one of {list(KINDS)}")
+    v = as_record(input, "input", min_length=2)
+    y = as_record(output, "output", min_length=2)
+    if y.size != v.size:
+        raise ValueError(f"output has {y.size} samples, input has {v.size}; they must match")
+    history = None
+    if model == "pi":
+        fitted, method = identify_pi(v, y, operators=operators).model, "ls"
+    elif model in ("gpi", "mpi"):
+        fitted, method = identify_mpi(v, y, operators=operators).model, "ls"
+    elif model == "preisach":
+        fitted, method = identify_preisach(v, y, levels=levels).model, "ls"
+    elif model == "rdpi":
+        if fs is None:
+            raise ValueError("fs is required for model = 'rdpi' (the rate needs the sample time)")
+        r = _default_thresholds(v, as_int(operators, "operators", minimum=1))
+        template = RateDependentPI(r, np.zeros(r.size), 1.0 / float(fs), 1.0, 0.0)
+        fitted, method = fit_linear(template, v, y).model, "ls"
+    else:
+        from .differential import BoucWen
+        from .optimize import minimize
+
+        method = "de" if optimizer == "ls" else optimizer
+        template = BoucWen(1.0, 1.0, 0.0)
+
+        def cost(rows):
+            return _core.batch_rmse(template.family, [], np.ascontiguousarray(rows), v, y, float("inf"))
+
+        res = minimize(cost, _boucwen_bounds(v, y), method=method, rng=rng, max_iterations=max_iterations,
+                       population_size=population_size, progress=progress, callback=callback, polish=True)
+        fitted, history = BoucWen(*res.x), res.history
+    train = fit_metrics(fitted.simulate(v), y)
+    val = None
+    if validate is not None:
+        vv = as_record(validate[0], "validate input")
+        vy = as_record(validate[1], "validate output")
+        val = fit_metrics(fitted.simulate(vv), vy)
+    return IdentificationResult(fitted, train, val, method, time.perf_counter() - t0, history)
