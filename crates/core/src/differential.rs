@@ -14,8 +14,8 @@ use crate::{Hysteresis, Invertible};
 /// `(1 - exp(-x)) / x`, with its limit 1 at 0. Below |x| = 0.03 its Taylor series to
 /// x^7 is exact to rounding (the next term is under 2e-18) and needs no exponential: the
 /// common case of small increments in a simulation loop.
-#[inline]
-fn phi1(x: f64) -> f64 {
+#[inline(always)]
+pub(crate) fn phi1(x: f64) -> f64 {
     if abs(x) < 0.03 {
         // Estrin's scheme: the same polynomial with a short dependency chain
         let x2 = x * x;

@@ -253,6 +253,7 @@ pub struct Stage {
     amp_ideal: bool,
     amp_tau: f64,
     omega_n: f64,
+    static_gain: f64,
 }
 
 fn positive(name: &'static str, x: f64) -> Result<(), ModelError> {
@@ -334,7 +335,8 @@ impl Stage {
             *level = Level::new(p, amp_ideal, amp_tau, ts / (substeps << j) as f64);
         }
         let omega_n = crate::math::sqrt(p.stiffness / p.mass);
-        Ok(Stage { params, ts, substeps, tolerance, levels, amp_ideal, amp_tau, omega_n })
+        let static_gain = p.tem / p.stiffness;
+        Ok(Stage { params, ts, substeps, tolerance, levels, amp_ideal, amp_tau, omega_n, static_gain })
     }
 
     /// Clamp a command to the amplifier's range.
@@ -402,7 +404,20 @@ impl Stage {
         if q_ext == 0.0 {
             return vh0;
         }
-        let bw = |dq: f64| bouc_wen_1_exact(vh0, dq, p.hyst_alpha, p.hyst_beta, p.hyst_gamma);
+        // the exact increment, with its common case (no zero crossing of Vh) inline
+        let bw = |dq: f64| {
+            let (a, beta, gamma) = (p.hyst_alpha, p.hyst_beta, p.hyst_gamma);
+            if vh0 != 0.0 {
+                let sh = if vh0 > 0.0 { 1.0 } else { -1.0 };
+                let s = if dq > 0.0 { 1.0 } else { -1.0 };
+                let c = beta * s + gamma * sh;
+                let end = vh0 + (a - c * vh0) * dq * crate::differential::phi1(c * dq);
+                if end * sh > 0.0 {
+                    return end;
+                }
+            }
+            bouc_wen_1_exact(vh0, dq, a, beta, gamma)
+        };
         if p.hyst_drive == HysteresisDrive::Voltage {
             return bw(q_ext);
         }
@@ -492,8 +507,8 @@ impl Stage {
         for j in 0..p.creep_terms {
             vcr += p.creep_weights[j] * st.creep[j];
         }
-        let x_static = p.tem / p.stiffness * (st.va - st.vh + vcr + p.electrostriction * st.va * st.va);
-        let motion = (abs(st.v) + self.omega_n * abs(st.x - x_static)) * self.ts + p.tem / p.stiffness * travel;
+        let x_static = self.static_gain * (st.va - st.vh + vcr + p.electrostriction * st.va * st.va);
+        let motion = (abs(st.v) + self.omega_n * abs(st.x - x_static)) * self.ts + self.static_gain * travel;
         let drive = match p.hyst_drive {
             HysteresisDrive::Charge => p.capacitance * travel + p.tem * motion,
             HysteresisDrive::Voltage => travel,
