@@ -1,15 +1,49 @@
-"""The ``piezohyst`` command line."""
+"""The ``piezohyst`` command line.
+
+Every bad input ends the command with a one-line reason on stderr and exit code 2 (usage
+errors included); ``--debug`` shows the traceback instead. Output files are written
+atomically (a temporary file in the same directory, then ``os.replace``) and an existing file
+is never replaced without ``--force``.
+"""
 from __future__ import annotations
 
 import argparse
 import json
+import math
+import os
+import re
 import sys
+import tempfile
+import time
+from pathlib import Path
 
 __all__ = ["main"]
 
+#: Model kinds of ``piezohyst identify`` (those of :func:`piezohyst.identify`).
+_KINDS = ("pi", "gpi", "mpi", "rdpi", "preisach", "boucwen")
+_OPTIMIZERS = ("css", "pso", "mpso", "de", "ls")
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse whose usage errors are one line on stderr with exit code 2 (SPEC §8, §10)."""
+
+    def error(self, message):
+        msg = " ".join(str(message).split())
+        self.exit(2, f"{self.prog}: error: {msg} (see {self.prog} --help)\n")
+
+
+class _Fail(ValueError):
+    """A bad command-line input; the message names the argument and the value."""
+
+
+_FORMATS = ("DATA formats: delimited text (.csv .tsv .txt .dat .asc; comma, tab, semicolon or whitespace\n"
+            "separated; with or without a header line), NumPy .npz/.npy, MATLAB .mat (v4-v7; v7.3 with h5py),\n"
+            "HDF5 (.h5 .hdf5 .he5, with h5py). A column COL is a name (header name, NPZ key, MATLAB variable or\n"
+            "'s.field', HDF5 dataset path) or a 0-based index, an integer ('column 5' of a data README is 4).")
+
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="piezohyst", description="Piezo hysteresis modelling, identification and compensation.")
+    p = _Parser(prog="piezohyst", description="Piezo hysteresis modelling, identification and compensation.")
     p.add_argument("--debug", action="store_true", help="show a traceback on errors")
     sub = p.add_subparsers(dest="command", required=True)
     d = sub.add_parser("demo", help="forward and exact inverse of the seed-2 MPI model; writes a loop figure")
@@ -21,7 +55,531 @@ def _parser() -> argparse.ArgumentParser:
     info = st_sub.add_parser("info", help="measure stroke, hysteresis, resonance and creep of a stage by simulation")
     info.add_argument("--stage", metavar="FILE", help="stage file (JSON; default: the built-in virtual stage)")
     info.add_argument("--json", action="store_true", help="print the numbers as JSON")
+    _identify_parser(sub)
+    _simulate_parser(sub)
     return p
+
+
+def _column_help(role: str, default: str) -> str:
+    return f"{role} column, by name or 0-based index ({default})"
+
+
+def _identify_parser(sub) -> None:
+    fmt = argparse.RawDescriptionHelpFormatter
+    i = sub.add_parser(
+        "identify", formatter_class=fmt,
+        help="identify a hysteresis model from a measured input/output record; writes a model file",
+        description=(
+            "Identify a hysteresis model from a measured record (free-run simulation error) and write it as a\n"
+            "model file (JSON) that includes the fit report under \"fit\". Prints RMSE and max error in % of\n"
+            "the output range, on the training range and on the validation data when given.\n\n" + _FORMATS),
+        epilog=(
+            "examples:\n"
+            "  piezohyst identify run.csv --model mpi --input voltage --output x --time t \\\n"
+            "      --train :6000 --validate 6000: --out mpi.json\n"
+            "  piezohyst identify yan9a_model_1hz.dat --model preisach --levels 10 --input 0 --output 4 \\\n"
+            "      --fs 200 --train 3152:4152 --json\n"
+            "  piezohyst identify bw.csv --model boucwen --optimizer de --seed 1 --iterations 80 \\\n"
+            "      --validate bw_check.csv --out bw.json --plot bw.png\n\n"
+            "exit status: 0 on success, 2 on bad input (one line on stderr naming the argument)."))
+    i.add_argument("data", metavar="DATA", help="the record file (see the formats above)")
+    i.add_argument("--model", metavar="KIND", required=True, choices=_KINDS,
+                   help=f"model to identify: {', '.join(_KINDS)} (required). pi/gpi/mpi/rdpi/preisach: least "
+                        "squares over the linear parameters with a default structure; boucwen: population "
+                        "optimizer over all parameters")
+    i.add_argument("--input", metavar="COL", help=_column_help("input", "default: the column named 'input', "
+                                                               "else the first of exactly two"))
+    i.add_argument("--output", metavar="COL", help=_column_help("output (measured)", "default: the column named "
+                                                                "'output', else the second of exactly two"))
+    g = i.add_mutually_exclusive_group()
+    g.add_argument("--fs", metavar="HZ", type=float, help="sample rate in Hz (> 0); this or --time is required")
+    g.add_argument("--time", metavar="COL", help="time column in seconds (strictly increasing and uniform; "
+                                                 "gives the sample rate)")
+    i.add_argument("--dataset", metavar="NAME", help="NPZ/MAT/HDF5: a 2-D matrix (rows = samples) whose columns "
+                                                     "integer COLs address")
+    i.add_argument("--train", metavar="A:B",
+                   help="training samples A (inclusive) to B (exclusive), 0-based; either side may be omitted "
+                        "(default: the whole record, or, with --validate A:B and no --train, the samples before "
+                        "the validation range - after it when it starts at 0)")
+    i.add_argument("--validate", metavar="A:B|FILE",
+                   help="held-out validation data, reported, not fitted: a sample range of DATA (must not overlap "
+                        "--train) or a second file read with the same column options")
+    i.add_argument("--optimizer", choices=_OPTIMIZERS, default="ls", metavar="NAME",
+                   help="css, pso, mpso, de or ls (default: ls). Used for the parameters that are not linear "
+                        "(boucwen: all of them; 'ls' there means de); the linear families are solved exactly "
+                        "by least squares")
+    i.add_argument("--seed", metavar="N", type=int,
+                   help="random seed of the optimizer (same seed, same result; default: fresh randomness)")
+    i.add_argument("--operators", metavar="N", type=int, default=9,
+                   help="pi/gpi/mpi/rdpi: number of play operators, thresholds spread over half the input range "
+                        "(default: 9)")
+    i.add_argument("--levels", metavar="N", type=int, default=12,
+                   help="preisach: grid levels over the input range, N(N+1)/2 cells (default: 12)")
+    i.add_argument("--iterations", metavar="N", type=int, default=200,
+                   help="optimizer iterations (populations evaluated) (default: 200)")
+    i.add_argument("--population", metavar="N", type=int,
+                   help="optimizer population size (default: max(20, 5 x number of parameters))")
+    i.add_argument("--out", metavar="FILE", default="model.json",
+                   help="model file to write (JSON, with the fit report under \"fit\") (default: model.json)")
+    i.add_argument("--plot", metavar="PNG", help="also write a figure: loop, fit and residual on the training data")
+    i.add_argument("--force", action="store_true", help="overwrite existing --out / --plot files")
+    i.add_argument("--json", action="store_true", help="print the metrics and the output path as JSON")
+    i.add_argument("--progress", action="store_true",
+                   help="show the optimizer's progress bar on stderr (default: only when stderr is a terminal)")
+    i.add_argument("--debug", dest="sub_debug", action="store_true", help="show a traceback on errors")
+
+
+def _simulate_parser(sub) -> None:
+    fmt = argparse.RawDescriptionHelpFormatter
+    s = sub.add_parser(
+        "simulate", formatter_class=fmt,
+        help="simulate a model file on an input record; writes CSV",
+        description=(
+            "Simulate a model file (as written by 'piezohyst identify' or HysteresisModel.save) on the input\n"
+            "signal of a record, from the relaxed initial state, and write CSV with the columns time (when\n"
+            "known), input, output: exactly the numbers of load_model(MODEL).simulate(input), written so\n"
+            "that they read back bit for bit.\n\n"
+            + _FORMATS.replace("DATA formats", "INPUT formats")),
+        epilog=(
+            "examples:\n"
+            "  piezohyst simulate mpi.json sweep.csv --input voltage --fs 1000 --out predicted.csv\n"
+            "  piezohyst simulate mpi.json run.csv --input v --output x --time t --out p.csv --json\n"
+            "  piezohyst simulate mpi.json sweep.csv --input 0 > predicted.csv\n\n"
+            "exit status: 0 on success, 2 on bad input (one line on stderr naming the argument)."))
+    s.add_argument("model", metavar="MODEL.json", help="the model file")
+    s.add_argument("input_file", metavar="INPUT", help="the file holding the input signal (see the formats above)")
+    s.add_argument("--input", metavar="COL", help=_column_help("input", "default: the column named 'input', else "
+                                                               "the only column besides --time; with --output, "
+                                                               "the first of exactly two"))
+    s.add_argument("--output", metavar="COL",
+                   help="a measured output column to compare with: adds RMSE and max error to the summary "
+                        "(not written to the CSV)")
+    g = s.add_mutually_exclusive_group()
+    g.add_argument("--fs", metavar="HZ", type=float,
+                   help="sample rate in Hz (> 0), for the time column of the CSV; must agree with the sample "
+                        "time of a model that has one (rdpi, creep). Default: the model's, else no time column")
+    g.add_argument("--time", metavar="COL", help="time column in seconds (strictly increasing, uniform), copied "
+                                                 "to the CSV")
+    s.add_argument("--dataset", metavar="NAME", help="NPZ/MAT/HDF5: a 2-D matrix (rows = samples) whose columns "
+                                                     "integer COLs address")
+    s.add_argument("--out", metavar="FILE", default="-", help="CSV file to write (default: '-', standard output)")
+    s.add_argument("--force", action="store_true", help="overwrite an existing --out file")
+    s.add_argument("--json", action="store_true",
+                   help="print summary statistics as JSON (needs --out FILE: the CSV cannot share stdout)")
+    s.add_argument("--debug", dest="sub_debug", action="store_true", help="show a traceback on errors")
+
+
+# --------------------------------------------------------------------------------------------
+# argument checks
+
+
+def _column(spec):
+    """A column spec from the command line: an integer string is a 0-based index."""
+    if spec is None:
+        return None
+    s = spec.strip()
+    if re.fullmatch(r"[+-]?\d+", s):
+        return int(s)
+    return spec
+
+
+def _check_fs(fs):
+    if fs is None:
+        return None
+    if not math.isfinite(fs) or fs <= 0:
+        raise _Fail(f"--fs = {fs:g} must be a finite sample rate > 0 Hz")
+    return fs
+
+
+def _check_count(value, name, minimum=1):
+    if value is not None and value < minimum:
+        raise _Fail(f"{name} = {value} must be >= {minimum}")
+    return value
+
+
+def _existing_file(path, name) -> Path:
+    p = Path(path)
+    if not p.exists():
+        raise _Fail(f"{name} = '{path}': no such file")
+    if p.is_dir():
+        raise _Fail(f"{name} = '{path}' is a directory, not a file")
+    return p
+
+
+def _writable(path, name, force) -> Path:
+    p = Path(path)
+    if p.is_dir():
+        raise _Fail(f"{name} = '{path}' is a directory; give a file name")
+    if p.exists() and not force:
+        raise _Fail(f"{name} = '{path}' exists; pass --force to overwrite it")
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise _Fail(f"{name} = '{path}': directory '{parent}' does not exist")
+    return p
+
+
+_RANGE = re.compile(r"\s*([^:]*?)\s*:\s*([^:]*?)\s*")
+
+
+def _parse_range(text, name):
+    """``"A:B"`` with either side optional -> ``(A or None, B or None)``; non-negative integers."""
+    m = _RANGE.fullmatch(text)
+    if m is None:
+        raise _Fail(f"{name} = '{text}' is not a sample range A:B (0-based, B exclusive; either side may be omitted)")
+    out = []
+    for part in m.groups():
+        if part == "":
+            out.append(None)
+        elif re.fullmatch(r"\+?\d+", part):
+            out.append(int(part))
+        else:
+            raise _Fail(f"{name} = '{text}': {part!r} is not a sample index (a non-negative integer)")
+    return tuple(out)
+
+
+def _resolve_range(spec, n, name, text, what="DATA"):
+    a = 0 if spec[0] is None else spec[0]
+    b = n if spec[1] is None else spec[1]
+    if a >= n:
+        raise _Fail(f"{name} = '{text}': start {a} is beyond the end of {what} ({n} samples, indices 0..{n - 1})")
+    if b > n:
+        raise _Fail(f"{name} = '{text}': stop {b} is beyond the end of {what} ({n} samples; stop is exclusive, "
+                    f"at most {n})")
+    if b <= a:
+        raise _Fail(f"{name} = '{text}': start {a} is not before stop {b}")
+    if b - a < 2:
+        raise _Fail(f"{name} = '{text}' keeps {b - a} sample; at least 2 are needed")
+    return a, b
+
+
+def _parse_validate(text):
+    """``--validate``: a sample range of DATA, or a file. Returns ``(range, None)`` or ``(None, path)``."""
+    if text is None:
+        return None, None
+    if re.fullmatch(r"\s*\+?\d*\s*:\s*\+?\d*\s*", text):
+        return _parse_range(text, "--validate"), None
+    if Path(text).exists():
+        return None, _existing_file(text, "--validate")
+    if ":" in text and not re.search(r"[/\\.]", text):
+        return _parse_range(text, "--validate"), None      # a malformed range: say why
+    raise _Fail(f"--validate = '{text}': no such file (and not a sample range A:B)")
+
+
+_ROLE = re.compile(r"(?<![\w-])(input|output|time|fs|dataset)(?= = | is not )")
+
+
+def _named(e: Exception, prefix: str = "") -> _Fail:
+    """A loader's error with its argument names spelled as the options (``input =`` -> ``--input =``)."""
+    msg = str(e)
+    if isinstance(e, FileNotFoundError) and e.filename is not None and not msg.startswith(str(e.filename)):
+        msg = f"{e.filename}: {e.strerror or msg}"
+    return _Fail(prefix + _ROLE.sub(r"--\1", msg))
+
+
+def _load(path, **kw):
+    from .data import load_record
+
+    try:
+        return load_record(path, **kw)
+    except (ValueError, TypeError, OSError, ImportError) as e:
+        raise _named(e) from None
+
+
+def _write_atomic(path: Path, data, force: bool, name: str, writer=None) -> None:
+    """Write ``data`` (str) or call ``writer(temp_path)`` into a temporary file next to ``path``, then
+    move it into place; an existing ``path`` is kept unless ``force``."""
+    if path.exists() and not force:
+        raise _Fail(f"{name} = '{path}' exists; pass --force to overwrite it")
+    parent = path.parent if str(path.parent) else Path(".")
+    fd, tmp = tempfile.mkstemp(dir=parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        if writer is None:
+            with os.fdopen(fd, "w", newline="") as f:
+                f.write(data)
+        else:
+            os.close(fd)
+            writer(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _pct(x) -> str:
+    return f"{x:.4g} %"
+
+
+# --------------------------------------------------------------------------------------------
+# piezohyst identify
+
+
+def _identify(args) -> None:
+    from .identify import identify
+
+    _check_count(args.operators, "--operators")
+    _check_count(args.levels, "--levels")
+    _check_count(args.iterations, "--iterations")
+    _check_count(args.population, "--population", minimum=2)
+    if args.seed is not None and args.seed < 0:
+        raise _Fail(f"--seed = {args.seed} must be >= 0")
+    fs = _check_fs(args.fs)
+    data = _existing_file(args.data, "DATA")
+    train_spec = None if args.train is None else _parse_range(args.train, "--train")
+    val_spec, val_file = _parse_validate(args.validate)
+    out = _writable(args.out, "--out", args.force)
+    plot = None if args.plot is None else _writable(args.plot, "--plot", args.force)
+    if plot is not None and plot.resolve() == out.resolve():
+        raise _Fail(f"--plot = '{args.plot}' is the same file as --out")
+
+    columns = dict(input=_column(args.input), output=_column(args.output), time=_column(args.time), fs=fs,
+                   dataset=args.dataset)
+    if fs is None and args.time is None:
+        raise _Fail("the sample rate is unknown: give --fs HZ or --time COL")
+    rec = _load(data, **columns)
+    n = rec.n
+    val = None
+    if val_spec is not None:
+        c, d = _resolve_range(val_spec, n, "--validate", args.validate)
+        if train_spec is None:
+            a, b = (0, c) if c >= 2 else (d, n)
+            if b - a < 2:
+                raise _Fail(f"--validate = '{args.validate}' leaves no training range in DATA ({n} samples); "
+                            f"give --train A:B")
+        else:
+            a, b = _resolve_range(train_spec, n, "--train", args.train)
+        if a < d and c < b:
+            raise _Fail(f"--train = {a}:{b} and --validate = {c}:{d} overlap (samples {max(a, c)} to "
+                        f"{min(b, d) - 1}); validation data must be held out")
+        val, val_where = rec.trim(c, d), {"source": str(data), "range": [c, d]}
+    else:
+        a, b = (0, n) if train_spec is None else _resolve_range(train_spec, n, "--train", args.train)
+        if val_file is not None:
+            val = _load(val_file, **columns)
+            if abs(val.fs - rec.fs) > 1e-6 * rec.fs:
+                raise _Fail(f"--validate = '{val_file}' is sampled at {val.fs:.9g} Hz, DATA at {rec.fs:.9g} Hz; "
+                            f"the records must share the sample rate")
+            val_where = {"source": str(val_file), "range": [0, val.n]}
+    train = rec.trim(a, b) if (a, b) != (0, n) else rec
+
+    res = identify(train.input, train.output, model=args.model, fs=train.fs, operators=args.operators,
+                   levels=args.levels, optimizer=args.optimizer, rng=args.seed, max_iterations=args.iterations,
+                   population_size=args.population,
+                   validate=None if val is None else (val.input, val.output),
+                   progress=bool(args.progress or sys.stderr.isatty()))
+
+    fit = res.to_dict()
+    fit["data"] = {
+        "train": {"source": str(data), "range": [a, b], "samples": b - a},
+        "validation": None if val is None else {**val_where, "samples": val.n},
+        "columns": dict(rec.columns),
+        "fs": rec.fs,
+    }
+    doc = res.model.to_dict()
+    doc["fit"] = fit
+    text = json.dumps(doc, indent=2, allow_nan=False) + "\n"
+    _write_atomic(out, text, args.force, "--out")
+    if plot is not None:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig = res.plot(train.input, train.output)
+        try:
+            _write_atomic(plot, None, args.force, "--plot", writer=lambda tmp: fig.savefig(tmp, format="png", dpi=110))
+        finally:
+            plt.close(fig)
+
+    if args.json:
+        report = {"out": str(out), "plot": None if plot is None else str(plot), "model": res.model.kind, **fit}
+        print(json.dumps(report, indent=2, allow_nan=False))
+        return
+    print(f"{args.model} identified by {res.method} in {res.wall_time:.3g} s -> {out}")
+    rows = [("train", res.train, f"{data.name}[{a}:{b}], {b - a} samples")]
+    if res.validation is not None:
+        rows.append(("validation", res.validation, f"{Path(val_where['source']).name}[{val_where['range'][0]}:"
+                                                   f"{val_where['range'][1]}], {val.n} samples"))
+    print(f"  {'':<11} {'RMSE (% of range)':>18} {'max error (%)':>14}")
+    for name, m, where in rows:
+        print(f"  {name:<11} {_pct(m['rmse_percent']):>18} {_pct(m['max_error_percent']):>14}   ({where})")
+    if plot is not None:
+        print(f"  figure: {plot}")
+
+
+# --------------------------------------------------------------------------------------------
+# piezohyst simulate
+
+
+def _read_model(path: Path):
+    from .model import model_from_dict
+
+    try:
+        d = json.loads(path.read_text())
+    except UnicodeDecodeError:
+        raise _Fail(f"MODEL = '{path}' is not a text (JSON) file") from None
+    except json.JSONDecodeError as e:
+        raise _Fail(f"MODEL = '{path}' is not valid JSON: {e}") from None
+    if isinstance(d, dict):
+        d = {k: v for k, v in d.items() if k != "fit"}   # the fit report is not part of the model
+    try:
+        return model_from_dict(d)
+    except (ValueError, TypeError) as e:
+        raise _Fail(f"MODEL = '{path}': {e}") from None
+
+
+def _model_ts(model):
+    ts = getattr(model, "ts", None)
+    if ts is None:
+        ts = getattr(getattr(model, "creep", None), "ts", None)
+    return None if ts is None else float(ts)
+
+
+def _read_input(path: Path, input_spec, time_spec, dataset):
+    """The input column (and the time column when given) of a record file: what
+    :func:`~piezohyst.data.load_record` reads, without requiring an output column."""
+    from . import data as D
+
+    suffix = path.suffix.lower()
+    if dataset is not None and not dataset.strip():
+        raise _Fail(f"--dataset = {dataset!r} may not be empty")
+    if suffix in D.TEXT_SUFFIXES:
+        if dataset is not None:
+            raise _Fail(f"--dataset = {dataset!r} applies to NPZ/MAT/HDF5 files; {path} is a text file")
+        opener = lambda: D._TextTable(path, None, "auto")  # noqa: E731
+    elif suffix in D.NPZ_SUFFIXES:
+        opener = lambda: D._open_npz(path, dataset)  # noqa: E731
+    elif suffix in D.NPY_SUFFIXES:
+        opener = lambda: D._open_npy(path, dataset)  # noqa: E731
+    elif suffix in D.MAT_SUFFIXES:
+        opener = lambda: D._open_mat(path, dataset)  # noqa: E731
+    elif suffix in D.HDF5_SUFFIXES:
+        opener = lambda: D._open_hdf5(path, dataset)  # noqa: E731
+    else:
+        raise _Fail(f"INPUT = '{path}': unsupported file extension {path.suffix!r}; supported: "
+                    f"{' '.join(D.SUPPORTED_SUFFIXES)}")
+    try:
+        in_spec = D._check_column_spec(input_spec, "input")
+        t_spec = D._check_column_spec(time_spec, "time")
+        table = opener()
+        try:
+            t_key = None if t_spec is None else table.resolve("time", t_spec)
+            if in_spec is not None:
+                key = table.resolve("input", in_spec)
+            else:
+                cols = table.columns()
+                named = [c for c in cols if c[1] == "input"]
+                free = [c for c in cols if t_key is None or c[0] != t_key[0]]
+                if len(named) == 1:
+                    key = named[0]
+                elif len(free) == 1:
+                    key = free[0]
+                else:
+                    raise _Fail(f"{table.source}: --input not given and not inferable from the {len(cols)} columns "
+                                f"{[lab for _, lab in cols]}; pass --input <name or 0-based index>")
+            if t_key is not None and t_key[0] == key[0]:
+                raise _Fail(f"{table.source}: --input and --time are the same column {key[1]!r}")
+            v = table.read("input", *key)
+            t = None if t_key is None else table.read("time", *t_key)
+        finally:
+            close = getattr(table, "close", None)
+            if close is not None:
+                close()
+        if t is not None:
+            if t.size != v.size:
+                raise _Fail(f"{table.source}: time ({t_key[1]!r}) has {t.size} samples, input ({key[1]!r}) has "
+                            f"{v.size}: lengths must match")
+            try:
+                fs = D._fs_from_time(t, "time", D.TIME_RTOL) if t.size >= 2 else None
+            except ValueError as e:
+                raise _Fail(f"{table.source}: {e}") from None
+        else:
+            fs = None
+        if v.size < 1:
+            raise _Fail(f"{table.source}: input column {key[1]!r} is empty")
+        return v, t, fs, {"input": key[1], **({} if t_key is None else {"time": t_key[1]})}
+    except _Fail:
+        raise
+    except (ValueError, TypeError, OSError, ImportError) as e:
+        raise _named(e) from None
+
+
+def _simulate(args) -> None:
+    import numpy as np
+
+    from .identify import fit_metrics
+
+    fs = _check_fs(args.fs)
+    model_path = _existing_file(args.model, "MODEL")
+    input_path = _existing_file(args.input_file, "INPUT")
+    to_stdout = args.out == "-"
+    if to_stdout and args.json:
+        raise _Fail("--json prints a summary on standard output; give --out FILE for the CSV")
+    out = None if to_stdout else _writable(args.out, "--out", args.force)
+    model = _read_model(model_path)
+
+    measured = None
+    if args.output is not None:
+        rec = _load(input_path, input=_column(args.input), output=_column(args.output), time=_column(args.time),
+                    fs=fs if fs is not None or args.time is not None else 1.0, dataset=args.dataset)
+        v, t, measured, columns = rec.input, rec.time, rec.output, rec.columns
+        fs_data = rec.fs if (fs is not None or t is not None) else None
+    else:
+        v, t, fs_time, columns = _read_input(input_path, _column(args.input), _column(args.time), args.dataset)
+        fs_data = fs if fs is not None else fs_time
+    ts = _model_ts(model)
+    if ts is not None and fs_data is not None and abs(fs_data * ts - 1.0) > 1e-6:
+        name = "--fs" if args.fs is not None else "--time"
+        raise _Fail(f"{name}: sample rate {fs_data:.9g} Hz disagrees with the model's sample time ts = {ts:.9g} s "
+                    f"({1 / ts:.9g} Hz); simulate at the rate the model was identified at")
+    fs_used = fs_data if fs_data is not None else (None if ts is None else 1.0 / ts)
+    if t is None and fs_used is not None:
+        t = np.arange(v.size) / fs_used
+
+    t0 = time.perf_counter()
+    try:
+        y = model.simulate(v)
+    except (ValueError, TypeError) as e:
+        raise _Fail(f"INPUT = '{input_path}': {e}") from None
+    wall = time.perf_counter() - t0
+
+    cols = ([("time", t)] if t is not None else []) + [("input", v), ("output", y)]
+    lists = [np.asarray(c, dtype=np.float64).tolist() for _, c in cols]
+    lines = [",".join(name for name, _ in cols)]
+    lines += [",".join(map(repr, row)) for row in zip(*lists)]   # repr: shortest text that reads back exactly
+    text = "\n".join(lines) + "\n"
+    if to_stdout:
+        sys.stdout.write(text)
+        return
+    _write_atomic(out, text, args.force, "--out")
+
+    def stats(a):
+        return {"min": float(np.min(a)), "max": float(np.max(a)), "mean": float(np.mean(a)), "range": float(np.ptp(a))}
+
+    summary = {
+        "out": str(out),
+        "model": model.kind,
+        "model_file": str(model_path),
+        "input_file": str(input_path),
+        "columns": dict(columns),
+        "samples": int(v.size),
+        "fs": fs_used,
+        "wall_time_s": wall,
+        "input": stats(v),
+        "output": stats(y),
+        "error": None if measured is None else fit_metrics(y, measured),
+    }
+    if args.json:
+        print(json.dumps(summary, indent=2, allow_nan=False))
+        return
+    print(f"{model.kind} simulated on {v.size} samples of {input_path.name} in {wall:.3g} s -> {out}")
+    print(f"  output {summary['output']['min']:.6g} .. {summary['output']['max']:.6g}")
+    if measured is not None:
+        e = summary["error"]
+        print(f"  vs measured: RMSE {_pct(e['rmse_percent'])} of range, max error {_pct(e['max_error_percent'])}")
+
+
+# --------------------------------------------------------------------------------------------
 
 
 def _stage_info(args) -> None:
@@ -43,6 +601,8 @@ def _stage_info(args) -> None:
 
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
+    debug = args.debug or getattr(args, "sub_debug", False)
+    prog = f"piezohyst {args.command}" if args.command in ("identify", "simulate") else "piezohyst"
     try:
         if args.command == "stage":
             _stage_info(args)
@@ -53,11 +613,21 @@ def main(argv=None) -> int:
             numbers = run_demo(args.out, force=args.force, print_fn=quiet)
             if args.json:
                 print(json.dumps(numbers, indent=2))
+        elif args.command == "identify":
+            _identify(args)
+        elif args.command == "simulate":
+            _simulate(args)
         return 0
-    except (ValueError, TypeError, OSError) as e:
-        if args.debug:
+    except KeyboardInterrupt:
+        if debug:
             raise
-        print(f"piezohyst: error: {e}", file=sys.stderr)
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return 130
+    except (ValueError, TypeError, OSError, ImportError) as e:
+        if debug:
+            raise
+        msg = " ".join(str(e).split())   # one line, whatever the message
+        print(f"{prog}: error: {msg}", file=sys.stderr)
         return 2
 
 

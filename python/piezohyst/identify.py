@@ -14,7 +14,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import lsq_linear
+
 
 from . import _core
 from ._validate import as_int, as_record
@@ -107,6 +107,8 @@ def fit_linear(model, input, output) -> FitResult:
     >>> np.allclose(fit.model.weights, truth.weights, atol=1e-9), round(fit.model.p0, 9)
     (True, 0.8)
     """
+    from scipy.optimize import lsq_linear  # imported on use: keeps the command line quick to start
+
     t0 = time.perf_counter()
     v = as_record(input, "input", min_length=2)
     y = as_record(output, "output", min_length=2)
