@@ -135,9 +135,8 @@ def _check_reference(stage, x):
     creep = 1 + sum(p.creep_weights)
     reach = [p.static_gain * (v * creep + p.electrostriction * v * v) for v in (a.v_min, a.v_max)]
     lo, hi = min(reach), max(reach)
-    bad = np.flatnonzero((x < lo) | (x > hi))
-    if bad.size:
-        k = bad[0]
+    if x.min() < lo or x.max() > hi:
+        k = int(np.flatnonzero((x < lo) | (x > hi))[0])
         raise ValueError(f"reference[{k}] = {x[k]:.6g} m is beyond the stage's stroke "
                          f"[{lo:.3g}, {hi:.3g}] m for amplifier range [{a.v_min}, {a.v_max}] V")
 
@@ -145,7 +144,8 @@ def _check_reference(stage, x):
 def _prepare(stage, controller, reference, velocity, acceleration):
     if not is_controller(controller):
         raise TypeError(f"controller must be a piezohyst controller (OpenLoop, PID, ...), got {type(controller).__name__}")
-    x = as_record(reference, "reference", min_length=2)
+    # no copy here: the core returns the result's own copy of the reference
+    x = as_record(reference, "reference", min_length=2, copy=False)
     _check_reference(stage, x)
     v, a = _derivatives(x, stage.sample_time, velocity, acceleration,
                         getattr(controller, "uses_reference_derivatives", True))
@@ -159,7 +159,7 @@ def _result(stage, x, d, controller) -> ClosedLoopResult:
     names = list(d["term_names"])
     terms = {n: d["terms"][:, i] for i, n in enumerate(names)}
     return ClosedLoopResult(
-        sample_time=stage.sample_time, reference=x, command=d["command"], voltage=d["voltage"],
+        sample_time=stage.sample_time, reference=d["reference"], command=d["command"], voltage=d["voltage"],
         position=d["position"], measured=d["measured"], terms=terms, final_state=np.asarray(d["final_state"]),
         controller=type(controller).__name__,
     )

@@ -102,6 +102,7 @@ struct Scenario<'a> {
 
 /// One scenario's signals.
 struct Signals {
+    reference: Vec<f64>,
     command: Vec<f64>,
     voltage: Vec<f64>,
     position: Vec<f64>,
@@ -113,6 +114,7 @@ struct Signals {
 fn run_any<C: Controller>(stage: &Stage, sensor: &Sensor, c: &C, sc: &Scenario<'_>, init: StageState) -> Signals {
     let n = sc.reference.len();
     let mut sig = Signals {
+        reference: sc.reference.to_vec(),
         command: vec![0.0; n],
         voltage: vec![0.0; n],
         position: vec![0.0; n],
@@ -163,6 +165,8 @@ fn signals_dict<'py>(py: Python<'py>, sig: Signals, names: &'static [&'static st
     let d = PyDict::new(py);
     let n = sig.command.len();
     let k = names.len().min(MAX_TERMS);
+    // the result's own copy of the reference (from this allocator, like the other signals)
+    d.set_item("reference", sig.reference.into_pyarray(py))?;
     d.set_item("command", sig.command.into_pyarray(py))?;
     d.set_item("voltage", sig.voltage.into_pyarray(py))?;
     d.set_item("position", sig.position.into_pyarray(py))?;
