@@ -98,3 +98,23 @@ def test_identify_bad_input():
         ph.identify([0.0, 1.0], [0.0, 1.0], "spline")
     with pytest.raises(ValueError, match="fs is required"):
         ph.identify(drive(100), drive(100), "rdpi")
+
+
+def test_identify_cemf_stage_from_simulated_measurements():
+    # data from the virtual stage (creep, electrostriction, amplifier dynamics: more physics than
+    # the CEMF model being fitted), voltage = amplifier output, position = true position
+    stage = ph.virtual_stage()
+    fs = 1.0 / stage.sample_time
+    _, u = ph.variable_amplitude_sine(5, 70, 0.6, fs, offset=75)
+    r = stage.simulate(u)
+    va, x = np.r_[0.0, r.voltage[:-1]], r.position
+    res = ph.identify_cemf(va, x, fs, optimizer="de", rng=1, max_iterations=100)
+    assert res.train["rmse_percent"] < 0.5                      # measured 0.28 %
+    p = res.model
+    k_true = stage.params.stiffness / stage.params.tem
+    assert abs(p.stiffness / p.tem - k_true) / k_true < 0.1      # K = k/Tem within 10 % (measured 6 %)
+    assert res.history["best_cost"][-1] <= res.history["best_cost"][0]
+    with pytest.raises(ValueError, match="position has 3 samples, voltage has 2"):
+        ph.identify_cemf([0.0, 1.0], [0.0, 1.0, 2.0], fs)
+    with pytest.raises(ValueError, match="fs = -1.0 must be > 0"):
+        ph.identify_cemf([0.0, 1.0], [0.0, 1.0], -1.0)

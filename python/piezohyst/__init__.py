@@ -23,7 +23,7 @@ from .differential import BoucWen, Dahl, Duhem
 from .model import SCHEMA_VERSION, HysteresisModel, Inverse, load_model, model_from_dict
 from .pi import PI, SEED2_TABLE1, Envelope, GeneralizedPI, GeneralizedPlay, PlayOperator, RateDependentPI, mpi_seed2
 from .control import PID, OpenLoop
-from .identify import FitResult, IdentificationResult, fit_linear, identify, fit_metrics, identify_mpi, identify_pi, identify_preisach
+from .identify import FitResult, IdentificationResult, fit_linear, identify, identify_cemf, fit_metrics, identify_mpi, identify_pi, identify_preisach
 from .flexure import A7075_YOUNGS_MODULUS, CemfCoefficients, FlexureStage, LeafSpring, seed1_stage
 from .optimize import CSS, DE, MPSO, PSO, IntermediateResult, OptimizeResult, Optimizer, minimize
 from .preisach import Preisach
@@ -55,6 +55,7 @@ __all__ = [
     "fit_linear",
     "identify",
     "fit_metrics",
+    "identify_cemf",
     "identify_mpi",
     "identify_pi",
     "identify_preisach",

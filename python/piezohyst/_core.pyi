@@ -82,3 +82,10 @@ def closed_loop_batch(
 ) -> list[dict]:
     """Many scenarios ``(controller_kind, controller_params, reference, velocity, acceleration,
     seed)`` in parallel (GIL released, rayon)."""
+
+def stage_batch_rmse(
+    params: Array2, ts: float, substeps: int, tolerance: float, command: Array1, target: Array1,
+    invalid_cost: float | None = None,
+) -> Array1:
+    """``(S,)`` RMSE of the open-loop position of ``S`` stage rows against ``target``, from rest
+    (GIL released, rayon)."""

@@ -22,7 +22,7 @@ from .creep import Creep
 from .pi import PI, GeneralizedPI, RateDependentPI
 from .preisach import Preisach
 
-__all__ = ["FitResult", "IdentificationResult", "KINDS", "fit_linear", "fit_metrics", "identify", "identify_mpi",
+__all__ = ["CEMF_PARAMETERS", "FitResult", "IdentificationResult", "KINDS", "identify_cemf", "fit_linear", "fit_metrics", "identify", "identify_mpi",
            "identify_pi", "identify_preisach"]
 
 
@@ -277,3 +277,71 @@ def identify(input, output, model="mpi", *, fs=None, operators=9, levels=12, opt
         vy = as_record(validate[1], "validate output")
         val = fit_metrics(fitted.simulate(vv), vy)
     return IdentificationResult(fitted, train, val, method, time.perf_counter() - t0, history)
+
+
+#: Parameters searched by :func:`identify_cemf`, in seed 1's normalized form.
+CEMF_PARAMETERS = ("M", "B", "K", "tem", "alpha", "beta", "gamma")
+
+
+def identify_cemf(voltage, position, fs, *, capacitance=1.8e-6, bounds=None, optimizer="css", rng=None,
+                  max_iterations=150, population_size=None, substeps=1, tolerance=0.05, validate=None,
+                  progress=False, callback=None) -> IdentificationResult:
+    """Grey-box identification of the CEMF stage model (seed 1) from the applied voltage and
+    the measured displacement: ``M x'' + B x' + K x = Vin - Vh`` (``M = m/Tem``, ...) with
+    the CEMF Bouc–Wen law on the stack charge, by a population optimizer over
+    ``CEMF_PARAMETERS`` on the free-run simulation error. Each population is simulated in one
+    Rust batch call (rayon). The stack capacitance is taken as known (seed 1: 1800 nF).
+
+    Returns an :class:`IdentificationResult` whose ``model`` is a :class:`piezohyst.StageParameters`.
+    """
+    from .optimize import minimize
+    from .stage import Amplifier, Stage, StageParameters
+
+    t0 = time.perf_counter()
+    u = as_record(voltage, "voltage", min_length=2)
+    x = as_record(position, "position", min_length=2)
+    if x.size != u.size:
+        raise ValueError(f"position has {x.size} samples, voltage has {u.size}; they must match")
+    fs = float(fs)
+    if not fs > 0:
+        raise ValueError(f"fs = {fs} must be > 0")
+    gain = float(np.ptp(x)) / (float(np.ptp(u)) or 1.0)
+    if not gain > 0:
+        raise ValueError("position does not move: nothing to identify")
+    if bounds is None:
+        k_lo, k_hi = 0.3 / gain, 3.0 / gain
+        w_lo, w_hi = 2 * np.pi * 1e3, 2 * np.pi * 2e4          # resonance between 1 and 20 kHz
+        q = capacitance * float(np.ptp(u))                   # charge scale, C
+        bounds = [(k_lo / w_hi**2, k_hi / w_lo**2), (0.0, 0.4 * np.sqrt(k_hi * k_hi / w_lo**2)), (k_lo, k_hi),
+                  (1.0, 50.0), (0.0, 4.0 / capacitance), (0.0, 30.0 / q), (-30.0 / q, 30.0 / q)]
+    bounds = [(float(lo), float(hi)) for lo, hi in bounds]
+    if len(bounds) != len(CEMF_PARAMETERS):
+        raise ValueError(f"bounds has {len(bounds)} pairs, expected {len(CEMF_PARAMETERS)} ({CEMF_PARAMETERS})")
+    wide = Amplifier(-1e9, 1e9)
+    template = Stage(StageParameters(1.0, 0.0, 1.0, 1.0, capacitance), wide, sample_time=1.0 / fs,
+                     substeps=substeps, tolerance=tolerance).core_params()
+
+    def rows(theta):
+        theta = np.atleast_2d(theta)
+        out = np.repeat(template[None, :], theta.shape[0], axis=0)
+        M, B, K, tem = theta[:, 0], theta[:, 1], theta[:, 2], theta[:, 3]
+        out[:, 0], out[:, 1], out[:, 2], out[:, 3] = M * tem, B * tem, K * tem, tem
+        out[:, 5], out[:, 6], out[:, 7] = theta[:, 4], theta[:, 5], theta[:, 6]
+        return np.ascontiguousarray(out)
+
+    def cost(theta):
+        return _core.stage_batch_rmse(rows(theta), 1.0 / fs, substeps, tolerance, u, x, float("inf"))
+
+    method = "css" if optimizer == "ls" else optimizer
+    res = minimize(cost, bounds, method=method, rng=rng, max_iterations=max_iterations,
+                   population_size=population_size, progress=progress, callback=callback)
+    M, B, K, tem, alpha, beta, gamma = res.x
+    params = StageParameters(M * tem, B * tem, K * tem, tem, capacitance, alpha, beta, gamma)
+    stage = Stage(params, wide, sample_time=1.0 / fs, substeps=substeps, tolerance=tolerance)
+    train = fit_metrics(stage.simulate(u).position, x)
+    val = None
+    if validate is not None:
+        vu = as_record(validate[0], "validate voltage")
+        vx = as_record(validate[1], "validate position")
+        val = fit_metrics(stage.simulate(vu).position, vx)
+    return IdentificationResult(params, train, val, method, time.perf_counter() - t0, res.history)

@@ -2,7 +2,7 @@
 //! `piezohyst_core::stage::StageParams::from_slice`); a controller is a kind name and a
 //! flat array. Batch runs release the GIL and put one scenario per rayon task.
 use numpy::ndarray::Array2;
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadwriteArray1};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1, PyUntypedArrayMethods};
 use piezohyst_core::closed_loop::{run, Record};
 use piezohyst_core::control::{Controller, Limits, OpenLoop, Pid, MAX_TERMS};
 use piezohyst_core::sensor::Sensor;
@@ -282,11 +282,89 @@ fn closed_loop_batch<'py>(
     Ok(out)
 }
 
+/// `(S,)` RMSE between the open-loop position of `S` stage parameter rows (`(S,
+/// STAGE_PARAM_LEN)`) driven by one held-command record and a measured position, from rest
+/// (GIL released, rayon across rows). Invalid rows raise, or cost `invalid_cost` if given;
+/// a diverging simulation costs +inf. The engine of grey-box stage identification.
+#[pyfunction]
+#[pyo3(signature = (params, ts, substeps, tolerance, command, target, invalid_cost=None))]
+#[allow(clippy::too_many_arguments)]
+fn stage_batch_rmse<'py>(
+    py: Python<'py>,
+    params: PyReadonlyArray2<'py, f64>,
+    ts: f64,
+    substeps: usize,
+    tolerance: f64,
+    command: PyReadonlyArray1<'py, f64>,
+    target: PyReadonlyArray1<'py, f64>,
+    invalid_cost: Option<f64>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let shape = params.shape();
+    let width = piezohyst_core::stage::PARAM_LEN;
+    if shape[1] != width {
+        return Err(PyValueError::new_err(format!(
+            "params has shape ({}, {}), expected (S, {width})",
+            shape[0], shape[1]
+        )));
+    }
+    let p = params
+        .as_slice()
+        .map_err(|_| PyValueError::new_err("params must be a C-contiguous float64 array"))?;
+    let u = slice(&command, "command")?;
+    let t = slice(&target, "target")?;
+    check_finite("command", u)?;
+    check_finite("target", t)?;
+    if t.len() != u.len() || u.is_empty() {
+        return Err(PyValueError::new_err(format!(
+            "target has length {}, command has length {}; they must match and not be empty",
+            t.len(),
+            u.len()
+        )));
+    }
+    let mut stages = Vec::with_capacity(shape[0]);
+    for j in 0..shape[0] {
+        let row = &p[j * width..(j + 1) * width];
+        match stage(row, ts, substeps, tolerance) {
+            Ok(s) => stages.push(Some(s)),
+            Err(e) if invalid_cost.is_none() => {
+                return Err(PyValueError::new_err(format!("params[{j}]: {}", e.value(py))))
+            }
+            Err(_) => stages.push(None),
+        }
+    }
+    let bad = invalid_cost.unwrap_or(f64::INFINITY);
+    let out: Vec<f64> = py.detach(|| {
+        stages
+            .par_iter()
+            .map(|s| match s {
+                None => bad,
+                Some(st) => {
+                    let mut ss = StageState::ZERO;
+                    let mut sse = 0.0;
+                    for (&uk, &tk) in u.iter().zip(t) {
+                        let e = ss.x - tk;
+                        sse += e * e;
+                        st.advance(&mut ss, uk);
+                    }
+                    let r = (sse / u.len() as f64).sqrt();
+                    if r.is_finite() {
+                        r
+                    } else {
+                        f64::INFINITY
+                    }
+                }
+            })
+            .collect()
+    });
+    Ok(out.into_pyarray(py))
+}
+
 /// Add this module's functions to the extension module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(stage_simulate, m)?)?;
     m.add_function(wrap_pyfunction!(closed_loop, m)?)?;
     m.add_function(wrap_pyfunction!(closed_loop_batch, m)?)?;
+    m.add_function(wrap_pyfunction!(stage_batch_rmse, m)?)?;
     m.add("STAGE_PARAM_LEN", piezohyst_core::stage::PARAM_LEN)?;
     m.add("STAGE_STATE_LEN", StageState::LEN)?;
     m.add("MAX_TERMS", MAX_TERMS)?;
