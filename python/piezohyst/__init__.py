@@ -16,7 +16,7 @@ True
 """
 from . import _core
 from .batch import batch_rmse, batch_simulate
-from .boucwen_benchmark import BoucWenBenchmark, load_train_multisine
+from .boucwen_benchmark import BoucWenBenchmark, identify_boucwen_benchmark, load_train_multisine
 from .creep import Creep
 from .data import Record, load_record, load_yan9a_model_record
 from .differential import BoucWen, Dahl, Duhem
@@ -55,6 +55,7 @@ __all__ = [
     "fit_linear",
     "identify",
     "fit_metrics",
+    "identify_boucwen_benchmark",
     "identify_cemf",
     "identify_mpi",
     "identify_pi",

@@ -57,6 +57,24 @@ def boucwen_benchmark_integrate(params: Array1, input: Array1, h: float, state: 
 def boucwen_benchmark_decimate(x: Array1, factor: int) -> Array1:
     """MATLAB ``decimate(x, p, 'fir')`` for each prime factor ``p`` of ``factor`` (increasing)."""
 
+def boucwen_benchmark_batch_rmse(
+    params: Array2, input: Array1, h: float, factor: int, target: Array1, skip: int = 0,
+    invalid_cost: float | None = None,
+) -> Array1:
+    """``(S,)`` RMSE (m) of ``S`` rows ``[mass, damping, stiffness, alpha, beta, gamma, delta, nu]``
+    against ``target``: each row simulates the high-rate force ``input`` (``input[i]`` at ``i h``)
+    from rest and FIR-decimates by ``factor`` exactly as one simulation does, scored on the
+    decimated samples ``skip .. skip + len(target)``. GIL released, rayon across rows, the same
+    values for any thread count; invalid rows raise naming the row (or cost ``invalid_cost``),
+    a run that fails or diverges costs +inf."""
+
+def boucwen_benchmark_batch_simulate(
+    params: Array2, input: Array1, h: float, factor: int, skip: int = 0, count: int | None = None
+) -> Array2:
+    """``(S, count)`` decimated displacements (m) of ``S`` rows, simulated as in
+    ``boucwen_benchmark_batch_rmse``: samples ``skip .. skip + count`` (``count`` defaults to the
+    rest). Invalid rows raise naming the row; a run that fails or diverges is a NaN row."""
+
 STAGE_PARAM_LEN: int
 STAGE_STATE_LEN: int
 MAX_TERMS: int

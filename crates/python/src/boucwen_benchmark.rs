@@ -1,14 +1,21 @@
 //! Bindings of the Bouc–Wen benchmark system (SPEC §3.3): the implicit Newmark +
-//! trapezoidal integration at the internal rate and MATLAB-style FIR decimation. Both
-//! release the GIL; the Python layer (`piezohyst.boucwen_benchmark`) upsamples the input
-//! and composes them.
-use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1, PyReadwriteArray1};
+//! trapezoidal integration at the internal rate, MATLAB-style FIR decimation, and the batch
+//! entry points of identification (many parameter rows on one high-rate input: the record
+//! simulated and decimated as one simulation does, rayon across rows). All release the GIL;
+//! the Python layer (`piezohyst.boucwen_benchmark`) upsamples the input.
+use numpy::ndarray::Array2;
+use numpy::{
+    IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1,
+    PyUntypedArrayMethods,
+};
 use piezohyst_core::boucwen_benchmark::{
-    decimate_fir, decimated_len, integrate, prime_factors, BoucWenBenchmark, Newmark, State,
+    cascade_work_len, decimate_cascade, decimated_len, integrate, record_rmse, simulate_record,
+    BoucWenBenchmark, Newmark, State,
 };
 use piezohyst_core::ModelError;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+use rayon::prelude::*;
 
 /// `(y, z)` records.
 type Pair<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>);
@@ -24,7 +31,10 @@ fn slice<'a>(a: &'a PyReadonlyArray1<'_, f64>, name: &str) -> PyResult<&'a [f64]
 
 fn check_finite(name: &str, xs: &[f64]) -> PyResult<()> {
     match xs.iter().position(|x| !x.is_finite()) {
-        Some(k) => Err(PyValueError::new_err(format!("{name}[{k}] = {} is not finite", xs[k]))),
+        Some(k) => Err(PyValueError::new_err(format!(
+            "{name}[{k}] = {} is not finite",
+            xs[k]
+        ))),
         None => Ok(()),
     }
 }
@@ -69,7 +79,11 @@ fn boucwen_benchmark_integrate<'py>(
             y[k], z[k]
         )));
     }
-    if let Some(k) = y.iter().zip(&z).position(|(a, b)| !a.is_finite() || !b.is_finite()) {
+    if let Some(k) = y
+        .iter()
+        .zip(&z)
+        .position(|(a, b)| !a.is_finite() || !b.is_finite())
+    {
         return Err(PyValueError::new_err(format!(
             "the simulation diverged at internal step {k} (y = {}, z = {}); the parameters or the step h = {h} do not keep it bounded for this input",
             y[k], z[k]
@@ -92,22 +106,181 @@ fn boucwen_benchmark_decimate<'py>(
     let xs = slice(&x, "x")?;
     check_finite("x", xs)?;
     let out = py.detach(|| -> Result<Vec<f64>, ModelError> {
-        let mut primes = [0usize; 64];
-        let np = prime_factors(factor, &mut primes);
         let mut cur = xs.to_vec();
-        for &p in &primes[..np] {
-            let mut next = vec![0.0; decimated_len(cur.len(), p)];
-            decimate_fir(&cur, p, &mut next)?;
-            cur = next;
-        }
-        Ok(cur)
+        let mut work = vec![0.0; cascade_work_len(xs.len(), factor)];
+        let mut out = vec![0.0; decimated_len(xs.len(), factor)];
+        decimate_cascade(&mut cur, factor, &mut work, &mut out)?;
+        Ok(out)
     });
     Ok(out.map_err(err)?.into_pyarray(py))
+}
+
+/// The checked arguments of a batch call: one stepper per row (`None`: invalid row), the
+/// high-rate input and the decimated record length.
+struct Batch<'a> {
+    steppers: Vec<Option<Newmark>>,
+    input: &'a [f64],
+    n_out: usize,
+}
+
+fn batch_args<'a>(
+    params: &PyReadonlyArray2<'_, f64>,
+    input: &'a PyReadonlyArray1<'_, f64>,
+    h: f64,
+    factor: usize,
+    raise_invalid: bool,
+) -> PyResult<Batch<'a>> {
+    let shape = params.shape();
+    let width = BoucWenBenchmark::PARAM_LEN;
+    if shape[1] != width {
+        return Err(PyValueError::new_err(format!(
+            "params has shape ({}, {}), expected (S, {width}) rows [mass, damping, stiffness, alpha, beta, gamma, delta, nu]",
+            shape[0], shape[1]
+        )));
+    }
+    // as_slice also accepts Fortran order (then in memory order): insist on rows
+    let p = params
+        .as_slice()
+        .ok()
+        .filter(|_| params.is_c_contiguous())
+        .ok_or_else(|| PyValueError::new_err("params must be a C-contiguous float64 array"))?;
+    if factor == 0 {
+        return Err(PyValueError::new_err("factor = 0 must be >= 1"));
+    }
+    // the step is checked once, not per row
+    Newmark::new(BoucWenBenchmark::default(), h).map_err(err)?;
+    let u = slice(input, "input")?;
+    if u.is_empty() {
+        return Err(PyValueError::new_err("input has 0 samples"));
+    }
+    check_finite("input", u)?;
+    let mut steppers = Vec::with_capacity(shape[0]);
+    for (j, row) in p.chunks_exact(width).enumerate() {
+        let nu = row[width - 1];
+        if raise_invalid && nu.is_finite() && nu < 1.0 {
+            return Err(PyValueError::new_err(format!(
+                "params[{j}]: nu = {nu} must be >= 1"
+            )));
+        }
+        match BoucWenBenchmark::from_slice(row).and_then(|cfg| Newmark::new(cfg, h)) {
+            Ok(s) => steppers.push(Some(s)),
+            Err(e) if raise_invalid => {
+                return Err(PyValueError::new_err(format!("params[{j}]: {e}")))
+            }
+            Err(_) => steppers.push(None),
+        }
+    }
+    Ok(Batch {
+        steppers,
+        input: u,
+        n_out: decimated_len(u.len(), factor),
+    })
+}
+
+/// `(S,)` RMSE (m) of `S` parameter rows `[mass, damping, stiffness, alpha, beta, gamma,
+/// delta, nu]` against `target`: each row simulates the high-rate force `input` (N,
+/// `input[i]` at `i h`) from rest and FIR-decimates by `factor` exactly as one simulation
+/// does (`piezohyst_core::boucwen_benchmark::simulate_record`); the RMSE is over decimated
+/// samples `skip .. skip + len(target)`. GIL released, rayon across rows, each row summed
+/// in sample order (the result does not depend on the thread count). Invalid rows raise
+/// naming the row, or cost `invalid_cost` if given; a run whose implicit step cannot be
+/// solved or that diverges costs +inf.
+#[pyfunction]
+#[pyo3(signature = (params, input, h, factor, target, skip=0, invalid_cost=None))]
+#[allow(clippy::too_many_arguments)]
+fn boucwen_benchmark_batch_rmse<'py>(
+    py: Python<'py>,
+    params: PyReadonlyArray2<'py, f64>,
+    input: PyReadonlyArray1<'py, f64>,
+    h: f64,
+    factor: usize,
+    target: PyReadonlyArray1<'py, f64>,
+    skip: usize,
+    invalid_cost: Option<f64>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let b = batch_args(&params, &input, h, factor, invalid_cost.is_none())?;
+    let t = slice(&target, "target")?;
+    check_finite("target", t)?;
+    if t.is_empty() || skip + t.len() > b.n_out {
+        return Err(PyValueError::new_err(format!(
+            "target has length {} and skip = {skip}, but the decimated record has {} samples (len(input) = {}, factor = {factor}); need 1 <= len(target) <= {}",
+            t.len(),
+            b.n_out,
+            b.input.len(),
+            b.n_out.saturating_sub(skip)
+        )));
+    }
+    let bad = invalid_cost.unwrap_or(f64::INFINITY);
+    let (u, n_out) = (b.input, b.n_out);
+    let wl = cascade_work_len(u.len(), factor);
+    let out: Result<Vec<f64>, ModelError> = py.detach(|| {
+        b.steppers
+            .par_iter()
+            .map_init(
+                || (vec![0.0; u.len()], vec![0.0; wl], vec![0.0; n_out]),
+                |(fine, work, dec), st| match st {
+                    None => Ok(bad),
+                    Some(st) => record_rmse(st, u, factor, t, skip, fine, work, dec),
+                },
+            )
+            .collect()
+    });
+    Ok(out.map_err(err)?.into_pyarray(py))
+}
+
+/// `(S, count)` displacements (m) of `S` parameter rows over the high-rate force `input`,
+/// simulated and decimated as [`boucwen_benchmark_batch_rmse`] does: decimated samples
+/// `skip .. skip + count` (`count` defaults to the rest of the record). Invalid rows raise
+/// naming the row; a row whose implicit step cannot be solved or that diverges is NaN.
+#[pyfunction]
+#[pyo3(signature = (params, input, h, factor, skip=0, count=None))]
+fn boucwen_benchmark_batch_simulate<'py>(
+    py: Python<'py>,
+    params: PyReadonlyArray2<'py, f64>,
+    input: PyReadonlyArray1<'py, f64>,
+    h: f64,
+    factor: usize,
+    skip: usize,
+    count: Option<usize>,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let b = batch_args(&params, &input, h, factor, true)?;
+    let (u, n_out) = (b.input, b.n_out);
+    let count = count.unwrap_or(n_out.saturating_sub(skip));
+    if count == 0 || skip + count > n_out {
+        return Err(PyValueError::new_err(format!(
+            "skip = {skip} and count = {count}, but the decimated record has {n_out} samples (len(input) = {}, factor = {factor}); need 1 <= count <= {}",
+            u.len(),
+            n_out.saturating_sub(skip)
+        )));
+    }
+    let s = b.steppers.len();
+    let mut out = vec![0.0; s * count];
+    let wl = cascade_work_len(u.len(), factor);
+    let res: Result<(), ModelError> = py.detach(|| {
+        out.par_chunks_mut(count.max(1))
+            .zip(b.steppers.par_iter())
+            .try_for_each_init(
+                || (vec![0.0; u.len()], vec![0.0; wl], vec![0.0; n_out]),
+                |(fine, work, dec), (row, st)| {
+                    let st = st.as_ref().expect("invalid rows raised above");
+                    match simulate_record(st, u, factor, fine, work, dec)? {
+                        Ok(()) => row.copy_from_slice(&dec[skip..skip + count]),
+                        Err(_) => row.fill(f64::NAN),
+                    }
+                    Ok(())
+                },
+            )
+    });
+    res.map_err(err)?;
+    let arr = Array2::from_shape_vec((s, count), out).expect("shape matches length");
+    Ok(arr.into_pyarray(py))
 }
 
 /// Add this module's functions to the extension module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(boucwen_benchmark_integrate, m)?)?;
     m.add_function(wrap_pyfunction!(boucwen_benchmark_decimate, m)?)?;
+    m.add_function(wrap_pyfunction!(boucwen_benchmark_batch_rmse, m)?)?;
+    m.add_function(wrap_pyfunction!(boucwen_benchmark_batch_simulate, m)?)?;
     Ok(())
 }

@@ -457,6 +457,10 @@ fn batch_inputs<'a>(
             fam.param_len()
         )));
     }
+    // as_slice also accepts Fortran order (then in memory order): insist on rows
+    if !params.is_c_contiguous() {
+        return Err(PyValueError::new_err("params must be a C-contiguous float64 array"));
+    }
     let p = params
         .as_slice()
         .map_err(|_| PyValueError::new_err("params must be a C-contiguous float64 array"))?;

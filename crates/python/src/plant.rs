@@ -307,6 +307,10 @@ fn stage_batch_rmse<'py>(
             shape[0], shape[1]
         )));
     }
+    // as_slice also accepts Fortran order (then in memory order): insist on rows
+    if !params.is_c_contiguous() {
+        return Err(PyValueError::new_err("params must be a C-contiguous float64 array"));
+    }
     let p = params
         .as_slice()
         .map_err(|_| PyValueError::new_err("params must be a C-contiguous float64 array"))?;
