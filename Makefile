@@ -33,6 +33,7 @@ test-python: $(BUILT)
 bench: $(BUILT)
 	$(BIN)/python bench/pi_batch.py
 	$(BIN)/python bench/closed_loop.py
+	$(BIN)/python bench/identify_mpi.py
 	$(BIN)/python bench/report.py
 
 clean:

@@ -44,9 +44,24 @@ def closed_loop(d) -> list[str]:
     return out
 
 
+def identify_mpi(d) -> list[str]:
+    h = d["headline"]
+    out = ["", "**MPI identification** (`bench/identify_mpi.py`, 10 000 samples, time to reach within 1 % of "
+           "the best RMSE any method found):", "",
+           "| method | reached | time to target |", "|---|---|---|"]
+    for r in d["runs"]:
+        name = r.get("name") or r.get("run") or r.get("label", "?")
+        reached = r.get("reached")
+        t = r.get("time_to_target_s")
+        out.append(f"| {name} | {'yes' if reached else 'no'} | {'' if t is None else f'{t:.3g} s'} |")
+    out.append(f"\nTarget ≤ 1 s for piezohyst's least squares: {'PASS' if h['pass'] else 'FAIL'} "
+               f"({h['a_time_to_target_s'] * 1e3:.1f} ms).")
+    return out
+
+
 def main():
     lines = []
-    for name, fn in (("pi_batch.json", pi_batch), ("closed_loop.json", closed_loop)):
+    for name, fn in (("pi_batch.json", pi_batch), ("closed_loop.json", closed_loop), ("identify_mpi.json", identify_mpi)):
         path = RESULTS / name
         if path.exists():
             d = json.loads(path.read_text())
