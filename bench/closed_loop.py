@@ -517,7 +517,7 @@ def main(argv=None) -> int:
             for rtol in IVP_RTOLS:
                 x = ivp_open_loop(acc_stage, u, rtol, meth)
                 acc[name]["solve_ivp"][f"{meth} rtol={rtol:g}"] = {
-                    "method": meth, "rtol": rtol, "atol": f"1e-2 * rtol * [150 V, 2e-5 m, 1 m/s, 20 V, 150 V...]",
+                    "method": meth, "rtol": rtol, "atol": "1e-2 * rtol * [150 V, 2e-5 m, 1 m/s, 20 V, 150 V...]",
                     "max_rel_error_vs_rtol_1e-12": float(np.max(np.abs(x - xr)) / scale), "times_s": []}
 
     # cross-check of the closed-loop baseline and piezohyst (noise-free, unquantized sensor,

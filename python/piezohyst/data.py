@@ -445,7 +445,7 @@ class _ContainerTable:
 
     def _available(self) -> str:
         names = sorted(self.variables)
-        return f"the numeric {self.kind} variables are {names}" if names else f"the file holds no numeric arrays"
+        return f"the numeric {self.kind} variables are {names}" if names else "the file holds no numeric arrays"
 
     def _get(self, name: str, role: str) -> np.ndarray:
         try:
