@@ -203,12 +203,12 @@ def worker(spec: dict) -> dict:
             acct = {}
             times, res, warm = timed(lambda: ph.closed_loop(stage, pid, ref, rng=1), mr, mt, mx, acct)
             # the same run through the core call alone (no Python preparation or result objects)
-            x, v, a, ck, cp = sim._prepare(stage, pid, ref, None, None)
+            x, v, a, spec_ = sim._prepare(stage, pid, ref, None, None)
             s, params, init = stage.sensor, stage.core_params(), stage.rest_state()
 
             def core_call():
                 return _core.closed_loop(params, stage.sample_time, stage.substeps, stage.tolerance,
-                                         s.quantization, s.noise_std, s.delay, ck, cp, x, v, a, init,
+                                         s.quantization, s.noise_std, s.delay, spec_, x, v, a, init,
                                          sim.seed_from(1))
 
             core_times, d, _ = timed(core_call, mr, mt, mx)
@@ -234,8 +234,8 @@ def worker(spec: dict) -> dict:
         seeds_rng = np.random.default_rng(sim.seed_from(spec["seed"]))
         core_args = []
         for c, ref in scen:
-            x, v, a, ck, cp = sim._prepare(stage, c, ref, None, None)
-            core_args.append((ck, cp, x, v, a, int(seeds_rng.integers(0, 2**63 - 1))))
+            x, v, a, spec_ = sim._prepare(stage, c, ref, None, None)
+            core_args.append((spec_, x, v, a, int(seeds_rng.integers(0, 2**63 - 1))))
         s = stage.sensor
 
         def core_batch():

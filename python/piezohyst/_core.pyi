@@ -79,6 +79,11 @@ STAGE_PARAM_LEN: int
 STAGE_STATE_LEN: int
 MAX_TERMS: int
 
+#: ``(kind, params, inverse, ilc)``: ``inverse`` is ``None`` or ``(family, dims, row, u_min,
+#: u_max)``, ``ilc`` is ``None`` or ``(period, gain, forgetting, lead, delay)``.
+ControllerSpec = tuple[str, Array1, tuple[str, list[int], Array1, float, float] | None,
+                       tuple[int, float, float, int, int] | None]
+
 def stage_simulate(
     params: Array1, ts: float, substeps: int, tolerance: float, command: Array1, state: Array1
 ) -> tuple[Array1, Array1, Array1]:
@@ -87,7 +92,7 @@ def stage_simulate(
 
 def closed_loop(
     stage_params: Array1, ts: float, substeps: int, tolerance: float, sensor_quantization: float,
-    sensor_noise: float, sensor_delay: int, controller_kind: str, controller_params: Array1,
+    sensor_noise: float, sensor_delay: int, controller: ControllerSpec,
     reference: Array1, velocity: Array1, acceleration: Array1, initial_state: Array1, seed: int,
 ) -> dict:
     """One closed-loop run: dict of ``command, voltage, position, measured, terms, term_names,
@@ -96,10 +101,18 @@ def closed_loop(
 def closed_loop_batch(
     stage_params: Array1, ts: float, substeps: int, tolerance: float, sensor_quantization: float,
     sensor_noise: float, sensor_delay: int,
-    scenarios: list[tuple[str, Array1, Array1, Array1, Array1, int]], initial_state: Array1,
+    scenarios: list[tuple[ControllerSpec, Array1, Array1, Array1, int]], initial_state: Array1,
 ) -> list[dict]:
-    """Many scenarios ``(controller_kind, controller_params, reference, velocity, acceleration,
-    seed)`` in parallel (GIL released, rayon)."""
+    """Many scenarios ``(controller, reference, velocity, acceleration, seed)`` in parallel
+    (GIL released, rayon)."""
+
+def closed_loop_batch_tracking(
+    stage_params: Array1, ts: float, substeps: int, tolerance: float, sensor_quantization: float,
+    sensor_noise: float, sensor_delay: int,
+    scenarios: list[tuple[ControllerSpec, Array1, Array1, Array1, int]], initial_state: Array1, skip: int,
+) -> Array2:
+    """``(S, 3)`` ``[rmse, max_error, saturated_fraction]`` of many scenarios, recording no
+    signals (GIL released, rayon)."""
 
 def stage_batch_rmse(
     params: Array2, ts: float, substeps: int, tolerance: float, command: Array1, target: Array1,

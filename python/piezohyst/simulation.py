@@ -151,8 +151,7 @@ def _prepare(stage, controller, reference, velocity, acceleration):
                         getattr(controller, "uses_reference_derivatives", True))
     if v.size not in (0, x.size) or a.size not in (0, x.size):
         raise ValueError(f"velocity/acceleration must have the reference's length {x.size}")
-    kind, params = controller.core(stage)
-    return x, v, a, kind, params
+    return x, v, a, controller.core(stage)
 
 
 def _result(stage, x, d, controller) -> ClosedLoopResult:
@@ -194,11 +193,11 @@ def closed_loop(stage, controller, reference, *, velocity=None, acceleration=Non
     >>> bool(res.metrics["rmse"] < 0.2e-6)
     True
     """
-    x, v, a, kind, params = _prepare(stage, controller, reference, velocity, acceleration)
+    x, v, a, spec = _prepare(stage, controller, reference, velocity, acceleration)
     init = stage.rest_state() if initial_state is None else as_record(initial_state, "initial_state")
     s = stage.sensor
     d = _core.closed_loop(stage.core_params(), stage.sample_time, stage.substeps, stage.tolerance, s.quantization, s.noise_std,
-                          s.delay, kind, params, x, v, a, init, seed_from(rng))
+                          s.delay, spec, x, v, a, init, seed_from(rng))
     return _result(stage, x, d, controller)
 
 
@@ -217,11 +216,11 @@ def closed_loop_batch(stage, scenarios, *, rng=None, initial_state=None) -> list
         except (TypeError, ValueError):
             raise TypeError(f"scenarios[{j}] must be a (controller, reference) pair") from None
         try:
-            x, v, a, kind, params = _prepare(stage, controller, reference, None, None)
+            x, v, a, spec = _prepare(stage, controller, reference, None, None)
         except (ValueError, TypeError) as e:
             raise type(e)(f"scenarios[{j}]: {e}") from None
         prepared.append((x, controller))
-        core.append((kind, params, x, v, a, int(seeds_rng.integers(0, 2**63 - 1))))
+        core.append((spec, x, v, a, int(seeds_rng.integers(0, 2**63 - 1))))
     s = stage.sensor
     out = _core.closed_loop_batch(stage.core_params(), stage.sample_time, stage.substeps, stage.tolerance, s.quantization,
                                   s.noise_std, s.delay, core, init)

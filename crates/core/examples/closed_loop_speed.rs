@@ -45,7 +45,8 @@ fn main() {
         for _ in 0..3 {
             let mut st = StageState::ZERO;
             let mut sst = sensor.state(0.0, 1);
-            let mut cst = piezohyst_core::control::Controller::initial_state(&pid, 0.0);
+            let mut cst = [0.0; 3];
+            piezohyst_core::control::Controller::reset(&pid, &mut cst, 0.0);
             let t0 = Instant::now();
             run(&stage, &mut st, &sensor, &mut sst, &pid, &mut cst, &r, &z, &z, Record {
                 command: &mut c, voltage: &mut va, position: &mut x, measured: &mut y, terms: &mut terms,

@@ -28,13 +28,13 @@ pub struct Record<'a> {
 /// per sample; an empty `velocity` or `acceleration` means zeros (for controllers that do
 /// not use them). Stops at the shortest of the other slices.
 #[allow(clippy::too_many_arguments)]
-pub fn run<C: Controller>(
+pub fn run<C: Controller + ?Sized>(
     stage: &Stage,
     stage_state: &mut StageState,
     sensor: &Sensor,
     sensor_state: &mut SensorState,
     controller: &C,
-    controller_state: &mut C::State,
+    controller_state: &mut [f64],
     reference: &[f64],
     velocity: &[f64],
     acceleration: &[f64],
@@ -60,4 +60,61 @@ pub fn run<C: Controller>(
         rec.measured[k] = y;
         rec.terms[k * width..(k + 1) * width].copy_from_slice(&out.terms[..width]);
     }
+}
+
+/// Tracking figures of a run that records no signals (gain tuning, scenario sweeps).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Tracking {
+    /// Sum of squared errors `reference - true position`, m^2.
+    pub sse: f64,
+    /// Largest absolute error, m.
+    pub max_error: f64,
+    /// Samples counted.
+    pub samples: usize,
+    /// Samples whose command sat on a controller limit.
+    pub saturated: usize,
+}
+
+/// Run a whole reference like [`run`], recording nothing; errors count from sample `skip`
+/// on (to leave out the start-up transient). A diverging plant gives infinite figures.
+#[allow(clippy::too_many_arguments)]
+pub fn run_tracking<C: Controller + ?Sized>(
+    stage: &Stage,
+    stage_state: &mut StageState,
+    sensor: &Sensor,
+    sensor_state: &mut SensorState,
+    controller: &C,
+    controller_state: &mut [f64],
+    reference: &[f64],
+    velocity: &[f64],
+    acceleration: &[f64],
+    skip: usize,
+) -> Tracking {
+    let limits = controller.limits();
+    let mut t = Tracking::default();
+    for k in 0..reference.len() {
+        let x = stage_state.x;
+        if k >= skip {
+            let e = reference[k] - x;
+            t.sse += e * e;
+            t.max_error = if crate::math::abs(e) > t.max_error || e.is_nan() { crate::math::abs(e) } else { t.max_error };
+            t.samples += 1;
+        }
+        let y = sensor.read(sensor_state, x);
+        let r = Reference {
+            x: reference[k],
+            v: velocity.get(k).copied().unwrap_or(0.0),
+            a: acceleration.get(k).copied().unwrap_or(0.0),
+        };
+        let out = controller.step(controller_state, &r, y);
+        if out.u <= limits.min || out.u >= limits.max {
+            t.saturated += 1;
+        }
+        stage.advance(stage_state, out.u);
+    }
+    if !t.sse.is_finite() || !stage_state.x.is_finite() {
+        t.sse = f64::INFINITY;
+        t.max_error = f64::INFINITY;
+    }
+    t
 }

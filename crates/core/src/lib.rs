@@ -12,8 +12,11 @@
 //! sample `v0` gives `z_r = max(v0 - r, min(v0 + r, 0))` as in SPEC §2.1.
 #![cfg_attr(not(feature = "std"), no_std)]
 
+pub mod absmc;
 pub mod batch;
+pub mod cemf;
 pub mod closed_loop;
+pub mod compensated;
 pub mod control;
 pub mod boucwen_benchmark;
 pub mod creep;
@@ -21,12 +24,14 @@ pub mod differential;
 pub mod envelope;
 pub mod error;
 pub mod generalized;
+pub mod ilc;
 pub mod inverse;
 pub mod linalg;
 mod math;
 pub mod pi;
 pub mod preisach;
 pub mod sensor;
+pub mod smc;
 pub mod rate;
 pub mod rng;
 pub mod spec;

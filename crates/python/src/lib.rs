@@ -9,6 +9,7 @@ use pyo3::prelude::*;
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 mod boucwen_benchmark;
+mod control;
 mod models;
 mod plant;
 mod util;

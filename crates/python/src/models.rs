@@ -15,7 +15,7 @@ use crate::util::{check_finite, err, slice};
 use rayon::prelude::*;
 
 
-fn family(name: &str, dims: Vec<usize>) -> PyResult<Family> {
+pub(crate) fn family(name: &str, dims: Vec<usize>) -> PyResult<Family> {
     Family::parse(name, &dims).map_err(|e| match e {
         ModelError::Structure("family (unknown name)", _) => PyValueError::new_err(format!(
             "family = {name:?} is unknown; expected one of pi, gpi, rdpi, creep, preisach, boucwen, duhem, dahl"

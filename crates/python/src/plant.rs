@@ -3,13 +3,14 @@
 //! flat array. Batch runs release the GIL and put one scenario per rayon task.
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1, PyUntypedArrayMethods};
-use piezohyst_core::closed_loop::{run, Record};
-use piezohyst_core::control::{Controller, Limits, OpenLoop, Pid, MAX_TERMS};
+use piezohyst_core::closed_loop::{run, run_tracking, Record};
+use piezohyst_core::control::{Controller, MAX_TERMS};
 use piezohyst_core::sensor::Sensor;
 use piezohyst_core::stage::{Stage, StageParams, StageState};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
+use crate::control::{with_controller, ControllerSpec};
 use crate::util::{check_finite, err, slice};
 use pyo3::types::PyDict;
 use rayon::prelude::*;
@@ -58,37 +59,31 @@ fn stage_simulate<'py>(
     Ok((x.into_pyarray(py), va.into_pyarray(py), vh.into_pyarray(py)))
 }
 
-/// A controller of any kind (enum dispatch; each arm is monomorphized).
-#[derive(Clone, Copy)]
-enum AnyController {
-    OpenLoop(OpenLoop),
-    Pid(Pid),
-}
+/// A controller as Python passes it: `(kind, params, inverse, ilc)` with `inverse` either
+/// `None` or `(family, dims, row, u_min, u_max)` and `ilc` either `None` or `(period, gain,
+/// forgetting, lead, delay)`.
+pub type ControllerArg<'py> = (
+    String,
+    PyReadonlyArray1<'py, f64>,
+    Option<(String, Vec<usize>, PyReadonlyArray1<'py, f64>, f64, f64)>,
+    Option<(usize, f64, f64, usize, usize)>,
+);
 
-fn controller(kind: &str, p: &[f64]) -> PyResult<AnyController> {
-    check_finite("controller parameters", p)?;
-    let need = |n: usize| -> PyResult<()> {
-        if p.len() != n {
-            return Err(PyValueError::new_err(format!(
-                "controller {kind:?} takes {n} parameters, got {}",
-                p.len()
-            )));
+/// Validate a controller argument into an owned spec (built once to check it).
+fn controller_spec(arg: &ControllerArg<'_>) -> PyResult<ControllerSpec> {
+    let (kind, params, inverse, ilc) = arg;
+    let inverse = match inverse {
+        None => None,
+        Some((name, dims, row, lo, hi)) => {
+            let family = crate::models::family(name, dims.clone())?;
+            let row = slice(row, "inverse row")?.to_vec();
+            check_finite("inverse row", &row)?;
+            Some((family, row, [*lo, *hi]))
         }
-        Ok(())
     };
-    match kind {
-        "open_loop" => {
-            need(4)?;
-            let limits = Limits::new(p[2], p[3]).map_err(err)?;
-            Ok(AnyController::OpenLoop(OpenLoop { gain: p[0], offset: p[1], limits }))
-        }
-        "pid" => {
-            need(9)?;
-            let limits = Limits::new(p[7], p[8]).map_err(err)?;
-            Ok(AnyController::Pid(Pid::new(p[0], p[1], p[2], p[3], p[4], p[5], p[6], limits).map_err(err)?))
-        }
-        _ => Err(PyValueError::new_err(format!("controller = {kind:?} is unknown; expected open_loop or pid"))),
-    }
+    let spec = ControllerSpec { kind: kind.clone(), params: slice(params, "controller_params")?.to_vec(), inverse, ilc: *ilc };
+    with_controller(&spec, |_| ()).map_err(PyValueError::new_err)?;
+    Ok(spec)
 }
 
 /// One scenario's inputs.
@@ -97,7 +92,7 @@ struct Scenario<'a> {
     velocity: &'a [f64],
     acceleration: &'a [f64],
     seed: u64,
-    controller: AnyController,
+    controller: ControllerSpec,
 }
 
 /// One scenario's signals.
@@ -109,9 +104,10 @@ struct Signals {
     measured: Vec<f64>,
     terms: Vec<f64>,
     final_state: StageState,
+    term_names: &'static [&'static str],
 }
 
-fn run_any<C: Controller>(stage: &Stage, sensor: &Sensor, c: &C, sc: &Scenario<'_>, init: StageState) -> Signals {
+fn run_with(stage: &Stage, sensor: &Sensor, c: &(dyn Controller + Sync), sc: &Scenario<'_>, init: StageState) -> Signals {
     let n = sc.reference.len();
     let mut sig = Signals {
         reference: sc.reference.to_vec(),
@@ -121,10 +117,12 @@ fn run_any<C: Controller>(stage: &Stage, sensor: &Sensor, c: &C, sc: &Scenario<'
         measured: vec![0.0; n],
         terms: vec![0.0; n * c.term_names().len().min(MAX_TERMS)],
         final_state: init,
+        term_names: c.term_names(),
     };
     let mut st = init;
     let mut sst = sensor.state(st.x, sc.seed);
-    let mut cst = c.initial_state(st.x);
+    let mut cst = vec![0.0; c.state_len()];
+    c.reset(&mut cst, st.x);
     run(
         stage,
         &mut st,
@@ -148,20 +146,11 @@ fn run_any<C: Controller>(stage: &Stage, sensor: &Sensor, c: &C, sc: &Scenario<'
 }
 
 fn run_scenario(stage: &Stage, sensor: &Sensor, sc: &Scenario<'_>, init: StageState) -> Signals {
-    match &sc.controller {
-        AnyController::OpenLoop(c) => run_any(stage, sensor, c, sc, init),
-        AnyController::Pid(c) => run_any(stage, sensor, c, sc, init),
-    }
+    with_controller(&sc.controller, |c| run_with(stage, sensor, c, sc, init)).expect("validated before the run")
 }
 
-fn term_names(c: &AnyController) -> &'static [&'static str] {
-    match c {
-        AnyController::OpenLoop(c) => c.term_names(),
-        AnyController::Pid(c) => c.term_names(),
-    }
-}
-
-fn signals_dict<'py>(py: Python<'py>, sig: Signals, names: &'static [&'static str]) -> PyResult<Bound<'py, PyDict>> {
+fn signals_dict<'py>(py: Python<'py>, sig: Signals) -> PyResult<Bound<'py, PyDict>> {
+    let names = sig.term_names;
     let d = PyDict::new(py);
     let n = sig.command.len();
     let k = names.len().min(MAX_TERMS);
@@ -216,8 +205,7 @@ fn closed_loop<'py>(
     sensor_quantization: f64,
     sensor_noise: f64,
     sensor_delay: usize,
-    controller_kind: &str,
-    controller_params: PyReadonlyArray1<'py, f64>,
+    controller: ControllerArg<'py>,
     reference: PyReadonlyArray1<'py, f64>,
     velocity: PyReadonlyArray1<'py, f64>,
     acceleration: PyReadonlyArray1<'py, f64>,
@@ -226,7 +214,7 @@ fn closed_loop<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let st = stage(slice(&stage_params, "stage_params")?, ts, substeps, tolerance)?;
     let se = sensor(sensor_quantization, sensor_noise, sensor_delay)?;
-    let c = controller(controller_kind, slice(&controller_params, "controller_params")?)?;
+    let c = controller_spec(&controller)?;
     let (r, v, a) = scenario_arrays(&reference, &velocity, &acceleration)?;
     let init = StageState::from_array(slice(&initial_state, "initial_state")?).map_err(err)?;
     let sc = Scenario { reference: r, velocity: v, acceleration: a, seed, controller: c };
@@ -234,12 +222,11 @@ fn closed_loop<'py>(
     if let Some(k) = sig.position.iter().position(|x| !x.is_finite()) {
         return Err(PyValueError::new_err(format!("the closed loop diverged at sample {k}")));
     }
-    signals_dict(py, sig, term_names(&c))
+    signals_dict(py, sig)
 }
 
 /// Run many closed-loop scenarios on one stage in parallel (GIL released, rayon).
-/// `scenarios` is a list of `(controller_kind, controller_params, reference, velocity,
-/// acceleration, seed)`; returns a list of dicts as `closed_loop`.
+/// `scenarios` is a list of `(controller, reference, velocity, acceleration, seed)`; returns a list of dicts as `closed_loop`.
 #[pyfunction]
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
 fn closed_loop_batch<'py>(
@@ -252,8 +239,7 @@ fn closed_loop_batch<'py>(
     sensor_noise: f64,
     sensor_delay: usize,
     scenarios: Vec<(
-        String,
-        PyReadonlyArray1<'py, f64>,
+        ControllerArg<'py>,
         PyReadonlyArray1<'py, f64>,
         PyReadonlyArray1<'py, f64>,
         PyReadonlyArray1<'py, f64>,
@@ -265,21 +251,79 @@ fn closed_loop_batch<'py>(
     let se = sensor(sensor_quantization, sensor_noise, sensor_delay)?;
     let init = StageState::from_array(slice(&initial_state, "initial_state")?).map_err(err)?;
     let mut list = Vec::with_capacity(scenarios.len());
-    for (j, (kind, cp, r, v, a, seed)) in scenarios.iter().enumerate() {
+    for (j, (cp, r, v, a, seed)) in scenarios.iter().enumerate() {
         let prefix = |e: PyErr| PyValueError::new_err(format!("scenarios[{j}]: {}", e.value(py)));
-        let c = controller(kind, slice(cp, "controller_params").map_err(prefix)?).map_err(prefix)?;
+        let c = controller_spec(cp).map_err(prefix)?;
         let (r, v, a) = scenario_arrays(r, v, a).map_err(prefix)?;
         list.push(Scenario { reference: r, velocity: v, acceleration: a, seed: *seed, controller: c });
     }
     let results: Vec<Signals> = py.detach(|| list.par_iter().map(|sc| run_scenario(&st, &se, sc, init)).collect());
     let mut out = Vec::with_capacity(results.len());
-    for (j, (sig, sc)) in results.into_iter().zip(&list).enumerate() {
+    for (j, sig) in results.into_iter().enumerate() {
         if let Some(k) = sig.position.iter().position(|x| !x.is_finite()) {
             return Err(PyValueError::new_err(format!("scenarios[{j}]: the closed loop diverged at sample {k}")));
         }
-        out.push(signals_dict(py, sig, term_names(&sc.controller))?);
+        out.push(signals_dict(py, sig)?);
     }
     Ok(out)
+}
+
+/// Tracking figures of many closed-loop scenarios on one stage, recording no signals (GIL
+/// released, rayon): an `(S, 3)` array of `[rmse, max_error, saturated_fraction]` of
+/// `reference - true position` from sample `skip` on. Scenarios as `closed_loop_batch`. A
+/// diverging run gives `inf`. The engine of gain tuning.
+#[pyfunction]
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+fn closed_loop_batch_tracking<'py>(
+    py: Python<'py>,
+    stage_params: PyReadonlyArray1<'py, f64>,
+    ts: f64,
+    substeps: usize,
+    tolerance: f64,
+    sensor_quantization: f64,
+    sensor_noise: f64,
+    sensor_delay: usize,
+    scenarios: Vec<(
+        ControllerArg<'py>,
+        PyReadonlyArray1<'py, f64>,
+        PyReadonlyArray1<'py, f64>,
+        PyReadonlyArray1<'py, f64>,
+        u64,
+    )>,
+    initial_state: PyReadonlyArray1<'py, f64>,
+    skip: usize,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let st = stage(slice(&stage_params, "stage_params")?, ts, substeps, tolerance)?;
+    let se = sensor(sensor_quantization, sensor_noise, sensor_delay)?;
+    let init = StageState::from_array(slice(&initial_state, "initial_state")?).map_err(err)?;
+    let mut list = Vec::with_capacity(scenarios.len());
+    for (j, (cp, r, v, a, seed)) in scenarios.iter().enumerate() {
+        let prefix = |e: PyErr| PyValueError::new_err(format!("scenarios[{j}]: {}", e.value(py)));
+        let c = controller_spec(cp).map_err(prefix)?;
+        let (r, v, a) = scenario_arrays(r, v, a).map_err(prefix)?;
+        if skip >= r.len() {
+            return Err(PyValueError::new_err(format!("skip = {skip} leaves nothing of scenarios[{j}]'s {} samples", r.len())));
+        }
+        list.push(Scenario { reference: r, velocity: v, acceleration: a, seed: *seed, controller: c });
+    }
+    let rows: Vec<[f64; 3]> = py.detach(|| {
+        list.par_iter()
+            .map(|sc| {
+                with_controller(&sc.controller, |c| {
+                    let mut ss = init;
+                    let mut sst = se.state(ss.x, sc.seed);
+                    let mut cst = vec![0.0; c.state_len()];
+                    c.reset(&mut cst, ss.x);
+                    let t = run_tracking(&st, &mut ss, &se, &mut sst, c, &mut cst, sc.reference, sc.velocity, sc.acceleration, skip);
+                    let n = t.samples.max(1) as f64;
+                    [(t.sse / n).sqrt(), t.max_error, t.saturated as f64 / sc.reference.len() as f64]
+                })
+                .expect("validated before the run")
+            })
+            .collect()
+    });
+    let flat: Vec<f64> = rows.iter().flatten().copied().collect();
+    Ok(Array2::from_shape_vec((rows.len(), 3), flat).expect("shape").into_pyarray(py))
 }
 
 /// `(S,)` RMSE between the open-loop position of `S` stage parameter rows (`(S,
@@ -368,6 +412,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(stage_simulate, m)?)?;
     m.add_function(wrap_pyfunction!(closed_loop, m)?)?;
     m.add_function(wrap_pyfunction!(closed_loop_batch, m)?)?;
+    m.add_function(wrap_pyfunction!(closed_loop_batch_tracking, m)?)?;
     m.add_function(wrap_pyfunction!(stage_batch_rmse, m)?)?;
     m.add("STAGE_PARAM_LEN", piezohyst_core::stage::PARAM_LEN)?;
     m.add("STAGE_STATE_LEN", StageState::LEN)?;
