@@ -17,13 +17,14 @@ import numpy as np
 
 
 from . import _core
-from ._validate import as_int, as_record
+from ._validate import as_int, as_record, as_scalar
 from .creep import Creep
 from .pi import PI, GeneralizedPI, RateDependentPI
 from .preisach import Preisach
 
-__all__ = ["CEMF_PARAMETERS", "FitResult", "IdentificationResult", "KINDS", "identify_cemf", "fit_linear", "fit_metrics", "identify", "identify_mpi",
-           "identify_pi", "identify_preisach"]
+__all__ = ["CEMF_PARAMETERS", "FitResult", "IdentificationResult", "KINDS", "LOSSES", "default_huber_delta",
+           "fit_linear", "fit_metrics", "huber_cost", "identify", "identify_cemf", "identify_mpi", "identify_pi",
+           "identify_preisach", "minimize_huber"]
 
 
 @dataclass(frozen=True)
@@ -47,6 +48,75 @@ def fit_metrics(predicted, measured) -> dict:
     rmse = float(np.sqrt(np.mean(e**2)))
     emax = float(np.max(np.abs(e)))
     return {"rmse": rmse, "max_error": emax, "rmse_percent": 100 * rmse / span, "max_error_percent": 100 * emax / span}
+
+
+#: Losses :func:`identify` and :func:`fit_linear` minimize.
+LOSSES = ("squared", "huber")
+
+#: Huber's tuning constant: 95 % efficiency at Gaussian residuals.
+HUBER_K = 1.345
+
+#: MAD to standard deviation at Gaussian residuals.
+_MAD_TO_SIGMA = 1.4826
+
+
+def default_huber_delta(residuals) -> np.ndarray:
+    """Default Huber threshold of residual records: ``1.345 sigma`` with the robust
+    ``sigma = 1.4826 median(|r - median(r)|)``, along the last axis.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst.identify import default_huber_delta
+    >>> r = np.array([-1.0, 0.0, 1.0, 2.0, 100.0])       # the glitch does not move it
+    >>> round(float(default_huber_delta(r)), 6)
+    1.994097
+    """
+    r = np.asarray(residuals, dtype=np.float64)
+    mad = np.median(np.abs(r - np.median(r, axis=-1, keepdims=True)), axis=-1)
+    return HUBER_K * _MAD_TO_SIGMA * mad
+
+
+def huber_cost(residuals, delta=None) -> np.ndarray:
+    """Huber cost of residual records, in the residuals' unit: ``sqrt(2 mean(rho(r)))`` with
+    ``rho(r) = r**2 / 2`` for ``|r| <= delta`` and ``delta (|r| - delta / 2)`` beyond, along
+    the last axis (one value per row of an ``(S, N)`` array).
+
+    It equals the RMSE when no residual exceeds ``delta``; a glitch adds in proportion to
+    its size, not its square. ``delta=None`` takes each row's :func:`default_huber_delta`,
+    which makes the cost scale with the residuals (``huber_cost(c r) = |c| huber_cost(r)``): a
+    robust RMS, minimized as S-estimators minimize a robust scale, with the MAD's 50 %
+    breakdown point. A row with non-finite residuals (a diverged simulation) costs ``inf``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst.identify import huber_cost
+    >>> r = np.array([0.0, 1.0, -1.0, 1.0])
+    >>> float(huber_cost(r, delta=10.0)), float(np.sqrt(np.mean(r**2)))
+    (0.8660254037844386, 0.8660254037844386)
+    >>> float(huber_cost(np.r_[r, 1e6], delta=1.0)) < 1e3               # RMSE would be 4.5e5
+    True
+    """
+    r = np.asarray(residuals, dtype=np.float64)
+    d = default_huber_delta(r) if delta is None else np.asarray(delta, dtype=np.float64)
+    d = np.expand_dims(d, -1) if np.ndim(d) else d
+    a = np.abs(r)
+    with np.errstate(invalid="ignore", over="ignore"):
+        rho = np.where(a <= d, 0.5 * a * a, d * (a - 0.5 * d))
+        cost = np.sqrt(2.0 * np.mean(rho, axis=-1))
+    return np.where(np.all(np.isfinite(r), axis=-1), cost, np.inf)
+
+
+def _check_loss(loss, delta):
+    """``(loss, delta)`` checked: delta ``None`` (the MAD default) or a positive number."""
+    if loss not in LOSSES:
+        raise ValueError(f"loss = {loss!r} is unknown; expected one of {list(LOSSES)}")
+    if delta is None:
+        return loss, None
+    if loss != "huber":
+        raise ValueError(f"huber_delta = {delta!r} is only used with loss = 'huber', got loss = {loss!r}")
+    return loss, as_scalar(delta, "huber_delta", positive=True)
 
 
 def _layout(model):
@@ -90,12 +160,26 @@ def _layout(model):
     return lb, np.full(lb.size, inf), build
 
 
-def fit_linear(model, input, output) -> FitResult:
+def fit_linear(model, input, output, *, loss="squared", huber_delta=None) -> FitResult:
     """Fit the linear parameters of ``model`` (its weights, linear term / polynomial, creep
     weights; Preisach offset, slope and cell weights) to a record, keeping its structure.
 
     Play weights, Preisach weights and slopes are constrained non-negative (a Preisach
     density is a mass; non-negative play weights keep the PI model invertible).
+
+    Parameters
+    ----------
+    model : PI, GeneralizedPI, RateDependentPI or Preisach
+        The structure to keep; its linear parameters are ignored.
+    input, output : array_like
+        The record, equal lengths.
+    loss : {"squared", "huber"}
+        ``"squared"``: bounded least squares. ``"huber"``: the Huber M-estimate by
+        iteratively reweighted bounded least squares (weights ``min(1, delta / |r|)``) from
+        the least-squares solution, for records with glitches.
+    huber_delta : float, optional
+        Huber threshold in the output's unit; by default :func:`default_huber_delta` of the
+        current residuals, re-estimated at each iteration.
 
     Examples
     --------
@@ -106,10 +190,19 @@ def fit_linear(model, input, output) -> FitResult:
     >>> fit = fit_linear(PI([0.1, 0.3, 0.6], [0, 0, 0], p0=1.0), v, truth.simulate(v))
     >>> np.allclose(fit.model.weights, truth.weights, atol=1e-9), round(fit.model.p0, 9)
     (True, 0.8)
+
+    A glitch of 100 on one sample in 100 barely moves the Huber fit:
+
+    >>> y = truth.simulate(v)
+    >>> y[::100] += 100.0
+    >>> robust = fit_linear(PI([0.1, 0.3, 0.6], [0, 0, 0]), v, y, loss="huber")
+    >>> bool(np.max(np.abs(robust.model.weights - truth.weights)) < 1e-6)
+    True
     """
     from scipy.optimize import lsq_linear  # imported on use: keeps the command line quick to start
 
     t0 = time.perf_counter()
+    loss, delta = _check_loss(loss, huber_delta)
     v = as_record(input, "input", min_length=2)
     y = as_record(output, "output", min_length=2)
     if y.size != v.size:
@@ -117,10 +210,37 @@ def fit_linear(model, input, output) -> FitResult:
     lb, ub, build = _layout(model)
     A = _core.regressors(model.family, list(model.dims), model.to_row(), v)
     scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-300)   # equilibrate the columns
-    sol = lsq_linear(A / scale, y, bounds=(lb * scale, ub * scale), method="bvls", lsmr_tol=None)
-    theta = sol.x / scale
-    fitted = build(theta)
+    A = A / scale
+    bounds = (lb * scale, ub * scale)
+    z = np.clip(lsq_linear(A, y, bounds=bounds, method="bvls", lsmr_tol=None).x, *bounds)
+    if loss == "huber":
+        z = _irls_huber(A, y, bounds, z, delta, lsq_linear)
+    fitted = build(z / scale)
     return FitResult(fitted, fit_metrics(fitted.simulate(v), y), time.perf_counter() - t0)
+
+
+def _irls_huber(A, y, bounds, z, delta, lsq_linear, max_iterations=100, rtol=1e-9):
+    """Huber M-estimate by iteratively reweighted bounded least squares from ``z``.
+
+    Stops when an iteration moves the fitted output by less than ``rtol`` times the output's
+    range (RMS): the parameters of correlated regressors creep on long after the fit has
+    settled."""
+    lower, upper = bounds
+    span = float(np.ptp(y)) or 1.0
+    tiny = 1e-15 * span                      # a zero MAD (an exact majority) still weighs
+    fit = A @ z
+    for _ in range(max_iterations):
+        r = fit - y
+        d = max(float(default_huber_delta(r)) if delta is None else delta, tiny)
+        w = np.sqrt(np.minimum(1.0, d / np.maximum(np.abs(r), tiny)))
+        sol = lsq_linear(A * w[:, None], y * w, bounds=bounds, method="bvls", lsmr_tol=None)
+        z = np.clip(sol.x, lower, upper)     # bvls may overstep a bound by an ulp
+        new_fit = A @ z
+        moved = float(np.sqrt(np.mean((new_fit - fit) ** 2)))
+        fit = new_fit
+        if moved <= rtol * span:
+            break
+    return z
 
 
 def _default_thresholds(v, n):
@@ -130,33 +250,39 @@ def _default_thresholds(v, n):
     return np.arange(1, n + 1) * span / (2.0 * (n + 1))
 
 
-def identify_pi(input, output, *, operators=9, thresholds=None, creep=None) -> FitResult:
+def identify_pi(input, output, *, operators=9, thresholds=None, creep=None, loss="squared",
+                huber_delta=None) -> FitResult:
     """Classical PI with ``operators`` thresholds spread over half the input range (or the
-    given ones), weights and linear term by non-negative least squares."""
+    given ones), weights and linear term by non-negative least squares (``loss``,
+    ``huber_delta``: see :func:`fit_linear`)."""
     v = as_record(input, "input", min_length=2)
     r = _default_thresholds(v, as_int(operators, "operators", minimum=1)) if thresholds is None else thresholds
-    return fit_linear(PI(r, np.zeros(len(r)), 1.0, creep=creep), v, output)
+    return fit_linear(PI(r, np.zeros(len(r)), 1.0, creep=creep), v, output, loss=loss, huber_delta=huber_delta)
 
 
-def identify_mpi(input, output, *, operators=9, thresholds=None, rising=None, falling=None, creep=None) -> FitResult:
+def identify_mpi(input, output, *, operators=9, thresholds=None, rising=None, falling=None, creep=None,
+                 loss="squared", huber_delta=None) -> FitResult:
     """Seed 2's MPI (cubic input polynomial + generalized plays) with the envelopes given
-    (identity by default); polynomial and weights by bounded least squares."""
+    (identity by default); polynomial and weights by bounded least squares (``loss``,
+    ``huber_delta``: see :func:`fit_linear`)."""
     v = as_record(input, "input", min_length=2)
     r = _default_thresholds(v, as_int(operators, "operators", minimum=1)) if thresholds is None else thresholds
     lo, hi = float(v.min()), float(v.max())
     pad = 0.5 * (hi - lo)
     model = GeneralizedPI(r, np.zeros(len(r)), (0.0, 0.0, 0.0, 0.0), rising, falling, (lo - pad, hi + pad), creep=creep)
-    return fit_linear(model, v, output)
+    return fit_linear(model, v, output, loss=loss, huber_delta=huber_delta)
 
 
-def identify_preisach(input, output, *, levels=12, input_range=None, memory=64) -> FitResult:
+def identify_preisach(input, output, *, levels=12, input_range=None, memory=64, loss="squared",
+                      huber_delta=None) -> FitResult:
     """Discretized Preisach on a ``levels x levels`` grid over the input range; offset, slope
-    and cell weights (non-negative) by least squares."""
+    and cell weights (non-negative) by least squares (``loss``, ``huber_delta``: see
+    :func:`fit_linear`)."""
     v = as_record(input, "input", min_length=2)
     lo, hi = (float(v.min()), float(v.max())) if input_range is None else input_range
     n = as_int(levels, "levels", minimum=1)
     model = Preisach(n, (lo, hi), np.zeros(n * (n + 1) // 2), memory=memory)
-    return fit_linear(model, v, output)
+    return fit_linear(model, v, output, loss=loss, huber_delta=huber_delta)
 
 
 @dataclass(frozen=True)
@@ -202,7 +328,13 @@ class IdentificationResult:
 
 
 #: Model kinds :func:`identify` accepts.
-KINDS = ("pi", "gpi", "mpi", "rdpi", "preisach", "boucwen")
+KINDS = ("pi", "gpi", "mpi", "rdpi", "preisach", "boucwen", "cemf", "boucwen-benchmark")
+
+#: Kinds fitted by least squares over their linear parameters.
+_LINEAR_KINDS = ("pi", "gpi", "mpi", "rdpi", "preisach")
+
+#: Iterations of the population optimizer when ``max_iterations`` is not given.
+_DEFAULT_ITERATIONS = {"boucwen": 200, "cemf": 150, "boucwen-benchmark": 30}
 
 
 def _boucwen_bounds(v, y):
@@ -213,63 +345,102 @@ def _boucwen_bounds(v, y):
 
 
 def identify(input, output, model="mpi", *, fs=None, operators=9, levels=12, optimizer="ls", rng=None,
-             max_iterations=200, population_size=None, validate=None, progress=False, callback=None):
+             max_iterations=None, population_size=None, validate=None, progress=False, callback=None,
+             loss="squared", huber_delta=None, **options):
     """Identify a hysteresis model from an input/output record (free-run simulation error).
+
+    One entry point for every model kind: the linear families by least squares, the
+    differential and stage models by a population optimizer, each population simulated in one
+    Rust batch call.
 
     Parameters
     ----------
     input, output : array_like
-        The training record.
+        The training record. For ``cemf``: the voltage across the stack (V) and the
+        displacement; for ``boucwen-benchmark``: force (N) and displacement (m).
     model : str
-        One of ``KINDS``. ``pi``, ``gpi``/``mpi``, ``rdpi`` and ``preisach`` are fitted by
-        least squares over their linear parameters with a default structure (thresholds over
-        half the input range; a grid over the input range); ``boucwen`` by a population
-        optimizer over all its parameters, each population evaluated in one Rust batch call.
+        One of ``KINDS``:
+
+        - ``pi``, ``gpi``/``mpi``, ``rdpi``, ``preisach``: least squares over the linear
+          parameters with a default structure (thresholds over half the input range; a grid
+          over the input range);
+        - ``boucwen``: a population optimizer over all its parameters (then L-BFGS-B);
+        - ``cemf``: seed 1's grey-box stage model, :func:`identify_cemf` (needs ``fs``);
+        - ``boucwen-benchmark``: the Noël–Schoukens oscillator,
+          :func:`piezohyst.boucwen_benchmark.identify_boucwen_benchmark` (``fs`` defaults to
+          the benchmark's 750 Hz).
     fs : float, optional
-        Sample rate, Hz (needed by ``rdpi``).
+        Sample rate, Hz (needed by ``rdpi`` and ``cemf``).
+    operators, levels : int
+        Play operators (PI family) and Preisach grid size.
     optimizer : str
-        ``"ls"`` for the linear families; ``"css"``, ``"pso"``, ``"mpso"`` or ``"de"`` for
-        Bouc–Wen (``"ls"`` there means ``"de"``).
-    validate : (input, output), optional
-        A held-out record; its metrics are reported, it is not fitted.
+        ``"ls"`` for the linear families; ``"css"``, ``"pso"``, ``"mpso"`` or ``"de"`` for the
+        others (``"ls"`` there means each kind's default: ``"de"``, or ``"css"`` for ``cemf``).
+    rng, population_size, progress, callback
+        Passed to the population optimizer (:func:`piezohyst.optimize.minimize`).
+    max_iterations : int, optional
+        Optimizer iterations; by default 200 (``boucwen``), 150 (``cemf``), 30
+        (``boucwen-benchmark``).
+    validate : tuple, optional
+        A held-out record ``(input, output)``; its metrics are reported, it is not fitted.
+    loss : {"squared", "huber"}
+        ``"squared"``: the RMSE of the free-run simulation. ``"huber"``: the robust Huber
+        cost, for records with glitches — iteratively reweighted least squares for the
+        linear families (:func:`fit_linear`), :func:`huber_cost` of the simulated residuals
+        for the population optimizers (``boucwen``, ``cemf``; not ``boucwen-benchmark``) by
+        :func:`minimize_huber`. The reported metrics stay RMSE and max error.
+    huber_delta : float, optional
+        Huber threshold in the output's unit; by default 1.345 times the MAD-based robust
+        sigma of the residuals (:func:`default_huber_delta`).
+    **options
+        Further keywords of :func:`identify_cemf` or of
+        :func:`~piezohyst.boucwen_benchmark.identify_boucwen_benchmark` (e.g. ``bounds``,
+        ``fit_range``); refused for the other kinds.
 
     Returns
     -------
     IdentificationResult
+        ``method`` names the optimizer, with ``+huber`` for the Huber loss.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst import PI, identify
+    >>> v = 0.5 + 0.4 * np.sin(np.linspace(0, 30, 1500)) * np.linspace(1, 0.3, 1500)
+    >>> truth = PI(np.arange(1, 5) * np.ptp(v) / 10, [0.4, 0.2, 0.1, 0.05], p0=0.6)   # the default structure
+    >>> y = truth.simulate(v)
+    >>> y[::100] += 0.5                                   # glitches on 1 % of the samples
+    >>> fits = {loss: identify(v, y, "pi", operators=4, loss=loss) for loss in ("squared", "huber")}
+    >>> {k: round(float(np.sqrt(np.mean((f.model.simulate(v) - truth.simulate(v)) ** 2))), 4) for k, f in fits.items()}
+    {'squared': 0.005, 'huber': 0.0}
     """
     t0 = time.perf_counter()
     if model not in KINDS:
         raise ValueError(f"model = {model!r} is unknown; expected one of {list(KINDS)}")
+    loss, delta = _check_loss(loss, huber_delta)
+    if options and model not in ("cemf", "boucwen-benchmark"):
+        raise TypeError(f"identify() got unexpected keyword arguments {sorted(options)} for model = {model!r}")
+    if max_iterations is None:
+        max_iterations = _DEFAULT_ITERATIONS.get(model, 200)
+    search = dict(optimizer=optimizer, rng=rng, max_iterations=max_iterations, population_size=population_size,
+                  validate=validate, progress=progress, callback=callback)
+    if model == "cemf":
+        if fs is None:
+            raise ValueError("fs is required for model = 'cemf' (the stage is simulated at the sample time)")
+        return identify_cemf(input, output, fs, loss=loss, huber_delta=delta, **search, **options)
+    if model == "boucwen-benchmark":
+        return _identify_benchmark(input, output, fs, loss, search, options)
     v = as_record(input, "input", min_length=2)
     y = as_record(output, "output", min_length=2)
     if y.size != v.size:
         raise ValueError(f"output has {y.size} samples, input has {v.size}; they must match")
     history = None
-    if model == "pi":
-        fitted, method = identify_pi(v, y, operators=operators).model, "ls"
-    elif model in ("gpi", "mpi"):
-        fitted, method = identify_mpi(v, y, operators=operators).model, "ls"
-    elif model == "preisach":
-        fitted, method = identify_preisach(v, y, levels=levels).model, "ls"
-    elif model == "rdpi":
-        if fs is None:
-            raise ValueError("fs is required for model = 'rdpi' (the rate needs the sample time)")
-        r = _default_thresholds(v, as_int(operators, "operators", minimum=1))
-        template = RateDependentPI(r, np.zeros(r.size), 1.0 / float(fs), 1.0, 0.0)
-        fitted, method = fit_linear(template, v, y).model, "ls"
+    if model in _LINEAR_KINDS:
+        fitted, method = _identify_linear(model, v, y, fs, operators, levels, loss, delta), "ls"
     else:
-        from .differential import BoucWen
-        from .optimize import minimize
-
-        method = "de" if optimizer == "ls" else optimizer
-        template = BoucWen(1.0, 1.0, 0.0)
-
-        def cost(rows):
-            return _core.batch_rmse(template.family, [], np.ascontiguousarray(rows), v, y, float("inf"))
-
-        res = minimize(cost, _boucwen_bounds(v, y), method=method, rng=rng, max_iterations=max_iterations,
-                       population_size=population_size, progress=progress, callback=callback, polish=True)
-        fitted, history = BoucWen(*res.x), res.history
+        fitted, method, history = _identify_boucwen(v, y, loss, delta, search)
+    if loss == "huber":
+        method += "+huber"
     train = fit_metrics(fitted.simulate(v), y)
     val = None
     if validate is not None:
@@ -279,18 +450,125 @@ def identify(input, output, model="mpi", *, fs=None, operators=9, levels=12, opt
     return IdentificationResult(fitted, train, val, method, time.perf_counter() - t0, history)
 
 
+def _identify_linear(model, v, y, fs, operators, levels, loss, delta):
+    """The least-squares kinds' fitted model."""
+    robust = {"loss": loss, "huber_delta": delta}
+    if model == "pi":
+        return identify_pi(v, y, operators=operators, **robust).model
+    if model in ("gpi", "mpi"):
+        return identify_mpi(v, y, operators=operators, **robust).model
+    if model == "preisach":
+        return identify_preisach(v, y, levels=levels, **robust).model
+    if fs is None:
+        raise ValueError("fs is required for model = 'rdpi' (the rate needs the sample time)")
+    r = _default_thresholds(v, as_int(operators, "operators", minimum=1))
+    template = RateDependentPI(r, np.zeros(r.size), 1.0 / float(fs), 1.0, 0.0)
+    return fit_linear(template, v, y, **robust).model
+
+
+def _identify_boucwen(v, y, loss, delta, search):
+    """Bouc–Wen by a population optimizer: ``(model, method, history)``."""
+    from .differential import BoucWen
+    from .optimize import minimize
+
+    search = dict(search)
+    search.pop("validate")
+    optimizer = search.pop("optimizer")
+    method = "de" if optimizer == "ls" else optimizer
+    family = BoucWen(1.0, 1.0, 0.0).family
+    bounds = _boucwen_bounds(v, y)
+    if loss == "huber":
+        # the rows stay inside the box, where every Bouc-Wen row is valid (n = 1, finite)
+        def simulate(rows):
+            return _core.batch_simulate(family, [], np.ascontiguousarray(rows), v)
+
+        res = minimize_huber(simulate, y, bounds, delta, method=method, **search)
+    else:
+        def cost(rows):
+            return _core.batch_rmse(family, [], np.ascontiguousarray(rows), v, y, float("inf"))
+
+        res = minimize(cost, bounds, method=method, polish=True, **search)
+    return BoucWen(*res.x), method, res.history
+
+
+def minimize_huber(simulate, target, bounds, delta=None, **search):
+    """Minimize the Huber cost of ``simulate(X) - target`` over a box with a population
+    optimizer, then L-BFGS-B.
+
+    ``simulate(X)`` maps the ``(S, D)`` population to ``(S, N)`` outputs (NaN rows for
+    failed runs); ``search`` goes to :func:`piezohyst.optimize.minimize` (``method``,
+    ``rng``, ``max_iterations``, ...; not ``polish``).
+
+    With ``delta`` given, the population search and the polish minimize
+    ``huber_cost(r, delta)``. Without it, the search is in two stages, as an MM-estimate: the
+    population minimizes the scale-equivariant ``huber_cost(r)`` (each candidate's threshold
+    from its own residuals' MAD: a robust scale, unmoved by glitches); ``delta`` is then
+    :func:`default_huber_delta` of the best candidate's residuals, and L-BFGS-B continues from
+    it on ``huber_cost(r, delta)`` with that threshold fixed. Why not one stage: the per-candidate
+    threshold makes the cost non-smooth (the MAD jumps between samples), which stalls
+    gradient polishing, and a fixed threshold cannot be set before any fit exists.
+
+    Returns
+    -------
+    OptimizeResult
+        ``fun`` is the final fixed-threshold Huber cost; ``history["best_cost"]`` holds the
+        search's costs; ``history["huber_delta"]`` the threshold used.
+    """
+    from dataclasses import replace
+
+    from .optimize import _polish, minimize
+
+    def fixed(X):
+        return huber_cost(simulate(X) - target, delta)
+
+    if delta is not None:
+        res = minimize(fixed, bounds, polish=True, **search)
+        return replace(res, history={**res.history, "huber_delta": float(delta)})
+    res = minimize(lambda X: huber_cost(simulate(X) - target), bounds, **search)
+    x0 = np.array(res.x, dtype=np.float64)
+    r0 = simulate(x0[None, :])[0] - target
+    if res.message == "interrupted" or not np.all(np.isfinite(r0)):
+        return replace(res, history={**res.history, "huber_delta": float("nan")})
+    tiny = 1e-15 * (float(np.max(np.abs(target))) or 1.0)     # an exact majority leaves MAD = 0
+    delta = max(float(default_huber_delta(r0)), tiny)
+    lower, upper = np.array(bounds, dtype=np.float64).T
+    x, f, n = _polish(fixed, x0, float(fixed(x0[None, :])[0]), lower, upper, {})
+    message = f"{res.message}; Huber threshold {delta:.6g} from the MAD, then L-BFGS-B to {f:.6g}"
+    return replace(res, x=x, fun=f, nfev=res.nfev + n + 1, message=message,
+                   history={**res.history, "huber_delta": delta})
+
+
+def _identify_benchmark(u, y, fs, loss, search, options):
+    """Dispatch to :func:`piezohyst.boucwen_benchmark.identify_boucwen_benchmark`."""
+    from .boucwen_benchmark import FS, identify_boucwen_benchmark
+
+    if loss != "squared":
+        # its cost is the RMSE computed inside the Rust batch call, with its own polish
+        raise ValueError("loss = 'huber' is not available for model = 'boucwen-benchmark'; use loss = 'squared'")
+    search = dict(search)
+    if search["optimizer"] == "ls":
+        search["optimizer"] = "de"
+    return identify_boucwen_benchmark(u, y, FS if fs is None else fs, **search, **options)
+
+
 #: Parameters searched by :func:`identify_cemf`, in seed 1's normalized form.
 CEMF_PARAMETERS = ("M", "B", "K", "tem", "alpha", "beta", "gamma")
 
 
 def identify_cemf(voltage, position, fs, *, capacitance=1.8e-6, bounds=None, optimizer="css", rng=None,
                   max_iterations=150, population_size=None, substeps=1, tolerance=0.05, validate=None,
-                  progress=False, callback=None) -> IdentificationResult:
+                  progress=False, callback=None, loss="squared", huber_delta=None) -> IdentificationResult:
     """Grey-box identification of the CEMF stage model (seed 1) from the applied voltage and
     the measured displacement: ``M x'' + B x' + K x = Vin - Vh`` (``M = m/Tem``, ...) with
     the CEMF Bouc–Wen law on the stack charge, by a population optimizer over
     ``CEMF_PARAMETERS`` on the free-run simulation error. Each population is simulated in one
     Rust batch call (rayon). The stack capacitance is taken as known (seed 1: 1800 nF).
+
+    ``loss="huber"`` minimizes :func:`huber_cost` of the simulated position residuals
+    instead of their RMSE, by :func:`minimize_huber` (``huber_delta``: the threshold in the
+    position's unit, by default from the MAD). The core has no batch simulation of the stage,
+    so the Huber cost simulates the population's rows one Rust call each, without rayon:
+    slower than the RMSE.
 
     Returns an :class:`IdentificationResult` whose ``model`` is a :class:`piezohyst.StageParameters`.
     """
@@ -298,6 +576,7 @@ def identify_cemf(voltage, position, fs, *, capacitance=1.8e-6, bounds=None, opt
     from .stage import Amplifier, Stage, StageParameters
 
     t0 = time.perf_counter()
+    loss, delta = _check_loss(loss, huber_delta)
     u = as_record(voltage, "voltage", min_length=2)
     x = as_record(position, "position", min_length=2)
     if x.size != u.size:
@@ -332,9 +611,16 @@ def identify_cemf(voltage, position, fs, *, capacitance=1.8e-6, bounds=None, opt
     def cost(theta):
         return _core.stage_batch_rmse(rows(theta), 1.0 / fs, substeps, tolerance, u, x, float("inf"))
 
+    def simulate(theta):
+        return _stage_positions(rows(theta), 1.0 / fs, substeps, tolerance, u)
+
     method = "css" if optimizer == "ls" else optimizer
-    res = minimize(cost, bounds, method=method, rng=rng, max_iterations=max_iterations,
-                   population_size=population_size, progress=progress, callback=callback)
+    search = dict(method=method, rng=rng, max_iterations=max_iterations, population_size=population_size,
+                  progress=progress, callback=callback)
+    if loss == "squared":
+        res = minimize(cost, bounds, **search)
+    else:
+        res = minimize_huber(simulate, x, bounds, delta, **search)
     M, B, K, tem, alpha, beta, gamma = res.x
     params = StageParameters(M * tem, B * tem, K * tem, tem, capacitance, alpha, beta, gamma)
     stage = Stage(params, wide, sample_time=1.0 / fs, substeps=substeps, tolerance=tolerance)
@@ -344,4 +630,18 @@ def identify_cemf(voltage, position, fs, *, capacitance=1.8e-6, bounds=None, opt
         vu = as_record(validate[0], "validate voltage")
         vx = as_record(validate[1], "validate position")
         val = fit_metrics(stage.simulate(vu).position, vx)
+    if loss == "huber":
+        method += "+huber"
     return IdentificationResult(params, train, val, method, time.perf_counter() - t0, res.history)
+
+
+def _stage_positions(rows, ts, substeps, tolerance, u):
+    """``(S, N)`` open-loop positions of stage rows from rest, as ``stage_batch_rmse`` scores
+    them; a NaN row where the core refuses the row or the run fails."""
+    out = np.full((rows.shape[0], u.size), np.nan)
+    for i, row in enumerate(rows):       # a loop over the population, each run in Rust
+        try:
+            out[i] = _core.stage_simulate(row, ts, substeps, tolerance, u, np.zeros(_core.STAGE_STATE_LEN))[0]
+        except (ValueError, RuntimeError):
+            pass
+    return out
