@@ -214,6 +214,10 @@ class ABSMC:
     Build it with :meth:`for_stage` (alone, in volts: ``b = 1/M``, ``theta = [K/M, B/M]``) or
     :meth:`linearized` (behind an inverse model, in metres: ``b = theta0 = omega_n^2``).
     ``theta_bounds`` default to a factor ``theta_range`` around the nominal values.
+    ``regressor="desired"`` (default) evaluates ``phi`` on the reference, ``"measured"`` on the
+    observer's estimate as seed 2 writes it; the measured form cancels the stage stiffness with
+    a delayed, quantized position and loses stability on a stiff stage (see
+    ``crates/core/src/absmc.rs``).
     """
 
     b: float
@@ -228,6 +232,7 @@ class ABSMC:
     d_max: float | None = None
     theta_range: float = 3.0
     theta_bounds: tuple | None = None
+    regressor: str = "desired"
     observer: VelocityObserver = field(default_factory=VelocityObserver)
     u_min: float | None = None
     u_max: float | None = None
@@ -269,8 +274,10 @@ class ABSMC:
         d0 = as_scalar(self.d0, "d0", nonnegative=True)
         lo, hi = _domain_limits(self, stage, limits)
         d_max = (hi - lo) * b if self.d_max is None else as_scalar(self.d_max, "d_max", nonnegative=True)
+        if self.regressor not in ("desired", "measured"):
+            raise ValueError(f"regressor = {self.regressor!r} must be 'desired' or 'measured'")
         p = [b, *th, *lo_t, *hi_t, self.c1, self.lam, self.ks, self.phi, *g, self.gamma_d, d0, d_max,
-             *self.observer.core(stage), lo, hi]
+             1.0 if self.regressor == "desired" else 0.0, *self.observer.core(stage), lo, hi]
         return "absmc", np.array(p, dtype=float), None, None
 
 

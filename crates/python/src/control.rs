@@ -12,7 +12,7 @@ use piezohyst_core::spec::Family;
 use piezohyst_core::ModelError;
 
 /// Parameter count per kind (layouts documented in `python/piezohyst/control.py`).
-pub const KINDS: [(&str, usize); 5] = [("open_loop", 6), ("pid", 9), ("smc", 20), ("absmc", 21), ("cemf_feedforward", 10)];
+pub const KINDS: [(&str, usize); 5] = [("open_loop", 6), ("pid", 9), ("smc", 20), ("absmc", 22), ("cemf_feedforward", 10)];
 
 /// An owned controller description.
 #[derive(Debug, Clone)]
@@ -87,7 +87,8 @@ fn base(kind: &str, p: &[f64]) -> Result<Base, String> {
                 (p[7], p[8], p[9], p[10]),
                 [p[11], p[12]],
                 (p[13], p[14], p[15]),
-                observer(p[16], p[17], p[18])?,
+                p[16] != 0.0,
+                observer(p[17], p[18], p[19])?,
                 limits,
             )?),
             "cemf_feedforward" => Base::CemfFeedforward(CemfFeedforward { model: cemf(&p[..8])?, limits }),
