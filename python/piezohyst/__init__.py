@@ -22,7 +22,9 @@ from .data import Record, load_record, load_yan9a_model_record
 from .differential import BoucWen, Dahl, Duhem
 from .model import SCHEMA_VERSION, HysteresisModel, Inverse, load_model, model_from_dict
 from .pi import PI, SEED2_TABLE1, Envelope, GeneralizedPI, GeneralizedPlay, PlayOperator, RateDependentPI, mpi_seed2
-from .control import PID, OpenLoop
+from .control import ABSMC, ILC, PID, SMC, CemfFeedforward, Compensated, InverseFeedforward, OpenLoop, VelocityObserver
+from .metrics import hysteresis_percent, linearity_error, tracking_metrics
+from .tuning import TuningResult, stage_from_model, track, tune
 from .identify import FitResult, IdentificationResult, fit_linear, identify, identify_cemf, fit_metrics, identify_mpi, identify_pi, identify_preisach
 from .flexure import A7075_YOUNGS_MODULUS, CemfCoefficients, FlexureStage, LeafSpring, seed1_stage
 from .optimize import CSS, DE, MPSO, PSO, IntermediateResult, OptimizeResult, Optimizer, minimize
@@ -34,6 +36,8 @@ from .stage import Amplifier, Sensor, Stage, StageInfo, StageParameters, StageRe
 __version__ = _core.__version__
 
 __all__ = [
+    "ABSMC", "ILC", "SMC", "CemfFeedforward", "Compensated", "InverseFeedforward", "VelocityObserver",
+    "hysteresis_percent", "linearity_error", "tracking_metrics", "TuningResult", "stage_from_model", "track", "tune",
     "A7075_YOUNGS_MODULUS",
     "Amplifier",
     "CemfCoefficients",

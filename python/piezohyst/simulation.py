@@ -11,6 +11,7 @@ import numpy as np
 from . import _core
 from ._validate import as_record
 from .control import is_controller
+from .metrics import tracking_metrics
 
 __all__ = ["ClosedLoopResult", "closed_loop", "closed_loop_batch", "seed_from"]
 
@@ -54,11 +55,14 @@ class ClosedLoopResult:
 
     @property
     def metrics(self) -> dict:
-        """RMSE and max error of ``reference - position`` (m, and % of the reference range);
-        computed on first use."""
+        """Tracking metrics of ``position`` against ``reference`` (see
+        :func:`piezohyst.metrics.tracking_metrics`): RMSE and max error (m, and % of the
+        reference range), seed-2-style normalized errors and the linearity error; from sample
+        ``skip_samples`` on (set by :func:`piezohyst.track`); computed on first use."""
         cached = self.__dict__.get("_metrics")
         if cached is None:
-            cached = _metrics(self.reference, self.position)
+            k = self.__dict__.get("skip_samples", 0)
+            cached = tracking_metrics(self.reference[k:], self.position[k:])
             object.__setattr__(self, "_metrics", cached)
         return cached
 
@@ -101,14 +105,6 @@ class ClosedLoopResult:
             inset.plot(self.time[sel], self.position[sel] * 1e6, lw=1)
             ax[0].indicate_inset_zoom(inset)
         return fig
-
-
-def _metrics(reference, position) -> dict:
-    e = reference - position
-    span = float(np.ptp(reference)) or 1.0
-    rmse = float(np.sqrt(np.mean(e**2)))
-    emax = float(np.max(np.abs(e)))
-    return {"rmse": rmse, "max_error": emax, "rmse_percent": 100 * rmse / span, "max_error_percent": 100 * emax / span}
 
 
 def _derivatives(x, ts, velocity, acceleration, needed):
