@@ -88,7 +88,10 @@ class OpenLoop:
         return self.c1 != 0 or self.c2 != 0
 
     def core(self, stage, *, limits=None):
-        gain = 1.0 / stage.params.static_gain if self.gain is None else as_scalar(self.gain, "gain")
+        if self.gain is not None:
+            gain = as_scalar(self.gain, "gain")
+        else:   # behind an inverse the plant is linearized to unit gain
+            gain = 1.0 if limits is not None else 1.0 / stage.params.static_gain
         lo, hi = _domain_limits(self, stage, limits)
         return "open_loop", np.array([gain, as_scalar(self.offset, "offset"), as_scalar(self.c1, "c1"),
                                       as_scalar(self.c2, "c2"), lo, hi]), None, None
@@ -170,13 +173,13 @@ class SMC:
     kp: float = 1e6
     kv: float = 2e3
     alpha: float = 0.0
-    ks: float = 5.0
-    phi: float = 1e-3
+    ks: float = 20.0
+    phi: float = 0.01
     cemf: bool = False
     switching: str = "boundary_layer"
     k1: float = 0.0
     k2: float = 0.0
-    observer: VelocityObserver = field(default_factory=VelocityObserver)
+    observer: VelocityObserver = field(default_factory=lambda: VelocityObserver(300.0))
     u_min: float | None = None
     u_max: float | None = None
 
@@ -270,6 +273,8 @@ class ABSMC:
         for name in ("c1", "lam", "phi", "gamma_d"):
             as_scalar(getattr(self, name), name, positive=True)
         as_scalar(self.ks, "ks", nonnegative=True)
+        if len(self.gamma_theta) != 2:
+            raise ValueError(f"gamma_theta = {self.gamma_theta!r} must have 2 values (rates for a0, a1)")
         g = [as_scalar(x, f"gamma_theta[{i}]", positive=True) for i, x in enumerate(self.gamma_theta)]
         d0 = as_scalar(self.d0, "d0", nonnegative=True)
         lo, hi = _domain_limits(self, stage, limits)

@@ -92,11 +92,11 @@ impl Absmc {
             check_scalar("theta_min", theta_min[i])?;
             check_scalar("theta_max", theta_max[i])?;
             if !(theta_min[i] <= theta0[i] && theta0[i] <= theta_max[i]) {
-                return Err(ModelError::NotIncreasing("theta0 (must lie within [theta_min, theta_max])", i, theta0[i]));
+                return Err(ModelError::OutOfRange("theta0", i, theta0[i], theta_min[i], theta_max[i]));
             }
         }
         if d0 > d_max {
-            return Err(ModelError::NotIncreasing("d_max (must be >= d0)", usize::MAX, d_max));
+            return Err(ModelError::OutOfRange("d0", usize::MAX, d0, 0.0, d_max));
         }
         Ok(Absmc { b, theta0, theta_min, theta_max, c1, lambda, ks, phi, gamma_theta, gamma_d, d0, d_max, desired_regressor, observer, limits })
     }

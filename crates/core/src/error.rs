@@ -26,6 +26,8 @@ pub enum ModelError {
     Structure(&'static str, usize),
     /// The requested closed-form inverse does not exist for these parameters.
     NoAnalyticInverse(&'static str),
+    /// A value lies outside the range it must stay in: (name, index, value, low, high).
+    OutOfRange(&'static str, usize, f64, f64, f64),
 }
 
 fn idx(i: usize) -> IdxFmt {
@@ -74,6 +76,7 @@ impl fmt::Display for ModelError {
             ),
             Structure(n, v) => write!(f, "{n} = {v} is out of range"),
             NoAnalyticInverse(why) => write!(f, "no analytic inverse: {why}"),
+            OutOfRange(n, i, v, lo, hi) => write!(f, "{n}{} = {v} must lie within [{lo}, {hi}]", idx(i)),
         }
     }
 }

@@ -4,9 +4,13 @@
 //! unmodelled hysteresis and dynamics) is learned away period by period.
 //!
 //! ```text
-//! u(k)  = sat(u_inner(k) + L[k mod N])
-//! L[i] <- q (L[i-1] + 2 L[i] + L[i+1]) / 4 + gain e(k),   i = (k - lead) mod N
+//! u(k)  = sat(u_inner(k) + Q(L)[k mod N])
+//! L[i] <- Q(L)[i] + gain e(k),   i = (k - lead) mod N
+//! Q(L)[i] = q (L[i-1] + 2 L[i] + L[i+1]) / 4
 //! ```
+//! The correction applied is always the filtered one, so both the memory and each newly
+//! learned error pass through `Q` before they act (learning the raw error at every
+//! frequency lets the stage resonance grow period by period).
 //! `e(k) = reference(k - delay) - y(k)`, with the reading `delay` samples old; `lead`
 //! (>= `delay` + 1) is the learning shift that matches the plant's delay and lag; `q <= 1`
 //! with the three-tap smoothing is the Q-filter that keeps high frequencies from being
@@ -72,19 +76,19 @@ impl<C: Controller> Controller for Ilc<C> {
         let now = k % n;
         history[now] = r.x;
         let out = self.inner.step(inner, r, y);
-        let raw = out.u + learned[now];
+        let q = |l: &[f64], i: usize| self.forgetting * 0.25 * (l[(i + n - 1) % n] + 2.0 * l[i] + l[(i + 1) % n]);
+        let correction = q(learned, now);
+        let raw = out.u + correction;
         let limits = self.inner.limits();
         let e = history[(now + n - self.delay) % n] - y;
         let (u, hold) = limits.apply(raw, e);
         // learn once the delayed reference is known
         if !hold && k >= self.delay {
             let i = (now + n - self.lead) % n;
-            let (prev, next) = ((i + n - 1) % n, (i + 1) % n);
-            let smooth = 0.25 * (learned[prev] + 2.0 * learned[i] + learned[next]);
-            learned[i] = self.forgetting * smooth + self.gain * e;
+            learned[i] = q(learned, i) + self.gain * e;
         }
         counter[0] += 1.0;
-        Output { u: clamp(u, limits.min, limits.max), terms: terms([learned[now], e, out.u, raw]) }
+        Output { u: clamp(u, limits.min, limits.max), terms: terms([correction, e, out.u, raw]) }
     }
     fn term_names(&self) -> &'static [&'static str] {
         &["learned", "error", "u_inner", "u_unsaturated"]
