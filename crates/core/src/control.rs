@@ -83,7 +83,7 @@ impl Limits {
         check_scalar("u_min", min)?;
         check_scalar("u_max", max)?;
         if !(max > min) {
-            return Err(ModelError::NotIncreasing("u_max (must exceed u_min)", usize::MAX, max));
+            return Err(ModelError::NotPositive("u_max - u_min", usize::MAX, max - min));
         }
         Ok(Limits { min, max })
     }
@@ -155,7 +155,7 @@ impl VelocityObserver {
         positive("ts", ts)?;
         nonnegative("observer_delay", delay)?;
         if bandwidth >= 0.5 / ts {
-            return Err(ModelError::NotPositive("observer_bandwidth (must be below the Nyquist frequency)", usize::MAX, bandwidth));
+            return Err(ModelError::OutOfRange("observer_bandwidth (below Nyquist)", usize::MAX, bandwidth, 0.0, 0.5 / ts));
         }
         let p = exp(-2.0 * core::f64::consts::PI * bandwidth * ts);
         Ok(VelocityObserver { bandwidth, ts, delay, gain_x: 1.0 - p * p, gain_v: (1.0 - p) * (1.0 - p) / ts })

@@ -46,7 +46,7 @@ impl<C: Controller> Ilc<C> {
         nonnegative("gain", gain)?;
         check_scalar("forgetting", forgetting)?;
         if !(forgetting > 0.0 && forgetting <= 1.0) {
-            return Err(ModelError::NotPositive("forgetting (must lie in (0, 1])", usize::MAX, forgetting));
+            return Err(ModelError::OutOfRange("forgetting", usize::MAX, forgetting, 0.0, 1.0));
         }
         if lead >= period || delay >= period {
             return Err(ModelError::Structure("lead and delay (must be below the period)", lead.max(delay)));
