@@ -71,13 +71,30 @@ impl CemfModel {
             return vh;
         }
         let cz = self.cz;
+        // dq has the sign of q_ext (the left side is increasing and 0 at 0), so the Bouc–Wen
+        // slope law is fixed: Newton from the linearized loop converges in 2-3 steps
+        let s = if q_ext > 0.0 { 1.0 } else { -1.0 };
+        let slope = |h: f64| self.alpha - self.beta * s * h - self.gamma * abs(h);
+        let mut dq = q_ext / (1.0 + cz * slope(vh)).max(1e-12);
+        for _ in 0..6 {
+            let h = self.hysteresis(vh, dq);
+            let r = dq + cz * (h - vh) - q_ext;
+            let d = 1.0 + cz * slope(h);
+            if abs(r) <= 1e-14 * abs(q_ext) {
+                return h;
+            }
+            let next = dq - r / d;
+            if !(d > 0.0) || !next.is_finite() || next * s <= 0.0 {
+                break; // leave it to the bracketed solve
+            }
+            dq = next;
+        }
         let f = |dq: f64| {
             let h = self.hysteresis(vh, dq);
-            let s = if dq >= 0.0 { 1.0 } else { -1.0 };
-            let slope = self.alpha - self.beta * s * h - self.gamma * abs(h);
-            (dq + cz * (h - vh), 1.0 + cz * slope)
+            let sd = if dq >= 0.0 { 1.0 } else { -1.0 };
+            (dq + cz * (h - vh), 1.0 + cz * (self.alpha - self.beta * sd * h - self.gamma * abs(h)))
         };
-        match solve_increasing(f, q_ext, q_ext / (1.0 + cz * self.alpha).max(1e-12)) {
+        match solve_increasing(f, q_ext, dq) {
             Some(dq) => self.hysteresis(vh, dq),
             None => vh,
         }
