@@ -5,7 +5,7 @@
 //! simulation, the exact inverse behind `Compensated`, and a long soak of the SMC.
 //!
 //! `cargo test -p piezohyst-core --test controllers`: ~3 s with the workspace's test profile
-//! (opt-level 2), ~20 s at opt-level 0. The 10^7-step soak runs in `make test` (~7 s at opt-level 2 with the CEMF observer.s
+//! (opt-level 2), ~20 s at opt-level 0. The 10^7-step soak runs in `make test` (~7 s at opt-level 2 with the CEMF observer's
 //! Newton solve).
 use piezohyst_core::absmc::Absmc;
 use piezohyst_core::cemf::{CemfFeedforward, CemfModel};
