@@ -143,7 +143,7 @@ def test_css_charges_edge_cases():
 def test_css_first_move_follows_the_force():
     # k_a = 0.5 at it = 0 and V = 0: X_new - X = rand_1 * 0.5 * F_j with rand_1 in [0, 1)
     X0 = np.array([[0.0, 0.0], [2.0, 0.0], [1.0, 1.0], [-1.0, 2.0]])
-    opt = CSS([(-10, 10)] * 2, rng=3, init=X0, max_iterations=10)
+    opt = CSS([(-10, 10)] * 2, rng=3, init=X0, max_iterations=10, normalize=False)
     assert opt.a == pytest.approx(2.0) and opt.memory_size == 1
     f = np.array([1.0, 2.0, 3.0, 4.0])  # every ratio that matters is >= 1: p is deterministic
     assert np.array_equal(opt.ask(), X0)
@@ -160,6 +160,29 @@ def test_css_first_move_follows_the_force():
     xs, fs = opt.charged_memory
     np.testing.assert_array_equal(xs, X0[:1])
     np.testing.assert_array_equal(fs, [1.0])
+
+
+def test_css_normalized_moves_follow_the_unit_box_force():
+    # normalize=True: forces in the unit box (a = 0.1), steps scaled back by each range
+    X0 = np.array([[0.0, 0.0], [2.0, 0.0], [1.0, 1.0], [-1.0, 2.0]])
+    bounds = [(-10, 10), (-1000, 1000)]
+    X0[:, 1] *= 100
+    opt = CSS(bounds, rng=3, init=X0, max_iterations=10)
+    assert opt.a == pytest.approx(0.1)
+    f = np.array([1.0, 2.0, 3.0, 4.0])
+    opt.ask()
+    opt.tell(f)
+    rng = np.array([20.0, 2000.0])
+    U = (X0 - np.array([-10.0, -1000.0])) / rng
+    _, _, F = css_forces(U, f, a=0.1, eps=1e-10, rand=np.full((4, 4), 0.999))
+    step = (opt.ask() - X0) / rng
+    for j in range(4):
+        if np.allclose(F[j], 0):
+            assert np.allclose(step[j], 0)
+        else:
+            s = np.dot(step[j], F[j]) / np.dot(F[j], F[j])
+            assert 0 <= s < 0.5
+            np.testing.assert_allclose(step[j], s * F[j], rtol=1e-9, atol=1e-14)
 
 
 def test_css_out_of_bounds_components_come_from_memory_or_uniform():

@@ -594,6 +594,11 @@ class CSS(Optimizer):
         Pitch adjusting rate, default 0.1.
     bandwidth : float
         Pitch-adjust bandwidth as a fraction of each parameter's range, default 0.01.
+    normalize : bool
+        Compute separations, forces and velocities in the unit box (default). The SPEC's
+        ``a = 0.1 * max range`` compares the unit-less ``r_ij`` with a length in parameter
+        units; with parameters of different units (the CEMF model spans 1e-3..1e5) that
+        keeps the population from contracting. ``False`` is the literal form.
     eps : float, optional
         Denominator guard of ``r_ij``; default ``1e-10 * max range``.
 
@@ -612,13 +617,17 @@ class CSS(Optimizer):
     name = "css"
 
     def __init__(self, bounds, population_size=None, rng=None, max_iterations=200, *,
-                 cmcr=0.95, par=0.1, bandwidth=0.01, eps=None, init="lhs"):
+                 cmcr=0.95, par=0.1, bandwidth=0.01, eps=None, init="lhs", normalize=True):
         super().__init__(bounds, population_size, rng, max_iterations, init=init)
         self.cmcr = _as_fraction(cmcr, "cmcr")
         self.par = _as_fraction(par, "par")
         self.bandwidth = _as_fraction(bandwidth, "bandwidth")
-        self.a = 0.1 * float(np.max(self._range))
-        self.eps = 1e-10 * float(np.max(self._range)) if eps is None else as_scalar(eps, "eps", positive=True)
+        self.normalize = bool(normalize)
+        # the forces mix the unit-less separation r_ij with the radius a: in the unit box
+        # (normalize=True) both are on the same scale whatever the parameters' units
+        scale = 1.0 if self.normalize else float(np.max(self._range))
+        self.a = 0.1 * scale
+        self.eps = 1e-10 * scale if eps is None else as_scalar(eps, "eps", positive=True)
         self.memory_size = max(1, self.population_size // 4)
         self._V = np.zeros((self.population_size, self.dimension))
         self._cm_x = np.empty((0, self.dimension))
@@ -646,14 +655,17 @@ class CSS(Optimizer):
         if not np.isfinite(f).any():
             self._V = np.zeros((N, D))
             return self._lower + rng.random((N, D)) * self._range
-        _, _, F = css_forces(X, f, a=self.a, eps=self.eps, rand=rng.random((N, N)))
+        # a fixed parameter (zero range) stays put in either form
+        scale = np.where(self._range > 0, self._range, 1.0) if self.normalize else 1.0
+        U = (X - self._lower) / scale if self.normalize else X
+        _, _, F = css_forces(U, f, a=self.a, eps=self.eps, rand=rng.random((N, N)))
         t = self._it_fraction
         ka, kv = 0.5 * (1.0 + t), 0.5 * (1.0 - t)
         r1 = rng.random((N, 1))
         r2 = rng.random((N, 1))
-        Xn = X + r1 * ka * F + r2 * kv * self._V
+        Xn = X + scale * (r1 * ka * F + r2 * kv * self._V)
         Xn = self._harmony_bounds(Xn)
-        self._V = Xn - X
+        self._V = (Xn - X) / scale
         return Xn
 
     def _harmony_bounds(self, Xn):
