@@ -46,9 +46,12 @@ def _parser() -> argparse.ArgumentParser:
     p = _Parser(prog="piezohyst", description="Piezo hysteresis modelling, identification and compensation.")
     p.add_argument("--debug", action="store_true", help="show a traceback on errors")
     sub = p.add_subparsers(dest="command", required=True)
-    d = sub.add_parser("demo", help="forward and exact inverse of the seed-2 MPI model; writes a loop figure")
+    d = sub.add_parser("demo", help="both papers end to end on the virtual stage: identify, compensate, track, "
+                                    "report (index.html, report.md, figures, results.json)")
     d.add_argument("--out", default="piezohyst-report", help="output directory (default: ./piezohyst-report)")
-    d.add_argument("--force", action="store_true", help="overwrite existing output files")
+    d.add_argument("--force", action="store_true", help="overwrite an existing report")
+    d.add_argument("--quick", action="store_true", help="smaller optimizer budgets (about 30 s)")
+    d.add_argument("--seed", type=int, default=0, help="seed of the measurements and optimizers (default 0)")
     d.add_argument("--json", action="store_true", help="print the numbers as JSON")
     st = sub.add_parser("stage", help="stage utilities")
     st_sub = st.add_subparsers(dest="stage_command", required=True)
@@ -725,7 +728,7 @@ def main(argv=None) -> int:
             from .demo import run_demo
 
             quiet = (lambda *a, **k: None) if args.json else print
-            numbers = run_demo(args.out, force=args.force, print_fn=quiet)
+            numbers = run_demo(args.out, force=args.force, quick=args.quick, seed=args.seed, print_fn=quiet)
             if args.json:
                 print(json.dumps(numbers, indent=2))
         elif args.command == "identify":

@@ -1,81 +1,124 @@
-"""The demo: forward and exact inverse of the seed-2 reference MPI model.
+"""``piezohyst demo``: both papers end to end on the virtual stage.
 
-Until the full end-to-end demo (identification, control, report) lands, this shows the core
-at work: the MPI model of seed 2, Table 1, driven by a variable-amplitude sine (nested minor
-loops), then inverted sample by sample so that a straight-line desired output is tracked.
+1. excite the virtual stage and "measure" it (sensor noise and quantization included);
+2. identify the CEMF stage model with CSS (PSO, MPSO and DE run alongside for the
+   convergence figure) and the MPI model by least squares; validate the MPI model at
+   2-100 Hz (seed 2, Table 2);
+3. seed 1's case studies: gain tuning on the identified model, then open loop, SMC (Case 1)
+   and SMC + CEMF (Case 2) (seed 1, Table 3, Figures 9-14);
+4. seed 2's compensation: linearity without/with the inverse feedforward (Table 3), and none /
+   feedforward / feedforward + ABSMC at 80 Hz (Table 4);
+5. a report in ``out_dir``: ``index.html``, ``report.md``, PNG figures and ``results.json``.
+
+Same ``seed`` → same numbers (whatever the thread count).
 """
 from __future__ import annotations
 
+import json
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from .pi import mpi_seed2
-from .references import variable_amplitude_sine
+from . import experiments as ex
+from .stage import virtual_stage
 
-__all__ = ["run_demo"]
+__all__ = ["run_demo", "REPORT_FILES"]
+
+#: Files the report writes (figures are listed in results.json).
+REPORT_FILES = ("index.html", "report.md", "results.json")
 
 
-def run_demo(out_dir="piezohyst-report", *, force=False, fs=10_000.0, freq=10.0, print_fn=print) -> dict:
-    """Run the demo, write ``mpi_loops.png`` into ``out_dir``, return the numbers."""
-    import matplotlib
+class _Steps:
+    """One progress line per stage on stderr: ``[k/n] what ... done in s``."""
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    def __init__(self, total, stream):
+        self.total, self.k, self.stream, self.t0 = total, 0, stream, time.perf_counter()
+
+    def start(self, what):
+        self.k += 1
+        self._t = time.perf_counter()
+        if self.stream:
+            print(f"[{self.k}/{self.total}] {what} ...", file=self.stream, flush=True)
+
+    def done(self, detail=""):
+        if self.stream:
+            dt = time.perf_counter() - self._t
+            print(f"      done in {dt:.1f} s{'  ' + detail if detail else ''}", file=self.stream, flush=True)
+
+
+def run_demo(out_dir="piezohyst-report", *, force=False, quick=False, seed=0, progress=True, print_fn=print) -> dict:
+    """Run the demo and write the report; return every number (also in ``results.json``).
+
+    Raises ``FileExistsError`` if ``out_dir`` already holds a report and ``force`` is false.
+    """
+    from .report import _atomic_write, write_report
 
     out_dir = Path(out_dir)
-    figure = out_dir / "mpi_loops.png"
-    if figure.exists() and not force:
-        raise FileExistsError(f"{figure} exists; pass --force to overwrite it")
-    out_dir.mkdir(parents=True, exist_ok=True)
+    existing = [f for f in REPORT_FILES if (out_dir / f).exists()]
+    if existing and not force:
+        raise FileExistsError(f"{out_dir / existing[0]} exists; pass --force to overwrite the report")
+    if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
+        raise ValueError(f"seed = {seed!r} must be a non-negative int")
+    stream = sys.stderr if progress else None
+    steps = _Steps(5, stream)
+    t_start = time.perf_counter()
+    stage = virtual_stage()
+    rng = np.random.default_rng(seed)
+    iters = 25 if quick else 100
 
-    model = mpi_seed2()
-    t, v = variable_amplitude_sine(freq, 0.45, 0.5, fs, offset=0.5)
-    t0 = time.perf_counter()
-    y = model.simulate(v)
-    t_forward = time.perf_counter() - t0
+    steps.start("excite and measure the virtual stage")
+    info = stage.info() if not quick else None
+    steps.done("" if info is None else f"stroke {info.stroke * 1e6:.2f} um, hysteresis {info.hysteresis_percent:.1f} %")
 
-    # Compensation: ask for an output that is a straight line of the input command.
-    gain = (y.max() - y.min()) / (v.max() - v.min())
-    y_desired = gain * (v - v.min()) + y.min()
-    t0 = time.perf_counter()
-    v_comp = model.inverse().simulate(y_desired)
-    t_inverse = time.perf_counter() - t0
-    y_comp = model.simulate(v_comp)
-    residual = float(np.max(np.abs(y_comp - y_desired)))
-    span = float(y.max() - y.min())
-    fit = np.polyfit(y_desired, y, 1)
-    lin_before = 100 * float(np.max(np.abs(y - np.polyval(fit, y_desired)))) / span
-    fit = np.polyfit(y_desired, y_comp, 1)
-    lin_after = 100 * float(np.max(np.abs(y_comp - np.polyval(fit, y_desired)))) / span
+    steps.start("identify: CEMF stage model (CSS; PSO, MPSO, DE for comparison) and MPI model (least squares)")
+    convergence = {}
+    cemf = None
+    for method in ("css", "pso", "mpso", "de"):
+        sub = np.random.default_rng([seed, len(convergence)])
+        (model, ident, f_res), dt = ex.timed(ex.identify_stage_cemf, stage, sub, optimizer=method, max_iterations=iters)
+        convergence[method] = {"best_cost": [float(c) for c in ident.history["best_cost"]], "wall_s": dt,
+                               "rmse_percent": ident.train["rmse_percent"]}
+        if method == "css":
+            cemf = (model, ident, f_res)
+    model, ident, f_res = cemf
+    mpi_fit, t_mpi = ex.timed(ex.identify_stage_mpi, stage, rng)
+    table2 = ex.mpi_validation(stage, mpi_fit.model, rng)
+    steps.done(f"CEMF fit {ident.train['rmse_percent']:.2f} % RMSE; MPI fit {mpi_fit.metrics['rmse_percent']:.2f} %")
 
-    fig, ax = plt.subplots(1, 3, figsize=(14, 4.2))
-    ax[0].plot(v, y, lw=0.8)
-    ax[0].set(title="Seed-2 MPI: hysteresis loops", xlabel="input v (normalized)", ylabel="output y (normalized)")
-    ax[1].plot(y_desired, y, lw=0.8, label="uncompensated")
-    ax[1].plot(y_desired, y_comp, lw=1.2, label="with exact inverse")
-    ax[1].set(title="Output vs desired", xlabel="desired y_d", ylabel="output y")
-    ax[1].legend()
-    ax[2].plot(t, y_comp - y_desired, lw=0.8)
-    ax[2].set(title=f"Inverse residual (max {residual:.1e})", xlabel="time (s)", ylabel="y - y_d")
-    fig.tight_layout()
-    fig.savefig(figure, dpi=110)
-    plt.close(fig)
+    steps.start("seed 1: tune the SMC on the identified model; open loop, SMC, SMC + CEMF")
+    s1, runs1 = ex.seed1_case_studies(stage, model, rng, tuning_iterations=10 if quick else 30, keep_runs=True)
+    steps.done(" ".join(f"{k}: cut {v['CEMF cut %']:.0f} %" for k, v in s1["rmse_um"]["tuned for SMC+CEMF"].items()))
 
-    numbers = {
-        "samples": int(v.size),
-        "forward_seconds": t_forward,
-        "inverse_seconds": t_inverse,
-        "inverse_max_residual": residual,
-        "linearity_error_percent_uncompensated": lin_before,
-        "linearity_error_percent_compensated": lin_after,
-        "figure": str(figure),
+    steps.start("seed 2: inverse-MPI feedforward and adaptive backstepping SMC")
+    s2, runs2 = ex.seed2_compensation(stage, mpi_fit.model, keep_runs=True)
+    t4 = s2["table4_80hz"]["constant"]
+    steps.done(f"80 Hz normalized max error {t4['none']['normalized_max_error']:.4f} -> "
+               f"{t4['feedforward+ABSMC']['normalized_max_error']:.4f}")
+
+    steps.start(f"write the report to {out_dir}")
+    k = model.stiffness / model.tem
+    results = {
+        "seed": seed, "quick": quick,
+        "stage": None if info is None else info.to_dict(),
+        "identification": {
+            "cemf": {"optimizer": "css", "iterations": iters, "fit_rmse_percent": ident.train["rmse_percent"],
+                     "M": model.mass / model.tem, "B": model.damping / model.tem, "K": k, "tem": model.tem,
+                     "alpha": model.hyst_alpha, "beta": model.hyst_beta, "gamma": model.hyst_gamma,
+                     "resonance_hz": f_res, "wall_s": convergence["css"]["wall_s"]},
+            "convergence": convergence,
+            "mpi": {"fit_rmse_percent": mpi_fit.metrics["rmse_percent"],
+                    "fit_max_error_percent": mpi_fit.metrics["max_error_percent"],
+                    "wall_s": t_mpi, "operators": 9, "creep_taus_s": [0.01, 0.1, 1.0]},
+            "table2_mpi_validation": table2, "seed_table2": ex.SEED2_TABLE2,
+        },
+        "seed1": s1, "seed2": s2,
     }
-    print_fn(f"seed-2 MPI (Table 1), variable-amplitude {freq:g} Hz sine, {v.size} samples at {fs:g} Hz")
-    print_fn(f"  forward simulation      {t_forward * 1e3:8.2f} ms")
-    print_fn(f"  exact inverse           {t_inverse * 1e3:8.2f} ms")
-    print_fn(f"  inverse max residual    {residual:.3e}  (max |y(inverse(y_d)) - y_d|)")
-    print_fn(f"  linearity error         {lin_before:.2f} % uncompensated -> {lin_after:.2e} % with the inverse")
-    print_fn(f"  figure                  {figure}")
-    return numbers
+    figures = write_report(out_dir, results, runs1=runs1, runs2=runs2, mpi_fit=mpi_fit, stage=stage)
+    results["figures"] = figures
+    results["wall_s"] = time.perf_counter() - t_start
+    _atomic_write(out_dir / "results.json", json.dumps(results, indent=1, default=float))
+    steps.done()
+    print_fn(f"report: {out_dir / 'index.html'} (and report.md, results.json); {results['wall_s']:.0f} s in all")
+    return results

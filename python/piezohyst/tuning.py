@@ -73,7 +73,8 @@ class TuningResult:
 
 
 def tune(controller, gains, references, *, stage=None, method="css", max_iterations=40, population_size=None,
-         rng=None, skip=0.1, saturation_limit=0.01, log_scale=True, progress=False, callback=None) -> TuningResult:
+         rng=None, skip=0.1, saturation_limit=0.01, log_scale=True, variants=None, progress=False,
+         callback=None) -> TuningResult:
     """Tune ``gains`` of ``controller`` for the closed-loop tracking RMSE on ``stage``.
 
     Parameters
@@ -96,6 +97,10 @@ def tune(controller, gains, references, *, stage=None, method="css", max_iterati
         controller's own validation (the cost is ``inf``).
     log_scale : bool
         Search ``log10`` of the gains (all bounds must then be > 0): gains span decades.
+    variants : list of dict, optional
+        Field overrides the same gains must serve, e.g. ``[{"cemf": False}, {"cemf": True}]``
+        (seed 1 compares its two cases with identical gains): the cost is the mean RMSE over
+        every variant and reference, and a candidate must satisfy the constraints in each.
     """
     from .optimize import minimize
     from .stage import virtual_stage
@@ -124,6 +129,12 @@ def tune(controller, gains, references, *, stage=None, method="css", max_iterati
     seeds = np.random.default_rng(seed_from(rng)).integers(0, 2**63 - 1, size=len(refs))
     s = stage.sensor
 
+    variants = [{}] if variants is None else [dict(v) for v in variants]
+    for v in variants:
+        for n in v:
+            if n not in fields:
+                raise ValueError(f"variants: {type(controller).__name__} has no field {n!r}")
+
     def candidate(theta):
         values = 10.0 ** theta if log_scale else theta
         return replace(controller, **{n: float(v) for n, v in zip(names, values)})
@@ -133,7 +144,8 @@ def tune(controller, gains, references, *, stage=None, method="css", max_iterati
         for row in X:
             try:
                 c = candidate(np.asarray(row))
-                specs = [(_prepare(stage, c, r, None, None), seed) for r, seed in zip(refs, seeds)]
+                specs = [(_prepare(stage, replace(c, **var), r, None, None), seed)
+                         for var in variants for r, seed in zip(refs, seeds)]
             except (ValueError, TypeError):
                 valid.append(False)
                 continue
@@ -144,7 +156,7 @@ def tune(controller, gains, references, *, stage=None, method="css", max_iterati
             m = _core.closed_loop_batch_tracking(stage.core_params(), stage.sample_time, stage.substeps,
                                                  stage.tolerance, s.quantization, s.noise_std, s.delay, scen,
                                                  stage.rest_state(), first)
-            m = m.reshape(-1, len(refs), 3)
+            m = m.reshape(-1, len(variants) * len(refs), 3)
             rmse = m[:, :, 0].mean(axis=1)
             rmse[(m[:, :, 2] > saturation_limit).any(axis=1)] = np.inf
             out[np.flatnonzero(valid)] = rmse
