@@ -22,7 +22,7 @@ from .creep import Creep
 from .pi import PI, GeneralizedPI, RateDependentPI
 from .preisach import Preisach
 
-__all__ = ["CEMF_PARAMETERS", "FitResult", "IdentificationResult", "KINDS", "LOSSES", "default_huber_delta",
+__all__ = ["CEMF_PARAMETERS", "FitResult", "IdentificationResult", "KINDS", "LOSSES", "STRUCTURES", "default_huber_delta",
            "fit_linear", "fit_metrics", "huber_cost", "identify", "identify_cemf", "identify_mpi", "identify_pi",
            "identify_preisach", "minimize_huber"]
 
@@ -333,6 +333,16 @@ KINDS = ("pi", "gpi", "mpi", "rdpi", "preisach", "boucwen", "cemf", "boucwen-ben
 #: Kinds fitted by least squares over their linear parameters.
 _LINEAR_KINDS = ("pi", "gpi", "mpi", "rdpi", "preisach")
 
+#: ``structure`` values of :func:`identify`: the default structure, or identified with it by
+#: variable projection.
+STRUCTURES = ("fixed", "fit")
+
+#: Kinds whose structure variable projection identifies.
+_VP_KINDS = ("pi", "gpi", "mpi", "rdpi")
+
+#: Keywords :func:`identify` passes on to :func:`piezohyst.varpro.identify_vp`.
+_VP_OPTIONS = ("envelope", "bounds", "polish", "starts")
+
 #: Iterations of the population optimizer when ``max_iterations`` is not given.
 _DEFAULT_ITERATIONS = {"boucwen": 200, "cemf": 150, "boucwen-benchmark": 30}
 
@@ -344,9 +354,9 @@ def _boucwen_bounds(v, y):
     return [(0.0, 4 * gain), (1e-3 / dv, 50.0 / dv), (-50.0 / dv, 50.0 / dv), (1.0, 1.0), (0.0, 4 * gain)]
 
 
-def identify(input, output, model="mpi", *, fs=None, operators=9, levels=12, optimizer="ls", rng=None,
-             max_iterations=None, population_size=None, validate=None, progress=False, callback=None,
-             loss="squared", huber_delta=None, **options):
+def identify(input, output, model="mpi", *, fs=None, operators=9, levels=12, structure="fixed", creep=0,
+             optimizer="ls", rng=None, max_iterations=None, population_size=None, validate=None, progress=False,
+             callback=None, loss="squared", huber_delta=None, **options):
     """Identify a hysteresis model from an input/output record (free-run simulation error).
 
     One entry point for every model kind: the linear families by least squares, the
@@ -363,24 +373,39 @@ def identify(input, output, model="mpi", *, fs=None, operators=9, levels=12, opt
 
         - ``pi``, ``gpi``/``mpi``, ``rdpi``, ``preisach``: least squares over the linear
           parameters with a default structure (thresholds over half the input range; a grid
-          over the input range);
+          over the input range); with ``structure="fit"`` (not ``preisach``) the structure is
+          identified too, by variable projection (:func:`piezohyst.varpro.identify_vp`);
         - ``boucwen``: a population optimizer over all its parameters (then L-BFGS-B);
         - ``cemf``: seed 1's grey-box stage model, :func:`identify_cemf` (needs ``fs``);
         - ``boucwen-benchmark``: the Noël–Schoukens oscillator,
           :func:`piezohyst.boucwen_benchmark.identify_boucwen_benchmark` (``fs`` defaults to
           the benchmark's 750 Hz).
     fs : float, optional
-        Sample rate, Hz (needed by ``rdpi`` and ``cemf``).
+        Sample rate, Hz (needed by ``rdpi``, ``cemf`` and ``creep``).
     operators, levels : int
         Play operators (PI family) and Preisach grid size.
+    structure : {"fixed", "fit"}
+        PI family only. ``"fixed"`` (default): the default structure, weights by least squares.
+        ``"fit"``: variable projection — a population optimizer (``optimizer``, default DE)
+        over the nonlinear structure parameters (threshold spread; rising/falling envelopes
+        of ``gpi``/``mpi``; ``beta`` and ``filter_tau`` of ``rdpi``; creep time constants),
+        the weights solved exactly by bounded least squares for every candidate, the cost the
+        free-run RMSE; then a Gauss–Newton polish. Options ``envelope``, ``bounds``,
+        ``polish``, ``starts`` of :func:`piezohyst.varpro.identify_vp` are accepted then.
+    creep : int
+        PI family only: number of creep lags added to the model (needs ``fs``). Fixed
+        structure: time constants log-spaced over ``[2 Ts, T]`` (``T`` the record's duration),
+        one in the middle of each of ``creep`` equal decade bands; ``structure="fit"`` searches
+        each within its band.
     optimizer : str
         ``"ls"`` for the linear families; ``"css"``, ``"pso"``, ``"mpso"`` or ``"de"`` for the
-        others (``"ls"`` there means each kind's default: ``"de"``, or ``"css"`` for ``cemf``).
+        others and for ``structure="fit"`` (``"ls"`` there means each kind's default:
+        ``"de"``, or ``"css"`` for ``cemf``).
     rng, population_size, progress, callback
         Passed to the population optimizer (:func:`piezohyst.optimize.minimize`).
     max_iterations : int, optional
         Optimizer iterations; by default 200 (``boucwen``), 150 (``cemf``), 30
-        (``boucwen-benchmark``).
+        (``boucwen-benchmark``), 60 (``structure="fit"``).
     validate : tuple, optional
         A held-out record ``(input, output)``; its metrics are reported, it is not fitted.
     loss : {"squared", "huber"}
@@ -395,7 +420,8 @@ def identify(input, output, model="mpi", *, fs=None, operators=9, levels=12, opt
     **options
         Further keywords of :func:`identify_cemf` or of
         :func:`~piezohyst.boucwen_benchmark.identify_boucwen_benchmark` (e.g. ``bounds``,
-        ``fit_range``); refused for the other kinds.
+        ``fit_range``), or of :func:`~piezohyst.varpro.identify_vp` with ``structure="fit"``
+        (``envelope``, ``bounds``, ``polish``, ``starts``); refused otherwise.
 
     Returns
     -------
@@ -418,6 +444,26 @@ def identify(input, output, model="mpi", *, fs=None, operators=9, levels=12, opt
     if model not in KINDS:
         raise ValueError(f"model = {model!r} is unknown; expected one of {list(KINDS)}")
     loss, delta = _check_loss(loss, huber_delta)
+    if structure not in STRUCTURES:
+        raise ValueError(f"structure = {structure!r} is unknown; expected one of {list(STRUCTURES)}")
+    creep = as_int(creep, "creep")
+    if structure == "fit" and model not in _VP_KINDS:
+        raise ValueError(f"structure = 'fit' applies to model = {' / '.join(repr(k) for k in _VP_KINDS)}; "
+                         f"{model!r} has no fixed structure to fit (use structure = 'fixed')")
+    if creep and model not in _VP_KINDS:
+        raise ValueError(f"creep = {creep} applies to model = {' / '.join(repr(k) for k in _VP_KINDS)}, "
+                         f"not to {model!r}")
+    if structure == "fit":
+        unknown = sorted(set(options) - set(_VP_OPTIONS))
+        if unknown:
+            raise TypeError(f"identify() got unexpected keyword arguments {unknown} for model = {model!r}, "
+                            f"structure = 'fit' (accepted: {list(_VP_OPTIONS)})")
+        from .varpro import identify_vp
+
+        return identify_vp(input, output, model, fs=fs, operators=operators, creep=creep,
+                           optimizer="de" if optimizer == "ls" else optimizer, rng=rng, max_iterations=max_iterations,
+                           population_size=population_size, validate=validate, progress=progress, callback=callback,
+                           loss=loss, huber_delta=delta, **options)
     if options and model not in ("cemf", "boucwen-benchmark"):
         raise TypeError(f"identify() got unexpected keyword arguments {sorted(options)} for model = {model!r}")
     if max_iterations is None:
@@ -436,7 +482,7 @@ def identify(input, output, model="mpi", *, fs=None, operators=9, levels=12, opt
         raise ValueError(f"output has {y.size} samples, input has {v.size}; they must match")
     history = None
     if model in _LINEAR_KINDS:
-        fitted, method = _identify_linear(model, v, y, fs, operators, levels, loss, delta), "ls"
+        fitted, method = _identify_linear(model, v, y, fs, operators, levels, loss, delta, creep), "ls"
     else:
         fitted, method, history = _identify_boucwen(v, y, loss, delta, search)
     if loss == "huber":
@@ -450,20 +496,34 @@ def identify(input, output, model="mpi", *, fs=None, operators=9, levels=12, opt
     return IdentificationResult(fitted, train, val, method, time.perf_counter() - t0, history)
 
 
-def _identify_linear(model, v, y, fs, operators, levels, loss, delta):
+def _identify_linear(model, v, y, fs, operators, levels, loss, delta, creep=0):
     """The least-squares kinds' fitted model."""
     robust = {"loss": loss, "huber_delta": delta}
+    lags = _default_creep(v.size, fs, creep)
     if model == "pi":
-        return identify_pi(v, y, operators=operators, **robust).model
+        return identify_pi(v, y, operators=operators, creep=lags, **robust).model
     if model in ("gpi", "mpi"):
-        return identify_mpi(v, y, operators=operators, **robust).model
+        return identify_mpi(v, y, operators=operators, creep=lags, **robust).model
     if model == "preisach":
         return identify_preisach(v, y, levels=levels, **robust).model
     if fs is None:
         raise ValueError("fs is required for model = 'rdpi' (the rate needs the sample time)")
     r = _default_thresholds(v, as_int(operators, "operators", minimum=1))
-    template = RateDependentPI(r, np.zeros(r.size), 1.0 / float(fs), 1.0, 0.0)
+    template = RateDependentPI(r, np.zeros(r.size), 1.0 / float(fs), 1.0, 0.0, creep=lags)
     return fit_linear(template, v, y, **robust).model
+
+
+def _default_creep(n, fs, terms):
+    """``terms`` creep lags for a record of ``n`` samples at ``fs``: one time constant in the
+    middle (in decades) of each of ``terms`` equal bands of ``[2 Ts, n Ts]``; ``None`` for 0."""
+    if not terms:
+        return None
+    if fs is None:
+        raise ValueError(f"fs is required with creep = {terms} (the lags need the sample time)")
+    fs = as_scalar(fs, "fs", positive=True)
+    lo, hi = np.log10(2.0 / fs), np.log10(n / fs)
+    w = (hi - lo) / terms
+    return Creep(1.0 / fs, 10.0 ** (lo + w * (np.arange(terms) + 0.5)), np.zeros(terms))
 
 
 def _identify_boucwen(v, y, loss, delta, search):
@@ -608,11 +668,21 @@ def identify_cemf(voltage, position, fs, *, capacitance=1.8e-6, bounds=None, opt
         out[:, 5], out[:, 6], out[:, 7] = theta[:, 4], theta[:, 5], theta[:, 6]
         return np.ascontiguousarray(out)
 
+    def unbounded(theta):
+        # Bouc-Wen (n = 1) keeps Vh bounded for every input only if beta >= |gamma|; a model
+        # outside that may fit the record yet run away on another drive (or in an observer)
+        theta = np.atleast_2d(theta)
+        return theta[:, 5] < np.abs(theta[:, 6])
+
     def cost(theta):
-        return _core.stage_batch_rmse(rows(theta), 1.0 / fs, substeps, tolerance, u, x, float("inf"))
+        c = _core.stage_batch_rmse(rows(theta), 1.0 / fs, substeps, tolerance, u, x, float("inf"))
+        c[unbounded(theta)] = np.inf
+        return c
 
     def simulate(theta):
-        return _stage_positions(rows(theta), 1.0 / fs, substeps, tolerance, u)
+        out = _stage_positions(rows(theta), 1.0 / fs, substeps, tolerance, u)
+        out[unbounded(theta)] = np.nan
+        return out
 
     method = "css" if optimizer == "ls" else optimizer
     search = dict(method=method, rng=rng, max_iterations=max_iterations, population_size=population_size,
