@@ -166,6 +166,9 @@ class SMC:
     (seed 1's Case 2), ``False`` omits it (Case 1). ``switching="super_twisting"`` replaces
     ``Ks sat(s/phi)`` by ``k1 |s|^(1/2) sign(s) + nu``, ``nu' = k2 sign(s)`` (chattering-free).
     Units: ``kp`` 1/s², ``kv`` and ``alpha`` 1/s, ``ks`` V, ``phi`` m/s.
+    ``model_terms="measured"`` is seed 1's ``B x' + K x`` on the measured motion (positive
+    position feedback that can latch at a voltage limit when the identified stiffness asks for
+    more than the amplifier gives); ``"desired"`` evaluates them on the reference.
     The sliding dynamics ``e'' + (kv + alpha) e' + (alpha kv + kp) e = 0`` must be stable.
     """
 
@@ -179,6 +182,7 @@ class SMC:
     switching: str = "boundary_layer"
     k1: float = 0.0
     k2: float = 0.0
+    model_terms: str = "measured"
     observer: VelocityObserver = field(default_factory=lambda: VelocityObserver(300.0))
     u_min: float | None = None
     u_max: float | None = None
@@ -200,8 +204,11 @@ class SMC:
             sw = [1.0, as_scalar(self.k1, "k1", nonnegative=True), as_scalar(self.k2, "k2", nonnegative=True)]
         else:
             raise ValueError(f"switching = {self.switching!r} must be 'boundary_layer' or 'super_twisting'")
+        if self.model_terms not in ("measured", "desired"):
+            raise ValueError(f"model_terms = {self.model_terms!r} must be 'measured' or 'desired'")
         lo, hi = _domain_limits(self, stage, limits)
-        p = row[:3] + [kp, kv, alpha] + sw + self.observer.core(stage) + [1.0 if self.cemf else 0.0] + row[3:] + [lo, hi]
+        p = (row[:3] + [kp, kv, alpha] + sw + self.observer.core(stage) + [1.0 if self.cemf else 0.0] + row[3:]
+             + [1.0 if self.model_terms == "desired" else 0.0, lo, hi])
         return "smc", np.array(p), None, None
 
 

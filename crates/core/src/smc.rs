@@ -8,6 +8,15 @@
 //! boundary layer:  switching = Ks sat(s / Phi)
 //! super-twisting:  switching = k1 |s|^(1/2) sign(s) + nu,  nu' = k2 sign(s)
 //! ```
+//! **Model terms.** Seed 1 writes `B̂ x' + K̂ x` on the measured motion: that cancels the
+//! stage's stiffness by positive position feedback. When the identified `K̂` (or `V̂h`) asks
+//! for more than the amplifier gives at the stroke's end — creep raises the real static gain
+//! over time — the equivalent control alone exceeds `u_max` there, the switching gain cannot
+//! pull it back, and the loop latches at the limit (`crates/core/tests/soak.rs` shows it on
+//! set-point steps). `desired_model_terms` evaluates them on the reference instead,
+//! `B̂ x_d' + K̂ x_d` (desired compensation): the stage's own stiffness and damping then act on
+//! the error, and saturation cannot latch.
+//!
 //! On `s = 0`: `e'' + (kv + alpha) e' + (alpha kv + kp) e = 0`, stable iff
 //! `kv + alpha > 0` and `alpha kv + kp > 0` (checked). Position and velocity come from the
 //! [`VelocityObserver`]; `xi` is discretized exactly for a held `e` and, like `nu`, holds
@@ -55,6 +64,8 @@ pub struct Smc {
     pub switching: Switching,
     /// CEMF observer model (Case 2), or none (Case 1).
     pub cemf: Option<CemfModel>,
+    /// `B̂ x_d' + K̂ x_d` instead of `B̂ x' + K̂ x` (see the module notes).
+    pub desired_model_terms: bool,
     /// Position/velocity observer.
     pub observer: VelocityObserver,
     /// Output limits, V.
@@ -110,7 +121,7 @@ impl Smc {
         let ts = observer.ts;
         // xi' = -alpha xi + e with e held over a period
         let (xi_decay, xi_gain) = if alpha * ts > 1e-12 { (exp(-alpha * ts), (1.0 - exp(-alpha * ts)) / alpha) } else { (1.0, ts) };
-        Ok(Smc { m, b, k, kp, kv, alpha, switching, cemf, observer, limits, xi_decay, xi_gain })
+        Ok(Smc { m, b, k, kp, kv, alpha, switching, cemf, desired_model_terms: false, observer, limits, xi_decay, xi_gain })
     }
 }
 
@@ -135,7 +146,8 @@ impl Controller for Smc {
         let de = r.v - v;
         let xi = state[XI];
         let s = de + self.kv * e + self.kp * xi;
-        let equivalent = self.m * (r.a + self.kv * de + self.kp * e - self.alpha * self.kp * xi) + self.b * v + self.k * x + state[VH];
+        let (xm, vm) = if self.desired_model_terms { (r.x, r.v) } else { (x, v) };
+        let equivalent = self.m * (r.a + self.kv * de + self.kp * e - self.alpha * self.kp * xi) + self.b * vm + self.k * xm + state[VH];
         let switching = match self.switching {
             Switching::BoundaryLayer { gain, width } => gain * clamp(s / width, -1.0, 1.0),
             Switching::SuperTwisting { k1, .. } => k1 * sqrt(abs(s)) * sign(s) + state[NU],

@@ -12,7 +12,7 @@ use piezohyst_core::spec::Family;
 use piezohyst_core::ModelError;
 
 /// Parameter count per kind (layouts documented in `python/piezohyst/control.py`).
-pub const KINDS: [(&str, usize); 5] = [("open_loop", 6), ("pid", 9), ("smc", 20), ("absmc", 22), ("cemf_feedforward", 10)];
+pub const KINDS: [(&str, usize); 5] = [("open_loop", 6), ("pid", 9), ("smc", 21), ("absmc", 22), ("cemf_feedforward", 10)];
 
 /// An owned controller description.
 #[derive(Debug, Clone)]
@@ -77,7 +77,9 @@ fn base(kind: &str, p: &[f64]) -> Result<Base, String> {
                     x => return Err(ModelError::NotFinite("switching (0 boundary layer, 1 super-twisting)", usize::MAX, x)),
                 };
                 let model = if p[12] != 0.0 { Some(cemf(&[p[0], p[1], p[2], p[13], p[14], p[15], p[16], p[17]])?) } else { None };
-                Base::Smc(Smc::new((p[0], p[1], p[2]), p[3], p[4], p[5], switching, model, observer(p[9], p[10], p[11])?, limits)?)
+                let mut smc = Smc::new((p[0], p[1], p[2]), p[3], p[4], p[5], switching, model, observer(p[9], p[10], p[11])?, limits)?;
+                smc.desired_model_terms = p[18] != 0.0;
+                Base::Smc(smc)
             }
             "absmc" => Base::Absmc(Absmc::new(
                 p[0],
