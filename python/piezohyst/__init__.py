@@ -26,6 +26,7 @@ from .control import ABSMC, ILC, PID, SMC, CemfFeedforward, Compensated, Inverse
 from .metrics import hysteresis_percent, linearity_error, tracking_metrics
 from .tuning import TuningResult, stage_from_model, track, tune
 from .identify import FitResult, IdentificationResult, fit_linear, identify, identify_cemf, fit_metrics, identify_mpi, identify_pi, identify_preisach
+from .varpro import identify_vp
 from .flexure import A7075_YOUNGS_MODULUS, CemfCoefficients, FlexureStage, LeafSpring, seed1_stage
 from .optimize import CSS, DE, MPSO, PSO, IntermediateResult, OptimizeResult, Optimizer, minimize
 from .preisach import Preisach
@@ -64,6 +65,7 @@ __all__ = [
     "identify_mpi",
     "identify_pi",
     "identify_preisach",
+    "identify_vp",
     "load_record",
     "load_train_multisine",
     "load_yan9a_model_record",

@@ -20,7 +20,7 @@ from pathlib import Path
 __all__ = ["main"]
 
 #: Model kinds of ``piezohyst identify`` (those of :func:`piezohyst.identify`).
-_KINDS = ("pi", "gpi", "mpi", "rdpi", "preisach", "boucwen")
+_KINDS = ("pi", "gpi", "mpi", "rdpi", "preisach", "boucwen", "cemf", "boucwen-benchmark")
 _OPTIMIZERS = ("css", "pso", "mpso", "de", "ls")
 
 
@@ -198,13 +198,27 @@ def _identify_parser(sub) -> None:
             "  piezohyst identify yan9a_model_1hz.dat --model preisach --levels 10 --input 0 --output 4 \\\n"
             "      --fs 200 --train 3152:4152 --json\n"
             "  piezohyst identify bw.csv --model boucwen --optimizer de --seed 1 --iterations 80 \\\n"
-            "      --validate bw_check.csv --out bw.json --plot bw.png\n\n"
+            "      --validate bw_check.csv --out bw.json --plot bw.png\n"
+            "  piezohyst identify stage_run.csv --model cemf --input volts --output x --fs 10000 --seed 0 \\\n"
+            "      --optimizer de --iterations 30 --out stage.json\n"
+            "  piezohyst identify train_multisine.csv --model boucwen-benchmark --input u --output y --fs 750 \\\n"
+            "      --train 8192:24576 --validate 32768: --seed 0 --out bw_benchmark.json\n\n"
+            "cemf writes a stage file (kind \"stage\": the identified mechanics, Tem and CEMF constants with\n"
+            "an ideal -20..150 V amplifier at the record's sample time), which 'piezohyst stage info --stage'\n"
+            "and 'piezohyst track --stage' read; boucwen-benchmark writes its eight parameters (kind\n"
+            "\"boucwen-benchmark\", with fs and the upsampling factor); it is simulated over DATA from the\n"
+            "record's start (at rest, as the benchmark's generator), and --train / --validate ranges of DATA\n"
+            "select the samples scored. 'piezohyst simulate' reads neither file.\n\n"
             "exit status: 0 on success, 2 on bad input (one line on stderr naming the argument)."))
     i.add_argument("data", metavar="DATA", help="the record file (see the formats above)")
     i.add_argument("--model", metavar="KIND", required=True, choices=_KINDS,
                    help=f"model to identify: {', '.join(_KINDS)} (required). pi/gpi/mpi/rdpi/preisach: least "
                         "squares over the linear parameters with a default structure; boucwen: population "
-                        "optimizer over all parameters")
+                        "optimizer over all parameters; cemf: seed 1's grey-box stage model (input = voltage "
+                        "across the stack in V, output = displacement), population optimizer (default css) then "
+                        "a least-squares polish; boucwen-benchmark: the Noel-Schoukens oscillator (input = force "
+                        "in N, output = displacement in m; --fs 750 for the benchmark's data), population "
+                        "optimizer (default de) then least squares")
     i.add_argument("--input", metavar="COL", help=_column_help("input", "default: the column named 'input', "
                                                                "else the first of exactly two"))
     i.add_argument("--output", metavar="COL", help=_column_help("output (measured)", "default: the column named "
@@ -224,8 +238,8 @@ def _identify_parser(sub) -> None:
                         "--train) or a second file read with the same column options")
     i.add_argument("--optimizer", choices=_OPTIMIZERS, default="ls", metavar="NAME",
                    help="css, pso, mpso, de or ls (default: ls). Used for the parameters that are not linear "
-                        "(boucwen: all of them; 'ls' there means de); the linear families are solved exactly "
-                        "by least squares")
+                        "(boucwen, cemf, boucwen-benchmark: all of them; 'ls' there means each kind's default: "
+                        "de, css for cemf); the linear families are solved exactly by least squares")
     i.add_argument("--seed", metavar="N", type=int,
                    help="random seed of the optimizer (same seed, same result; default: fresh randomness)")
     i.add_argument("--operators", metavar="N", type=int, default=9,
@@ -233,10 +247,14 @@ def _identify_parser(sub) -> None:
                         "(default: 9)")
     i.add_argument("--levels", metavar="N", type=int, default=12,
                    help="preisach: grid levels over the input range, N(N+1)/2 cells (default: 12)")
-    i.add_argument("--iterations", metavar="N", type=int, default=200,
-                   help="optimizer iterations (populations evaluated) (default: 200)")
+    i.add_argument("--iterations", metavar="N", type=int,
+                   help="optimizer iterations (populations evaluated) (default: 200 for boucwen, 150 for cemf, "
+                        "30 for boucwen-benchmark)")
     i.add_argument("--population", metavar="N", type=int,
                    help="optimizer population size (default: max(20, 5 x number of parameters))")
+    i.add_argument("--capacitance", metavar="F", type=float,
+                   help="cemf: the stack's capacitance in farads, taken as known (default: 1.8e-6, seed 1's "
+                        "1800 nF)")
     i.add_argument("--out", metavar="FILE", default="model.json",
                    help="model file to write (JSON, with the fit report under \"fit\") (default: model.json)")
     i.add_argument("--plot", metavar="PNG", help="also write a figure: loop, fit and residual on the training data")
@@ -441,6 +459,15 @@ def _identify(args) -> None:
     _check_count(args.population, "--population", minimum=2)
     if args.seed is not None and args.seed < 0:
         raise _Fail(f"--seed = {args.seed} must be >= 0")
+    extra = {}
+    if args.capacitance is not None:
+        if args.model != "cemf":
+            raise _Fail(f"--capacitance applies to --model cemf, not to --model {args.model}")
+        if not math.isfinite(args.capacitance) or args.capacitance <= 0:
+            raise _Fail(f"--capacitance = {args.capacitance:g} must be a finite capacitance > 0 F")
+        extra["capacitance"] = args.capacitance
+    if args.model == "cemf":
+        extra["polish"] = True
     fs = _check_fs(args.fs)
     data = _existing_file(args.data, "DATA")
     train_spec = None if args.train is None else _parse_range(args.train, "--train")
@@ -479,12 +506,20 @@ def _identify(args) -> None:
                             f"the records must share the sample rate")
             val_where = {"source": str(val_file), "range": [0, val.n]}
     train = rec.trim(a, b) if (a, b) != (0, n) else rec
+    fit_input, fit_output = train.input, train.output
+    validate = None if val is None else (val.input, val.output)
+    if args.model == "boucwen-benchmark":
+        # the oscillator has a long memory: simulate DATA from its start (from rest, as the
+        # benchmark's generator) and score the ranges, rather than restart at rest inside them
+        fit_input, fit_output = rec.input, rec.output
+        extra["fit_range"] = (a, b)
+        if val_spec is not None:
+            validate = (rec.input, rec.output, (c, d))
 
-    res = identify(train.input, train.output, model=args.model, fs=train.fs, operators=args.operators,
+    res = identify(fit_input, fit_output, model=args.model, fs=train.fs, operators=args.operators,
                    levels=args.levels, optimizer=args.optimizer, rng=args.seed, max_iterations=args.iterations,
-                   population_size=args.population,
-                   validate=None if val is None else (val.input, val.output),
-                   progress=bool(args.progress or sys.stderr.isatty()))
+                   population_size=args.population, validate=validate,
+                   progress=bool(args.progress or sys.stderr.isatty()), **extra)
 
     fit = res.to_dict()
     fit["data"] = {
@@ -493,7 +528,7 @@ def _identify(args) -> None:
         "columns": dict(rec.columns),
         "fs": rec.fs,
     }
-    doc = res.model.to_dict()
+    doc = _model_document(res, args.model, train.fs)
     doc["fit"] = fit
     text = json.dumps(doc, indent=2, allow_nan=False) + "\n"
     _write_atomic(out, text, args.force, "--out")
@@ -510,7 +545,7 @@ def _identify(args) -> None:
             plt.close(fig)
 
     if args.json:
-        report = {"out": str(out), "plot": None if plot is None else str(plot), "model": res.model.kind, **fit}
+        report = {"out": str(out), "plot": None if plot is None else str(plot), "model": doc["kind"], **fit}
         print(json.dumps(report, indent=2, allow_nan=False))
         return
     print(f"{args.model} identified by {res.method} in {res.wall_time:.3g} s -> {out}")
@@ -523,6 +558,22 @@ def _identify(args) -> None:
         print(f"  {name:<11} {_pct(m['rmse_percent']):>18} {_pct(m['max_error_percent']):>14}   ({where})")
     if plot is not None:
         print(f"  figure: {plot}")
+
+
+def _model_document(res, kind, fs) -> dict:
+    """The model file's content (without the fit report): the model's own layout, a stage file
+    for ``cemf``, the oscillator's parameters for ``boucwen-benchmark``."""
+    if kind == "cemf":
+        from .stage import Amplifier, Stage
+
+        return Stage(res.model, Amplifier(), sample_time=1.0 / fs, name="identified CEMF stage").to_dict()
+    if kind == "boucwen-benchmark":
+        from .boucwen_benchmark import UPSAMPLE
+        from .model import SCHEMA_VERSION
+
+        return {"schema_version": SCHEMA_VERSION, "kind": "boucwen-benchmark", "parameters": res.model.parameters,
+                "fs": fs, "upsample": UPSAMPLE, "units": {"input": "N", "output": "m"}}
+    return res.model.to_dict()
 
 
 # --------------------------------------------------------------------------------------------
