@@ -117,3 +117,41 @@ def test_help_and_errors(files):
     assert one_line_error(run("identify", "flat.csv", "--model", "boucwen-benchmark", "--fs", 750, "--iterations",
                               "1", "--out", "flat.json", cwd=d), "y is constant")
     assert not (d / "flat.json").exists()
+
+
+def test_simulate_rows_lag_and_score_from(tmp_path):
+    """`simulate --rows A:B --lag N --score-from K` scores output[k + N] against the simulation
+    of rows A:B from sample K on, as the README's walk-through does."""
+    import numpy as np
+
+    from piezohyst import PI
+
+    v = np.sin(np.linspace(0, 12, 300)) * 2.0
+    model = PI([0.0, 0.3, 0.7], [1.0, 0.5, 0.2], 0.1)
+    model.save(tmp_path / "pi.json")
+    y = model.simulate(v[50:250])
+    out = np.zeros(300)
+    out[51:251] = y                                      # the output lags the input by one sample
+    out[51:61] += 5.0                                    # a warm-up glitch the score leaves out
+    np.savetxt(tmp_path / "rec.csv", np.c_[v, out], delimiter=",", header="v,x", comments="")
+    import json
+    import subprocess
+    import sys
+
+    def run(*args):
+        return subprocess.run([sys.executable, "-m", "piezohyst", "simulate", str(tmp_path / "pi.json"),
+                               str(tmp_path / "rec.csv"), "--input", "v", "--output", "x", *args],
+                              capture_output=True, text=True)
+
+    r = run("--rows", "50:250", "--lag", "1", "--score-from", "10", "--out", str(tmp_path / "p.csv"), "--json")
+    assert r.returncode == 0, r.stderr
+    summary = json.loads(r.stdout)
+    assert summary["error"]["max_error"] == 0.0 and summary["rows"] == [50, 250]
+    r = run("--rows", "50:250", "--lag", "1", "--out", str(tmp_path / "p.csv"), "--force", "--json")
+    assert json.loads(r.stdout)["error"]["max_error"] == 5.0          # the glitch is scored now
+    r = run("--rows", "50:300", "--lag", "1", "--out", str(tmp_path / "p.csv"), "--force")
+    assert r.returncode == 2 and "--lag = 1: output[300] is beyond the record's 300 samples" in r.stderr
+    r = run("--rows", "250:50", "--out", str(tmp_path / "p.csv"), "--force")
+    assert r.returncode == 2 and "--rows = '250:50'" in r.stderr
+    r = run("--rows", "0:100", "--score-from", "100", "--out", str(tmp_path / "p.csv"), "--force")
+    assert r.returncode == 2 and "--score-from = 100" in r.stderr

@@ -61,6 +61,7 @@ def _parser() -> argparse.ArgumentParser:
     _identify_parser(sub)
     _simulate_parser(sub)
     _track_parser(sub)
+    _export_c_parser(sub)
     return p
 
 
@@ -247,6 +248,12 @@ def _identify_parser(sub) -> None:
                         "(default: 9)")
     i.add_argument("--levels", metavar="N", type=int, default=12,
                    help="preisach: grid levels over the input range, N(N+1)/2 cells (default: 12)")
+    i.add_argument("--structure", choices=("fixed", "fit"), default="fixed",
+                   help="pi/gpi/mpi/rdpi: 'fixed' (default) solves the weights for the default structure; "
+                        "'fit' also identifies the structure (threshold spread, envelopes, rate terms, creep "
+                        "time constants) by variable projection: --optimizer over them, least squares inside")
+    i.add_argument("--creep", metavar="M", type=int, default=0,
+                   help="pi/gpi/mpi/rdpi: add M creep lags (default 0)")
     i.add_argument("--iterations", metavar="N", type=int,
                    help="optimizer iterations (populations evaluated) (default: 200 for boucwen, 150 for cemf, "
                         "30 for boucwen-benchmark)")
@@ -280,7 +287,9 @@ def _simulate_parser(sub) -> None:
             "examples:\n"
             "  piezohyst simulate mpi.json sweep.csv --input voltage --fs 1000 --out predicted.csv\n"
             "  piezohyst simulate mpi.json run.csv --input v --output x --time t --out p.csv --json\n"
-            "  piezohyst simulate mpi.json sweep.csv --input 0 > predicted.csv\n\n"
+            "  piezohyst simulate mpi.json sweep.csv --input 0 > predicted.csv\n"
+            "  piezohyst simulate mpi.json test.dat --input 0 --output 4 --fs 200 --rows 4652:6052 --lag 1 \\\n"
+            "      --score-from 400 --out p.csv\n\n"
             "exit status: 0 on success, 2 on bad input (one line on stderr naming the argument)."))
     s.add_argument("model", metavar="MODEL.json", help="the model file")
     s.add_argument("input_file", metavar="INPUT", help="the file holding the input signal (see the formats above)")
@@ -298,6 +307,14 @@ def _simulate_parser(sub) -> None:
                                                  "to the CSV")
     s.add_argument("--dataset", metavar="NAME", help="NPZ/MAT/HDF5: a 2-D matrix (rows = samples) whose columns "
                                                      "integer COLs address")
+    s.add_argument("--rows", metavar="A:B", help="simulate only samples A (inclusive) to B (exclusive) of INPUT, "
+                                                 "from the relaxed state (default: all)")
+    s.add_argument("--lag", metavar="N", type=int, default=0,
+                   help="the --output column lags the input by N samples (a sensor delay): compare "
+                        "output[k + N] with the simulation at k (default 0)")
+    s.add_argument("--score-from", metavar="K", type=int, default=0,
+                   help="leave the first K simulated samples out of the comparison with --output (the "
+                        "model's warm-up from the relaxed state; default 0)")
     s.add_argument("--out", metavar="FILE", default="-", help="CSV file to write (default: '-', standard output)")
     s.add_argument("--force", action="store_true", help="overwrite an existing --out file")
     s.add_argument("--json", action="store_true",
@@ -516,6 +533,14 @@ def _identify(args) -> None:
         if val_spec is not None:
             validate = (rec.input, rec.output, (c, d))
 
+    if (args.structure == "fit" or args.creep) and args.model not in ("pi", "gpi", "mpi", "rdpi"):
+        raise _Fail(f"--structure fit / --creep apply to --model pi, gpi, mpi or rdpi, not {args.model}")
+    if args.creep < 0:
+        raise _Fail(f"--creep = {args.creep} must be >= 0")
+    if args.structure == "fit":
+        extra["structure"] = "fit"
+    if args.creep:
+        extra["creep"] = args.creep
     res = identify(fit_input, fit_output, model=args.model, fs=train.fs, operators=args.operators,
                    levels=args.levels, optimizer=args.optimizer, rng=args.seed, max_iterations=args.iterations,
                    population_size=args.population, validate=validate,
@@ -696,6 +721,23 @@ def _simulate(args) -> None:
     else:
         v, t, fs_time, columns = _read_input(input_path, _column(args.input), _column(args.time), args.dataset)
         fs_data = fs if fs is not None else fs_time
+    n_all = v.size
+    a, b = _parse_range(args.rows, "--rows") if args.rows else (None, None)
+    a = 0 if a is None else a
+    b = n_all if b is None else b
+    if not 0 <= a < b <= n_all:
+        raise _Fail(f"--rows = '{args.rows}' must lie within the record's {n_all} samples and not be empty")
+    if args.lag < 0:
+        raise _Fail(f"--lag = {args.lag} must be >= 0")
+    if measured is not None:
+        if b + args.lag > n_all:
+            raise _Fail(f"--lag = {args.lag}: output[{b - 1 + args.lag}] is beyond the record's {n_all} samples; "
+                        f"end --rows earlier")
+        measured = measured[a + args.lag:b + args.lag]
+    v = v[a:b]
+    t = None if t is None else t[a:b]
+    if not 0 <= args.score_from < v.size:
+        raise _Fail(f"--score-from = {args.score_from} must be >= 0 and below the {v.size} simulated samples")
     ts = _model_ts(model)
     if ts is not None and fs_data is not None and abs(fs_data * ts - 1.0) > 1e-6:
         name = "--fs" if args.fs is not None else "--time"
@@ -736,7 +778,8 @@ def _simulate(args) -> None:
         "wall_time_s": wall,
         "input": stats(v),
         "output": stats(y),
-        "error": None if measured is None else fit_metrics(y, measured),
+        "rows": [a, b], "lag": args.lag, "score_from": args.score_from,
+        "error": None if measured is None else fit_metrics(y[args.score_from:], measured[args.score_from:]),
     }
     if args.json:
         print(json.dumps(summary, indent=2, allow_nan=False))
@@ -745,7 +788,85 @@ def _simulate(args) -> None:
     print(f"  output {summary['output']['min']:.6g} .. {summary['output']['max']:.6g}")
     if measured is not None:
         e = summary["error"]
-        print(f"  vs measured: RMSE {_pct(e['rmse_percent'])} of range, max error {_pct(e['max_error_percent'])}")
+        scored = f" (samples {a + args.score_from}:{b}" + (f", output lagged {args.lag}" if args.lag else "") + ")"
+        print(f"  vs measured: RMSE {_pct(e['rmse_percent'])} of range, max error {_pct(e['max_error_percent'])}{scored}")
+
+
+# --------------------------------------------------------------------------------------------
+# piezohyst export-c
+
+
+def _export_c_parser(sub) -> None:
+    e = sub.add_parser(
+        "export-c", formatter_class=argparse.RawDescriptionHelpFormatter,
+        help="write C initializers of a model (and controller) and an example loop for the C library",
+        description=(
+            "Write the model file's parameters as a C initializer (piezohyst_model.h/.c) and, when given, the\n"
+            "controller file's (piezohyst_controller.h/.c; written by piezohyst.export_c.save_controller), a copy\n"
+            "of piezohyst.h and example.c: a minimal real-time loop that compiles with cc against the C library\n"
+            "(crates/capi: `cargo build --release -p piezohyst-capi` gives target/release/libpiezohyst.a). The\n"
+            "C library runs the same code as Python: the exported objects give the same numbers, bit for bit.\n"
+            "Without a controller the example runs the model's exact inverse (inverse feedforward); with one,\n"
+            "it closes the loop around the model. A controller behind an inverse must use MODEL's inverse."),
+        epilog=("examples:\n"
+                "  piezohyst export-c mpi.json --out c/\n"
+                "  piezohyst export-c mpi.json absmc.json --out c/ --force\n\n"
+                "exit status: 0 on success, 2 on bad input (one line on stderr naming the argument)."))
+    e.add_argument("model", metavar="MODEL.json", help="the model file (piezohyst identify, HysteresisModel.save)")
+    e.add_argument("controller", metavar="CONTROLLER.json", nargs="?",
+                   help="a controller file (piezohyst.export_c.save_controller)")
+    e.add_argument("--out", metavar="DIR", required=True, help="output directory (created if missing)")
+    e.add_argument("--force", action="store_true", help="overwrite existing files in DIR")
+    e.add_argument("--input-range", metavar=("LO", "HI"), nargs=2, type=float,
+                   help="input range the example drives the model over (default: the model's own range, e.g. an "
+                        "MPI input_range, else [0, 2 max threshold] for PI models, else [-1, 1])")
+    e.add_argument("--steps", metavar="N", type=int, help="samples the example runs (default: 3 reference periods)")
+    e.add_argument("--json", action="store_true", help="print the written files and the build command as JSON")
+    e.add_argument("--debug", dest="sub_debug", action="store_true", help="show a traceback on errors")
+
+
+def _export_c(args) -> None:
+    from . import export_c as X
+
+    model_path = _existing_file(args.model, "MODEL")
+    model = _read_model(model_path)
+    controller = None
+    if args.controller is not None:
+        cpath = _existing_file(args.controller, "CONTROLLER")
+        try:
+            controller = X.load_controller(cpath)
+        except (ValueError, FileNotFoundError) as e:
+            raise _Fail(f"CONTROLLER = '{cpath}': {e}") from None
+    _check_count(args.steps, "--steps")
+    if args.input_range is not None:
+        lo, hi = args.input_range
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+            raise _Fail(f"--input-range = {lo:g} {hi:g} must be finite with LO < HI")
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise _Fail(f"--out = '{out}' exists and is not a directory")
+    if not out.exists() and not (out.parent if str(out.parent) else Path(".")).is_dir():
+        raise _Fail(f"--out = '{out}': directory '{out.parent}' does not exist")
+    source = model_path.name + (f" and {Path(args.controller).name}" if controller is not None else "")
+    try:
+        written = X.export_c(model, out, controller=controller, force=args.force, source=source,
+                             input_range=args.input_range, steps=args.steps)
+    except FileExistsError as e:
+        raise _Fail(str(e)) from None
+    except ValueError as e:
+        raise _Fail(f"{'CONTROLLER' if controller is not None else 'MODEL'}: {e}") from None
+    lib = X.library_path()
+    sources = "example.c piezohyst_model.c" + (" piezohyst_controller.c" if controller is not None else "")
+    build = (f"cc -std=c99 -O2 -ffp-contract=off -I{out} " + " ".join(str(out / s) for s in sources.split())
+             + f" {lib if lib else 'path/to/libpiezohyst.a'} {X.LINK_LIBS} -o {out / 'example'}")
+    if args.json:
+        print(json.dumps({"out": str(out), "files": [str(p) for p in written], "build": build,
+                          "library": None if lib is None else str(lib)}, indent=2))
+        return
+    print(f"wrote {len(written)} files to {out}: {', '.join(p.name for p in written)}")
+    if lib is None:
+        print("  build the library first: cargo build --release -p piezohyst-capi")
+    print(f"  build the example: {build}")
 
 
 # --------------------------------------------------------------------------------------------
@@ -771,7 +892,7 @@ def _stage_info(args) -> None:
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
     debug = args.debug or getattr(args, "sub_debug", False)
-    prog = f"piezohyst {args.command}" if args.command in ("identify", "simulate", "track") else "piezohyst"
+    prog = f"piezohyst {args.command}" if args.command in ("identify", "simulate", "track", "export-c") else "piezohyst"
     try:
         if args.command == "stage":
             _stage_info(args)
@@ -788,6 +909,8 @@ def main(argv=None) -> int:
             _simulate(args)
         elif args.command == "track":
             _track(args)
+        elif args.command == "export-c":
+            _export_c(args)
         return 0
     except KeyboardInterrupt:
         if debug:
