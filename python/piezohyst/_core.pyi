@@ -114,6 +114,17 @@ def closed_loop_batch_tracking(
     """``(S, 3)`` ``[rmse, max_error, saturated_fraction]`` of many scenarios, recording no
     signals (GIL released, rayon)."""
 
+def controller_initial_state(controller: ControllerSpec, y0: float) -> Array1:
+    """The controller's state before its first step, given the first measured position ``y0``."""
+
+def controller_steps(
+    controller: ControllerSpec, reference: Array1, velocity: Array1, acceleration: Array1, measured: Array1,
+    state: Array1,
+) -> Array1:
+    """Commands of the controller stepped on given inputs without a plant (as a real-time loop
+    or the C library runs it) from ``state`` (updated in place); empty ``velocity`` /
+    ``acceleration`` stand for zeros."""
+
 def stage_batch_rmse(
     params: Array2, ts: float, substeps: int, tolerance: float, command: Array1, target: Array1,
     invalid_cost: float | None = None,

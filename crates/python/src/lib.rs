@@ -12,6 +12,7 @@ mod boucwen_benchmark;
 mod control;
 mod models;
 mod plant;
+mod steps;
 mod util;
 
 #[pymodule]
@@ -23,5 +24,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     models::register(m)?;
     boucwen_benchmark::register(m)?;
     plant::register(m)?;
+    steps::register(m)?;
     Ok(())
 }

@@ -1,0 +1,86 @@
+//! A controller stepped on given inputs, without a plant: what a real-time loop (or the C
+//! ABI, `crates/capi`) does with the same controller, so Python can produce the reference
+//! outputs the C test replays (`make test-c`).
+use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1, PyReadwriteArray1};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+
+use crate::control::with_controller;
+use crate::plant::{controller_spec, ControllerArg};
+use crate::util::{check_finite, slice};
+
+fn state_of<'a>(state: &'a mut PyReadwriteArray1<'_, f64>, want: usize) -> PyResult<&'a mut [f64]> {
+    let s = state.as_slice_mut().map_err(|_| PyValueError::new_err("state must be a contiguous float64 array"))?;
+    if s.len() != want {
+        return Err(PyValueError::new_err(format!("state has length {}, expected {want} for this controller", s.len())));
+    }
+    Ok(s)
+}
+
+/// The controller's state before its first step, given the first measurement `y0`.
+#[pyfunction]
+fn controller_initial_state<'py>(py: Python<'py>, controller: ControllerArg<'py>, y0: f64) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    if !y0.is_finite() {
+        return Err(PyValueError::new_err(format!("y0 = {y0} is not finite")));
+    }
+    let spec = controller_spec(&controller)?;
+    let st = with_controller(&spec, |c| {
+        let mut st = vec![0.0; c.state_len()];
+        c.reset(&mut st, y0);
+        st
+    })
+    .map_err(PyValueError::new_err)?;
+    Ok(st.into_pyarray(py))
+}
+
+/// Step the controller from `state` (updated in place) on the reference `(reference,
+/// velocity, acceleration)` and the `measured` positions; returns the commands. Empty
+/// `velocity` / `acceleration` stand for zeros.
+#[pyfunction]
+fn controller_steps<'py>(
+    py: Python<'py>,
+    controller: ControllerArg<'py>,
+    reference: PyReadonlyArray1<'py, f64>,
+    velocity: PyReadonlyArray1<'py, f64>,
+    acceleration: PyReadonlyArray1<'py, f64>,
+    measured: PyReadonlyArray1<'py, f64>,
+    mut state: PyReadwriteArray1<'py, f64>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let spec = controller_spec(&controller)?;
+    let (r, v, a, y) = (slice(&reference, "reference")?, slice(&velocity, "velocity")?, slice(&acceleration, "acceleration")?, slice(&measured, "measured")?);
+    for (name, x) in [("reference", r), ("velocity", v), ("acceleration", a), ("measured", y)] {
+        check_finite(name, x)?;
+    }
+    let n = r.len();
+    if y.len() != n || (!v.is_empty() && v.len() != n) || (!a.is_empty() && a.len() != n) {
+        return Err(PyValueError::new_err(format!(
+            "measured must be as long as the reference and velocity/acceleration empty or as long, got reference {n}, \
+             velocity {}, acceleration {}, measured {}",
+            v.len(),
+            a.len(),
+            y.len()
+        )));
+    }
+    let mut u = vec![0.0; n];
+    let run = with_controller(&spec, |c| -> PyResult<()> {
+        let st = state_of(&mut state, c.state_len())?;
+        let pick = |s: &[f64], k: usize| if s.is_empty() { 0.0 } else { s[k] };
+        py.detach(|| {
+            for k in 0..n {
+                let rk = piezohyst_core::control::Reference { x: r[k], v: pick(v, k), a: pick(a, k) };
+                u[k] = c.step(st, &rk, y[k]).u;
+            }
+        });
+        Ok(())
+    })
+    .map_err(PyValueError::new_err)?;
+    run?;
+    Ok(u.into_pyarray(py))
+}
+
+/// Add this module's functions to the extension module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(controller_initial_state, m)?)?;
+    m.add_function(wrap_pyfunction!(controller_steps, m)?)?;
+    Ok(())
+}
