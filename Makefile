@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 RUST_SOURCES := $(shell find crates -name '*.rs' -o -name 'Cargo.toml') Cargo.toml
 BUILT  := $(VENV)/.built
 
-.PHONY: demo test test-rust test-python bench clean
+.PHONY: demo test test-rust test-python test-c bench bench-c clean
 
 $(BIN)/python:
 	$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "Python >= 3.11 is required"'
@@ -21,7 +21,7 @@ $(BUILT): $(BIN)/python $(RUST_SOURCES) pyproject.toml
 demo: $(BUILT)
 	$(BIN)/python -m piezohyst demo --force   # regenerates ./piezohyst-report
 
-test: test-rust test-python
+test: test-rust test-python test-c
 
 test-rust:
 	cargo build -p piezohyst-core            # no_std: the core without its std feature
@@ -30,10 +30,32 @@ test-rust:
 test-python: $(BUILT)
 	$(BIN)/python -m pytest
 
+# The C library (crates/capi): static + shared library, its Rust tests (counting allocator,
+# fuzz, header freshness), shared vectors Python generates and C replays, bad input from C.
+CC       ?= cc
+C_DIR    := target/c-test
+C_FLAGS  := -std=c99 -O2 -Wall -Wextra -Werror -pedantic -ffp-contract=off -Icrates/capi/include
+C_LIBS   := -lgcc_s -lutil -lrt -lpthread -lm -ldl -lc
+CAPI_LIB := target/release/libpiezohyst.a
+
+test-c: $(BUILT)
+	cargo build --release -p piezohyst-capi
+	cargo test -p piezohyst-capi
+	mkdir -p $(C_DIR)
+	$(BIN)/python tests/c/gen_vectors.py $(C_DIR)/vectors.txt
+	$(CC) $(C_FLAGS) tests/c/replay_vectors.c $(CAPI_LIB) $(C_LIBS) -o $(C_DIR)/replay_vectors
+	$(CC) $(C_FLAGS) tests/c/bad_input.c -Ltarget/release -lpiezohyst -Wl,-rpath,$(abspath target/release) -lm -o $(C_DIR)/bad_input
+	$(C_DIR)/replay_vectors $(C_DIR)/vectors.txt
+	$(C_DIR)/bad_input
+
+bench-c: $(BUILT)
+	$(BIN)/python bench/c_step.py
+
 bench: $(BUILT)
 	$(BIN)/python bench/pi_batch.py
 	$(BIN)/python bench/closed_loop.py
 	$(BIN)/python bench/identify_mpi.py
+	$(BIN)/python bench/c_step.py
 	$(BIN)/python bench/report.py
 
 clean:
