@@ -7,7 +7,7 @@
 //! amplifier output at the end of the period, `x_k`, the reading, and the controller terms.
 use crate::control::{Controller, Reference, MAX_TERMS};
 use crate::sensor::{Sensor, SensorState};
-use crate::stage::{Stage, StageState};
+use crate::stage::{Stage, StageState, MAX_CREEP};
 
 /// Where a run writes its signals; every slice has the run's length (`terms`: the
 /// controller's `term_names().len()` values per sample, row-major).
@@ -24,6 +24,55 @@ pub struct Record<'a> {
     pub terms: &'a mut [f64],
 }
 
+/// What a run hands its [`Recorder`] at each sample.
+#[derive(Debug, Clone, Copy)]
+pub struct Sample<'a> {
+    /// Reference position, m.
+    pub reference: f64,
+    /// Voltage command, V.
+    pub command: f64,
+    /// Amplifier output at the end of the period, V.
+    pub voltage: f64,
+    /// True position at the sample, m.
+    pub position: f64,
+    /// Sensor reading the controller used, m.
+    pub measured: f64,
+    /// The controller's terms (its `term_names().len()` first values are meaningful).
+    pub terms: &'a [f64; MAX_TERMS],
+}
+
+/// Takes a run's samples as they come (see [`run_recorder`]).
+pub trait Recorder {
+    /// Samples it can take; the run stops there.
+    fn capacity(&self) -> usize;
+    /// Sample `k`; called for `k = 0, 1, ...` in order, once each, and only for
+    /// `k < capacity()` (implementations may rely on it).
+    fn record(&mut self, k: usize, sample: &Sample<'_>);
+}
+
+/// [`Record`] with the controller's term count.
+struct RecordTerms<'r, 'a> {
+    rec: &'r mut Record<'a>,
+    width: usize,
+    len: usize,
+}
+
+impl Recorder for RecordTerms<'_, '_> {
+    #[inline(always)]
+    fn capacity(&self) -> usize {
+        self.len
+    }
+    #[inline(always)]
+    fn record(&mut self, k: usize, s: &Sample<'_>) {
+        let w = self.width;
+        self.rec.command[k] = s.command;
+        self.rec.voltage[k] = s.voltage;
+        self.rec.position[k] = s.position;
+        self.rec.measured[k] = s.measured;
+        self.rec.terms[k * w..(k + 1) * w].copy_from_slice(&s.terms[..w]);
+    }
+}
+
 /// Run a whole reference. `reference`, `velocity`, `acceleration` are the desired signals
 /// per sample; an empty `velocity` or `acceleration` means zeros (for controllers that do
 /// not use them). Stops at the shortest of the other slices.
@@ -38,27 +87,99 @@ pub fn run<C: Controller + ?Sized>(
     reference: &[f64],
     velocity: &[f64],
     acceleration: &[f64],
-    rec: Record<'_>,
+    mut rec: Record<'_>,
 ) {
-    let len_or_any = |s: &[f64]| if s.is_empty() { usize::MAX } else { s.len() };
-    let n = reference.len().min(len_or_any(velocity)).min(len_or_any(acceleration)).min(rec.command.len());
     let width = controller.term_names().len().min(MAX_TERMS);
-    let n = n.min(rec.terms.len() / width.max(1));
-    for k in 0..n {
+    let len = [rec.command.len(), rec.voltage.len(), rec.position.len(), rec.measured.len()]
+        .into_iter()
+        .min()
+        .unwrap_or(0)
+        .min(rec.terms.len() / width.max(1));
+    let mut sink = RecordTerms { rec: &mut rec, width, len };
+    run_recorder(stage, stage_state, sensor, sensor_state, controller, controller_state, reference, velocity, acceleration, &mut sink);
+}
+
+/// [`run`] handing each sample to `recorder`; returns the number of samples run (the
+/// shortest of the signals and the recorder's capacity). Exactly the same arithmetic as
+/// [`run`], whatever the recorder keeps.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub fn run_recorder<C: Controller + ?Sized, R: Recorder>(
+    stage: &Stage,
+    stage_state: &mut StageState,
+    sensor: &Sensor,
+    sensor_state: &mut SensorState,
+    controller: &C,
+    controller_state: &mut [f64],
+    reference: &[f64],
+    velocity: &[f64],
+    acceleration: &[f64],
+    recorder: &mut R,
+) -> usize {
+    let len_or_any = |s: &[f64]| if s.is_empty() { usize::MAX } else { s.len() };
+    let n = reference.len().min(len_or_any(velocity)).min(len_or_any(acceleration)).min(recorder.capacity());
+    // every signal cut to the run's length (empty derivatives stay empty: zeros)
+    fn cut(s: &[f64], n: usize) -> &[f64] {
+        if s.is_empty() {
+            s
+        } else {
+            &s[..n]
+        }
+    }
+    let (r, v, a) = (&reference[..n], cut(velocity, n), cut(acceleration, n));
+    let args = (stage, stage_state, sensor, sensor_state, controller, controller_state);
+    // one copy of the loop per creep-lag count, so the stage's creep loops unroll, and for
+    // the typical stage and sensor one whose configuration checks fold away
+    macro_rules! dispatch {
+        ($t:literal) => {
+            match stage.params.creep_terms {
+                0 => run_n::<C, R, 0, $t>(args, r, v, a, recorder),
+                1 => run_n::<C, R, 1, $t>(args, r, v, a, recorder),
+                2 => run_n::<C, R, 2, $t>(args, r, v, a, recorder),
+                3 => run_n::<C, R, 3, $t>(args, r, v, a, recorder),
+                4 => run_n::<C, R, 4, $t>(args, r, v, a, recorder),
+                5 => run_n::<C, R, 5, $t>(args, r, v, a, recorder),
+                6 => run_n::<C, R, 6, $t>(args, r, v, a, recorder),
+                7 => run_n::<C, R, 7, $t>(args, r, v, a, recorder),
+                _ => run_n::<C, R, MAX_CREEP, $t>(args, r, v, a, recorder),
+            }
+        };
+    }
+    if stage.is_typical() && sensor.is_typical() {
+        dispatch!(true)
+    } else {
+        dispatch!(false)
+    }
+    n
+}
+
+type LoopArgs<'s, C> = (&'s Stage, &'s mut StageState, &'s Sensor, &'s mut SensorState, &'s C, &'s mut [f64]);
+
+#[inline(always)]
+fn run_n<C: Controller + ?Sized, R: Recorder, const NC: usize, const T: bool>(
+    (stage, stage_state, sensor, sensor_state, controller, controller_state): LoopArgs<'_, C>,
+    reference: &[f64],
+    velocity: &[f64],
+    acceleration: &[f64],
+    recorder: &mut R,
+) {
+    // the creep voltage is carried from period to period (the same sum each period starts
+    // with; see Stage::advance_from)
+    let mut vcr = stage.creep_voltage::<NC>(stage_state);
+    for (k, &xr) in reference.iter().enumerate() {
         let x = stage_state.x;
-        let y = sensor.read(sensor_state, x);
+        let y = sensor.read_t::<T>(sensor_state, x);
         let r = Reference {
-            x: reference[k],
+            x: xr,
             v: if velocity.is_empty() { 0.0 } else { velocity[k] },
             a: if acceleration.is_empty() { 0.0 } else { acceleration[k] },
         };
         let out = controller.step(controller_state, &r, y);
-        stage.advance(stage_state, out.u);
-        rec.command[k] = out.u;
-        rec.voltage[k] = stage_state.va;
-        rec.position[k] = x;
-        rec.measured[k] = y;
-        rec.terms[k * width..(k + 1) * width].copy_from_slice(&out.terms[..width]);
+        vcr = stage.advance_from::<NC, T>(stage_state, out.u, vcr);
+        recorder.record(
+            k,
+            &Sample { reference: xr, command: out.u, voltage: stage_state.va, position: x, measured: y, terms: &out.terms },
+        );
     }
 }
 
@@ -117,4 +238,126 @@ pub fn run_tracking<C: Controller + ?Sized>(
         t.max_error = f64::INFINITY;
     }
     t
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use crate::control::{Limits, Pid};
+    use std::vec;
+    use std::vec::Vec;
+    use crate::stage::{HysteresisDrive, StageParams};
+
+    fn params(creep_terms: usize, drive: HysteresisDrive) -> StageParams {
+        let mut taus = [1.0; MAX_CREEP];
+        let mut weights = [0.0; MAX_CREEP];
+        for j in 0..creep_terms {
+            taus[j] = 10f64.powi(j as i32 - 2);
+            weights[j] = 0.015;
+        }
+        let voltage = drive == HysteresisDrive::Voltage;
+        StageParams {
+            mass: 0.0714,
+            damping: 137.3,
+            stiffness: 7.333e7,
+            tem: 10.5,
+            capacitance: 1.8e-6,
+            hyst_alpha: if voltage { 0.2 } else { 1.25e5 },
+            hyst_beta: if voltage { 0.01 } else { 8000.0 },
+            hyst_gamma: if voltage { 0.004 } else { 3000.0 },
+            hyst_drive: drive,
+            electrostriction: 3.3e-4,
+            creep_taus: taus,
+            creep_weights: weights,
+            creep_terms,
+            amp_min: -20.0,
+            amp_max: 150.0,
+            amp_bandwidth: 3000.0,
+            amp_slew: 1.4e5,
+        }
+    }
+
+    /// The engine's loop (one copy per creep count and configuration class, the creep voltage
+    /// carried from period to period) gives the same bits as stepping sensor, controller and
+    /// `Stage::advance` by hand. With the unquantized sensor the loop takes its general copy
+    /// while `advance` takes the typical stage's: the two agree too.
+    #[test]
+    fn run_matches_stepping_by_hand() {
+        let ts = 1e-4;
+        let n = 3000;
+        // a sine with steps on it: the steps make the stage refine its sub-steps
+        let r: Vec<f64> = (0..n)
+            .map(|k| {
+                let t = k as f64 * ts;
+                8e-6 + 6e-6 * libm::sin(2.0 * core::f64::consts::PI * 20.0 * t) + if k % 700 < 350 { 2e-6 } else { 0.0 }
+            })
+            .collect();
+        let pid = Pid::new(1e6, 5e9, 0.0, 1e-4, ts, 7.333e7 / 10.5, 0.0, Limits::new(-20.0, 150.0).unwrap()).unwrap();
+        for creep_terms in 0..=MAX_CREEP {
+            for (drive, substeps, tolerance, sensor) in [
+                (HysteresisDrive::Charge, 1, 0.05, (1e-8, 3e-9, 1)),
+                (HysteresisDrive::Charge, 1, 0.05, (0.0, 3e-9, 2)),
+                (HysteresisDrive::Charge, 3, 0.01, (1e-8, 3e-9, 1)),
+                (HysteresisDrive::Charge, 1, f64::INFINITY, (1e-8, 3e-9, 1)),
+                (HysteresisDrive::Voltage, 2, 0.05, (1e-8, 3e-9, 0)),
+            ] {
+                let stage = Stage::new(params(creep_terms, drive), ts, substeps, tolerance).unwrap();
+                let sensor = Sensor::new(sensor.0, sensor.1, sensor.2).unwrap();
+                let mut init = StageState::ZERO;
+                init.creep[..creep_terms].iter_mut().enumerate().for_each(|(j, w)| *w = 10.0 + j as f64);
+                let (mut c, mut va, mut x, mut y, mut terms) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; 5 * n]);
+                let mut st = init;
+                let mut sst = sensor.state(st.x, 9);
+                let mut cst = [0.0; 3];
+                pid.reset(&mut cst, st.x);
+                let rec = Record { command: &mut c, voltage: &mut va, position: &mut x, measured: &mut y, terms: &mut terms };
+                run(&stage, &mut st, &sensor, &mut sst, &pid, &mut cst, &r, &[], &[], rec);
+
+                let mut hand = init;
+                let mut hsst = sensor.state(hand.x, 9);
+                let mut hcst = [0.0; 3];
+                pid.reset(&mut hcst, hand.x);
+                for k in 0..n {
+                    let xk = hand.x;
+                    let yk = sensor.read(&mut hsst, xk);
+                    let out = pid.step(&mut hcst, &Reference { x: r[k], v: 0.0, a: 0.0 }, yk);
+                    stage.advance(&mut hand, out.u);
+                    let at = (creep_terms, substeps, k);
+                    assert_eq!(x[k].to_bits(), xk.to_bits(), "{at:?}");
+                    assert_eq!(y[k].to_bits(), yk.to_bits(), "{at:?}");
+                    assert_eq!(c[k].to_bits(), out.u.to_bits(), "{at:?}");
+                    assert_eq!(va[k].to_bits(), hand.va.to_bits(), "{at:?}");
+                    for t in 0..5 {
+                        assert_eq!(terms[5 * k + t].to_bits(), out.terms[t].to_bits(), "{at:?}");
+                    }
+                }
+                assert_eq!(st.to_array().map(f64::to_bits), hand.to_array().map(f64::to_bits));
+            }
+        }
+    }
+
+    /// A recorder with less room than the reference stops the run there.
+    #[test]
+    fn run_stops_at_the_recorder_capacity() {
+        struct Count(usize, usize);
+        impl Recorder for Count {
+            fn capacity(&self) -> usize {
+                self.0
+            }
+            fn record(&mut self, k: usize, _: &Sample<'_>) {
+                assert_eq!(k, self.1);
+                self.1 += 1;
+            }
+        }
+        let stage = Stage::new(params(5, HysteresisDrive::Charge), 1e-4, 1, 0.05).unwrap();
+        let sensor = Sensor::new(0.0, 0.0, 0).unwrap();
+        let pid = Pid::new(1e6, 5e9, 0.0, 1e-4, 1e-4, 0.0, 0.0, Limits::new(-20.0, 150.0).unwrap()).unwrap();
+        let mut st = StageState::ZERO;
+        let mut sst = sensor.state(0.0, 1);
+        let mut cst = [0.0; 3];
+        let mut count = Count(7, 0);
+        let done = run_recorder(&stage, &mut st, &sensor, &mut sst, &pid, &mut cst, &[1e-6; 20], &[], &[], &mut count);
+        assert_eq!((done, count.1), (7, 7));
+    }
 }

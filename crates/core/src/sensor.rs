@@ -18,12 +18,45 @@ pub struct Sensor {
     inv_quantization: f64,
 }
 
+/// Length of the delay line: a power of two above `MAX_DELAY` (indices wrap by masking).
+const RING: usize = 32;
+const _: () = assert!(RING.is_power_of_two() && RING > MAX_DELAY);
+
 /// Sensor state: the delay line and the noise generator.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SensorState {
-    line: [f64; MAX_DELAY + 1],
+    line: [f64; RING],
     head: usize,
     rng: Rng,
+    /// The second deviate of the last polar draw, if unused.
+    spare: Option<f64>,
+}
+
+impl SensorState {
+    /// Standard normal deviate: [`Rng::normal`]'s Marsaglia polar method on the same
+    /// uniforms, written here so the sensor's hot path inlines the cheap half (every other
+    /// call returns the spare). The same stream as `Rng::normal` for the same seed.
+    #[inline(always)]
+    fn normal(&mut self) -> f64 {
+        match self.spare.take() {
+            Some(z) => z,
+            None => self.normal_pair(),
+        }
+    }
+
+    #[inline(never)]
+    fn normal_pair(&mut self) -> f64 {
+        loop {
+            let u = 2.0 * self.rng.uniform() - 1.0;
+            let v = 2.0 * self.rng.uniform() - 1.0;
+            let s = u * u + v * v;
+            if s > 0.0 && s < 1.0 {
+                let m = libm::sqrt(-2.0 * libm::log(s) / s);
+                self.spare = Some(v * m);
+                return u * m;
+            }
+        }
+    }
 }
 
 impl Sensor {
@@ -48,16 +81,22 @@ impl Sensor {
     /// noise stream from `seed`.
     pub fn state(&self, x0: f64, seed: u64) -> SensorState {
         let q = self.quantize(x0);
-        SensorState { line: [q; MAX_DELAY + 1], head: 0, rng: Rng::new(seed) }
+        SensorState { line: [q; RING], head: 0, rng: Rng::new(seed), spare: None }
     }
 
     /// Mid-tread quantization (round half to even). Adding and removing 1.5 * 2^52 rounds
     /// to the nearest integer in two additions, exactly, for |x / q| < 2^51; beyond that
     /// (readings of more than 10^15 steps) the value is already an integer multiple.
-    #[inline]
+    #[inline(always)]
     fn quantize(&self, x: f64) -> f64 {
+        self.quantize_t::<false>(x)
+    }
+
+    /// [`Sensor::quantize`]; `T` true asserts `quantization > 0` ([`Sensor::is_typical`]).
+    #[inline(always)]
+    fn quantize_t<const T: bool>(&self, x: f64) -> f64 {
         const SHIFT: f64 = 6755399441055744.0; // 1.5 * 2^52
-        if self.quantization > 0.0 {
+        if T || self.quantization > 0.0 {
             let t = x * self.inv_quantization;
             let r = if crate::math::abs(t) < 2251799813685248.0 { (t + SHIFT) - SHIFT } else { t };
             r * self.quantization
@@ -70,9 +109,23 @@ impl Sensor {
     /// taken `delay` samples ago).
     #[inline]
     pub fn read(&self, st: &mut SensorState, x: f64) -> f64 {
-        let noisy = if self.noise_std > 0.0 { x + self.noise_std * st.rng.normal() } else { x };
-        st.head = (st.head + 1) % (MAX_DELAY + 1);
-        st.line[st.head] = self.quantize(noisy);
-        st.line[(st.head + MAX_DELAY + 1 - self.delay) % (MAX_DELAY + 1)]
+        self.read_t::<false>(st, x)
+    }
+
+    /// Noise and quantization both on (the packaged virtual stage's sensor).
+    #[inline(always)]
+    pub(crate) fn is_typical(&self) -> bool {
+        self.noise_std > 0.0 && self.quantization > 0.0
+    }
+
+    /// [`Sensor::read`]; `T` true asserts [`Sensor::is_typical`] so its checks fold away
+    /// (the same arithmetic either way).
+    #[inline(always)]
+    pub(crate) fn read_t<const T: bool>(&self, st: &mut SensorState, x: f64) -> f64 {
+        debug_assert!(!T || self.is_typical());
+        let noisy = if T || self.noise_std > 0.0 { x + self.noise_std * st.normal() } else { x };
+        st.head = (st.head + 1) & (RING - 1);
+        st.line[st.head] = self.quantize_t::<T>(noisy);
+        st.line[st.head.wrapping_sub(self.delay) & (RING - 1)]
     }
 }

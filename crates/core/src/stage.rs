@@ -180,12 +180,21 @@ impl<const N: usize> Discrete<N> {
     }
 }
 
-/// CEMF slopes at a sub-step's start (see `Stage::cemf_start`).
+/// CEMF slopes at a sub-step's start (see `Stage::cemf_start`); index 0 for a rising,
+/// 1 for a falling drive.
 #[derive(Debug, Clone, Copy)]
 struct CemfStart {
     vh0: f64,
     g: [f64; 2],
     inv_b: [f64; 2],
+    /// The exact increment's `c = beta s + gamma sh` and `a - c vh0` (`sh = +-1` the side of
+    /// `vh0` > 0), and the loop root's `Cz c' g / 2` (`c' = beta s + gamma sign(vh0)`):
+    /// constants of the sub-step, computed exactly as the CEMF solve did inline, so that
+    /// solve, which waits for the motion, only selects them.
+    sh: f64,
+    c: [f64; 2],
+    a_c: [f64; 2],
+    half_czcg: [f64; 2],
 }
 
 /// Sub-step refinement levels: level `j` splits a period into `substeps * 2^j` sub-steps.
@@ -254,6 +263,19 @@ pub struct Stage {
     amp_tau: f64,
     omega_n: f64,
     static_gain: f64,
+    // Derived constants of the hot path, each computed exactly as the expression it stands
+    // for was (so results do not change by a bit).
+    /// `tem / mass`
+    accel_gain: f64,
+    /// `amp_slew * amp_tau`
+    slew_tau: f64,
+    /// `|beta| + |gamma|` and `2 |e2|` of the refinement rule
+    refine_hyst: f64,
+    refine_e2: f64,
+    /// The ideal amplifier without a slew limit steps the voltage at a period's start.
+    amp_steps: bool,
+    /// The common configuration (see [`Stage::is_typical`]).
+    typical: bool,
 }
 
 fn positive(name: &'static str, x: f64) -> Result<(), ModelError> {
@@ -336,7 +358,26 @@ impl Stage {
         }
         let omega_n = crate::math::sqrt(p.stiffness / p.mass);
         let static_gain = p.tem / p.stiffness;
-        Ok(Stage { params, ts, substeps, tolerance, levels, amp_ideal, amp_tau, omega_n, static_gain })
+        Ok(Stage {
+            params,
+            ts,
+            substeps,
+            tolerance,
+            levels,
+            amp_ideal,
+            amp_tau,
+            omega_n,
+            static_gain,
+            accel_gain: p.tem / p.mass,
+            slew_tau: p.amp_slew * amp_tau,
+            refine_hyst: abs(p.hyst_beta) + abs(p.hyst_gamma),
+            refine_e2: 2.0 * abs(p.electrostriction),
+            amp_steps: amp_ideal && p.amp_slew.is_infinite(),
+            typical: p.hyst_drive == HysteresisDrive::Charge
+                && !amp_ideal
+                && p.amp_slew.is_finite()
+                && tolerance.is_finite(),
+        })
     }
 
     /// Clamp a command to the amplifier's range.
@@ -346,11 +387,10 @@ impl Stage {
     }
 
     /// Forcing (acceleration) that is not in the exact linear part.
-    #[inline]
+    #[inline(always)]
     fn extra_accel(&self, va: f64, vh: f64, vcr: f64, with_va: bool) -> f64 {
-        let p = &self.params;
         let lin = if with_va { va } else { 0.0 };
-        p.tem / p.mass * (lin - vh + vcr + p.electrostriction * va * va)
+        self.accel_gain * (lin - vh + vcr + self.params.electrostriction * va * va)
     }
 
     /// Slope `dVh/dq` of the CEMF law at `vh` for a charge increment of sign `s`.
@@ -360,13 +400,34 @@ impl Stage {
         p.hyst_alpha - p.hyst_beta * s * vh - p.hyst_gamma * abs(vh)
     }
 
+    /// The common configuration: charge drive, an amplifier with finite bandwidth and slew
+    /// rate, a finite refinement tolerance (the packaged virtual stage's). The step code
+    /// takes a constant `T` that, when true, asserts this so the configuration checks fold
+    /// away; with `T` false everything is checked at run time. Either way the arithmetic is
+    /// the same.
+    #[inline(always)]
+    pub(crate) fn is_typical(&self) -> bool {
+        self.typical
+    }
+
+    #[inline(always)]
+    fn charge<const T: bool>(&self) -> bool {
+        T || self.params.hyst_drive == HysteresisDrive::Charge
+    }
+
+    #[inline(always)]
+    fn ideal_amp<const T: bool>(&self) -> bool {
+        !T && self.amp_ideal
+    }
+
     /// Charge (or voltage) increment driving the CEMF, before its own feedback.
     #[inline(always)]
-    fn drive_increment(&self, dx: f64, va0: f64, va1: f64) -> f64 {
+    fn drive_increment<const T: bool>(&self, dx: f64, va0: f64, va1: f64) -> f64 {
         let p = &self.params;
-        match p.hyst_drive {
-            HysteresisDrive::Voltage => va1 - va0,
-            HysteresisDrive::Charge => p.tem * dx + p.capacitance * (va1 - va0),
+        if self.charge::<T>() {
+            p.tem * dx + p.capacitance * (va1 - va0)
+        } else {
+            va1 - va0
         }
     }
 
@@ -374,20 +435,31 @@ impl Stage {
     /// start, for a rising (`[0]`) and a falling (`[1]`) charge: computed from the start
     /// state alone, so no division waits for the motion.
     #[inline(always)]
-    fn cemf_start(&self, vh0: f64) -> CemfStart {
+    fn cemf_start<const T: bool>(&self, vh0: f64) -> CemfStart {
+        let p = &self.params;
         let g = [self.cemf_slope(vh0, 1.0), self.cemf_slope(vh0, -1.0)];
-        let cz = match self.params.hyst_drive {
-            HysteresisDrive::Charge => self.params.capacitance,
-            HysteresisDrive::Voltage => 0.0,
-        };
-        CemfStart { vh0, g, inv_b: [1.0 / (1.0 + cz * g[0]), 1.0 / (1.0 + cz * g[1])] }
+        let cz = if self.charge::<T>() { p.capacitance } else { 0.0 };
+        let (a, beta, gamma) = (p.hyst_alpha, p.hyst_beta, p.hyst_gamma);
+        let sh = if vh0 > 0.0 { 1.0 } else { -1.0 };
+        let c = [beta * 1.0 + gamma * sh, beta * -1.0 + gamma * sh];
+        let sv = crate::math::sign(vh0);
+        let half_cz = 0.5 * p.capacitance;
+        CemfStart {
+            vh0,
+            g,
+            inv_b: [1.0 / (1.0 + cz * g[0]), 1.0 / (1.0 + cz * g[1])],
+            sh,
+            c,
+            a_c: [a - c[0] * vh0, a - c[1] * vh0],
+            half_czcg: [half_cz * (beta * 1.0 + gamma * sv) * g[0], half_cz * (beta * -1.0 + gamma * sv) * g[1]],
+        }
     }
 
     /// First-order estimate of the CEMF voltage after the motion (no exponentials): the
     /// predictor's value.
     #[inline(always)]
-    fn cemf_linear(&self, at: &CemfStart, dx: f64, va0: f64, va1: f64) -> f64 {
-        let q = self.drive_increment(dx, va0, va1);
+    fn cemf_linear<const T: bool>(&self, at: &CemfStart, dx: f64, va0: f64, va1: f64) -> f64 {
+        let q = self.drive_increment::<T>(dx, va0, va1);
         let i = (q < 0.0) as usize;
         at.vh0 + at.g[i] * q * at.inv_b[i]
     }
@@ -396,41 +468,26 @@ impl Stage {
     /// through the exact Bouc–Wen increment. For charge drive the loop
     /// `dq = q_ext - Cz dVh`, `dVh = BW(vh0, dq) - vh0` is solved from its second-order
     /// expansion, refined by one Newton step when that is not already at rounding level.
-    #[inline]
-    fn cemf(&self, at: &CemfStart, dx: f64, va0: f64, va1: f64) -> f64 {
+    #[inline(always)]
+    fn cemf<const T: bool>(&self, at: &CemfStart, dx: f64, va0: f64, va1: f64) -> f64 {
         let p = &self.params;
         let vh0 = at.vh0;
-        let q_ext = self.drive_increment(dx, va0, va1);
+        let q_ext = self.drive_increment::<T>(dx, va0, va1);
         if q_ext == 0.0 {
             return vh0;
         }
-        // the exact increment, with its common case (no zero crossing of Vh) inline
-        let bw = |dq: f64| {
-            let (a, beta, gamma) = (p.hyst_alpha, p.hyst_beta, p.hyst_gamma);
-            if vh0 != 0.0 {
-                let sh = if vh0 > 0.0 { 1.0 } else { -1.0 };
-                let s = if dq > 0.0 { 1.0 } else { -1.0 };
-                let c = beta * s + gamma * sh;
-                let end = vh0 + (a - c * vh0) * dq * crate::differential::phi1(c * dq);
-                if end * sh > 0.0 {
-                    return end;
-                }
-            }
-            bouc_wen_1_exact(vh0, dq, a, beta, gamma)
-        };
-        if p.hyst_drive == HysteresisDrive::Voltage {
+        let bw = |dq: f64| self.cemf_increment(at, dq);
+        if !self.charge::<T>() {
             return bw(q_ext);
         }
         let cz = p.capacitance;
         let i = (q_ext < 0.0) as usize;
-        let s = if i == 0 { 1.0 } else { -1.0 };
-        let (g0, inv_b) = (at.g[i], at.inv_b[i]);
+        let inv_b = at.inv_b[i];
         // With Vh ~ vh0 + g0 dq (1 - c dq / 2), c = beta s + gamma sign(vh0), the balance
         // b dq - e dq^2 = q_ext (b = 1 + Cz g0, e = Cz c g0 / 2) has the root
         // dq = l (1 + k + 2 k^2 + ...), l = q_ext / b, k = e l / b: a guess off by O(k^3).
-        let c = p.hyst_beta * s + p.hyst_gamma * crate::math::sign(vh0);
         let lin = q_ext * inv_b;
-        let k = 0.5 * cz * c * g0 * lin * inv_b;
+        let k = at.half_czcg[i] * lin * inv_b;
         let mut dq = if abs(k) < 0.1 { lin * (1.0 + k * (1.0 + 2.0 * k)) } else { lin };
         // below |k| = 1e-4 the guess is within 1e-12 relative (the common case of small
         // sub-steps); otherwise one Newton step with the starting slope (its own error is
@@ -444,13 +501,30 @@ impl Stage {
         bw(dq)
     }
 
+    /// The exact Bouc–Wen increment of the CEMF voltage from `vh0` for a drive increment
+    /// `dq`, with its common case (no zero crossing of Vh) inline.
+    #[inline(always)]
+    fn cemf_increment(&self, at: &CemfStart, dq: f64) -> f64 {
+        let vh0 = at.vh0;
+        if vh0 != 0.0 {
+            // vh0 + (a - c vh0) dq phi1(c dq), c = beta sign(dq) + gamma sign(vh0)
+            let j = if dq > 0.0 { 0 } else { 1 };
+            let end = vh0 + at.a_c[j] * dq * crate::differential::phi1(at.c[j] * dq);
+            if end * at.sh > 0.0 {
+                return end;
+            }
+        }
+        let p = &self.params;
+        bouc_wen_1_exact(vh0, dq, p.hyst_alpha, p.hyst_beta, p.hyst_gamma)
+    }
+
     /// Amplifier output after `h` toward command `u`; returns `(va1, exponential)` where
     /// `exponential` says the path was the unlimited first-order response (or ideal).
-    #[inline]
-    fn amplifier(&self, lv: &Level, va0: f64, u: f64) -> (f64, bool) {
+    #[inline(always)]
+    fn amplifier<const T: bool>(&self, lv: &Level, va0: f64, u: f64) -> (f64, bool) {
         let p = &self.params;
         let slew = p.amp_slew;
-        if self.amp_ideal {
+        if self.ideal_amp::<T>() {
             if slew.is_infinite() {
                 return (u, true);
             }
@@ -459,12 +533,12 @@ impl Stage {
             return (if abs(d) <= step { u } else { va0 + step * crate::math::sign(d) }, false);
         }
         let gap = u - va0;
-        if slew.is_infinite() || abs(gap) <= slew * self.amp_tau {
+        if (!T && slew.is_infinite()) || abs(gap) <= self.slew_tau {
             return (u - gap * lv.amp_decay, true);
         }
         // slew-limited ramp until |u - Va| = slew * tau, then the exponential
         let s = crate::math::sign(gap);
-        let t_ramp = (abs(gap) - slew * self.amp_tau) / slew;
+        let t_ramp = (abs(gap) - self.slew_tau) / slew;
         if t_ramp >= lv.h {
             (va0 + s * slew * lv.h, false)
         } else {
@@ -476,47 +550,97 @@ impl Stage {
     /// Advance one controller period with command `u` (saturated to the amplifier range).
     /// Returns the position at the end of the period.
     pub fn advance(&self, st: &mut StageState, u: f64) -> f64 {
+        if self.typical {
+            self.advance_t::<true>(st, u)
+        } else {
+            self.advance_t::<false>(st, u)
+        }
+    }
+
+    #[inline(always)]
+    fn advance_t<const T: bool>(&self, st: &mut StageState, u: f64) -> f64 {
+        match self.params.creep_terms {
+            0 => self.advance_n::<0, T>(st, u),
+            1 => self.advance_n::<1, T>(st, u),
+            2 => self.advance_n::<2, T>(st, u),
+            3 => self.advance_n::<3, T>(st, u),
+            4 => self.advance_n::<4, T>(st, u),
+            5 => self.advance_n::<5, T>(st, u),
+            6 => self.advance_n::<6, T>(st, u),
+            7 => self.advance_n::<7, T>(st, u),
+            _ => self.advance_n::<MAX_CREEP, T>(st, u),
+        }
+    }
+
+    /// [`Stage::advance`] with the number of creep lags a constant, `NC ==
+    /// params.creep_terms`, and `T` true only for a typical stage ([`Stage::is_typical`]):
+    /// loops over a whole run pick both once (see [`crate::closed_loop`]).
+    #[inline(always)]
+    pub(crate) fn advance_n<const NC: usize, const T: bool>(&self, st: &mut StageState, u: f64) -> f64 {
+        let vcr = self.creep_voltage::<NC>(st);
+        self.advance_from::<NC, T>(st, u, vcr);
+        st.x
+    }
+
+    /// The creep voltage `sum_j c_j w_j` of a state, summed in that order from 0.
+    #[inline(always)]
+    pub(crate) fn creep_voltage<const NC: usize>(&self, st: &StageState) -> f64 {
+        debug_assert_eq!(NC, self.params.creep_terms);
+        let mut vcr = 0.0;
+        for j in 0..NC {
+            vcr += self.params.creep_weights[j] * st.creep[j];
+        }
+        vcr
+    }
+
+    /// [`Stage::advance_n`] given `vcr = creep_voltage(st)`; returns `creep_voltage` of the
+    /// new state (the same sum, carried rather than computed again: a loop over periods
+    /// passes it on).
+    #[inline(always)]
+    pub(crate) fn advance_from<const NC: usize, const T: bool>(&self, st: &mut StageState, u: f64, vcr: f64) -> f64 {
+        debug_assert_eq!(NC, self.params.creep_terms);
+        debug_assert!(!T || self.typical);
         let u = self.saturate(u);
-        if self.amp_ideal && self.params.amp_slew.is_infinite() && u != st.va {
+        if !T && self.amp_steps && u != st.va {
             // the voltage steps at the start of the period: charge jumps, position does not
-            st.vh = self.cemf(&self.cemf_start(st.vh), 0.0, st.va, u);
+            st.vh = self.cemf::<T>(&self.cemf_start::<T>(st.vh), 0.0, st.va, u);
             st.va = u;
         }
-        let level = self.refinement(st, u);
+        let level = self.refinement::<T>(st, u, vcr);
         let lv = &self.levels[level];
-        for _ in 0..(self.substeps << level) {
-            self.substep(lv, st, u);
+        let count = self.substeps << level;
+        if count == 1 {
+            // the common case on its own: nothing to hoist out of a loop
+            return self.substep::<NC, T>(lv, st, u, vcr);
         }
-        st.x
+        let mut vcr = vcr;
+        for _ in 0..count {
+            vcr = self.substep::<NC, T>(lv, st, u, vcr);
+        }
+        vcr
     }
 
     /// Refinement level for this period: the charge the CEMF will see, estimated from the
     /// amplifier's remaining travel and the current velocity, split finely enough.
-    #[inline]
-    fn refinement(&self, st: &StageState, u: f64) -> usize {
-        if self.tolerance.is_infinite() {
+    #[inline(always)]
+    fn refinement<const T: bool>(&self, st: &StageState, u: f64, vcr: f64) -> usize {
+        if !T && self.tolerance.is_infinite() {
             return 0;
         }
         let p = &self.params;
-        let travel = if self.amp_ideal { 0.0 } else { abs(u - st.va) };
+        let travel = if self.ideal_amp::<T>() { 0.0 } else { abs(u - st.va) };
         // The stack may swing inside the period even when the period starts at rest (the
         // resonance rings after a step): bound the motion by the velocity plus the
         // distance from the quasi-static position times the natural frequency, plus the
         // quasi-static motion the amplifier's travel causes.
-        let mut vcr = 0.0;
-        for j in 0..p.creep_terms {
-            vcr += p.creep_weights[j] * st.creep[j];
-        }
         let x_static = self.static_gain * (st.va - st.vh + vcr + p.electrostriction * st.va * st.va);
         let motion = (abs(st.v) + self.omega_n * abs(st.x - x_static)) * self.ts + self.static_gain * travel;
-        let drive = match p.hyst_drive {
-            HysteresisDrive::Charge => p.capacitance * travel + p.tem * motion,
-            HysteresisDrive::Voltage => travel,
-        };
+        let drive = if self.charge::<T>() { p.capacitance * travel + p.tem * motion } else { travel };
         // dimensionless nonlinearity per period: the CEMF exponent change, and the relative
         // change of the electrostrictive gain (its force is first-order held too)
-        let exponent = ((abs(p.hyst_beta) + abs(p.hyst_gamma)) * drive + 2.0 * abs(p.electrostriction) * travel)
-            / self.substeps as f64;
+        let change = self.refine_hyst * drive + self.refine_e2 * travel;
+        // (x / 1 is exactly x)
+        let exponent = if self.substeps == 1 { change } else { change / self.substeps as f64 };
         let mut level = 0;
         let mut limit = self.tolerance;
         while exponent > limit && level + 1 < LEVELS {
@@ -526,17 +650,18 @@ impl Stage {
         level
     }
 
-    #[inline]
-    fn substep(&self, lv: &Level, st: &mut StageState, u: f64) {
-        let (va1, exponential) = self.amplifier(lv, st.va, u);
-        let use3 = exponential && !self.amp_ideal;
+    /// One sub-step; `vcr0` is the creep voltage `sum_j c_j w_j` of the state (summed in
+    /// that order from 0), and the same sum at the end is returned.
+    #[inline(always)]
+    fn substep<const NC: usize, const T: bool>(&self, lv: &Level, st: &mut StageState, u: f64, vcr0: f64) -> f64 {
+        let (va1, exponential) = self.amplifier::<T>(lv, st.va, u);
+        let use3 = exponential && !self.ideal_amp::<T>();
         let (va0, x0, v0, vh0) = (st.va, st.x, st.v, st.vh);
-        let (mut vcr0, mut vcr1) = (0.0, 0.0);
-        for j in 0..self.params.creep_terms {
+        let mut vcr1 = 0.0;
+        for j in 0..NC {
             let c = self.params.creep_weights[j];
             let w0 = st.creep[j];
             let w1 = lv.creep_e[j] * w0 + lv.creep_1me[j] * va0 + lv.creep_b[j] * (va1 - va0);
-            vcr0 += c * w0;
             vcr1 += c * w1;
             st.creep[j] = w1;
         }
@@ -551,15 +676,16 @@ impl Stage {
         };
         // predictor: CEMF held; corrector: CEMF first-order held to its linearized
         // predicted end; then the exact CEMF from the corrected motion
-        let at = self.cemf_start(vh0);
+        let at = self.cemf_start::<T>(vh0);
         let xp = base_x + g1x * self.extra_accel(va1, vh0, vcr1, !use3);
-        let vh_p = self.cemf_linear(&at, xp - x0, va0, va1);
+        let vh_p = self.cemf_linear::<T>(&at, xp - x0, va0, va1);
         let d1 = self.extra_accel(va1, vh_p, vcr1, !use3);
         let (x1, v1) = (base_x + g1x * d1, base_v + g1v * d1);
-        st.vh = self.cemf(&at, x1 - x0, va0, va1);
+        st.vh = self.cemf::<T>(&at, x1 - x0, va0, va1);
         st.va = va1;
         st.x = x1;
         st.v = v1;
+        vcr1
     }
 
     /// Longest sub-step length `ts / substeps`, s.

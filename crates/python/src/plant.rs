@@ -1,10 +1,12 @@
 //! Stage, sensor and closed-loop bindings. A stage is a flat parameter array (layout in
 //! `piezohyst_core::stage::StageParams::from_slice`); a controller is a kind name and a
 //! flat array. Batch runs release the GIL and put one scenario per rayon task.
+use std::mem::MaybeUninit;
+
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1, PyUntypedArrayMethods};
-use piezohyst_core::closed_loop::{run, run_tracking, Record};
-use piezohyst_core::control::{Controller, MAX_TERMS};
+use piezohyst_core::closed_loop::{run_recorder, run_tracking, Recorder, Sample};
+use piezohyst_core::control::{Controller, Limits, Pid, MAX_TERMS};
 use piezohyst_core::sensor::Sensor;
 use piezohyst_core::stage::{Stage, StageParams, StageState};
 use pyo3::exceptions::PyValueError;
@@ -105,48 +107,137 @@ struct Signals {
     terms: Vec<f64>,
     final_state: StageState,
     term_names: &'static [&'static str],
+    /// First sample whose true position is not finite (the run diverged there).
+    diverged_at: Option<usize>,
 }
 
-fn run_with(stage: &Stage, sensor: &Sensor, c: &(dyn Controller + Sync), sc: &Scenario<'_>, init: StageState) -> Signals {
+/// Writes a run's samples straight into the result vectors' spare capacity: no zero-filled
+/// buffers to allocate first, no copy of the reference afterwards.
+struct Out<'a> {
+    reference: &'a mut [MaybeUninit<f64>],
+    command: &'a mut [MaybeUninit<f64>],
+    voltage: &'a mut [MaybeUninit<f64>],
+    position: &'a mut [MaybeUninit<f64>],
+    measured: &'a mut [MaybeUninit<f64>],
+    /// `len * width + MAX_TERMS` slots: row `k` writes all `MAX_TERMS` terms at `k * width`
+    /// (a fixed-size copy); the next row overwrites the tail.
+    terms: &'a mut [MaybeUninit<f64>],
+    width: usize,
+}
+
+impl Recorder for Out<'_> {
+    #[inline(always)]
+    fn capacity(&self) -> usize {
+        self.command.len()
+    }
+    #[inline(always)]
+    fn record(&mut self, k: usize, s: &Sample<'_>) {
+        debug_assert!(k < self.command.len());
+        // SAFETY: run_recorder calls record only for k < capacity() (the Recorder
+        // contract), and every slice holds capacity() samples (terms: capacity() rows of
+        // `width` plus MAX_TERMS slots), so no index below is out of bounds.
+        unsafe {
+            self.reference.get_unchecked_mut(k).write(s.reference);
+            self.command.get_unchecked_mut(k).write(s.command);
+            self.voltage.get_unchecked_mut(k).write(s.voltage);
+            self.position.get_unchecked_mut(k).write(s.position);
+            self.measured.get_unchecked_mut(k).write(s.measured);
+            let row = self.terms.get_unchecked_mut(k * self.width..k * self.width + MAX_TERMS);
+            for (slot, &t) in row.iter_mut().zip(s.terms) {
+                slot.write(t);
+            }
+        }
+    }
+}
+
+#[inline(always)]
+fn record_run<C: Controller + ?Sized>(stage: &Stage, sensor: &Sensor, c: &C, sc: &Scenario<'_>, init: StageState) -> Signals {
     let n = sc.reference.len();
-    let mut sig = Signals {
-        reference: sc.reference.to_vec(),
-        command: vec![0.0; n],
-        voltage: vec![0.0; n],
-        position: vec![0.0; n],
-        measured: vec![0.0; n],
-        terms: vec![0.0; n * c.term_names().len().min(MAX_TERMS)],
-        final_state: init,
-        term_names: c.term_names(),
-    };
+    let width = c.term_names().len().min(MAX_TERMS);
+    let mut reference = Vec::with_capacity(n);
+    let mut command = Vec::with_capacity(n);
+    let mut voltage = Vec::with_capacity(n);
+    let mut position = Vec::with_capacity(n);
+    let mut measured = Vec::with_capacity(n);
+    let mut terms = Vec::with_capacity(n * width + MAX_TERMS);
     let mut st = init;
     let mut sst = sensor.state(st.x, sc.seed);
     let mut cst = vec![0.0; c.state_len()];
     c.reset(&mut cst, st.x);
-    run(
-        stage,
-        &mut st,
-        sensor,
-        &mut sst,
-        c,
-        &mut cst,
-        sc.reference,
-        sc.velocity,
-        sc.acceleration,
-        Record {
-            command: &mut sig.command,
-            voltage: &mut sig.voltage,
-            position: &mut sig.position,
-            measured: &mut sig.measured,
-            terms: &mut sig.terms,
-        },
-    );
-    sig.final_state = st;
-    sig
+    let mut out = Out {
+        reference: &mut reference.spare_capacity_mut()[..n],
+        command: &mut command.spare_capacity_mut()[..n],
+        voltage: &mut voltage.spare_capacity_mut()[..n],
+        position: &mut position.spare_capacity_mut()[..n],
+        measured: &mut measured.spare_capacity_mut()[..n],
+        terms: &mut terms.spare_capacity_mut()[..n * width + MAX_TERMS],
+        width,
+    };
+    let done = run_recorder(stage, &mut st, sensor, &mut sst, c, &mut cst, sc.reference, sc.velocity, sc.acceleration, &mut out);
+    // SAFETY: run_recorder handed samples 0..done to `out` in order, which wrote element k
+    // of every signal and terms[k * width .. k * width + MAX_TERMS] for each: the first
+    // `done` (resp. `done * width`) elements are initialized.
+    unsafe {
+        reference.set_len(done);
+        command.set_len(done);
+        voltage.set_len(done);
+        position.set_len(done);
+        measured.set_len(done);
+        terms.set_len(done * width);
+    }
+    // A non-finite position stays non-finite (every sub-step adds phi x0 to the new
+    // position, and 0 * inf is NaN): the last sample tells whether to look for the first.
+    let diverged_at = match position.last() {
+        Some(x) if !x.is_finite() => position.iter().position(|x| !x.is_finite()),
+        _ => None,
+    };
+    Signals { reference, command, voltage, position, measured, terms, final_state: st, term_names: c.term_names(), diverged_at }
+}
+
+/// [`record_run`] compiled for AVX2: the same scalar IEEE operations in the three-operand
+/// VEX encoding (fewer register copies), never fused (Rust does not contract `a * b + c`),
+/// so the results are the same to the bit on either path.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn record_run_avx2<C: Controller + ?Sized>(stage: &Stage, sensor: &Sensor, c: &C, sc: &Scenario<'_>, init: StageState) -> Signals {
+    record_run(stage, sensor, c, sc, init)
+}
+
+/// Whether runs take the AVX2 path: the CPU has AVX2 and `PIEZOHYST_NO_AVX2` is not set
+/// (read once; the benchmark sets it to check that both paths give the same bits).
+#[cfg(target_arch = "x86_64")]
+fn use_avx2() -> bool {
+    static USE: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *USE.get_or_init(|| std::is_x86_feature_detected!("avx2") && std::env::var_os("PIEZOHYST_NO_AVX2").is_none())
+}
+
+fn record_run_dispatch<C: Controller + ?Sized>(stage: &Stage, sensor: &Sensor, c: &C, sc: &Scenario<'_>, init: StageState) -> Signals {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if use_avx2() {
+            // SAFETY: the CPU has AVX2
+            return unsafe { record_run_avx2(stage, sensor, c, sc, init) };
+        }
+    }
+    record_run(stage, sensor, c, sc, init)
+}
+
+/// A plain PID (no inverse, no learning) as its own type, so the loop inlines its step:
+/// the parameter layout of `control::base` for "pid" (validated there before any run).
+fn plain_pid(spec: &ControllerSpec) -> Option<Pid> {
+    if spec.kind != "pid" || spec.inverse.is_some() || spec.ilc.is_some() || spec.params.len() != 9 {
+        return None;
+    }
+    let p = &spec.params;
+    let limits = Limits::new(p[7], p[8]).ok()?;
+    Pid::new(p[0], p[1], p[2], p[3], p[4], p[5], p[6], limits).ok()
 }
 
 fn run_scenario(stage: &Stage, sensor: &Sensor, sc: &Scenario<'_>, init: StageState) -> Signals {
-    with_controller(&sc.controller, |c| run_with(stage, sensor, c, sc, init)).expect("validated before the run")
+    if let Some(pid) = plain_pid(&sc.controller) {
+        return record_run_dispatch(stage, sensor, &pid, sc, init);
+    }
+    with_controller(&sc.controller, |c| record_run_dispatch(stage, sensor, c, sc, init)).expect("validated before the run")
 }
 
 fn signals_dict<'py>(py: Python<'py>, sig: Signals) -> PyResult<Bound<'py, PyDict>> {
@@ -154,7 +245,7 @@ fn signals_dict<'py>(py: Python<'py>, sig: Signals) -> PyResult<Bound<'py, PyDic
     let d = PyDict::new(py);
     let n = sig.command.len();
     let k = names.len().min(MAX_TERMS);
-    // the result's own copy of the reference (from this allocator, like the other signals)
+    // the result's own copy of the reference (written by the run, like the other signals)
     d.set_item("reference", sig.reference.into_pyarray(py))?;
     d.set_item("command", sig.command.into_pyarray(py))?;
     d.set_item("voltage", sig.voltage.into_pyarray(py))?;
@@ -172,15 +263,26 @@ fn sensor(q: f64, noise: f64, delay: usize) -> PyResult<Sensor> {
     Sensor::new(q, noise, delay).map_err(err)
 }
 
+/// [`check_finite`] with a branch-free pass first (an OR of the exponent fields, which
+/// vectorizes); the error, if any, is `check_finite`'s.
+fn check_finite_fast(name: &str, xs: &[f64]) -> PyResult<()> {
+    const EXPONENT: u64 = 0x7ff0_0000_0000_0000;
+    if xs.iter().fold(0u64, |bad, x| bad | u64::from(x.to_bits() & EXPONENT == EXPONENT)) == 0 {
+        Ok(())
+    } else {
+        check_finite(name, xs)
+    }
+}
+
 fn scenario_arrays<'a>(
     r: &'a PyReadonlyArray1<'_, f64>,
     v: &'a PyReadonlyArray1<'_, f64>,
     a: &'a PyReadonlyArray1<'_, f64>,
 ) -> PyResult<(&'a [f64], &'a [f64], &'a [f64])> {
     let (r, v, a) = (slice(r, "reference")?, slice(v, "velocity")?, slice(a, "acceleration")?);
-    check_finite("reference", r)?;
-    check_finite("velocity", v)?;
-    check_finite("acceleration", a)?;
+    check_finite_fast("reference", r)?;
+    check_finite_fast("velocity", v)?;
+    check_finite_fast("acceleration", a)?;
     // empty derivatives stand for zeros
     if (!v.is_empty() && v.len() != r.len()) || (!a.is_empty() && a.len() != r.len()) {
         return Err(PyValueError::new_err(format!(
@@ -219,7 +321,7 @@ fn closed_loop<'py>(
     let init = StageState::from_array(slice(&initial_state, "initial_state")?).map_err(err)?;
     let sc = Scenario { reference: r, velocity: v, acceleration: a, seed, controller: c };
     let sig = py.detach(|| run_scenario(&st, &se, &sc, init));
-    if let Some(k) = sig.position.iter().position(|x| !x.is_finite()) {
+    if let Some(k) = sig.diverged_at {
         return Err(PyValueError::new_err(format!("the closed loop diverged at sample {k}")));
     }
     signals_dict(py, sig)
@@ -260,7 +362,7 @@ fn closed_loop_batch<'py>(
     let results: Vec<Signals> = py.detach(|| list.par_iter().map(|sc| run_scenario(&st, &se, sc, init)).collect());
     let mut out = Vec::with_capacity(results.len());
     for (j, sig) in results.into_iter().enumerate() {
-        if let Some(k) = sig.position.iter().position(|x| !x.is_finite()) {
+        if let Some(k) = sig.diverged_at {
             return Err(PyValueError::new_err(format!("scenarios[{j}]: the closed loop diverged at sample {k}")));
         }
         out.push(signals_dict(py, sig)?);
