@@ -16,7 +16,11 @@ Three measurements in one run (issue 3, item 7):
    continuous equations of ``tests/stage_reference.py`` plus the amplifier slew limit), the
    PID and the sensor in Python per sample, over a short horizon (0.05 s) and scaled: its
    RTF is horizon / wall time. (A pure-Python/NumPy per-sample loop of the exact
-   discretization is not used as the baseline.)
+   discretization is not used as the baseline.) On a CPU with AVX2 the extension runs the
+   loop compiled for AVX2 (the same scalar IEEE operations, never fused); each round also
+   runs the RTF cases once with ``PIEZOHYST_NO_AVX2=1`` (the baseline x86-64 build of the
+   loop): its time is reported and its signals must be bit-identical (the run stops
+   otherwise).
 2. **Batch scaling**: 64 scenarios (different references and PID gains, 2 s each) through
    ``piezohyst.closed_loop_batch`` at 1 and 2 rayon threads, each thread count in a fresh
    subprocess (this script again, ``--worker``) with ``RAYON_NUM_THREADS`` set. Wall time
@@ -33,8 +37,8 @@ Three measurements in one run (issue 3, item 7):
    accurate.
 
 The machine may be shared and noisy: measurements run in interleaved rounds (``--rounds``,
-default 5): 1-thread worker, 2-thread worker, solve_ivp closed-loop baseline, accuracy
-timings; repeat. Figures are medians over all repetitions (best-of in the JSON too).
+default 5): 1-thread worker, 2-thread worker, the AVX2-less 1-thread worker, solve_ivp
+closed-loop baseline, accuracy timings; repeat. Figures are medians over all repetitions (best-of in the JSON too).
 OPENBLAS_NUM_THREADS=1 everywhere. JSON is written atomically; a table is printed.
 The whole run takes about a minute.
 """
@@ -108,30 +112,48 @@ def machine_busy_s() -> float | None:
     return (sum(vals[:8]) - idle) / os.sysconf("SC_CLK_TCK")   # user..steal, guests are in user
 
 
+def stolen_s() -> float | None:
+    """CPU seconds the hypervisor has taken from this VM's CPUs since boot (the steal column
+    of /proc/stat: a vCPU ready to run but not running), or None."""
+    try:
+        with open("/proc/stat") as f:
+            vals = [int(v) for v in f.readline().split()[1:]]
+        return vals[7] / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return None
+
+
 def own_cpu_s() -> float:
     t = os.times()
     return t.user + t.system
 
 
-def timed(fn, min_reps, min_time, max_reps, acct=None):
-    """One untimed warm-up call, then repetitions; returns (times, warm-up result, warm-up
-    time). With ``acct`` (a dict), also records how busy the machine was during the
-    repetitions: this process's CPU seconds and everything else's, per wall second."""
+def timed(fn, min_reps, min_time, max_reps, acct=None, warmups=1):
+    """``warmups`` untimed calls, then repetitions (as many as fit in ``min_time`` at the
+    last warm-up call's speed, within the bounds); returns (times, first result, first
+    call's time). With ``acct`` (a dict), also records how busy the machine was during the
+    repetitions: this process's CPU seconds and everything else's (steal included, and also
+    given on its own), per wall second."""
     t0 = time.perf_counter()
     first = fn()
-    warm = time.perf_counter() - t0
+    warm = first_time = time.perf_counter() - t0
+    for _ in range(warmups - 1):
+        t0 = time.perf_counter()
+        fn()
+        warm = time.perf_counter() - t0
     times = []
-    m0, c0, w0 = machine_busy_s(), own_cpu_s(), time.perf_counter()
+    m0, c0, s0, w0 = machine_busy_s(), own_cpu_s(), stolen_s(), time.perf_counter()
     for _ in range(n_reps(warm, min_reps, min_time, max_reps)):
         t0 = time.perf_counter()
         fn()
         times.append(time.perf_counter() - t0)
-    m1, c1, w1 = machine_busy_s(), own_cpu_s(), time.perf_counter()
+    m1, c1, s1, w1 = machine_busy_s(), own_cpu_s(), stolen_s(), time.perf_counter()
     if acct is not None:
         wall = w1 - w0
         acct["own_cores_busy"] = (c1 - c0) / wall
         acct["other_cores_busy"] = None if m0 is None else max(0.0, (m1 - m0) - (c1 - c0)) / wall
-    return times, first, warm
+        acct["stolen_cores"] = None if s0 is None else (s1 - s0) / wall
+    return times, first, first_time
 
 
 def digest(arrays) -> str:
@@ -201,7 +223,9 @@ def worker(spec: dict) -> dict:
         for name, (kind, freq) in RTF_REFS.items():
             ref = rtf_reference(kind, freq, RTF_HORIZON)
             acct = {}
-            times, res, warm = timed(lambda: ph.closed_loop(stage, pid, ref, rng=1), mr, mt, mx, acct)
+            # two warm-up calls: the first in a fresh worker also pays one-time costs (the
+            # allocator's first pages), and the repetition count is sized by the second
+            times, res, warm = timed(lambda: ph.closed_loop(stage, pid, ref, rng=1), mr, mt, mx, acct, warmups=2)
             # the same run through the core call alone (no Python preparation or result objects)
             x, v, a, spec_ = sim._prepare(stage, pid, ref, None, None)
             s, params, init = stage.sensor, stage.core_params(), stage.rest_state()
@@ -211,11 +235,12 @@ def worker(spec: dict) -> dict:
                                          s.quantization, s.noise_std, s.delay, spec_, x, v, a, init,
                                          sim.seed_from(1))
 
-            core_times, d, _ = timed(core_call, mr, mt, mx)
+            core_times, d, _ = timed(core_call, mr, mt, mx, warmups=2)
             assert np.array_equal(d["position"], res.position), "core call differs from closed_loop"
             out["single"][name] = {
                 "samples": int(ref.size), "warmup_s": warm, "times_s": times, "core_times_s": core_times,
-                "digest": digest([res.position, res.command, res.measured]),
+                "digest": digest([res.reference, res.command, res.voltage, res.position, res.measured,
+                                  *res.terms.values(), res.final_state]),
                 "metrics": res.metrics, "load": acct,
             }
 
@@ -254,10 +279,11 @@ def worker(spec: dict) -> dict:
     return out
 
 
-def run_worker(threads: int, spec: dict) -> dict:
+def run_worker(threads: int, spec: dict, extra_env: dict | None = None) -> dict:
     env = dict(os.environ)
     env["RAYON_NUM_THREADS"] = str(threads)
     env["OPENBLAS_NUM_THREADS"] = "1"
+    env.update(extra_env or {})
     proc = subprocess.run(
         [sys.executable, str(Path(__file__).resolve()), "--worker", json.dumps(spec)],
         env=env, capture_output=True, text=True, check=False,
@@ -488,10 +514,13 @@ def main(argv=None) -> int:
                  "batch_reps": math.ceil(args.batch_reps / rounds),
                  "min_time": args.min_time, "max_reps": args.max_reps}
     specs = {1: {**base_spec, "single": True, "batch": True}, 2: {**base_spec, "single": False, "batch": True}}
+    # the loop without AVX2 (what a CPU without it runs): a few timed calls per round, and
+    # its signals must equal the AVX2 path's bit for bit
+    no_avx2_spec = {**base_spec, "single": True, "batch": False, "reps": 1, "min_time": 0.1, "max_reps": 20}
 
     vstage = ph.virtual_stage()
     pid = ph.PID(**PID_GAINS)
-    _, pid_core = pid.core(vstage)
+    pid_core = pid.core(vstage)[1]   # (kind, params, inverse, learning)
     n_base = int(round(BASELINE_HORIZON / TS))
     base_refs = {name: rtf_reference(kind, f, RTF_HORIZON)[:n_base] for name, (kind, f) in RTF_REFS.items()}
 
@@ -539,11 +568,13 @@ def main(argv=None) -> int:
 
     # interleaved rounds
     worker_rounds = {t: [] for t in THREADS}
+    no_avx2_rounds = []
     base_times = {(name, rt): [] for name in base_refs for rt in BASELINE_RTOLS}
     base_metrics = {}
     for rnd in range(rounds):
         for t in THREADS:
             worker_rounds[t].append(run_worker(t, specs[t]))
+        no_avx2_rounds.append(run_worker(1, no_avx2_spec, {"PIEZOHYST_NO_AVX2": "1"}))
         for name, ref in base_refs.items():
             for rt in BASELINE_RTOLS:
                 xb, wall = ivp_closed_loop(vstage, pid_core, ref, rt, BASELINE_METHOD, args.seed + rnd)
@@ -597,12 +628,30 @@ def main(argv=None) -> int:
                                "python_overhead_fraction": 1 - med(core_times) / m},
             "tracking": {k: v for k, v in per[0]["metrics"].items()},
             "load_by_round": [p["load"] for p in per],
+            "rtf_by_round": [RTF_HORIZON / med(p["times_s"]) for p in per],
+            "other_cores_busy_median": _med_load(per, "load"),
+            "stolen_cores_median": (med([p["load"]["stolen_cores"] for p in per])
+                                    if all(p["load"].get("stolen_cores") is not None for p in per) else None),
             "baseline_solve_ivp": {"headline": f"rtol_{BASELINE_RTOLS[0]:g}", **baselines},
             "baseline_rtf": head["rtf"],
             "speedup_vs_baseline": head["speedup_piezohyst_vs_this"],
             "cross_check_noise_free": cross[name],
             "pass": RTF_HORIZON / m >= TARGET_RTF,
         }
+    # the same runs without AVX2: identical signals, and their speed
+    has_avx2 = "avx2" in (info.get("simd") or [])
+    for name in RTF_REFS:
+        per = [w["single"][name] for w in no_avx2_rounds]
+        ds = {p["digest"] for p in per} | {worker_rounds[1][0]["single"][name]["digest"]}
+        if len(ds) != 1:
+            raise AssertionError(f"{name}: closed_loop without AVX2 differs from the AVX2 path")
+        times = [x for p in per for x in p["times_s"]]
+        rtf[name]["without_avx2"] = {
+            "env": "PIEZOHYST_NO_AVX2=1", "reps": len(times), "median_s": med(times), "min_s": min(times),
+            "rtf": RTF_HORIZON / med(times), "bitwise_identical_to_default": True,
+            "default_path": "AVX2" if has_avx2 else "baseline x86-64 (no AVX2 on this CPU)",
+        }
+
     # approximate sub-steps per period in the RTF run (refinement rule, velocity from positions)
     r = ph.closed_loop(vstage, pid, rtf_reference("sine", 10.0, RTF_HORIZON), rng=1)
     va0 = np.r_[0.0, r.voltage[:-1]]
@@ -693,11 +742,14 @@ def main(argv=None) -> int:
             "statistic": "median of repetitions over all rounds (min and raw times also given)",
             "rounds": f"{rounds} interleaved rounds: 1-thread worker (RTF + batch), 2-thread worker (batch), "
                       "solve_ivp closed-loop baseline, accuracy timings",
-            "workers": "one subprocess per thread count with RAYON_NUM_THREADS set; one warm-up call per case",
+            "workers": "one subprocess per thread count with RAYON_NUM_THREADS set; one warm-up call per case "
+                       "(two for the RTF cases: the first call in a fresh worker pays one-time allocator costs, "
+                       "and the number of repetitions per round is sized by the second)",
             "rtf": {
                 "call": "piezohyst.closed_loop(virtual_stage(), PID(kp=1e6, ki=5e9), reference, rng=1) — public API, "
-                        "Python preparation (validation, stroke check, np.gradient derivatives) and result "
-                        "objects included; single thread (1-thread worker)",
+                        "Python preparation (validation, finite and stroke check of the reference; a PID "
+                        "needs no reference derivatives) and result objects included; single thread "
+                        "(1-thread worker)",
                 "stage": "virtual_stage() as shipped (its own loop settings, below)",
                 "stage_file": vstage.to_dict(),
                 "references": "10 Hz sine and 5 Hz triangle, 0..20 um (10 um amplitude about 10 um), 10 s at 10 kHz",
@@ -705,6 +757,11 @@ def main(argv=None) -> int:
                 "approx_substeps_per_period_sine": approx_substeps,
                 "approx_substeps_note": "from the core's refinement rule applied to the recorded signals, "
                                         "velocity by finite differences (approximate)",
+                "instruction_set": "the loop runs compiled for AVX2 when the CPU has it (runtime detection), "
+                                   "else for baseline x86-64; the same scalar IEEE operations either way (no "
+                                   "fused multiply-add), so the same bits. without_avx2: the same call in a "
+                                   "worker with PIEZOHYST_NO_AVX2=1, a few calls per round; its signals are "
+                                   "asserted bit-identical (digest over every signal)",
                 "target": TARGET_RTF,
             },
             "baseline": {
@@ -742,8 +799,9 @@ def main(argv=None) -> int:
                                   "parallelizes; the public call adds serial Python preparation and results)",
                 "target_scaling": TARGET_SCALING,
                 "load": "own_cores_busy / other_cores_busy: this worker's CPU seconds and the rest of the "
-                        "machine's (/proc/stat busy minus own) per wall second over the repetitions; "
-                        "other load > 0 on 2 CPUs means the 2-thread figure was contended",
+                        "machine's (/proc/stat busy minus own, hypervisor steal included) per wall second over "
+                        "the repetitions; stolen_cores: the steal part alone; other load > 0 on 2 CPUs means "
+                        "the 2-thread figure was contended",
                 "public_scaling_bound_if_core_scaled_2x": "1T public time / (serial Python part + 1T core "
                                                           "time / 2): Amdahl's bound for the public call",
             },
@@ -810,6 +868,15 @@ def main(argv=None) -> int:
               + ", ".join(f"baseline rtol {rt:g} {c[f'baseline_rtol_{rt:g}']:.1e}" for rt in BASELINE_RTOLS))
     print(f"  stage loop settings: substeps={vstage.substeps}, tolerance={vstage.tolerance}; approx. sub-steps per "
           f"period on the sine: {approx_substeps:.2f}")
+    for name, v in rtf.items():
+        st_ = v["stolen_cores_median"]
+        print(f"  {name}: RTF by round " + ", ".join(f"{x:.0f}x" for x in v["rtf_by_round"])
+              + (f"; machine during the timings (median over rounds): other load {v['other_cores_busy_median']:.2f} "
+                 "cores" if v["other_cores_busy_median"] is not None else "")
+              + (f", of which stolen by the hypervisor {st_:.2f}" if st_ is not None else ""))
+    print("  without AVX2 (PIEZOHYST_NO_AVX2=1, bit-identical signals): "
+          + ", ".join(f"{k} RTF {v['without_avx2']['rtf']:.0f}x" for k, v in rtf.items())
+          + f"; default path here: {next(iter(rtf.values()))['without_avx2']['default_path']}")
 
     print(f"\n2. Batch: {BATCH_SIZE} scenarios x {BATCH_DURATION} s via closed_loop_batch")
     b1, b2 = batch["1_thread"], batch["2_thread"]
