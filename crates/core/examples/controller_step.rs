@@ -7,7 +7,9 @@ use piezohyst_core::compensated::Compensated;
 use piezohyst_core::absmc::Absmc;
 use piezohyst_core::control::{Controller, Limits, OpenLoop, Reference, VelocityObserver};
 use piezohyst_core::smc::{Smc, Switching};
+use piezohyst_core::inverse::inverse_step;
 use piezohyst_core::spec::Family;
+use piezohyst_core::Invertible;
 use std::time::Instant;
 
 const N: usize = 1_000_000;
@@ -35,6 +37,31 @@ fn time<C: Controller>(c: &C, refs: &[Reference], ys: &[f64]) -> (f64, f64) {
     (best, worst)
 }
 
+/// The model's per-sample inverse alone (`inverse_step`, previous input as the guess).
+fn time_inverse<M: Invertible + ?Sized>(m: &M, refs: &[Reference]) -> (f64, f64) {
+    let mut state = vec![0.0; m.state_len()];
+    let (mut best, mut worst, mut sink) = (f64::INFINITY, 0.0f64, 0.0);
+    for _ in 0..5 {
+        state.iter_mut().for_each(|z| *z = 0.0);
+        let mut v = 0.0;
+        let t0 = Instant::now();
+        for (k, r) in refs.iter().enumerate() {
+            v = inverse_step(m, &mut state, r.x, v, k).unwrap();
+            sink += v;
+        }
+        best = best.min(t0.elapsed().as_secs_f64() / N as f64 * 1e9);
+    }
+    state.iter_mut().for_each(|z| *z = 0.0);
+    let mut v = 0.0;
+    for (k, r) in refs.iter().enumerate() {
+        let t0 = Instant::now();
+        v = inverse_step(m, &mut state, r.x, v, k).unwrap();
+        worst = worst.max(t0.elapsed().as_secs_f64() * 1e9);
+    }
+    assert!((sink + v).is_finite());
+    (best, worst)
+}
+
 fn main() {
     let ts = 1e-4;
     let limits = Limits::new(-20.0, 150.0).unwrap();
@@ -59,6 +86,16 @@ fn main() {
     }
     let mut scratch = vec![0.0; family.scratch_len()];
     let mpi = family.build(&row, &mut scratch).unwrap();
+    // the classical PI with the same thresholds and weights (linear term 0.13 um/V)
+    let pi_family = Family::parse("pi", &[9, 0]).unwrap();
+    let mut pi_row = vec![0.0; pi_family.param_len()];
+    pi_row[0] = 0.13e-6;
+    for i in 0..9 {
+        pi_row[1 + i] = 15.0 * i as f64;
+        pi_row[1 + 9 + i] = 0.01e-6 / (1.0 + i as f64);
+    }
+    let mut pi_scratch = vec![0.0; pi_family.scratch_len()];
+    let pi = pi_family.build(&pi_row, &mut pi_scratch).unwrap();
     let observer = VelocityObserver::new(1000.0, ts, 1.0).unwrap();
     let cemf = CemfModel::new(0.0068, 13.0, 6.98e6, 10.5, 1.8e-6, 1.25e5, 8000.0, 3000.0).unwrap();
     let smc = |with: bool| {
@@ -69,6 +106,8 @@ fn main() {
     let absmc = Absmc::new(w2, [w2, 1.4 * w2.sqrt()], [w2 / 3.0, 0.0], [3.0 * w2, 3.0 * w2.sqrt()], (2e3, 2e3, 5e3, 1e-3), [1e6, 1e3], (1e4, 0.0, 1e5), true, observer, disp).unwrap();
     let smc_disp = Smc::new((1.0 / w2, 1.4 / w2.sqrt(), 1.0), 1e6, 2e3, 0.0, Switching::BoundaryLayer { gain: 1e-6, width: 0.01 }, None, observer, disp).unwrap();
     let rows = [
+        ("PI inverse, 9 operators (inverse_step)", time_inverse(&pi, &refs)),
+        ("MPI inverse, 9 operators (inverse_step)", time_inverse(&mpi, &refs)),
         ("PI-type inverse, 9 operators (MPI feedforward)", time(&Compensated { inner: OpenLoop::new(1.0, 0.0, 0.0, 0.0, disp).unwrap(), model: mpi, limits }, &refs, &ys)),
         ("SMC", time(&smc(false), &refs, &ys)),
         ("SMC + CEMF observer", time(&smc(true), &refs, &ys)),

@@ -37,17 +37,20 @@ pub fn solve_increasing<F: Fn(f64) -> (f64, f64)>(f: F, target: f64, guess: f64)
         step = floor;
     }
     step *= 1.0 + 1e-9;
-    // expand until the residual changes sign
-    let (mut lo, mut hi, mut r_lo, mut r_hi);
+    // expand until the residual changes sign (slopes kept: the refinement starts at a
+    // bracket end without evaluating it again)
+    let (mut lo, mut hi, mut r_lo, mut r_hi, d_lo, d_hi);
     let mut inner = guess;
     let mut r_inner = r0;
+    let mut d_inner = d0;
     let mut n = 0;
     loop {
         let outer = inner + dir * step;
         if !outer.is_finite() {
             return None;
         }
-        let r_outer = f(outer).0 - target;
+        let (y_outer, d_outer) = f(outer);
+        let r_outer = y_outer - target;
         if !r_outer.is_finite() {
             return None;
         }
@@ -56,20 +59,17 @@ pub fn solve_increasing<F: Fn(f64) -> (f64, f64)>(f: F, target: f64, guess: f64)
         }
         if (r_outer > 0.0) != (r_inner > 0.0) {
             if dir > 0.0 {
-                lo = inner;
-                r_lo = r_inner;
-                hi = outer;
-                r_hi = r_outer;
+                (lo, r_lo, d_lo) = (inner, r_inner, d_inner);
+                (hi, r_hi, d_hi) = (outer, r_outer, d_outer);
             } else {
-                lo = outer;
-                r_lo = r_outer;
-                hi = inner;
-                r_hi = r_inner;
+                (lo, r_lo, d_lo) = (outer, r_outer, d_outer);
+                (hi, r_hi, d_hi) = (inner, r_inner, d_inner);
             }
             break;
         }
         inner = outer;
         r_inner = r_outer;
+        d_inner = d_outer;
         step *= 2.0;
         n += 1;
         if n > MAX_EXPANSIONS {
@@ -77,14 +77,17 @@ pub fn solve_increasing<F: Fn(f64) -> (f64, f64)>(f: F, target: f64, guess: f64)
         }
     }
     // refine inside [lo, hi], r_lo < 0 < r_hi
-    let mut x = if abs(r_lo) < abs(r_hi) { lo } else { hi };
+    let (mut x, mut r, mut d) = if abs(r_lo) < abs(r_hi) { (lo, r_lo, d_lo) } else { (hi, r_hi, d_hi) };
     // bracket widths one and two iterations ago: Newton must at least halve the bracket
     // every two steps, else it is cycling (e.g. across the inflexion of an S-shaped curve,
     // where it can alternate between two points forever) and we bisect
     let (mut width_1, mut width_2) = (hi - lo, f64::INFINITY);
-    for _ in 0..MAX_REFINEMENTS {
-        let (y, d) = f(x);
-        let r = y - target;
+    for iteration in 0..MAX_REFINEMENTS {
+        if iteration > 0 {
+            let (y, slope) = f(x);
+            r = y - target;
+            d = slope;
+        }
         if r == 0.0 {
             return Some(x);
         }
