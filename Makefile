@@ -51,12 +51,9 @@ test-c: $(BUILT)
 bench-c: $(BUILT)
 	$(BIN)/python bench/c_step.py
 
+# every benchmark in bench/ (about 6 minutes), then the summary and the README's performance section
 bench: $(BUILT)
-	$(BIN)/python bench/pi_batch.py
-	$(BIN)/python bench/closed_loop.py
-	$(BIN)/python bench/identify_mpi.py
-	$(BIN)/python bench/c_step.py
-	$(BIN)/python bench/report.py
+	$(BIN)/piezohyst bench --readme README.md
 
 clean:
 	rm -rf $(VENV) target

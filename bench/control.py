@@ -8,6 +8,8 @@ Run: ``.venv/bin/python bench/control.py [--quick]``; JSON in ``bench/results/co
 """
 from __future__ import annotations
 
+import argparse
+import datetime as _dt
 import json
 import sys
 import time
@@ -17,6 +19,9 @@ import numpy as np
 
 import piezohyst as ph
 from piezohyst import experiments as ex
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import machine_info, write_json_atomic  # noqa: E402
 
 OUT = Path(__file__).with_name("results") / "control.json"
 
@@ -41,15 +46,19 @@ def seed2(stage, rng, quick):
     return out
 
 
-def main():
-    quick = "--quick" in sys.argv
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help="smaller optimizer budgets")
+    ap.add_argument("--out", type=Path, default=OUT, help=f"JSON output (default {OUT})")
+    args = ap.parse_args(argv)
+    quick = args.quick
     stage = ph.virtual_stage()
     rng = np.random.default_rng(0)
     t0 = time.perf_counter()
     result = {"seed1_table3": seed1(stage, rng, quick), "seed2": seed2(stage, rng, quick),
               "wall_s": time.perf_counter() - t0, "quick": quick}
-    OUT.parent.mkdir(exist_ok=True)
-    OUT.write_text(json.dumps(result, indent=1, default=float))
+    result.update(timestamp_utc=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"), machine=machine_info())
+    write_json_atomic(args.out, result)
     print(json.dumps(result, indent=1, default=float))
 
 

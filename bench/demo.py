@@ -6,6 +6,8 @@ Run: ``.venv/bin/python bench/demo.py``.
 """
 from __future__ import annotations
 
+import argparse
+import datetime as _dt
 import json
 import os
 import subprocess
@@ -13,6 +15,9 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import machine_info, write_json_atomic  # noqa: E402
 
 OUT = Path(__file__).with_name("results") / "demo.json"
 TARGETS = {"full": 180.0, "quick": 30.0}
@@ -33,10 +38,14 @@ def run(mode: str) -> dict:
             "demo_internal_wall_s": numbers["wall_s"]}
 
 
-def main():
-    result = {"machine": f"{os.cpu_count()} cores", "runs": {m: run(m) for m in ("quick", "full")}}
-    OUT.parent.mkdir(exist_ok=True)
-    OUT.write_text(json.dumps(result, indent=1))
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", type=Path, default=OUT, help=f"JSON output (default {OUT})")
+    ap.add_argument("--modes", nargs="+", choices=("quick", "full"), default=["quick", "full"])
+    args = ap.parse_args(argv)
+    result = {"timestamp_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+              "machine": machine_info(), "runs": {m: run(m) for m in args.modes}}
+    write_json_atomic(args.out, result)
     print(json.dumps(result, indent=1))
 
 

@@ -15,6 +15,8 @@ Examples
 True
 """
 from . import _core
+from .errors import (ComputationError, DataError, NotInvertibleError, OutputExistsError, ParameterError,
+                     ParameterTypeError, PiezohystError, UnreachableError)
 from .batch import batch_rmse, batch_simulate
 from .boucwen_benchmark import BoucWenBenchmark, identify_boucwen_benchmark, load_train_multisine
 from .creep import Creep
@@ -37,6 +39,8 @@ from .stage import Amplifier, Sensor, Stage, StageInfo, StageParameters, StageRe
 __version__ = _core.__version__
 
 __all__ = [
+    "PiezohystError", "ParameterError", "NotInvertibleError", "UnreachableError", "ParameterTypeError",
+    "DataError", "ComputationError", "OutputExistsError",
     "ABSMC", "ILC", "SMC", "CemfFeedforward", "Compensated", "InverseFeedforward", "VelocityObserver",
     "hysteresis_percent", "linearity_error", "tracking_metrics", "TuningResult", "stage_from_model", "track", "tune",
     "A7075_YOUNGS_MODULUS",

@@ -4,6 +4,7 @@ from __future__ import annotations
 import numbers
 
 import numpy as np
+from .errors import ParameterError, ParameterTypeError
 
 
 def as_record(x, name: str, *, min_length: int = 1, copy: bool = True, finite: bool = True) -> np.ndarray:
@@ -11,23 +12,23 @@ def as_record(x, name: str, *, min_length: int = 1, copy: bool = True, finite: b
     read-only view when the data is already float64. ``finite=False`` leaves the
     NaN/Inf check to the Rust core, which reports it with the same wording."""
     if isinstance(x, (str, bytes)):
-        raise TypeError(f"{name} must be a 1-D array of numbers, got {type(x).__name__}")
+        raise ParameterTypeError(f"{name} must be a 1-D array of numbers, got {type(x).__name__}")
     raw = np.asarray(x) if not isinstance(x, np.ndarray) else x
     if raw.dtype.kind in "cbUSO" and raw.dtype.kind != "O":
-        raise TypeError(f"{name} must be real numbers, got dtype {raw.dtype}")
+        raise ParameterTypeError(f"{name} must be real numbers, got dtype {raw.dtype}")
     try:
         a = np.array(x, dtype=np.float64, copy=True) if copy else np.ascontiguousarray(x, dtype=np.float64)
     except (TypeError, ValueError) as e:
-        raise TypeError(f"{name} must be a 1-D array of numbers: {e}") from None
+        raise ParameterTypeError(f"{name} must be a 1-D array of numbers: {e}") from None
     if a.ndim != 1:
-        raise ValueError(f"{name} must be 1-D, got shape {a.shape}")
+        raise ParameterError(f"{name} must be 1-D, got shape {a.shape}")
     if a.size < min_length:
-        raise ValueError(f"{name} has {a.size} samples, at least {min_length} needed")
+        raise ParameterError(f"{name} has {a.size} samples, at least {min_length} needed")
     if not finite:
         return a
     bad = np.flatnonzero(~np.isfinite(a))
     if bad.size:
-        raise ValueError(f"{name}[{bad[0]}] = {a[bad[0]]} is not finite")
+        raise ParameterError(f"{name}[{bad[0]}] = {a[bad[0]]} is not finite")
     return a
 
 
@@ -35,29 +36,29 @@ def as_vector(x, name: str, *, length: int | None = None, allow_empty: bool = Tr
     """A finite 1-D float64 parameter vector."""
     a = as_record(x, name, min_length=0 if allow_empty else 1)
     if length is not None and a.size != length:
-        raise ValueError(f"{name} has length {a.size}, expected {length}")
+        raise ParameterError(f"{name} has length {a.size}, expected {length}")
     return a
 
 
 def as_scalar(x, name: str, *, positive: bool = False, nonnegative: bool = False) -> float:
     """A finite real scalar."""
     if isinstance(x, bool) or not isinstance(x, (numbers.Real, np.floating, np.integer)):
-        raise TypeError(f"{name} must be a real number, got {x!r}")
+        raise ParameterTypeError(f"{name} must be a real number, got {x!r}")
     v = float(x)
     if not np.isfinite(v):
-        raise ValueError(f"{name} = {v} is not finite")
+        raise ParameterError(f"{name} = {v} is not finite")
     if positive and not v > 0:
-        raise ValueError(f"{name} = {v} must be > 0")
+        raise ParameterError(f"{name} = {v} must be > 0")
     if nonnegative and v < 0:
-        raise ValueError(f"{name} = {v} must be >= 0")
+        raise ParameterError(f"{name} = {v} must be >= 0")
     return v
 
 
 def as_int(x, name: str, *, minimum: int = 0) -> int:
     """An integer >= minimum."""
     if isinstance(x, bool) or not isinstance(x, (numbers.Integral, np.integer)):
-        raise TypeError(f"{name} must be an integer, got {x!r}")
+        raise ParameterTypeError(f"{name} must be an integer, got {x!r}")
     v = int(x)
     if v < minimum:
-        raise ValueError(f"{name} = {v} must be >= {minimum}")
+        raise ParameterError(f"{name} = {v} must be >= {minimum}")
     return v

@@ -22,6 +22,7 @@ import numpy as np
 
 from . import _core
 from ._validate import as_record
+from .errors import ParameterError, ParameterTypeError
 
 __all__ = ["batch_simulate", "batch_rmse"]
 
@@ -29,7 +30,7 @@ __all__ = ["batch_simulate", "batch_rmse"]
 def _family(model_or_family, dims):
     if isinstance(model_or_family, str):
         if dims is None:
-            raise TypeError("dims is required when the family is given by name")
+            raise ParameterTypeError("dims is required when the family is given by name")
         return model_or_family, [int(d) for d in dims]
     return model_or_family.family, list(model_or_family.dims)
 
@@ -37,9 +38,9 @@ def _family(model_or_family, dims):
 def _params(params, width):
     p = np.ascontiguousarray(params, dtype=np.float64)
     if p.ndim != 2:
-        raise ValueError(f"params must be a 2-D (S, P) array, got shape {p.shape}")
+        raise ParameterError(f"params must be a 2-D (S, P) array, got shape {p.shape}")
     if p.shape[1] != width:
-        raise ValueError(f"params has {p.shape[1]} columns, expected {width} for this model family")
+        raise ParameterError(f"params has {p.shape[1]} columns, expected {width} for this model family")
     return p
 
 
@@ -88,7 +89,7 @@ def batch_rmse(model, params, input, target, *, dims=None, invalid_cost=None):
     v = as_record(input, "input", copy=False, finite=False)
     t = as_record(target, "target", copy=False, finite=False)
     if t.shape != v.shape:
-        raise ValueError(f"target has length {t.size}, input has length {v.size}; they must match")
+        raise ParameterError(f"target has length {t.size}, input has length {v.size}; they must match")
     if invalid_cost is not None:
         invalid_cost = float(invalid_cost)
     return _core.batch_rmse(family, d, _params(params, width), v, t, invalid_cost)

@@ -75,6 +75,7 @@ import numpy as np
 from . import _core
 from ._validate import as_int, as_record, as_scalar, as_vector
 from .identify import IdentificationResult, fit_metrics
+from .errors import DataError, ParameterError, ParameterTypeError
 
 __all__ = ["BoucWenBenchmark", "DEFAULT_BOUNDS", "IDENTIFY_PARAMETERS", "decimate", "identify_boucwen_benchmark",
            "load_train_multisine", "upsample"]
@@ -119,7 +120,7 @@ def upsample(u, factor: int, interpolation: str = "fft") -> np.ndarray:
     u = as_record(u, "u")
     r = as_int(factor, "factor", minimum=1)
     if interpolation not in INTERPOLATIONS:
-        raise ValueError(f"interpolation = {interpolation!r} is unknown; expected one of {', '.join(INTERPOLATIONS)}")
+        raise ParameterError(f"interpolation = {interpolation!r} is unknown; expected one of {', '.join(INTERPOLATIONS)}")
     if r == 1:
         return u
     n = u.size
@@ -188,7 +189,7 @@ class BoucWenBenchmark:
     >>> BoucWenBenchmark(mass=0)
     Traceback (most recent call last):
     ...
-    ValueError: mass = 0.0 must be > 0
+    piezohyst.errors.ParameterError: mass = 0.0 must be > 0
     """
 
     def __init__(
@@ -211,7 +212,7 @@ class BoucWenBenchmark:
         self.delta = as_scalar(delta, "delta")
         self.nu = as_scalar(nu, "nu")
         if not self.nu >= 1.0:
-            raise ValueError(f"nu = {self.nu} must be >= 1")
+            raise ParameterError(f"nu = {self.nu} must be >= 1")
 
     @property
     def parameters(self) -> dict:
@@ -336,7 +337,7 @@ class BoucWenBenchmark:
         fs = as_scalar(fs, "fs", positive=True)
         r = as_int(upsample, "upsample", minimum=1)
         if interpolation not in INTERPOLATIONS:
-            raise ValueError(f"interpolation = {interpolation!r} is unknown; expected one of {', '.join(INTERPOLATIONS)}")
+            raise ParameterError(f"interpolation = {interpolation!r} is unknown; expected one of {', '.join(INTERPOLATIONS)}")
         fine = _upsample(u, r, interpolation)
         y, z = self.integrate(fine, 1.0 / (r * fs), initial_state, return_z=True)
         y = _core.boucwen_benchmark_decimate(y, r)
@@ -360,16 +361,16 @@ def load_train_multisine(path) -> tuple[np.ndarray, np.ndarray, float]:
     with path.open() as fh:
         header = fh.readline().strip().replace(" ", "").lower()
         if header != "u,y":
-            raise ValueError(f"{path}: header = {header!r}, expected 'u,y'")
+            raise DataError(f"{path}: header = {header!r}, expected 'u,y'")
         data = np.loadtxt(fh, delimiter=",", dtype=np.float64, ndmin=2)
     if data.shape[1] != 2 or data.shape[0] == 0:
-        raise ValueError(f"{path}: data has shape {data.shape}, expected (N, 2) with N > 0")
+        raise DataError(f"{path}: data has shape {data.shape}, expected (N, 2) with N > 0")
     u = np.ascontiguousarray(data[:, 0])
     y = np.ascontiguousarray(data[:, 1])
     for name, a in (("u", u), ("y", y)):
         bad = np.flatnonzero(~np.isfinite(a))
         if bad.size:
-            raise ValueError(f"{path}: {name}[{bad[0]}] = {a[bad[0]]} is not finite")
+            raise DataError(f"{path}: {name}[{bad[0]}] = {a[bad[0]]} is not finite")
     return u, y, FS
 
 
@@ -403,11 +404,11 @@ def _search_box(bounds):
     box = dict(DEFAULT_BOUNDS)
     if bounds is not None:
         if not hasattr(bounds, "items"):
-            raise TypeError(f"bounds must be a mapping of parameter names to (lower, upper) pairs or fixed values, "
+            raise ParameterTypeError(f"bounds must be a mapping of parameter names to (lower, upper) pairs or fixed values, "
                             f"got {type(bounds).__name__}")
         for name, b in bounds.items():
             if name not in IDENTIFY_PARAMETERS:
-                raise ValueError(f"bounds: unknown parameter {name!r}; expected names from {list(IDENTIFY_PARAMETERS)}")
+                raise ParameterError(f"bounds: unknown parameter {name!r}; expected names from {list(IDENTIFY_PARAMETERS)}")
             box[name] = b
     names, lower, upper, fixed = [], [], [], {}
     minimum = {"mass": (0.0, False), "damping": (0.0, True), "stiffness": (0.0, True), "alpha": (0.0, True),
@@ -416,17 +417,17 @@ def _search_box(bounds):
         b = box[name]
         if isinstance(b, (tuple, list, np.ndarray)):
             if len(b) != 2:
-                raise ValueError(f"bounds[{name!r}] = {b!r} must be a (lower, upper) pair or a number")
+                raise ParameterError(f"bounds[{name!r}] = {b!r} must be a (lower, upper) pair or a number")
             lo, hi = as_scalar(b[0], f"bounds[{name!r}] lower"), as_scalar(b[1], f"bounds[{name!r}] upper")
             if lo > hi:
-                raise ValueError(f"bounds[{name!r}] = ({lo}, {hi}): lower > upper")
+                raise ParameterError(f"bounds[{name!r}] = ({lo}, {hi}): lower > upper")
         else:
             lo = hi = as_scalar(b, f"bounds[{name!r}]")
         if name in minimum:
             m, inclusive = minimum[name]
             if lo < m or (lo == m and not inclusive):
                 rel = ">=" if inclusive else ">"
-                raise ValueError(f"bounds[{name!r}]: lower = {lo} must be {rel} {m}")
+                raise ParameterError(f"bounds[{name!r}]: lower = {lo} must be {rel} {m}")
         if lo == hi:
             fixed[name] = lo
         else:
@@ -434,7 +435,7 @@ def _search_box(bounds):
             lower.append(lo)
             upper.append(hi)
     if not names:
-        raise ValueError("bounds: every parameter is fixed; nothing to identify")
+        raise ParameterError("bounds: every parameter is fixed; nothing to identify")
     return tuple(names), np.array(lower), np.array(upper), fixed
 
 
@@ -446,12 +447,12 @@ def _as_range(r, n, name, minimum):
         try:
             start, stop = r
         except (TypeError, ValueError):
-            raise TypeError(f"{name} must be a (start, stop) pair of sample indices, got {r!r}") from None
+            raise ParameterTypeError(f"{name} must be a (start, stop) pair of sample indices, got {r!r}") from None
         start, stop = as_int(start, f"{name} start"), as_int(stop, f"{name} stop")
     if not start < stop <= n:
-        raise ValueError(f"{name} = ({start}, {stop}) must satisfy 0 <= start < stop <= {n} (the record's length)")
+        raise ParameterError(f"{name} = ({start}, {stop}) must satisfy 0 <= start < stop <= {n} (the record's length)")
     if stop - start < minimum:
-        raise ValueError(f"{name} = ({start}, {stop}) holds {stop - start} samples, at least {minimum} needed")
+        raise ParameterError(f"{name} = ({start}, {stop}) holds {stop - start} samples, at least {minimum} needed")
     return start, stop
 
 
@@ -686,15 +687,15 @@ def identify_boucwen_benchmark(u, y, fs=FS, *, upsample=UPSAMPLE, fit_range=None
     u = as_record(u, "u", min_length=2)
     y = as_record(y, "y", min_length=2)
     if y.size != u.size:
-        raise ValueError(f"y has {y.size} samples, u has {u.size}; they must match")
+        raise ParameterError(f"y has {y.size} samples, u has {u.size}; they must match")
     if not np.ptp(u) > 0:
-        raise ValueError("u is constant: the record does not excite the system")
+        raise ParameterError("u is constant: the record does not excite the system")
     if not np.ptp(y) > 0:
-        raise ValueError("y is constant: there is no response to identify")
+        raise ParameterError("y is constant: there is no response to identify")
     fs = as_scalar(fs, "fs", positive=True)
     r = as_int(upsample, "upsample", minimum=1)
     if interpolation not in INTERPOLATIONS:
-        raise ValueError(f"interpolation = {interpolation!r} is unknown; expected one of {', '.join(INTERPOLATIONS)}")
+        raise ParameterError(f"interpolation = {interpolation!r} is unknown; expected one of {', '.join(INTERPOLATIONS)}")
     beta = as_scalar(beta, "beta", positive=True)
     names, lower, upper, fixed = _search_box(bounds)
     start, stop = _as_range(fit_range, u.size, "fit_range", minimum=2 * len(names))
@@ -703,14 +704,14 @@ def identify_boucwen_benchmark(u, y, fs=FS, *, upsample=UPSAMPLE, fit_range=None
     search = min(max(search, 2 * len(names)), stop - start)
     starts = as_int(starts, "starts")
     if not isinstance(polish, (bool, dict)):
-        raise TypeError(f"polish must be a bool or a dict of least_squares options, got {polish!r}")
+        raise ParameterTypeError(f"polish must be a bool or a dict of least_squares options, got {polish!r}")
     if validate is not None:
         if not isinstance(validate, (tuple, list)) or len(validate) not in (2, 3):
-            raise TypeError("validate must be (u, y) or (u, y, (start, stop))")
+            raise ParameterTypeError("validate must be (u, y) or (u, y, (start, stop))")
         vu = as_record(validate[0], "validate u", min_length=2)
         vy = as_record(validate[1], "validate y", min_length=2)
         if vy.size != vu.size:
-            raise ValueError(f"validate y has {vy.size} samples, validate u has {vu.size}; they must match")
+            raise ParameterError(f"validate y has {vy.size} samples, validate u has {vu.size}; they must match")
         v_range = _as_range(validate[2] if len(validate) == 3 else None, vu.size, "validate range", minimum=1)
 
     columns = [IDENTIFY_PARAMETERS.index(n) for n in names]
@@ -744,7 +745,7 @@ def identify_boucwen_benchmark(u, y, fs=FS, *, upsample=UPSAMPLE, fit_range=None
     res = minimize(cost, list(zip(lower, upper)), method=optimizer, rng=rng, max_iterations=max_iterations,
                    population_size=population_size, progress=progress, callback=callback)
     if not np.isfinite(res.fun):
-        raise ValueError("every simulated candidate failed or diverged: check the units of u (N) and y (m), fs and "
+        raise ParameterError("every simulated candidate failed or diverged: check the units of u (N) and y (m), fs and "
                          "the bounds")
     x = np.asarray(res.x, dtype=np.float64)
     history = dict(res.history)

@@ -13,9 +13,10 @@ import math
 import os
 import re
 import sys
-import tempfile
 import time
 from pathlib import Path
+
+from ._io import write_atomic
 
 __all__ = ["main"]
 
@@ -62,6 +63,18 @@ def _parser() -> argparse.ArgumentParser:
     _simulate_parser(sub)
     _track_parser(sub)
     _export_c_parser(sub)
+    b = sub.add_parser("bench", help="run every benchmark in the source tree's bench/ and write one JSON + a "
+                                     "Markdown table, each figure beside its same-run baseline")
+    b.add_argument("--only", nargs="+", metavar="NAME", help="run only these benchmarks")
+    b.add_argument("--skip", nargs="+", metavar="NAME", help="skip these benchmarks")
+    b.add_argument("--quick", action="store_true", help="minimal repetitions and budgets (a smoke run, not figures "
+                                                        "to quote)")
+    b.add_argument("--report-only", action="store_true", help="do not run; summarize the JSON already in the results")
+    b.add_argument("--results", metavar="DIR", help="where the benchmarks write their JSON and the summary "
+                                                     "(default: bench/results)")
+    b.add_argument("--readme", metavar="FILE", help="replace the section between <!-- bench:begin --> and "
+                                                   "<!-- bench:end --> of FILE with the table")
+    b.add_argument("--bench-dir", metavar="DIR", help="the bench/ directory (default: the source tree's)")
     return p
 
 
@@ -165,18 +178,8 @@ def _track(args) -> None:
 
 
 def _atomic_savefig(fig, path) -> None:
-    import os
-    import tempfile
-
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", suffix=path.suffix)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, dpi=110)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    fmt = Path(path).suffix.lstrip(".").lower() or "png"
+    write_atomic(path, writer=lambda tmp: fig.savefig(tmp, dpi=110, format=fmt))
 
 
 def _column_help(role: str, default: str) -> str:
@@ -439,24 +442,9 @@ def _load(path, **kw):
 
 
 def _write_atomic(path: Path, data, force: bool, name: str, writer=None) -> None:
-    """Write ``data`` (str) or call ``writer(temp_path)`` into a temporary file next to ``path``, then
-    move it into place; an existing ``path`` is kept unless ``force``."""
-    if path.exists() and not force:
-        raise _Fail(f"{name} = '{path}' exists; pass --force to overwrite it")
-    parent = path.parent if str(path.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(dir=parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        if writer is None:
-            with os.fdopen(fd, "w", newline="") as f:
-                f.write(data)
-        else:
-            os.close(fd)
-            writer(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    """Write ``data`` (str) or call ``writer(temp_path)``, atomically; an existing ``path``
+    is kept unless ``force``."""
+    write_atomic(path, data, writer=writer, overwrite=force, name=name)
 
 
 def _pct(x) -> str:
@@ -892,7 +880,7 @@ def _stage_info(args) -> None:
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
     debug = args.debug or getattr(args, "sub_debug", False)
-    prog = f"piezohyst {args.command}" if args.command in ("identify", "simulate", "track", "export-c") else "piezohyst"
+    prog = f"piezohyst {args.command}" if args.command in ("identify", "simulate", "track", "export-c", "bench") else "piezohyst"
     try:
         if args.command == "stage":
             _stage_info(args)
@@ -911,6 +899,14 @@ def main(argv=None) -> int:
             _track(args)
         elif args.command == "export-c":
             _export_c(args)
+        elif args.command == "bench":
+            from .benchmarks import main as bench_main
+
+            failed = bench_main(args)["failed"]
+            if failed:
+                print(f"piezohyst bench: {len(failed)} benchmark(s) did not produce results: {', '.join(failed)}",
+                      file=sys.stderr)
+                return 1
         return 0
     except KeyboardInterrupt:
         if debug:

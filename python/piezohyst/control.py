@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ._validate import as_int, as_scalar
+from .errors import ParameterError, ParameterTypeError
 
 __all__ = ["OpenLoop", "PID", "VelocityObserver", "SMC", "ABSMC", "CemfFeedforward", "Compensated",
            "InverseFeedforward", "ILC", "cemf_model_parameters"]
@@ -26,14 +27,14 @@ def _limits(u_min, u_max, stage):
     lo = stage.amplifier.v_min if u_min is None else as_scalar(u_min, "u_min")
     hi = stage.amplifier.v_max if u_max is None else as_scalar(u_max, "u_max")
     if not hi > lo:
-        raise ValueError(f"u_min = {lo} must be < u_max = {hi}")
+        raise ParameterError(f"u_min = {lo} must be < u_max = {hi}")
     a = stage.amplifier
     # limits beyond the amplifier would let it clip where the controller cannot see it
     # (the integrator would wind up)
     if lo < a.v_min:
-        raise ValueError(f"u_min = {lo} V is below the amplifier's v_min = {a.v_min} V")
+        raise ParameterError(f"u_min = {lo} V is below the amplifier's v_min = {a.v_min} V")
     if hi > a.v_max:
-        raise ValueError(f"u_max = {hi} V is above the amplifier's v_max = {a.v_max} V")
+        raise ParameterError(f"u_max = {hi} V is above the amplifier's v_max = {a.v_max} V")
     return lo, hi
 
 
@@ -56,7 +57,7 @@ class VelocityObserver:
     def core(self, stage) -> list:
         bw = as_scalar(self.bandwidth, "observer_bandwidth", positive=True)
         if bw >= 0.5 / stage.sample_time:
-            raise ValueError(f"observer_bandwidth = {bw} Hz must be below the Nyquist frequency "
+            raise ParameterError(f"observer_bandwidth = {bw} Hz must be below the Nyquist frequency "
                              f"{0.5 / stage.sample_time:g} Hz")
         delay = stage.sensor.delay if self.delay is None else as_scalar(self.delay, "observer_delay", nonnegative=True)
         return [bw, stage.sample_time, float(delay)]
@@ -140,9 +141,9 @@ def cemf_model_parameters(params) -> dict:
     from .stage import StageParameters
 
     if not isinstance(params, StageParameters):
-        raise TypeError(f"model must be StageParameters (e.g. identify_cemf(...).model), got {type(params).__name__}")
+        raise ParameterTypeError(f"model must be StageParameters (e.g. identify_cemf(...).model), got {type(params).__name__}")
     if params.hyst_drive != "charge":
-        raise ValueError(f"model.hyst_drive = {params.hyst_drive!r}: the CEMF observer needs the charge-driven law")
+        raise ParameterError(f"model.hyst_drive = {params.hyst_drive!r}: the CEMF observer needs the charge-driven law")
     t = params.tem
     return {"M": params.mass / t, "B": params.damping / t, "K": params.stiffness / t, "tem": t,
             "capacitance": params.capacitance, "alpha": params.hyst_alpha, "beta": params.hyst_beta,
@@ -193,19 +194,19 @@ class SMC:
         row = _cemf_row(self.model)
         kp, kv, alpha = (as_scalar(getattr(self, n), n) for n in ("kp", "kv", "alpha"))
         if alpha < 0:
-            raise ValueError(f"alpha = {alpha} must be >= 0")
+            raise ParameterError(f"alpha = {alpha} must be >= 0")
         if not kv + alpha > 0:
-            raise ValueError(f"kv + alpha = {kv + alpha} must be > 0: the sliding dynamics would be unstable")
+            raise ParameterError(f"kv + alpha = {kv + alpha} must be > 0: the sliding dynamics would be unstable")
         if not alpha * kv + kp > 0:
-            raise ValueError(f"alpha * kv + kp = {alpha * kv + kp} must be > 0: the sliding dynamics would be unstable")
+            raise ParameterError(f"alpha * kv + kp = {alpha * kv + kp} must be > 0: the sliding dynamics would be unstable")
         if self.switching == "boundary_layer":
             sw = [0.0, as_scalar(self.ks, "ks", nonnegative=True), as_scalar(self.phi, "phi", positive=True)]
         elif self.switching == "super_twisting":
             sw = [1.0, as_scalar(self.k1, "k1", nonnegative=True), as_scalar(self.k2, "k2", nonnegative=True)]
         else:
-            raise ValueError(f"switching = {self.switching!r} must be 'boundary_layer' or 'super_twisting'")
+            raise ParameterError(f"switching = {self.switching!r} must be 'boundary_layer' or 'super_twisting'")
         if self.model_terms not in ("measured", "desired"):
-            raise ValueError(f"model_terms = {self.model_terms!r} must be 'measured' or 'desired'")
+            raise ParameterError(f"model_terms = {self.model_terms!r} must be 'measured' or 'desired'")
         lo, hi = _domain_limits(self, stage, limits)
         p = (row[:3] + [kp, kv, alpha] + sw + self.observer.core(stage) + [1.0 if self.cemf else 0.0] + row[3:]
              + [1.0 if self.model_terms == "desired" else 0.0, lo, hi])
@@ -268,11 +269,11 @@ class ABSMC:
         b = as_scalar(self.b, "b", positive=True)
         th = [as_scalar(t, f"theta[{i}]") for i, t in enumerate(self.theta)]
         if len(th) != 2:
-            raise ValueError(f"theta must have 2 values [a0, a1], got {len(th)}")
+            raise ParameterError(f"theta must have 2 values [a0, a1], got {len(th)}")
         if self.theta_bounds is None:
             r = as_scalar(self.theta_range, "theta_range", positive=True)
             if r < 1:
-                raise ValueError(f"theta_range = {r} must be >= 1")
+                raise ParameterError(f"theta_range = {r} must be >= 1")
             lo_t = [min(t / r, t * r) for t in th]
             hi_t = [max(t / r, t * r) for t in th]
         else:
@@ -281,13 +282,13 @@ class ABSMC:
             as_scalar(getattr(self, name), name, positive=True)
         as_scalar(self.ks, "ks", nonnegative=True)
         if len(self.gamma_theta) != 2:
-            raise ValueError(f"gamma_theta = {self.gamma_theta!r} must have 2 values (rates for a0, a1)")
+            raise ParameterError(f"gamma_theta = {self.gamma_theta!r} must have 2 values (rates for a0, a1)")
         g = [as_scalar(x, f"gamma_theta[{i}]", positive=True) for i, x in enumerate(self.gamma_theta)]
         d0 = as_scalar(self.d0, "d0", nonnegative=True)
         lo, hi = _domain_limits(self, stage, limits)
         d_max = (hi - lo) * b if self.d_max is None else as_scalar(self.d_max, "d_max", nonnegative=True)
         if self.regressor not in ("desired", "measured"):
-            raise ValueError(f"regressor = {self.regressor!r} must be 'desired' or 'measured'")
+            raise ParameterError(f"regressor = {self.regressor!r} must be 'desired' or 'measured'")
         p = [b, *th, *lo_t, *hi_t, self.c1, self.lam, self.ks, self.phi, *g, self.gamma_d, d0, d_max,
              1.0 if self.regressor == "desired" else 0.0, *self.observer.core(stage), lo, hi]
         return "absmc", np.array(p, dtype=float), None, None
@@ -336,13 +337,13 @@ class Compensated:
         from .model import HysteresisModel
 
         if not isinstance(self.model, HysteresisModel):
-            raise TypeError(f"model must be a hysteresis model (e.g. identify(...).model), got {type(self.model).__name__}")
+            raise ParameterTypeError(f"model must be a hysteresis model (e.g. identify(...).model), got {type(self.model).__name__}")
         if isinstance(self.inner, (Compensated, InverseFeedforward)):
-            raise TypeError("inner must not itself be compensated")
+            raise ParameterTypeError("inner must not itself be compensated")
         v_lo, v_hi = _limits(None, None, stage) if limits is None else limits
         y_lo, y_hi = _model_output_range(self.model, v_lo, v_hi)
         if not y_hi > y_lo:
-            raise ValueError(f"the model's output range [{y_lo:.4g}, {y_hi:.4g}] at the amplifier limits is empty")
+            raise ParameterError(f"the model's output range [{y_lo:.4g}, {y_hi:.4g}] at the amplifier limits is empty")
         kind, params, _, ilc = self.inner.core(stage, limits=(y_lo, y_hi))
         inverse = (self.model.family, list(self.model.dims), self.model.to_row(), v_lo, v_hi)
         return kind, params, inverse, ilc
@@ -390,12 +391,12 @@ class ILC:
         gain = as_scalar(self.gain, "gain", nonnegative=True)
         q = as_scalar(self.forgetting, "forgetting", positive=True)
         if q > 1:
-            raise ValueError(f"forgetting = {q} must lie in (0, 1]")
+            raise ParameterError(f"forgetting = {q} must lie in (0, 1]")
         lead = as_int(self.lead, "lead", minimum=0)
         if lead >= n:
-            raise ValueError(f"lead = {lead} must be below the period {n}")
+            raise ParameterError(f"lead = {lead} must be below the period {n}")
         if isinstance(self.inner, ILC):
-            raise TypeError("inner must not itself be an ILC")
+            raise ParameterTypeError("inner must not itself be an ILC")
         kind, params, inverse, _ = self.inner.core(stage, limits=limits)
         return kind, params, inverse, (n, gain, q, lead, int(stage.sensor.delay))
 

@@ -9,6 +9,7 @@ import numpy as np
 
 from ._validate import as_scalar, as_vector
 from .model import HysteresisModel, _register
+from .errors import ParameterError, ParameterTypeError
 
 __all__ = ["Creep"]
 
@@ -45,7 +46,7 @@ class Creep(HysteresisModel):
         self.weights = as_vector(weights, "weights", length=self.taus.size)
         bad = np.flatnonzero(~(self.taus > 0))
         if bad.size:
-            raise ValueError(f"taus[{bad[0]}] = {self.taus[bad[0]]} must be > 0")
+            raise ParameterError(f"taus[{bad[0]}] = {self.taus[bad[0]]} must be > 0")
         super().__init__([self.taus.size], self.tail(), units=units)
 
     @classmethod
@@ -72,7 +73,7 @@ def creep_parts(creep):
     if creep is None:
         return 0, np.zeros(0)
     if not isinstance(creep, Creep):
-        raise TypeError(f"creep must be a piezohyst.Creep or None, got {type(creep).__name__}")
+        raise ParameterTypeError(f"creep must be a piezohyst.Creep or None, got {type(creep).__name__}")
     return creep.terms, creep.tail()
 
 

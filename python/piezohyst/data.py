@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from ._validate import as_int, as_record, as_scalar
+from .errors import DataError, ParameterError, ParameterTypeError
 
 __all__ = ["Record", "load_record", "load_yan9a_model_record", "TIME_RTOL"]
 
@@ -108,23 +109,23 @@ class Record:
         u = as_record(self.input, "input", min_length=2)
         y = as_record(self.output, "output", min_length=2)
         if y.size != u.size:
-            raise ValueError(f"output has {y.size} samples, input has {u.size}: lengths must match")
+            raise ParameterError(f"output has {y.size} samples, input has {u.size}: lengths must match")
         fs = as_scalar(self.fs, "fs", positive=True)
         t = None
         if self.time is not None:
             t = as_record(self.time, "time", min_length=2)
             if t.size != u.size:
-                raise ValueError(f"time has {t.size} samples, input has {u.size}: lengths must match")
+                raise ParameterError(f"time has {t.size} samples, input has {u.size}: lengths must match")
             _check_increasing(t, "time")
             t.flags.writeable = False
         if not isinstance(self.source, str):
-            raise TypeError(f"source must be a str, got {type(self.source).__name__}")
+            raise ParameterTypeError(f"source must be a str, got {type(self.source).__name__}")
         if not isinstance(self.columns, Mapping):
-            raise TypeError(f"columns must be a mapping of role -> column name, got {type(self.columns).__name__}")
+            raise ParameterTypeError(f"columns must be a mapping of role -> column name, got {type(self.columns).__name__}")
         columns = {}
         for k, v in self.columns.items():
             if not isinstance(k, str) or not isinstance(v, str):
-                raise TypeError(f"columns must map str to str, got {k!r}: {v!r}")
+                raise ParameterTypeError(f"columns must map str to str, got {k!r}: {v!r}")
             columns[k] = v
         u.flags.writeable = False
         y.flags.writeable = False
@@ -157,9 +158,9 @@ class Record:
         a = as_int(start, start_name, minimum=0)
         b = self.n if stop is None else as_int(stop, stop_name, minimum=0)
         if b > self.n:
-            raise ValueError(f"{stop_name} = {b} is beyond the end of the record ({self.n} samples)")
+            raise ParameterError(f"{stop_name} = {b} is beyond the end of the record ({self.n} samples)")
         if b - a < 2:
-            raise ValueError(
+            raise ParameterError(
                 f"{start_name} = {a}, {stop_name} = {b} keep {max(b - a, 0)} samples, at least 2 needed"
             )
         return a, b
@@ -199,17 +200,17 @@ class Record:
             h = self.n // 2
             train, validate = (0, h), (h, self.n)
         elif train is None or validate is None:
-            raise ValueError(
+            raise ParameterError(
                 f"train = {train!r}, validate = {validate!r}: give both ranges, or neither (halves)"
             )
         spans = []
         for name, rng in (("train", train), ("validate", validate)):
             if isinstance(rng, (str, bytes)) or not isinstance(rng, (tuple, list)) or len(rng) != 2:
-                raise TypeError(f"{name} must be a (start, stop) pair of sample indices, got {rng!r}")
+                raise ParameterTypeError(f"{name} must be a (start, stop) pair of sample indices, got {rng!r}")
             spans.append(self._span(rng[0], rng[1], f"{name}[0]", f"{name}[1]"))
         (a, b), (c, d) = spans
         if a < d and c < b:
-            raise ValueError(
+            raise ParameterError(
                 f"train = ({a}, {b}) and validate = ({c}, {d}) overlap "
                 f"(samples {max(a, c)} to {min(b, d) - 1}); validation data must be held out"
             )
@@ -231,7 +232,7 @@ def _check_increasing(t: np.ndarray, name: str) -> np.ndarray:
     bad = np.flatnonzero(~(d > 0))
     if bad.size:
         k = int(bad[0])
-        raise ValueError(
+        raise ParameterError(
             f"{name} is not strictly increasing: {name}[{k + 1}] = {float(t[k + 1])!r} follows "
             f"{name}[{k}] = {float(t[k])!r}"
         )
@@ -246,7 +247,7 @@ def _fs_from_time(t: np.ndarray, name: str, rtol: float) -> float:
     bad = np.flatnonzero(dev > rtol * med)
     if bad.size:
         k = int(bad[0])
-        raise ValueError(
+        raise ParameterError(
             f"{name} is not uniformly sampled: the step at index {k} ({name}[{k + 1}] - {name}[{k}] = "
             f"{d[k]:.9g} s) differs from the median step {med:.9g} s by {dev[k] / med:.3g} relative "
             f"(time_rtol = {rtol:g}); resample the record first (it is not resampled silently), "
@@ -261,12 +262,12 @@ def _fs_from_time(t: np.ndarray, name: str, rtol: float) -> float:
 
 def _check_path(path) -> Path:
     if isinstance(path, bytes) or not isinstance(path, (str, os.PathLike)):
-        raise TypeError(f"path must be a str or os.PathLike, got {type(path).__name__}")
+        raise ParameterTypeError(f"path must be a str or os.PathLike, got {type(path).__name__}")
     p = Path(path)
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such file")
     if p.is_dir():
-        raise ValueError(f"path = {str(p)!r} is a directory, not a data file")
+        raise ParameterError(f"path = {str(p)!r} is a directory, not a data file")
     return p
 
 
@@ -275,12 +276,12 @@ def _check_column_spec(spec, name: str):
         return None
     if isinstance(spec, str):
         if not spec.strip():
-            raise ValueError(f"{name} = {spec!r}: a column name may not be empty")
+            raise ParameterError(f"{name} = {spec!r}: a column name may not be empty")
         return spec
     if isinstance(spec, bool) or not isinstance(spec, (int, np.integer)):
-        raise TypeError(f"{name} must be a column name (str) or a 0-based column index (int), got {spec!r}")
+        raise ParameterTypeError(f"{name} must be a column name (str) or a 0-based column index (int), got {spec!r}")
     if spec < 0:
-        raise ValueError(f"{name} = {int(spec)}: column indices are 0-based and must be >= 0")
+        raise ParameterError(f"{name} = {int(spec)}: column indices are 0-based and must be >= 0")
     return int(spec)
 
 
@@ -296,7 +297,7 @@ class _TextTable:
         self.source = str(path)
         raw = path.read_bytes()
         if b"\x00" in raw:
-            raise ValueError(f"{path}: contains NUL bytes: a binary file, not delimited text")
+            raise DataError(f"{path}: contains NUL bytes: a binary file, not delimited text")
         try:
             text = raw.decode("utf-8-sig")
         except UnicodeDecodeError:
@@ -311,7 +312,7 @@ class _TextTable:
                 break
         if first is None:
             what = "is empty" if not text.strip() else "has no data lines (only comments)"
-            raise ValueError(f"{path}: {what}")
+            raise DataError(f"{path}: {what}")
         if self.delimiter is None:
             s = lines[first]
             self.delimiter = "\t" if "\t" in s else "," if "," in s else ";" if ";" in s else " "
@@ -338,14 +339,14 @@ class _TextTable:
             row = self._split(lines[i])
             if len(row) != self.ncols:
                 where = "the header" if data_start > first else f"line {first + 1}"
-                raise ValueError(
+                raise DataError(
                     f"{path}: line {i + 1} has {len(row)} fields, expected {self.ncols} as on {where} "
                     f"(delimiter {self.delimiter!r})"
                 )
             self.rows.append(row)
             self.line_numbers.append(i + 1)
         if not self.rows:
-            raise ValueError(f"{path}: has no data rows")
+            raise DataError(f"{path}: has no data rows")
 
     def _split(self, line: str) -> list[str]:
         if self.delimiter.isspace() and self.delimiter != "\t":
@@ -361,21 +362,21 @@ class _TextTable:
     def resolve(self, role: str, spec) -> tuple[Any, str]:
         if isinstance(spec, int):
             if spec >= self.ncols:
-                raise ValueError(
+                raise DataError(
                     f"{self.source}: {role} = {spec} is out of range: the file has {self.ncols} columns "
                     f"(0-based indices 0..{self.ncols - 1})"
                 )
             return spec, self._label(spec)
         if self.names is None:
-            raise ValueError(
+            raise DataError(
                 f"{self.source}: {role} = {spec!r} names a column, but the file has no header line; "
                 f"use a 0-based column index 0..{self.ncols - 1} (or header=True)"
             )
         hits = [j for j, n in enumerate(self.names) if n == spec]
         if not hits:
-            raise ValueError(f"{self.source}: {role} = {spec!r} is not a column; the columns are {self.names}")
+            raise DataError(f"{self.source}: {role} = {spec!r} is not a column; the columns are {self.names}")
         if len(hits) > 1:
-            raise ValueError(f"{self.source}: {role} = {spec!r} names columns {hits}; use a 0-based index")
+            raise DataError(f"{self.source}: {role} = {spec!r} names columns {hits}; use a 0-based index")
         return hits[0], spec
 
     def read(self, role: str, key: int, label: str) -> np.ndarray:
@@ -388,14 +389,14 @@ class _TextTable:
                 try:
                     values[i] = float(_unquote(c))
                 except ValueError:
-                    raise ValueError(
+                    raise DataError(
                         f"{self.source}: line {self.line_numbers[i]} (sample {i}), {role} column "
                         f"{label!r} (index {key}): {c!r} is not a number"
                     ) from None
         bad = np.flatnonzero(~np.isfinite(values))
         if bad.size:
             i = int(bad[0])
-            raise ValueError(
+            raise DataError(
                 f"{self.source}: {role}[{i}] = {values[i]} is not finite (line {self.line_numbers[i]}, "
                 f"column {label!r})"
             )
@@ -432,12 +433,12 @@ class _ContainerTable:
             m = self._get(matrix_name, "dataset")
             if m.ndim != 2:
                 hint = f"; name it directly, e.g. input={matrix_name!r}" if m.ndim == 1 else ""
-                raise ValueError(
+                raise DataError(
                     f"{source}: dataset = {matrix_name!r} has shape {m.shape}, expected a 2-D matrix "
                     f"(samples x signals){hint}"
                 )
             if m.shape[0] < m.shape[1]:
-                raise ValueError(
+                raise DataError(
                     f"{source}: dataset = {matrix_name!r} has shape {m.shape}: fewer rows than columns, so it "
                     f"looks transposed; rows must be samples and columns signals (transpose it when saving)"
                 )
@@ -451,9 +452,9 @@ class _ContainerTable:
         try:
             a = self._lookup(name)
         except KeyError:
-            raise ValueError(f"{self.source}: {role} = {name!r} is not in the file; {self._available()}") from None
+            raise DataError(f"{self.source}: {role} = {name!r} is not in the file; {self._available()}") from None
         if a.dtype.kind not in "fiu":
-            raise TypeError(f"{self.source}: {role} = {name!r} must hold real numbers, got dtype {a.dtype}")
+            raise ParameterTypeError(f"{self.source}: {role} = {name!r} must hold real numbers, got dtype {a.dtype}")
         return a
 
     def columns(self) -> list[tuple[Any, str]]:
@@ -464,13 +465,13 @@ class _ContainerTable:
     def resolve(self, role: str, spec) -> tuple[Any, str]:
         if isinstance(spec, int):
             if self.matrix is None:
-                raise ValueError(
+                raise DataError(
                     f"{self.source}: {role} = {spec} is a column index, which needs dataset = <name of a "
                     f"2-D matrix>; or name the array ({self._available()})"
                 )
             k = self.matrix.shape[1]
             if spec >= k:
-                raise ValueError(
+                raise DataError(
                     f"{self.source}: {role} = {spec} is out of range: dataset {self.matrix_name!r} has shape "
                     f"{self.matrix.shape}, {k} columns (0-based indices 0..{k - 1})"
                 )
@@ -483,9 +484,9 @@ class _ContainerTable:
         else:
             a = self._get(key[1], role)
             if a.ndim == 0 or a.size == 1:
-                raise ValueError(f"{self.source}: {role} = {label!r} is a scalar ({a.ravel()[:1]}), not a signal")
+                raise DataError(f"{self.source}: {role} = {label!r} is a scalar ({a.ravel()[:1]}), not a signal")
             if sum(s > 1 for s in a.shape) > 1:
-                raise ValueError(
+                raise DataError(
                     f"{self.source}: {role} = {label!r} has shape {a.shape}, not a 1-D signal; for a matrix "
                     f"pass dataset={label!r} and {role}=<0-based column index>"
                 )
@@ -494,7 +495,7 @@ class _ContainerTable:
         bad = np.flatnonzero(~np.isfinite(a))
         if bad.size:
             i = int(bad[0])
-            raise ValueError(f"{self.source}: {role}[{i}] = {a[i]} is not finite ({label!r})")
+            raise DataError(f"{self.source}: {role}[{i}] = {a[i]} is not finite ({label!r})")
         return a
 
 
@@ -517,25 +518,25 @@ def _open_npz(path: Path, dataset):
     try:
         z = np.load(path, allow_pickle=False)
         if isinstance(z, np.ndarray):
-            raise ValueError("it holds a single array (.npy format), not an archive")
+            raise ParameterError("it holds a single array (.npy format), not an archive")
         with z:
             arrays = {k: np.asarray(z[k]) for k in z.files}
     except Exception as e:  # a corrupt archive raises from zipfile, zlib, numpy.lib.format ...
-        raise ValueError(f"{path}: not a readable NPZ archive ({type(e).__name__}: {e})") from None
+        raise DataError(f"{path}: not a readable NPZ archive ({type(e).__name__}: {e})") from None
     return _ContainerTable(str(path), "NPZ", _numeric_shapes(arrays), _dict_lookup(arrays), dataset)
 
 
 def _open_npy(path: Path, dataset):
     if dataset is not None:
-        raise ValueError(f"dataset = {dataset!r} does not apply to a .npy file (one matrix; columns by index)")
+        raise ParameterError(f"dataset = {dataset!r} does not apply to a .npy file (one matrix; columns by index)")
     try:
         a = np.load(path, allow_pickle=False)
         if not isinstance(a, np.ndarray):
-            raise ValueError("it is an NPZ archive, not a single array")
+            raise ParameterError("it is an NPZ archive, not a single array")
     except Exception as e:
-        raise ValueError(f"{path}: not a readable .npy array ({type(e).__name__}: {e})") from None
+        raise DataError(f"{path}: not a readable .npy array ({type(e).__name__}: {e})") from None
     if a.dtype.kind not in "fiu":
-        raise TypeError(f"{path}: the array must hold real numbers, got dtype {a.dtype}")
+        raise ParameterTypeError(f"{path}: the array must hold real numbers, got dtype {a.dtype}")
     arrays = {"array": a}
     return _ContainerTable(str(path), "npy", {"array": a.shape}, _dict_lookup(arrays), "array")
 
@@ -558,13 +559,13 @@ def _open_mat(path: Path, dataset):
     try:
         major, _ = matfile_version(str(path))
     except Exception as e:
-        raise ValueError(f"{path}: not a MATLAB .mat file ({type(e).__name__}: {e})") from None
+        raise DataError(f"{path}: not a MATLAB .mat file ({type(e).__name__}: {e})") from None
     if major == 2:
         return _open_hdf5(path, dataset, matlab=True)
     try:
         d = loadmat(str(path), simplify_cells=True)
     except Exception as e:
-        raise ValueError(f"{path}: not a readable MATLAB v{4 if major == 0 else 5} file ({type(e).__name__}: {e})") from None
+        raise DataError(f"{path}: not a readable MATLAB v{4 if major == 0 else 5} file ({type(e).__name__}: {e})") from None
     arrays: dict = {}
     _flatten_mat(d, "", arrays)
 
@@ -591,7 +592,7 @@ class _Hdf5Source:
         try:
             self.file = h5py.File(path, "r")
         except Exception as e:
-            raise ValueError(f"{path}: not a readable {self.kind} file ({type(e).__name__}: {e})") from None
+            raise DataError(f"{path}: not a readable {self.kind} file ({type(e).__name__}: {e})") from None
         self.matlab = matlab
         self.h5py = h5py
         shapes: dict = {}
@@ -612,7 +613,7 @@ class _Hdf5Source:
             self.file.visititems(visit)
         except Exception as e:
             self.file.close()
-            raise ValueError(f"{path}: not a readable {self.kind} file ({type(e).__name__}: {e})") from None
+            raise DataError(f"{path}: not a readable {self.kind} file ({type(e).__name__}: {e})") from None
         self.shapes = shapes
 
     def lookup(self, name: str) -> np.ndarray:
@@ -626,7 +627,7 @@ class _Hdf5Source:
         try:
             a = np.asarray(obj[()])
         except Exception as e:
-            raise ValueError(f"{self.file.filename}: cannot read {name!r} ({type(e).__name__}: {e})") from None
+            raise DataError(f"{self.file.filename}: cannot read {name!r} ({type(e).__name__}: {e})") from None
         if self.matlab:
             cls = obj.attrs.get("MATLAB_class", b"")
             cls = cls.decode(errors="replace") if isinstance(cls, bytes) else str(cls)
@@ -734,7 +735,7 @@ def load_record(
     >>> load_record(f, input="v", output="y", fs=2.0)  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    ValueError: ...a.csv: input = 'v' is not a column; the columns are ['time', 'u', 'y']
+    piezohyst.errors.DataError: ...a.csv: input = 'v' is not a column; the columns are ['time', 'u', 'y']
     """
     p = _check_path(path)
     specs = {
@@ -746,33 +747,33 @@ def load_record(
     rtol = as_scalar(time_rtol, "time_rtol", positive=True)
     if delimiter is not None:
         if not isinstance(delimiter, str):
-            raise TypeError(f"delimiter must be a str, got {delimiter!r}")
+            raise ParameterTypeError(f"delimiter must be a str, got {delimiter!r}")
         if not delimiter or "\n" in delimiter or "\r" in delimiter:
-            raise ValueError(f"delimiter = {delimiter!r} must be a non-empty separator without line breaks")
+            raise ParameterError(f"delimiter = {delimiter!r} must be a non-empty separator without line breaks")
     if not (header is True or header is False or header == "auto"):
         if isinstance(header, str):
-            raise ValueError(f"header = {header!r} must be 'auto', True or False")
-        raise TypeError(f"header must be 'auto', True or False, got {header!r}")
+            raise ParameterError(f"header = {header!r} must be 'auto', True or False")
+        raise ParameterTypeError(f"header must be 'auto', True or False, got {header!r}")
     if dataset is not None:
         if not isinstance(dataset, str):
-            raise TypeError(f"dataset must be a str (a variable / dataset name), got {dataset!r}")
+            raise ParameterTypeError(f"dataset must be a str (a variable / dataset name), got {dataset!r}")
         if not dataset.strip():
-            raise ValueError(f"dataset = {dataset!r} may not be empty")
+            raise ParameterError(f"dataset = {dataset!r} may not be empty")
     if specs["time"] is None and fs_given is None:
-        raise ValueError(f"{p}: the sample rate is unknown: pass fs=<Hz> or time=<time column>")
+        raise DataError(f"{p}: the sample rate is unknown: pass fs=<Hz> or time=<time column>")
 
     suffix = p.suffix.lower()
     if suffix in TEXT_SUFFIXES:
         if dataset is not None:
-            raise ValueError(f"dataset = {dataset!r} applies to NPZ/MAT/HDF5 files; {p} is a text file")
+            raise ParameterError(f"dataset = {dataset!r} applies to NPZ/MAT/HDF5 files; {p} is a text file")
         table = _TextTable(p, delimiter, header)
     else:
         if suffix not in SUPPORTED_SUFFIXES:
-            raise ValueError(
+            raise DataError(
                 f"{p}: unsupported file extension {p.suffix!r}; supported: {' '.join(SUPPORTED_SUFFIXES)}"
             )
         if delimiter is not None or header != "auto":
-            raise ValueError(
+            raise ParameterError(
                 f"delimiter = {delimiter!r}, header = {header!r}: these apply to text files only, not {p.suffix!r}"
             )
         if suffix in NPZ_SUFFIXES:
@@ -810,7 +811,7 @@ def _assemble(table, specs: dict, fs_given, rtol: float) -> Record:
             used = {k for k, _ in resolved.values()}
             free = [(k, lab) for k, lab in cols if k not in used]
             if len(free) != len(missing):
-                raise ValueError(
+                raise DataError(
                     f"{src}: {missing[0]} not given and not inferable from the {len(cols)} columns "
                     f"{labels}; pass {missing[0]}= a column name or 0-based index"
                 )
@@ -821,26 +822,26 @@ def _assemble(table, specs: dict, fs_given, rtol: float) -> Record:
         if role in resolved:
             key, label = resolved[role]
             if key in seen:
-                raise ValueError(f"{src}: {seen[key]} and {role} are the same column {label!r}")
+                raise DataError(f"{src}: {seen[key]} and {role} are the same column {label!r}")
             seen[key] = role
     arrays = {role: table.read(role, *resolved[role]) for role in _ROLES if role in resolved}
     n = arrays["input"].size
     for role in ("output", "time"):
         if role in arrays and arrays[role].size != n:
-            raise ValueError(
+            raise DataError(
                 f"{src}: {role} ({resolved[role][1]!r}) has {arrays[role].size} samples, input "
                 f"({resolved['input'][1]!r}) has {n}: lengths must match"
             )
     if n < 2:
-        raise ValueError(f"{src}: input has {n} samples, at least 2 needed")
+        raise DataError(f"{src}: input has {n} samples, at least 2 needed")
     fs = fs_given
     if "time" in arrays:
         try:
             fs_time = _fs_from_time(arrays["time"], "time", rtol)
         except ValueError as e:
-            raise ValueError(f"{src}: {e}") from None
+            raise DataError(f"{src}: {e}") from None
         if fs_given is not None and abs(fs_time - fs_given) > rtol * fs_given:
-            raise ValueError(
+            raise DataError(
                 f"{src}: fs = {fs_given:g} Hz disagrees with the time column {resolved['time'][1]!r}, which gives "
                 f"{fs_time:.9g} Hz (relative difference {abs(fs_time - fs_given) / fs_given:.3g} > time_rtol = "
                 f"{rtol:g}); pass only one of them, or fix the other"

@@ -23,6 +23,7 @@ import numpy as np
 
 from . import experiments as ex
 from .stage import virtual_stage
+from .errors import OutputExistsError, ParameterError
 
 __all__ = ["run_demo", "REPORT_FILES"]
 
@@ -53,14 +54,15 @@ def run_demo(out_dir="piezohyst-report", *, force=False, quick=False, seed=0, pr
 
     Raises ``FileExistsError`` if ``out_dir`` already holds a report and ``force`` is false.
     """
-    from .report import _atomic_write, write_report
+    from ._io import write_atomic
+    from .report import write_report
 
     out_dir = Path(out_dir)
     existing = [f for f in REPORT_FILES if (out_dir / f).exists()]
     if existing and not force:
-        raise FileExistsError(f"{out_dir / existing[0]} exists; pass --force to overwrite the report")
+        raise OutputExistsError(f"{out_dir / existing[0]} exists; pass --force to overwrite the report")
     if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
-        raise ValueError(f"seed = {seed!r} must be a non-negative int")
+        raise ParameterError(f"seed = {seed!r} must be a non-negative int")
     stream = sys.stderr if progress else None
     steps = _Steps(5, stream)
     t_start = time.perf_counter()
@@ -132,7 +134,7 @@ def run_demo(out_dir="piezohyst-report", *, force=False, quick=False, seed=0, pr
     figures = write_report(out_dir, results, runs1=runs1, runs2=runs2, mpi_fit=mpi_fit, stage=stage)
     results["figures"] = figures
     results["wall_s"] = time.perf_counter() - t_start
-    _atomic_write(out_dir / "results.json", json.dumps(results, indent=1, default=float))
+    write_atomic(out_dir / "results.json", json.dumps(results, indent=1, default=float))
     steps.done()
     print_fn(f"report: {out_dir / 'index.html'} (and report.md, results.json); {results['wall_s']:.0f} s in all")
     return results

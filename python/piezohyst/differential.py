@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from ._validate import as_scalar, as_vector
 from .model import HysteresisModel, _register
+from .errors import ParameterError
 
 __all__ = ["BoucWen", "Duhem", "Dahl"]
 
@@ -38,7 +39,7 @@ class BoucWen(HysteresisModel):
         self.gamma = as_scalar(gamma, "gamma")
         self.n = as_scalar(n, "n")
         if self.n < 1:
-            raise ValueError(f"n = {self.n} must be >= 1")
+            raise ParameterError(f"n = {self.n} must be >= 1")
         self.d = as_scalar(d, "d")
         super().__init__([], [self.a, self.beta, self.gamma, self.n, self.d], units=units)
 

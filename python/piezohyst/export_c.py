@@ -30,15 +30,15 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import shutil
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from . import _core
+from ._io import load_json_file, write_atomic
+from .errors import OutputExistsError, ParameterError, ParameterTypeError
 
 __all__ = ["FAMILY_CODES", "CONTROLLER_KINDS", "CONTROLLER_PARAMS", "CONTROLLER_SCHEMA_VERSION",
            "ExportedController", "controller_to_dict", "controller_from_dict", "save_controller", "load_controller",
@@ -88,10 +88,10 @@ class ExportedController:
 
     def core(self, stage, *, limits=None):
         if limits is not None:
-            raise TypeError("an exported controller cannot be wrapped again (it is already complete)")
+            raise ParameterTypeError("an exported controller cannot be wrapped again (it is already complete)")
         ts = float(stage.sample_time)
         if abs(ts - self.sample_time) > 1e-12 * self.sample_time:
-            raise ValueError(f"stage.sample_time = {ts} s differs from the controller's sample_time = "
+            raise ParameterError(f"stage.sample_time = {ts} s differs from the controller's sample_time = "
                              f"{self.sample_time} s it was saved for")
         inverse = None if self.inverse is None else (self.inverse[0], list(self.inverse[1]),
                                                      np.array(self.inverse[2], dtype=np.float64),
@@ -105,16 +105,16 @@ class ExportedController:
 
 def _finite(x, name) -> float:
     if isinstance(x, bool) or not isinstance(x, (int, float)):
-        raise ValueError(f"{name} = {x!r} must be a number")
+        raise ParameterError(f"{name} = {x!r} must be a number")
     x = float(x)
     if not math.isfinite(x):
-        raise ValueError(f"{name} = {x} is not finite")
+        raise ParameterError(f"{name} = {x} is not finite")
     return x
 
 
 def _count(x, name, minimum=0) -> int:
     if isinstance(x, bool) or not isinstance(x, int) or x < minimum:
-        raise ValueError(f"{name} = {x!r} must be an integer >= {minimum}")
+        raise ParameterError(f"{name} = {x!r} must be an integer >= {minimum}")
     return int(x)
 
 
@@ -130,13 +130,13 @@ def _validated(kind, params, inverse, ilc) -> None:
 def controller_to_dict(controller, stage) -> dict:
     """The controller file's content for ``controller`` on ``stage`` (see the module doc)."""
     if not (hasattr(controller, "core") and callable(controller.core)):
-        raise TypeError(f"controller must be a piezohyst controller (OpenLoop, PID, SMC, ...), got "
+        raise ParameterTypeError(f"controller must be a piezohyst controller (OpenLoop, PID, SMC, ...), got "
                         f"{type(controller).__name__}")
     kind, params, inverse, ilc = controller.core(stage)
     names = CONTROLLER_PARAMS[kind]
     values = [float(x) for x in np.asarray(params, dtype=np.float64)]
     if len(values) != len(names):
-        raise ValueError(f"controller {kind!r} gave {len(values)} parameters, expected {len(names)}")
+        raise ParameterError(f"controller {kind!r} gave {len(values)} parameters, expected {len(names)}")
     _validated(kind, values, inverse, ilc)
     d = {
         "schema_version": CONTROLLER_SCHEMA_VERSION,
@@ -162,71 +162,58 @@ def controller_to_dict(controller, stage) -> dict:
 def controller_from_dict(d) -> ExportedController:
     """Read a controller file's content (validated: the core builds it once)."""
     if not isinstance(d, dict):
-        raise ValueError(f"a controller description must be a JSON object, got {type(d).__name__}")
+        raise ParameterError(f"a controller description must be a JSON object, got {type(d).__name__}")
     if d.get("format") != _FORMAT:
-        raise ValueError(f"format = {d.get('format')!r} is not {_FORMAT!r} (is this a model file?)")
+        raise ParameterError(f"format = {d.get('format')!r} is not {_FORMAT!r} (is this a model file?)")
     if d.get("schema_version") != CONTROLLER_SCHEMA_VERSION:
-        raise ValueError(f"schema_version = {d.get('schema_version')!r} is not supported (this version reads "
+        raise ParameterError(f"schema_version = {d.get('schema_version')!r} is not supported (this version reads "
                          f"{CONTROLLER_SCHEMA_VERSION})")
     kind = d.get("kind")
     if kind not in CONTROLLER_PARAMS:
-        raise ValueError(f"kind = {kind!r} is unknown; expected one of {', '.join(CONTROLLER_PARAMS)}")
+        raise ParameterError(f"kind = {kind!r} is unknown; expected one of {', '.join(CONTROLLER_PARAMS)}")
     p = d.get("params")
     names = CONTROLLER_PARAMS[kind]
     if not isinstance(p, dict) or list(p) != list(names):
         got = list(p) if isinstance(p, dict) else p
-        raise ValueError(f"params of {kind!r} must be an object with the keys {list(names)} in this order, got {got!r}")
+        raise ParameterError(f"params of {kind!r} must be an object with the keys {list(names)} in this order, got {got!r}")
     params = np.array([_finite(p[n], f"params.{n}") for n in names], dtype=np.float64)
     inverse = None
     inv = d.get("inverse")
     if inv is not None:
         if not isinstance(inv, dict):
-            raise ValueError("inverse must be null or an object {family, dims, params, u_min, u_max}")
+            raise ParameterError("inverse must be null or an object {family, dims, params, u_min, u_max}")
         family = inv.get("family")
         if family not in FAMILY_CODES:
-            raise ValueError(f"inverse.family = {family!r} is unknown; expected one of {', '.join(FAMILY_CODES)}")
+            raise ParameterError(f"inverse.family = {family!r} is unknown; expected one of {', '.join(FAMILY_CODES)}")
         dims = inv.get("dims")
         if not isinstance(dims, list):
-            raise ValueError(f"inverse.dims = {dims!r} must be a list of integers")
+            raise ParameterError(f"inverse.dims = {dims!r} must be a list of integers")
         dims = tuple(_count(x, f"inverse.dims[{i}]") for i, x in enumerate(dims))
         row = inv.get("params")
         if not isinstance(row, list):
-            raise ValueError("inverse.params must be a list of numbers")
+            raise ParameterError("inverse.params must be a list of numbers")
         row = tuple(_finite(x, f"inverse.params[{i}]") for i, x in enumerate(row))
         inverse = (family, dims, row, _finite(inv.get("u_min"), "inverse.u_min"), _finite(inv.get("u_max"), "inverse.u_max"))
     ilc = None
     il = d.get("ilc")
     if il is not None:
         if not isinstance(il, dict) or set(il) != set(_ILC_FIELDS):
-            raise ValueError(f"ilc must be null or an object with the keys {list(_ILC_FIELDS)}")
+            raise ParameterError(f"ilc must be null or an object with the keys {list(_ILC_FIELDS)}")
         ilc = (_count(il["period"], "ilc.period", 1), _finite(il["gain"], "ilc.gain"),
                _finite(il["forgetting"], "ilc.forgetting"), _count(il["lead"], "ilc.lead"),
                _count(il["delay"], "ilc.delay"))
     stage = d.get("stage")
     if not isinstance(stage, dict) or "sample_time" not in stage:
-        raise ValueError("stage must be an object with at least sample_time (s)")
+        raise ParameterError("stage must be an object with at least sample_time (s)")
     ts = _finite(stage["sample_time"], "stage.sample_time")
     if not ts > 0:
-        raise ValueError(f"stage.sample_time = {ts} must be > 0")
+        raise ParameterError(f"stage.sample_time = {ts} must be > 0")
     try:
         _validated(kind, params, inverse, ilc)
     except ValueError as e:
-        raise ValueError(f"controller {kind!r} is not valid: {e}") from None
+        raise ParameterError(f"controller {kind!r} is not valid: {e}") from None
     params.setflags(write=False)
     return ExportedController(kind, params, inverse, ilc, ts, str(d.get("description", "")))
-
-
-def _write_text_atomic(path: Path, text: str) -> None:
-    parent = path.parent if str(path.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(dir=parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", newline="\n") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def save_controller(controller, stage, path, *, overwrite: bool = False) -> Path:
@@ -245,28 +232,14 @@ def save_controller(controller, stage, path, *, overwrite: bool = False) -> Path
     >>> c.kind, c.params.tolist() == ph.PID(kp=2e6, ki=2e9).core(stage)[1].tolist()
     ('pid', True)
     """
-    path = Path(path)
-    if path.exists() and not overwrite:
-        raise FileExistsError(f"path = '{path}' exists; pass overwrite=True to replace it")
     text = json.dumps(controller_to_dict(controller, stage), indent=2, allow_nan=False) + "\n"
-    _write_text_atomic(path, text)
-    return path
+    return write_atomic(path, text, overwrite=overwrite)
 
 
 def load_controller(path) -> ExportedController:
-    """Read a controller file written by :func:`save_controller`."""
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise FileNotFoundError(f"path = '{path}' does not exist") from None
-    except UnicodeDecodeError:
-        raise ValueError(f"path = '{path}' is not a text (JSON) file") from None
-    try:
-        d = json.loads(text)
-    except json.JSONDecodeError as e:
-        raise ValueError(f"path = '{path}' is not valid JSON: {e}") from None
-    return controller_from_dict(d)
+    """Read a controller file written by :func:`save_controller` (``DataError`` naming the
+    file if it is not one)."""
+    return load_json_file(path, "controller file", controller_from_dict)
 
 
 # --------------------------------------------------------------------------------------------
@@ -306,7 +279,7 @@ def row_names(family: str, dims) -> list[str]:
     elif family == "dahl":
         names = ["sigma", "h_c", "a"]
     else:
-        raise ValueError(f"family = {family!r} is unknown; expected one of {', '.join(FAMILY_CODES)}")
+        raise ParameterError(f"family = {family!r} is unknown; expected one of {', '.join(FAMILY_CODES)}")
     want, _ = _core.family_sizes(family, list(dims))
     assert len(names) == want, (family, dims, len(names), want)
     return names
@@ -336,7 +309,7 @@ def _c_double(x: float) -> str:
     """An exact C99 literal (hex float) for a finite double."""
     x = float(x)
     if not math.isfinite(x):
-        raise ValueError(f"{x} is not finite and has no C literal")
+        raise ParameterError(f"{x} is not finite and has no C literal")
     return x.hex()
 
 
@@ -504,12 +477,12 @@ def example_plan(model, controller: ExportedController | None, input_range=None,
     """The constants ``example.c`` runs with (also what the test reproduces in Python)."""
     lo, hi = demo_input_range(model) if input_range is None else (float(input_range[0]), float(input_range[1]))
     if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
-        raise ValueError(f"input range [{lo}, {hi}] must be finite with low < high")
+        raise ParameterError(f"input range [{lo}, {hi}] must be finite with low < high")
     period = EXAMPLE_PERIOD if controller is None or controller.ilc is None else int(controller.ilc[0])
     period = max(period, 4)
     n = 3 * period if steps is None else int(steps)
     if n < 1:
-        raise ValueError(f"steps = {n} must be >= 1")
+        raise ParameterError(f"steps = {n} must be >= 1")
     plan = {"v_lo": lo, "v_hi": hi, "period": period, "steps": n}
     if controller is not None:
         # the reference stays inside the middle 60 % of the outputs over the input range
@@ -519,7 +492,7 @@ def example_plan(model, controller: ExportedController | None, input_range=None,
         y_lo, y_hi = float(np.min(y[200:])), float(np.max(y[200:]))
         span = y_hi - y_lo
         if not span > 0:
-            raise ValueError("the model's output does not vary over the input range; give --input-range")
+            raise ParameterError("the model's output does not vary over the input range; give --input-range")
         plan.update(x_lo=y_lo + 0.2 * span, x_hi=y_hi - 0.2 * span, ts=controller.sample_time)
     return plan
 
@@ -672,21 +645,21 @@ def export_c(model, out_dir, *, controller=None, force: bool = False, source: st
     from .model import HysteresisModel
 
     if not isinstance(model, HysteresisModel):
-        raise TypeError(f"model must be a hysteresis model, got {type(model).__name__}")
+        raise ParameterTypeError(f"model must be a hysteresis model, got {type(model).__name__}")
     if isinstance(controller, dict):
         controller = controller_from_dict(controller)
     if controller is not None and not isinstance(controller, ExportedController):
-        raise TypeError(f"controller must be an ExportedController (load_controller) or its dict, got "
+        raise ParameterTypeError(f"controller must be an ExportedController (load_controller) or its dict, got "
                         f"{type(controller).__name__}")
     if controller is not None and controller.inverse is not None:
         fam, dims, row = controller.inverse[:3]
         if fam != model.family or tuple(dims) != tuple(model.dims) or not np.array_equal(np.array(row), model.to_row()):
-            raise ValueError(f"the controller acts behind the inverse of a {fam} model with dims {list(dims)} that is "
+            raise ParameterError(f"the controller acts behind the inverse of a {fam} model with dims {list(dims)} that is "
                              f"not MODEL (a {model.family} model with dims {list(model.dims)}, or different parameters); "
                              f"export the model the controller was built on")
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
-        raise ValueError(f"out = '{out}' exists and is not a directory")
+        raise ParameterError(f"out = '{out}' exists and is not a directory")
     files = _model_files(model, source)
     if controller is not None:
         files.update(_controller_files(controller, source))
@@ -698,20 +671,13 @@ def export_c(model, out_dir, *, controller=None, force: bool = False, source: st
     if not force:
         for name in names:
             if (out / name).exists():
-                raise FileExistsError(f"'{out / name}' exists; pass --force to overwrite it")
+                raise OutputExistsError(f"'{out / name}' exists; pass --force to overwrite it")
     out.mkdir(parents=True, exist_ok=True)
     written = []
     for name, text in files.items():
-        _write_text_atomic(out / name, text)
+        write_atomic(out / name, text)
         written.append(out / name)
     if header:
-        fd, tmp = tempfile.mkstemp(dir=out, prefix=".piezohyst.h.", suffix=".tmp")
-        os.close(fd)
-        try:
-            shutil.copyfile(header, tmp)
-            os.replace(tmp, out / "piezohyst.h")
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+        write_atomic(out / "piezohyst.h", writer=lambda tmp: shutil.copyfile(header, tmp))
         written.append(out / "piezohyst.h")
     return written

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 from ._validate import as_int, as_scalar
+from .errors import ParameterError, ParameterTypeError
 
 __all__ = ["A7075_YOUNGS_MODULUS", "CemfCoefficients", "FlexureStage", "LeafSpring", "seed1_stage"]
 
@@ -180,7 +181,7 @@ class FlexureStage:
         for name in ("actuator_mass", "stage_mass"):
             _set(self, name, as_scalar(getattr(self, name), name, positive=True))
         if not self.actuator_stiffness + self.flexure_stiffness > 0:
-            raise ValueError(
+            raise ParameterError(
                 f"actuator_stiffness + flexure_stiffness = {self.actuator_stiffness} + "
                 f"{self.flexure_stiffness} must be > 0"
             )
@@ -190,7 +191,7 @@ class FlexureStage:
                          zeta=0.03) -> "FlexureStage":
         """Stage guided by ``leaf`` (a :class:`LeafSpring`); ``k_f = leaf.stiffness``."""
         if not isinstance(leaf, LeafSpring):
-            raise TypeError(f"leaf must be a LeafSpring, got {leaf!r}")
+            raise ParameterTypeError(f"leaf must be a LeafSpring, got {leaf!r}")
         return cls(actuator_stiffness, leaf.stiffness, actuator_mass, stage_mass, zeta)
 
     @classmethod

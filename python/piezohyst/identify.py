@@ -21,6 +21,7 @@ from ._validate import as_int, as_record, as_scalar
 from .creep import Creep
 from .pi import PI, GeneralizedPI, RateDependentPI
 from .preisach import Preisach
+from .errors import ParameterError, ParameterTypeError
 
 __all__ = ["CEMF_PARAMETERS", "FitResult", "IdentificationResult", "KINDS", "LOSSES", "STRUCTURES", "default_huber_delta",
            "fit_linear", "fit_metrics", "huber_cost", "identify", "identify_cemf", "identify_mpi", "identify_pi",
@@ -111,11 +112,11 @@ def huber_cost(residuals, delta=None) -> np.ndarray:
 def _check_loss(loss, delta):
     """``(loss, delta)`` checked: delta ``None`` (the MAD default) or a positive number."""
     if loss not in LOSSES:
-        raise ValueError(f"loss = {loss!r} is unknown; expected one of {list(LOSSES)}")
+        raise ParameterError(f"loss = {loss!r} is unknown; expected one of {list(LOSSES)}")
     if delta is None:
         return loss, None
     if loss != "huber":
-        raise ValueError(f"huber_delta = {delta!r} is only used with loss = 'huber', got loss = {loss!r}")
+        raise ParameterError(f"huber_delta = {delta!r} is only used with loss = 'huber', got loss = {loss!r}")
     return loss, as_scalar(delta, "huber_delta", positive=True)
 
 
@@ -156,7 +157,7 @@ def _layout(model):
         def build(t):
             return Preisach(model.levels, model.input_range, t[2:], t[0], t[1], model.memory, units=model.units)
     else:
-        raise TypeError(f"model must be PI, GeneralizedPI, RateDependentPI or Preisach, got {type(model).__name__}")
+        raise ParameterTypeError(f"model must be PI, GeneralizedPI, RateDependentPI or Preisach, got {type(model).__name__}")
     return lb, np.full(lb.size, inf), build
 
 
@@ -206,7 +207,7 @@ def fit_linear(model, input, output, *, loss="squared", huber_delta=None) -> Fit
     v = as_record(input, "input", min_length=2)
     y = as_record(output, "output", min_length=2)
     if y.size != v.size:
-        raise ValueError(f"output has {y.size} samples, input has {v.size}; they must match")
+        raise ParameterError(f"output has {y.size} samples, input has {v.size}; they must match")
     lb, ub, build = _layout(model)
     A = _core.regressors(model.family, list(model.dims), model.to_row(), v)
     scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-300)   # equilibrate the columns
@@ -246,7 +247,7 @@ def _irls_huber(A, y, bounds, z, delta, lsq_linear, max_iterations=100, rtol=1e-
 def _default_thresholds(v, n):
     span = float(np.ptp(v))
     if not span > 0:
-        raise ValueError("input is constant: there is no hysteresis to identify")
+        raise ParameterError("input is constant: there is no hysteresis to identify")
     return np.arange(1, n + 1) * span / (2.0 * (n + 1))
 
 
@@ -452,21 +453,21 @@ def identify(input, output, model="mpi", *, fs=None, operators=9, levels=12, str
     """
     t0 = time.perf_counter()
     if model not in KINDS:
-        raise ValueError(f"model = {model!r} is unknown; expected one of {list(KINDS)}")
+        raise ParameterError(f"model = {model!r} is unknown; expected one of {list(KINDS)}")
     loss, delta = _check_loss(loss, huber_delta)
     if structure not in STRUCTURES:
-        raise ValueError(f"structure = {structure!r} is unknown; expected one of {list(STRUCTURES)}")
+        raise ParameterError(f"structure = {structure!r} is unknown; expected one of {list(STRUCTURES)}")
     creep = as_int(creep, "creep")
     if structure == "fit" and model not in _VP_KINDS:
-        raise ValueError(f"structure = 'fit' applies to model = {' / '.join(repr(k) for k in _VP_KINDS)}; "
+        raise ParameterError(f"structure = 'fit' applies to model = {' / '.join(repr(k) for k in _VP_KINDS)}; "
                          f"{model!r} has no fixed structure to fit (use structure = 'fixed')")
     if creep and model not in _VP_KINDS:
-        raise ValueError(f"creep = {creep} applies to model = {' / '.join(repr(k) for k in _VP_KINDS)}, "
+        raise ParameterError(f"creep = {creep} applies to model = {' / '.join(repr(k) for k in _VP_KINDS)}, "
                          f"not to {model!r}")
     if structure == "fit":
         unknown = sorted(set(options) - set(_VP_OPTIONS))
         if unknown:
-            raise TypeError(f"identify() got unexpected keyword arguments {unknown} for model = {model!r}, "
+            raise ParameterTypeError(f"identify() got unexpected keyword arguments {unknown} for model = {model!r}, "
                             f"structure = 'fit' (accepted: {list(_VP_OPTIONS)})")
         from .varpro import identify_vp
 
@@ -475,21 +476,21 @@ def identify(input, output, model="mpi", *, fs=None, operators=9, levels=12, str
                            population_size=population_size, validate=validate, progress=progress, callback=callback,
                            loss=loss, huber_delta=delta, **options)
     if options and model not in ("cemf", "boucwen-benchmark"):
-        raise TypeError(f"identify() got unexpected keyword arguments {sorted(options)} for model = {model!r}")
+        raise ParameterTypeError(f"identify() got unexpected keyword arguments {sorted(options)} for model = {model!r}")
     if max_iterations is None:
         max_iterations = _DEFAULT_ITERATIONS.get(model, 200)
     search = dict(optimizer=optimizer, rng=rng, max_iterations=max_iterations, population_size=population_size,
                   validate=validate, progress=progress, callback=callback)
     if model == "cemf":
         if fs is None:
-            raise ValueError("fs is required for model = 'cemf' (the stage is simulated at the sample time)")
+            raise ParameterError("fs is required for model = 'cemf' (the stage is simulated at the sample time)")
         return identify_cemf(input, output, fs, loss=loss, huber_delta=delta, **search, **options)
     if model == "boucwen-benchmark":
         return _identify_benchmark(input, output, fs, loss, search, options)
     v = as_record(input, "input", min_length=2)
     y = as_record(output, "output", min_length=2)
     if y.size != v.size:
-        raise ValueError(f"output has {y.size} samples, input has {v.size}; they must match")
+        raise ParameterError(f"output has {y.size} samples, input has {v.size}; they must match")
     history = None
     if model in _LINEAR_KINDS:
         fitted, method = _identify_linear(model, v, y, fs, operators, levels, loss, delta, creep), "ls"
@@ -517,7 +518,7 @@ def _identify_linear(model, v, y, fs, operators, levels, loss, delta, creep=0):
     if model == "preisach":
         return identify_preisach(v, y, levels=levels, **robust).model
     if fs is None:
-        raise ValueError("fs is required for model = 'rdpi' (the rate needs the sample time)")
+        raise ParameterError("fs is required for model = 'rdpi' (the rate needs the sample time)")
     r = _default_thresholds(v, as_int(operators, "operators", minimum=1))
     template = RateDependentPI(r, np.zeros(r.size), 1.0 / float(fs), 1.0, 0.0, creep=lags)
     return fit_linear(template, v, y, **robust).model
@@ -529,7 +530,7 @@ def _default_creep(n, fs, terms):
     if not terms:
         return None
     if fs is None:
-        raise ValueError(f"fs is required with creep = {terms} (the lags need the sample time)")
+        raise ParameterError(f"fs is required with creep = {terms} (the lags need the sample time)")
     fs = as_scalar(fs, "fs", positive=True)
     lo, hi = np.log10(2.0 / fs), np.log10(n / fs)
     w = (hi - lo) / terms
@@ -614,7 +615,7 @@ def _identify_benchmark(u, y, fs, loss, search, options):
 
     if loss != "squared":
         # its cost is the RMSE computed inside the Rust batch call, with its own polish
-        raise ValueError("loss = 'huber' is not available for model = 'boucwen-benchmark'; use loss = 'squared'")
+        raise ParameterError("loss = 'huber' is not available for model = 'boucwen-benchmark'; use loss = 'squared'")
     from dataclasses import replace
 
     from .boucwen_benchmark import UPSAMPLE
@@ -669,13 +670,13 @@ def identify_cemf(voltage, position, fs, *, capacitance=1.8e-6, bounds=None, opt
     u = as_record(voltage, "voltage", min_length=2)
     x = as_record(position, "position", min_length=2)
     if x.size != u.size:
-        raise ValueError(f"position has {x.size} samples, voltage has {u.size}; they must match")
+        raise ParameterError(f"position has {x.size} samples, voltage has {u.size}; they must match")
     fs = float(fs)
     if not fs > 0:
-        raise ValueError(f"fs = {fs} must be > 0")
+        raise ParameterError(f"fs = {fs} must be > 0")
     gain = float(np.ptp(x)) / (float(np.ptp(u)) or 1.0)
     if not gain > 0:
-        raise ValueError("position does not move: nothing to identify")
+        raise ParameterError("position does not move: nothing to identify")
     if bounds is None:
         k_lo, k_hi = 0.3 / gain, 3.0 / gain
         w_lo, w_hi = 2 * np.pi * 1e3, 2 * np.pi * 2e4          # resonance between 1 and 20 kHz
@@ -684,7 +685,7 @@ def identify_cemf(voltage, position, fs, *, capacitance=1.8e-6, bounds=None, opt
                   (1.0, 50.0), (0.0, 4.0 / capacitance), (0.0, 30.0 / q), (-30.0 / q, 30.0 / q)]
     bounds = [(float(lo), float(hi)) for lo, hi in bounds]
     if len(bounds) != len(CEMF_PARAMETERS):
-        raise ValueError(f"bounds has {len(bounds)} pairs, expected {len(CEMF_PARAMETERS)} ({CEMF_PARAMETERS})")
+        raise ParameterError(f"bounds has {len(bounds)} pairs, expected {len(CEMF_PARAMETERS)} ({CEMF_PARAMETERS})")
     wide = Amplifier(-1e9, 1e9)
     template = Stage(StageParameters(1.0, 0.0, 1.0, 1.0, capacitance), wide, sample_time=1.0 / fs,
                      substeps=substeps, tolerance=tolerance).core_params()
@@ -717,7 +718,7 @@ def identify_cemf(voltage, position, fs, *, capacitance=1.8e-6, bounds=None, opt
     search = dict(method=method, rng=rng, max_iterations=max_iterations, population_size=population_size,
                   progress=progress, callback=callback)
     if not isinstance(polish, bool):
-        raise TypeError(f"polish must be True or False, got {polish!r}")
+        raise ParameterTypeError(f"polish must be True or False, got {polish!r}")
     if loss == "squared":
         res = minimize(cost, bounds, **search)
     else:

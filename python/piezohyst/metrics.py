@@ -29,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._validate import as_int, as_record
+from .errors import ParameterError
 
 __all__ = ["hysteresis_percent", "linearity_error", "max_error", "rmse", "tracking_metrics"]
 
@@ -38,7 +39,7 @@ def _pair(a, b, name_a, name_b, min_length=1):
     x = as_record(a, name_a, min_length=min_length, copy=False)
     y = as_record(b, name_b, min_length=min_length, copy=False)
     if x.size != y.size:
-        raise ValueError(f"{name_b} has {y.size} samples, {name_a} has {x.size}; they must match")
+        raise ParameterError(f"{name_b} has {y.size} samples, {name_a} has {x.size}; they must match")
     return x, y
 
 
@@ -46,7 +47,7 @@ def _span(x, name):
     """The range of ``x``; a metric that divides by it is undefined when it is zero."""
     span = float(np.ptp(x))
     if not span > 0:
-        raise ValueError(f"{name} has zero range (every sample = {float(x[0])}); the metric is relative to its range")
+        raise ParameterError(f"{name} has zero range (every sample = {float(x[0])}); the metric is relative to its range")
     return span
 
 

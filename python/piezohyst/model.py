@@ -8,14 +8,14 @@ samples run in the Rust core.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from . import _core
 from ._validate import as_record, as_scalar
+from ._io import load_json_file, write_atomic
+from .errors import OutputExistsError, ParameterError, ParameterTypeError
 
 __all__ = ["HysteresisModel", "Inverse", "SCHEMA_VERSION", "model_from_dict", "load_model"]
 
@@ -75,7 +75,7 @@ class HysteresisModel:
     def _checked_state(self, value, name) -> np.ndarray:
         s = as_record(value, name, min_length=0)
         if s.size != self._state.size:
-            raise ValueError(f"{name} has length {s.size}, expected {self._state.size} for this model")
+            raise ParameterError(f"{name} has length {s.size}, expected {self._state.size} for this model")
         return s
 
     def reset(self) -> None:
@@ -134,20 +134,8 @@ class HysteresisModel:
 
     def save(self, path, *, overwrite: bool = False, include_state: bool = False) -> Path:
         """Write the model file atomically; an existing file is kept unless ``overwrite``."""
-        path = Path(path)
-        if path.exists() and not overwrite:
-            raise FileExistsError(f"path = '{path}' exists; pass overwrite=True to replace it")
         text = self.to_json(include_state=include_state)
-        fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", prefix=f".{path.name}.", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "w") as f:
-                f.write(text)
-            os.replace(tmp, path)
-        except BaseException:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-            raise
-        return path
+        return write_atomic(path, text, overwrite=overwrite)
 
     @classmethod
     def _from_parameters(cls, p: dict, units):
@@ -178,37 +166,29 @@ def _short(v):
 def model_from_dict(d: dict) -> HysteresisModel:
     """Rebuild a model from :meth:`HysteresisModel.to_dict` output."""
     if not isinstance(d, dict):
-        raise TypeError(f"a model description must be a JSON object, got {type(d).__name__}")
+        raise ParameterTypeError(f"a model description must be a JSON object, got {type(d).__name__}")
     version = d.get("schema_version")
     if version != SCHEMA_VERSION:
-        raise ValueError(f"schema_version = {version!r} is not supported (this version reads {SCHEMA_VERSION})")
+        raise ParameterError(f"schema_version = {version!r} is not supported (this version reads {SCHEMA_VERSION})")
     kind = d.get("kind")
     if kind not in _REGISTRY:
-        raise ValueError(f"kind = {kind!r} is unknown; expected one of {sorted(_REGISTRY)}")
+        raise ParameterError(f"kind = {kind!r} is unknown; expected one of {sorted(_REGISTRY)}")
     p = d.get("parameters")
     if not isinstance(p, dict):
-        raise ValueError("parameters must be a JSON object")
+        raise ParameterError("parameters must be a JSON object")
     try:
         model = _REGISTRY[kind]._from_parameters(p, d.get("units"))
     except TypeError as e:
-        raise ValueError(f"parameters of kind {kind!r} are not valid: {e}") from None
+        raise ParameterError(f"parameters of kind {kind!r} are not valid: {e}") from None
     if "state" in d:
         model.state = d["state"]
     return model
 
 
 def load_model(path) -> HysteresisModel:
-    """Read a model file written by :meth:`HysteresisModel.save`."""
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise FileNotFoundError(f"path = '{path}' does not exist") from None
-    try:
-        d = json.loads(text)
-    except json.JSONDecodeError as e:
-        raise ValueError(f"path = '{path}' is not valid JSON: {e}") from None
-    return model_from_dict(d)
+    """Read a model file written by :meth:`HysteresisModel.save` (``DataError`` naming the
+    file if it is not one)."""
+    return load_json_file(path, "model file", model_from_dict)
 
 
 class Inverse:

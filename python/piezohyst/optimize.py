@@ -47,6 +47,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ._validate import as_int, as_scalar
+from .errors import ComputationError, ParameterError, ParameterTypeError
 
 __all__ = [
     "CSS",
@@ -72,30 +73,30 @@ def _as_bounds(bounds) -> tuple[np.ndarray, np.ndarray]:
         lo = np.atleast_1d(np.asarray(bounds.lb, dtype=np.float64))
         hi = np.atleast_1d(np.asarray(bounds.ub, dtype=np.float64))
         if lo.shape != hi.shape or lo.ndim != 1:
-            raise ValueError(f"bounds: lb and ub must be 1-D of equal length, got {lo.shape} and {hi.shape}")
+            raise ParameterError(f"bounds: lb and ub must be 1-D of equal length, got {lo.shape} and {hi.shape}")
     else:
         if isinstance(bounds, (str, bytes)) or bounds is None:
-            raise TypeError(f"bounds must be a sequence of (lower, upper) pairs, got {bounds!r}")
+            raise ParameterTypeError(f"bounds must be a sequence of (lower, upper) pairs, got {bounds!r}")
         try:
             b = np.array(bounds, dtype=np.float64)
         except (TypeError, ValueError) as e:
-            raise TypeError(f"bounds must be a sequence of (lower, upper) pairs of numbers: {e}") from None
+            raise ParameterTypeError(f"bounds must be a sequence of (lower, upper) pairs of numbers: {e}") from None
         if b.ndim != 2 or b.shape[1] != 2 or b.shape[0] < 1:
-            raise ValueError(f"bounds must have shape (D, 2) with D >= 1 (one (lower, upper) pair per parameter), got shape {b.shape}")
+            raise ParameterError(f"bounds must have shape (D, 2) with D >= 1 (one (lower, upper) pair per parameter), got shape {b.shape}")
         lo, hi = b[:, 0].copy(), b[:, 1].copy()
     if lo.size < 1:
-        raise ValueError("bounds is empty: at least one parameter is needed")
+        raise ParameterError("bounds is empty: at least one parameter is needed")
     for name, arr in (("lower", lo), ("upper", hi)):
         bad = np.flatnonzero(~np.isfinite(arr))
         if bad.size:
             k = bad[0]
-            raise ValueError(f"bounds[{k}] = ({lo[k]}, {hi[k]}): the {name} bound is not finite")
+            raise ParameterError(f"bounds[{k}] = ({lo[k]}, {hi[k]}): the {name} bound is not finite")
     bad = np.flatnonzero(lo > hi)
     if bad.size:
         k = bad[0]
-        raise ValueError(f"bounds[{k}] = ({lo[k]}, {hi[k]}): lower > upper")
+        raise ParameterError(f"bounds[{k}] = ({lo[k]}, {hi[k]}): lower > upper")
     if np.all(hi == lo):
-        raise ValueError("bounds: every parameter has lower == upper; nothing to optimize")
+        raise ParameterError("bounds: every parameter has lower == upper; nothing to optimize")
     return lo, hi
 
 
@@ -103,9 +104,9 @@ def _as_rng(rng) -> np.random.Generator:
     if rng is None or isinstance(rng, (np.random.Generator, np.random.SeedSequence)):
         return np.random.default_rng(rng)
     if isinstance(rng, bool) or not isinstance(rng, (numbers.Integral, np.integer)):
-        raise TypeError(f"rng must be None, an int seed or a numpy.random.Generator, got {rng!r}")
+        raise ParameterTypeError(f"rng must be None, an int seed or a numpy.random.Generator, got {rng!r}")
     if int(rng) < 0:
-        raise ValueError(f"rng = {int(rng)} must be a non-negative seed")
+        raise ParameterError(f"rng = {int(rng)} must be a non-negative seed")
     return np.random.default_rng(int(rng))
 
 
@@ -113,7 +114,7 @@ def _as_fraction(x, name: str, *, low: float = 0.0, high: float = 1.0, open_low:
     v = as_scalar(x, name)
     if v > high or v < low or (open_low and v == low):
         lo_br = "(" if open_low else "["
-        raise ValueError(f"{name} = {v} must be in {lo_br}{low}, {high}]")
+        raise ParameterError(f"{name} = {v} must be in {lo_br}{low}, {high}]")
     return v
 
 
@@ -236,9 +237,9 @@ class Optimizer:
             try:
                 init_array = np.array(init, dtype=np.float64)
             except (TypeError, ValueError) as e:
-                raise TypeError(f"init must be 'lhs', 'random' or an (S, D) array: {e}") from None
+                raise ParameterTypeError(f"init must be 'lhs', 'random' or an (S, D) array: {e}") from None
             if init_array.ndim != 2 or init_array.shape[1] != D:
-                raise ValueError(f"init has shape {init_array.shape}, expected (S, {D})")
+                raise ParameterError(f"init has shape {init_array.shape}, expected (S, {D})")
             if population_size is None:
                 population_size = init_array.shape[0]
         if population_size is None:
@@ -249,11 +250,11 @@ class Optimizer:
         S = self.population_size
         if init_array is not None:
             if init_array.shape[0] != S:
-                raise ValueError(f"init has {init_array.shape[0]} rows, population_size = {S}")
+                raise ParameterError(f"init has {init_array.shape[0]} rows, population_size = {S}")
             bad = np.argwhere(~np.isfinite(init_array) | (init_array < self._lower) | (init_array > self._upper))
             if bad.size:
                 i, d = bad[0]
-                raise ValueError(f"init[{i}, {d}] = {init_array[i, d]} is outside bounds[{d}] = ({self._lower[d]}, {self._upper[d]})")
+                raise ParameterError(f"init[{i}, {d}] = {init_array[i, d]} is outside bounds[{d}] = ({self._lower[d]}, {self._upper[d]})")
             X0 = init_array
         elif init == "lhs":
             # one stratum per candidate in every dimension, strata shuffled independently
@@ -262,7 +263,7 @@ class Optimizer:
         elif init == "random":
             X0 = self._lower + self._rng.random((S, D)) * self._range
         else:
-            raise ValueError(f"init = {init!r} is not 'lhs', 'random' or an (S, D) array")
+            raise ParameterError(f"init = {init!r} is not 'lhs', 'random' or an (S, D) array")
         self._pending = self._clip(X0)
         self._asked = False
         self._iteration = 0
@@ -338,7 +339,7 @@ class Optimizer:
         ``RuntimeError`` once ``max_iterations`` populations have been evaluated.
         """
         if self.done:
-            raise RuntimeError(f"{self.name}: max_iterations = {self.max_iterations} populations have been evaluated; nothing more to ask")
+            raise ComputationError(f"{self.name}: max_iterations = {self.max_iterations} populations have been evaluated; nothing more to ask")
         if self._t_start is None:
             self._t_start = time.perf_counter()
         self._asked = True
@@ -354,7 +355,7 @@ class Optimizer:
             ``ValueError``.
         """
         if not self._asked:
-            raise RuntimeError(f"{self.name}: tell() without a pending ask()")
+            raise ComputationError(f"{self.name}: tell() without a pending ask()")
         f = self._check_costs(costs, "costs")
         X = self._pending
         self._asked = False
@@ -379,19 +380,19 @@ class Optimizer:
         try:
             f = np.array(costs, dtype=np.float64)
         except (TypeError, ValueError) as e:
-            raise TypeError(f"{name} must be an array of numbers: {e}") from None
+            raise ParameterTypeError(f"{name} must be an array of numbers: {e}") from None
         S = self.population_size
         if f.shape != (S,):
-            raise ValueError(f"{name} has shape {f.shape}, expected ({S},): one cost per candidate")
+            raise ParameterError(f"{name} has shape {f.shape}, expected ({S},): one cost per candidate")
         bad = np.flatnonzero(np.isnan(f))
         if bad.size:
-            raise ValueError(
+            raise ParameterError(
                 f"{name}[{bad[0]}] is NaN (candidate {self._pending[bad[0]].tolist()}); "
                 "NaN marks a bug in the objective, return +inf for invalid candidates"
             )
         bad = np.flatnonzero(f == -np.inf)
         if bad.size:
-            raise ValueError(f"{name}[{bad[0]}] = -inf; costs must be finite or +inf")
+            raise ParameterError(f"{name}[{bad[0]}] = -inf; costs must be finite or +inf")
         return f
 
     def converged(self, tol: float, atol: float = 0.0) -> bool:
@@ -822,7 +823,7 @@ class MPSO(PSO):
         self.w_max = as_scalar(w_max, "w_max", nonnegative=True)
         self.w_min = as_scalar(w_min, "w_min", nonnegative=True)
         if self.w_min > self.w_max:
-            raise ValueError(f"w_min = {self.w_min} must be <= w_max = {self.w_max}")
+            raise ParameterError(f"w_min = {self.w_min} must be <= w_max = {self.w_max}")
         self.c3 = as_scalar(c3, "c3", nonnegative=True)
 
     def inertia(self, it: int) -> float:
@@ -881,11 +882,11 @@ class DE(Optimizer):
         super().__init__(bounds, population_size, rng, max_iterations, init=init)
         if isinstance(F, (tuple, list, np.ndarray)):
             if len(F) != 2:
-                raise ValueError(f"F = {F!r} must be a number or a (lo, hi) pair")
+                raise ParameterError(f"F = {F!r} must be a number or a (lo, hi) pair")
             lo = _as_fraction(F[0], "F[0]", high=2.0, open_low=True)
             hi = _as_fraction(F[1], "F[1]", high=2.0, open_low=True)
             if lo > hi:
-                raise ValueError(f"F = {tuple(F)}: lo > hi")
+                raise ParameterError(f"F = {tuple(F)}: lo > hi")
             self.F = (lo, hi)
         else:
             self.F = _as_fraction(F, "F", high=2.0, open_low=True)
@@ -961,7 +962,7 @@ def _method_class(method):
         return method
     if isinstance(method, str) and method.lower() in METHODS:
         return METHODS[method.lower()]
-    raise ValueError(f"method = {method!r} is not one of {sorted(METHODS)} (or an Optimizer subclass)")
+    raise ParameterError(f"method = {method!r} is not one of {sorted(METHODS)} (or an Optimizer subclass)")
 
 
 def _evaluate(fun_batch, X):
@@ -969,15 +970,15 @@ def _evaluate(fun_batch, X):
     try:
         f = np.array(out, dtype=np.float64)
     except (TypeError, ValueError) as e:
-        raise TypeError(f"fun_batch must return an array of numbers, got {type(out).__name__}: {e}") from None
+        raise ParameterTypeError(f"fun_batch must return an array of numbers, got {type(out).__name__}: {e}") from None
     if f.shape != (X.shape[0],):
-        raise ValueError(
+        raise ParameterError(
             f"fun_batch returned shape {f.shape} for an input of shape {X.shape}; "
             f"expected ({X.shape[0]},): one cost per row"
         )
     bad = np.flatnonzero(np.isnan(f))
     if bad.size:
-        raise ValueError(
+        raise ParameterError(
             f"fun_batch returned NaN at index {bad[0]} (x = {X[bad[0]].tolist()}); "
             "NaN marks a bug in the objective, return +inf for invalid candidates"
         )
@@ -1095,20 +1096,20 @@ def minimize(fun_batch, bounds, method="css", *, population_size=None, max_itera
     (100,)
     """
     if not callable(fun_batch):
-        raise TypeError(f"fun_batch must be callable, got {type(fun_batch).__name__}")
+        raise ParameterTypeError(f"fun_batch must be callable, got {type(fun_batch).__name__}")
     if callback is not None and not callable(callback):
-        raise TypeError(f"callback must be callable or None, got {type(callback).__name__}")
+        raise ParameterTypeError(f"callback must be callable or None, got {type(callback).__name__}")
     cls = _method_class(method)
     if tol is not None:
         tol = as_scalar(tol, "tol", nonnegative=True)
     atol = as_scalar(atol, "atol", nonnegative=True)
     if not isinstance(polish, (bool, dict)):
-        raise TypeError(f"polish must be a bool or a dict of L-BFGS-B options, got {polish!r}")
+        raise ParameterTypeError(f"polish must be a bool or a dict of L-BFGS-B options, got {polish!r}")
     try:
         opt = cls(bounds, population_size, rng, max_iterations, **options)
     except TypeError as e:
         if "unexpected keyword" in str(e):
-            raise TypeError(f"method {cls.name!r}: {e}") from None
+            raise ParameterTypeError(f"method {cls.name!r}: {e}") from None
         raise
     bar = _ProgressBar(opt.name, opt.max_iterations) if progress else None
     t0 = time.perf_counter()

@@ -15,6 +15,7 @@ from . import _core
 from ._validate import as_record, as_scalar, as_vector
 from .creep import creep_from, creep_parts
 from .model import HysteresisModel, _register
+from .errors import ParameterError, ParameterTypeError
 
 __all__ = [
     "Envelope",
@@ -97,7 +98,7 @@ class PI(HysteresisModel):
         Creep is not part of the analytic inverse; use :meth:`inverse` then.
         """
         if self.creep is not None:
-            raise ValueError("creep is set: the analytic PI inverse does not cover creep; use inverse()")
+            raise ParameterError("creep is set: the analytic PI inverse does not cover creep; use inverse()")
         p0i, ri, wi = _core.pi_analytic_inverse(self.p0, self.thresholds, self.weights)
         return PI(ri, wi, p0i, units={"input": self.units.get("output", ""), "output": self.units.get("input", "")})
 
@@ -149,7 +150,7 @@ class Envelope:
 
     def __post_init__(self):
         if self.kind not in _ENVELOPE_CODES:
-            raise ValueError(f"kind = {self.kind!r} is not an envelope; expected one of {list(_ENVELOPE_CODES)}")
+            raise ParameterError(f"kind = {self.kind!r} is not an envelope; expected one of {list(_ENVELOPE_CODES)}")
         c = as_vector(self.coefficients, "coefficients", length=4)
         object.__setattr__(self, "coefficients", tuple(float(x) for x in c))
 
@@ -187,7 +188,7 @@ class Envelope:
             return cls(**e)
         if e is None:
             return cls.identity()
-        raise TypeError(f"{name} must be an Envelope, got {type(e).__name__}")
+        raise ParameterTypeError(f"{name} must be an Envelope, got {type(e).__name__}")
 
 
 @_register
@@ -230,7 +231,7 @@ class GeneralizedPI(HysteresisModel):
         self.falling = Envelope.from_any(falling, "falling")
         lo, hi = (float(x) for x in input_range)
         if not lo < hi:
-            raise ValueError(f"input_range = ({lo}, {hi}) must have lower < upper")
+            raise ParameterError(f"input_range = ({lo}, {hi}) must have lower < upper")
         self.input_range = (lo, hi)
         self.creep = creep
         m, tail = creep_parts(creep)
@@ -263,13 +264,13 @@ class GeneralizedPI(HysteresisModel):
         """``v = g^{-1}(PI^{-1}[y])`` for equal envelopes, ``P = 0`` and a zero first
         threshold with positive weight (which plays the role of ``p0``)."""
         if self.rising != self.falling:
-            raise ValueError("rising and falling envelopes differ: no analytic inverse; use inverse()")
+            raise ParameterError("rising and falling envelopes differ: no analytic inverse; use inverse()")
         if any(self.polynomial):
-            raise ValueError(f"polynomial = {list(self.polynomial)} is not zero: no analytic inverse; use inverse()")
+            raise ParameterError(f"polynomial = {list(self.polynomial)} is not zero: no analytic inverse; use inverse()")
         if self.creep is not None:
-            raise ValueError("creep is set: no analytic inverse; use inverse()")
+            raise ParameterError("creep is set: no analytic inverse; use inverse()")
         if self.thresholds.size == 0 or self.thresholds[0] != 0.0:
-            raise ValueError("thresholds[0] must be 0 (its weight is the linear term) for the analytic inverse")
+            raise ParameterError("thresholds[0] must be 0 (its weight is the linear term) for the analytic inverse")
         pi = PI(self.thresholds[1:], self.weights[1:], self.weights[0])
         return EnvelopeInverse(pi.analytic_inverse(), self.rising)
 

@@ -12,6 +12,7 @@ import numpy as np
 
 from ._validate import as_int, as_scalar, as_vector
 from .model import HysteresisModel, _register
+from .errors import ParameterError
 
 __all__ = ["Preisach"]
 
@@ -52,13 +53,13 @@ class Preisach(HysteresisModel):
         self.levels = as_int(levels, "levels", minimum=1)
         lo, hi = (as_scalar(x, "input_range") for x in input_range)
         if not lo < hi:
-            raise ValueError(f"input_range = ({lo}, {hi}) must have lower < upper")
+            raise ParameterError(f"input_range = ({lo}, {hi}) must have lower < upper")
         self.input_range = (lo, hi)
         cells = self.levels * (self.levels + 1) // 2
         w = np.asarray(weights, dtype=np.float64) if not isinstance(weights, (str, bytes)) else weights
         if isinstance(w, np.ndarray) and w.ndim == 2:
             if w.shape != (self.levels, self.levels):
-                raise ValueError(f"weights has shape {w.shape}, expected ({self.levels}, {self.levels}) or ({cells},)")
+                raise ParameterError(f"weights has shape {w.shape}, expected ({self.levels}, {self.levels}) or ({cells},)")
             w = w[np.tril_indices(self.levels)]
         self.weights = as_vector(w, "weights", length=cells)
         self.offset = as_scalar(offset, "offset")

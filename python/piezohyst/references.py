@@ -36,6 +36,7 @@ import numbers
 import numpy as np
 
 from ._validate import as_int, as_scalar, as_vector
+from .errors import ParameterError, ParameterTypeError
 
 __all__ = ["chirp", "multisine", "sine", "staircase", "triangle", "variable_amplitude_sine"]
 
@@ -48,7 +49,7 @@ def _n_samples(duration, fs):
     fs = as_scalar(fs, "fs", positive=True)
     n = duration * fs
     if not np.isfinite(n) or round(n) < 2:
-        raise ValueError(f"duration * fs = {duration} * {fs} = {n} gives fewer than 2 samples")
+        raise ParameterError(f"duration * fs = {duration} * {fs} = {n} gives fewer than 2 samples")
     return int(round(n)), fs
 
 
@@ -61,7 +62,7 @@ def _frequency(value, name, fs):
     """A positive frequency not above the Nyquist frequency ``fs / 2``."""
     f = as_scalar(value, name, positive=True)
     if f > fs / 2:
-        raise ValueError(f"{name} = {f} is above the Nyquist frequency fs / 2 = {fs / 2}")
+        raise ParameterError(f"{name} = {f} is above the Nyquist frequency fs / 2 = {fs / 2}")
     return f
 
 
@@ -69,17 +70,17 @@ def _rng(rng):
     if rng is None or isinstance(rng, np.random.Generator):
         return np.random.default_rng(rng)
     if isinstance(rng, bool) or not isinstance(rng, (numbers.Integral, np.integer)):
-        raise TypeError(f"rng must be None, an int seed or a numpy.random.Generator, got {rng!r}")
+        raise ParameterTypeError(f"rng must be None, an int seed or a numpy.random.Generator, got {rng!r}")
     if rng < 0:
-        raise ValueError(f"rng = {rng} must be a non-negative seed")
+        raise ParameterError(f"rng = {rng} must be a non-negative seed")
     return np.random.default_rng(int(rng))
 
 
 def _choice(value, name, options):
     if not isinstance(value, str):
-        raise TypeError(f"{name} must be one of {options}, got {value!r}")
+        raise ParameterTypeError(f"{name} must be one of {options}, got {value!r}")
     if value not in options:
-        raise ValueError(f"{name} = {value!r} must be one of {options}")
+        raise ParameterError(f"{name} = {value!r} must be one of {options}")
     return value
 
 
@@ -189,7 +190,7 @@ def triangle(freq, amplitude, duration, fs, offset=0.0, phase=-np.pi / 2, roundi
     p = as_scalar(phase, "phase")
     r = as_scalar(rounding, "rounding")
     if not 0.0 <= r <= 1.0:
-        raise ValueError(f"rounding = {r} must be in [0, 1]")
+        raise ParameterError(f"rounding = {r} must be in [0, 1]")
 
     # Position within the period, in periods: 0 at a minimum, 1/2 at a maximum.
     u = np.mod(f * t + p / (2 * np.pi) + 0.25, 1.0)
@@ -250,14 +251,14 @@ def variable_amplitude_sine(freq, amplitude, duration, fs, offset=0.0, final_fra
     c = as_scalar(offset, "offset")
     ff = as_scalar(final_fraction, "final_fraction")
     if not 0.0 <= ff <= 1.0:
-        raise ValueError(f"final_fraction = {ff} must be in [0, 1]")
+        raise ParameterError(f"final_fraction = {ff} must be in [0, 1]")
     kind = _choice(envelope, "envelope", ("linear", "exponential"))
     if kind == "linear":
         env = 1.0 - (1.0 - ff) * t / t[-1]
     else:
         frac = t / t[-1]
         if ff == 0.0:
-            raise ValueError("final_fraction = 0.0 must be > 0 for envelope='exponential'")
+            raise ParameterError("final_fraction = 0.0 must be > 0 for envelope='exponential'")
         env = ff ** frac
     return t, c + a * env * np.sin(2 * np.pi * f * t)
 
@@ -322,7 +323,7 @@ def multisine(f_min, f_max, amplitude, period, fs, *, periods=1, scale="rms", of
     lo = _frequency(f_min, "f_min", fs)
     hi = _frequency(f_max, "f_max", fs)
     if lo >= hi:
-        raise ValueError(f"f_min = {lo} must be < f_max = {hi}")
+        raise ParameterError(f"f_min = {lo} must be < f_max = {hi}")
     a = as_scalar(amplitude, "amplitude", nonnegative=True)
     m = as_int(periods, "periods", minimum=1)
     kind = _choice(scale, "scale", ("rms", "peak"))
@@ -334,7 +335,7 @@ def multisine(f_min, f_max, amplitude, period, fs, *, periods=1, scale="rms", of
     # A relative tolerance so that band edges given as exact multiples of f0 are included.
     k = k[(k * f0 >= lo * (1 - 1e-12)) & (k * f0 <= hi * (1 + 1e-12))]
     if k.size == 0:
-        raise ValueError(
+        raise ParameterError(
             f"no frequency line of the resolution fs / N = {f0} Hz (period = {n / fs} s) lies in "
             f"[f_min, f_max] = [{lo}, {hi}] below the Nyquist frequency; lengthen period"
         )
@@ -442,7 +443,7 @@ def staircase(levels, dwell, fs, offset=0.0):
     """
     lv = as_vector(levels, "levels")
     if lv.size == 0:
-        raise ValueError("levels is empty; at least one level is needed")
+        raise ParameterError("levels is empty; at least one level is needed")
     fs = as_scalar(fs, "fs", positive=True)
     c = as_scalar(offset, "offset")
     if np.ndim(dwell) == 0 and not isinstance(dwell, (str, bytes)):
@@ -451,14 +452,14 @@ def staircase(levels, dwell, fs, offset=0.0):
         d = as_vector(dwell, "dwell", length=lv.size)
         bad = np.flatnonzero(~(d > 0))
         if bad.size:
-            raise ValueError(f"dwell[{bad[0]}] = {d[bad[0]]} must be > 0")
+            raise ParameterError(f"dwell[{bad[0]}] = {d[bad[0]]} must be > 0")
     counts = np.rint(d * fs)
     bad = np.flatnonzero(counts < 1)
     if bad.size:
         i = bad[0]
-        raise ValueError(f"dwell[{i}] = {d[i]} is shorter than one sample at fs = {fs} (dwell * fs < 0.5)")
+        raise ParameterError(f"dwell[{i}] = {d[i]} is shorter than one sample at fs = {fs} (dwell * fs < 0.5)")
     total = counts.sum()
     if total < 2:
-        raise ValueError(f"levels and dwell give {int(total)} sample; at least 2 are needed")
+        raise ParameterError(f"levels and dwell give {int(total)} sample; at least 2 are needed")
     x = np.repeat(lv, counts.astype(np.int64))
     return np.arange(x.size) / fs, c + x

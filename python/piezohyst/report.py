@@ -4,11 +4,11 @@ virtual stage — every table says so."""
 from __future__ import annotations
 
 import html
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
+
+from ._io import write_atomic
 
 __all__ = ["write_report"]
 
@@ -17,29 +17,13 @@ _NOTE = ("The seeds measured real stages; piezohyst simulates its virtual stage 
          "command and the quantized, noisy sensor reading — never read from the stage's parameters.")
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-
-
 def _save(fig, path: Path) -> None:
     import matplotlib.pyplot as plt
 
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".png")
-    os.close(fd)
     try:
-        fig.savefig(tmp, dpi=100)
-        os.replace(tmp, path)
+        write_atomic(path, writer=lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
     finally:
         plt.close(fig)
-        if os.path.exists(tmp):
-            os.unlink(tmp)
 
 
 # -- figures --------------------------------------------------------------------------------
@@ -273,6 +257,6 @@ def write_report(out_dir, results, *, runs1, runs2, mpi_fit, stage) -> dict:
     out_dir.mkdir(parents=True, exist_ok=True)
     figures = _figures(out_dir, results, runs1, runs2, mpi_fit, stage)
     tables = _tables(results)
-    _atomic_write(out_dir / "report.md", _markdown(results, tables, figures))
-    _atomic_write(out_dir / "index.html", _html(results, tables, figures))
+    write_atomic(out_dir / "report.md", _markdown(results, tables, figures))
+    write_atomic(out_dir / "index.html", _html(results, tables, figures))
     return figures

@@ -13,6 +13,7 @@ from . import _core
 from ._validate import as_record
 from .control import is_controller
 from .metrics import tracking_metrics
+from .errors import ParameterError, ParameterTypeError
 
 __all__ = ["ClosedLoopResult", "closed_loop", "closed_loop_batch", "seed_from"]
 
@@ -25,9 +26,9 @@ def seed_from(rng) -> int:
         return int(rng.integers(0, 2**63 - 1))
     if isinstance(rng, (int, np.integer)) and not isinstance(rng, bool):
         if rng < 0:
-            raise ValueError(f"rng = {rng} must be a non-negative int or a numpy Generator")
+            raise ParameterError(f"rng = {rng} must be a non-negative int or a numpy Generator")
         return _seed_of_int(int(rng))
-    raise TypeError(f"rng must be an int, a numpy.random.Generator or None, got {type(rng).__name__}")
+    raise ParameterTypeError(f"rng must be an int, a numpy.random.Generator or None, got {type(rng).__name__}")
 
 
 @lru_cache(maxsize=1024)
@@ -145,13 +146,13 @@ def _check_reference(stage, x):
     lo, hi = min(reach), max(reach)
     if lowest < lo or highest > hi:
         k = int(np.flatnonzero((x < lo) | (x > hi))[0])
-        raise ValueError(f"reference[{k}] = {x[k]:.6g} m is beyond the stage's stroke "
+        raise ParameterError(f"reference[{k}] = {x[k]:.6g} m is beyond the stage's stroke "
                          f"[{lo:.3g}, {hi:.3g}] m for amplifier range [{a.v_min}, {a.v_max}] V")
 
 
 def _prepare(stage, controller, reference, velocity, acceleration):
     if not is_controller(controller):
-        raise TypeError(f"controller must be a piezohyst controller (OpenLoop, PID, ...), got {type(controller).__name__}")
+        raise ParameterTypeError(f"controller must be a piezohyst controller (OpenLoop, PID, ...), got {type(controller).__name__}")
     # no copy here: the core returns the result's own copy of the reference; NaN/inf are
     # found by _check_reference's min/max (one pass less than as_record's own check)
     x = as_record(reference, "reference", min_length=2, copy=False, finite=False)
@@ -159,7 +160,7 @@ def _prepare(stage, controller, reference, velocity, acceleration):
     v, a = _derivatives(x, stage.sample_time, velocity, acceleration,
                         getattr(controller, "uses_reference_derivatives", True))
     if v.size not in (0, x.size) or a.size not in (0, x.size):
-        raise ValueError(f"velocity/acceleration must have the reference's length {x.size}")
+        raise ParameterError(f"velocity/acceleration must have the reference's length {x.size}")
     return x, v, a, controller.core(stage)
 
 
@@ -223,7 +224,7 @@ def closed_loop_batch(stage, scenarios, *, rng=None, initial_state=None) -> list
         try:
             controller, reference = item
         except (TypeError, ValueError):
-            raise TypeError(f"scenarios[{j}] must be a (controller, reference) pair") from None
+            raise ParameterTypeError(f"scenarios[{j}] must be a (controller, reference) pair") from None
         try:
             x, v, a, spec = _prepare(stage, controller, reference, None, None)
         except (ValueError, TypeError) as e:

@@ -24,6 +24,8 @@ import numpy as np
 
 from . import _core
 from ._validate import as_int, as_record, as_scalar
+from ._io import load_json_file
+from .errors import ParameterError, ParameterTypeError
 
 __all__ = ["Amplifier", "Sensor", "StageParameters", "Stage", "StageResponse", "StageInfo", "virtual_stage"]
 
@@ -44,11 +46,11 @@ class Amplifier:
         lo = as_scalar(self.v_min, "v_min")
         hi = as_scalar(self.v_max, "v_max")
         if not hi > lo:
-            raise ValueError(f"amplifier limits reversed: v_min = {lo} must be < v_max = {hi}")
+            raise ParameterError(f"amplifier limits reversed: v_min = {lo} must be < v_max = {hi}")
         for name in ("bandwidth", "slew_rate"):
             x = float(getattr(self, name))
             if math.isnan(x) or not x > 0:
-                raise ValueError(f"{name} = {x} must be > 0 (inf for none)")
+                raise ParameterError(f"{name} = {x} must be > 0 (inf for none)")
 
 
 @dataclass(frozen=True)
@@ -65,7 +67,7 @@ class Sensor:
         as_scalar(self.noise_std, "noise_std", nonnegative=True)
         d = as_int(self.delay, "delay")
         if d > 16:
-            raise ValueError(f"delay = {d} must be <= 16 samples")
+            raise ParameterError(f"delay = {d} must be <= 16 samples")
 
 
 @dataclass(frozen=True)
@@ -96,16 +98,16 @@ class StageParameters:
         for name in ("hyst_alpha", "hyst_beta", "hyst_gamma", "electrostriction"):
             as_scalar(getattr(self, name), name)
         if self.hyst_drive not in ("charge", "voltage"):
-            raise ValueError(f"hyst_drive = {self.hyst_drive!r} must be 'charge' or 'voltage'")
+            raise ParameterError(f"hyst_drive = {self.hyst_drive!r} must be 'charge' or 'voltage'")
         taus = tuple(float(x) for x in self.creep_taus)
         weights = tuple(float(x) for x in self.creep_weights)
         if len(taus) != len(weights):
-            raise ValueError(f"creep_weights has length {len(weights)}, creep_taus has {len(taus)}")
+            raise ParameterError(f"creep_weights has length {len(weights)}, creep_taus has {len(taus)}")
         if len(taus) > MAX_CREEP:
-            raise ValueError(f"creep_taus has {len(taus)} terms, at most {MAX_CREEP}")
+            raise ParameterError(f"creep_taus has {len(taus)} terms, at most {MAX_CREEP}")
         for j, t in enumerate(taus):
             if not (t > 0 and math.isfinite(t)):
-                raise ValueError(f"creep_taus[{j}] = {t} must be > 0 and finite")
+                raise ParameterError(f"creep_taus[{j}] = {t} must be > 0 and finite")
         object.__setattr__(self, "creep_taus", taus)
         object.__setattr__(self, "creep_weights", weights)
 
@@ -187,19 +189,19 @@ class Stage:
         as_scalar(self.sample_time, "sample_time", positive=True)
         n = as_int(self.substeps, "substeps", minimum=1)
         if n > 10_000:
-            raise ValueError(f"substeps = {n} must be <= 10000")
+            raise ParameterError(f"substeps = {n} must be <= 10000")
         tol = float(self.tolerance)
         if math.isnan(tol) or not tol > 0:
-            raise ValueError(f"tolerance = {tol} must be > 0 (inf: never refine)")
+            raise ParameterError(f"tolerance = {tol} must be > 0 (inf: never refine)")
         if not isinstance(self.params, StageParameters):
-            raise TypeError(f"params must be StageParameters, got {type(self.params).__name__}")
+            raise ParameterTypeError(f"params must be StageParameters, got {type(self.params).__name__}")
 
     # -- files --------------------------------------------------------------------------
     @classmethod
     def from_dict(cls, d: dict) -> "Stage":
         """Build from the stage-file layout (see ``presets/virtual_stage.json``)."""
         if not isinstance(d, dict):
-            raise ValueError(f"a stage description must be a JSON object, got {type(d).__name__}")
+            raise ParameterError(f"a stage description must be a JSON object, got {type(d).__name__}")
         try:
             mech, cemf = d["mechanics"], d["cemf"]
             m, k = _number(mech, "mass"), _number(mech, "stiffness")
@@ -224,21 +226,12 @@ class Stage:
             return cls(params, amp, sensor, loop.get("sample_time", 1e-4), loop.get("substeps", 1),
                        _inf(loop.get("tolerance", 0.05)), d.get("name", ""))
         except KeyError as e:
-            raise ValueError(f"stage description is missing {e.args[0]!r}") from None
+            raise ParameterError(f"stage description is missing {e.args[0]!r}") from None
 
     @classmethod
     def from_file(cls, path) -> "Stage":
         """Read a stage file (JSON, the layout of the packaged virtual stage)."""
-        path = Path(path)
-        try:
-            d = json.loads(path.read_text())
-        except FileNotFoundError:
-            raise FileNotFoundError(f"stage file '{path}' does not exist") from None
-        except json.JSONDecodeError as e:
-            raise ValueError(f"stage file '{path}' is not valid JSON: {e}") from None
-        if not isinstance(d, dict):
-            raise ValueError(f"stage file '{path}' must hold a JSON object")
-        return cls.from_dict(d)
+        return load_json_file(path, "stage file", cls.from_dict)
 
     def to_dict(self) -> dict:
         p = self.params
@@ -300,7 +293,7 @@ class Stage:
         bad = np.flatnonzero((u < a.v_min) | (u > a.v_max))
         if bad.size:
             k = bad[0]
-            raise ValueError(f"{name}[{k}] = {u[k]} V is outside the amplifier range [{a.v_min}, {a.v_max}] V")
+            raise ParameterError(f"{name}[{k}] = {u[k]} V is outside the amplifier range [{a.v_min}, {a.v_max}] V")
 
     # -- measurements ---------------------------------------------------------------------
     def info(self) -> StageInfo:
@@ -373,7 +366,7 @@ def _loop_width(u, x):
 def _number(section: dict, key: str) -> float:
     x = section[key]
     if isinstance(x, bool) or not isinstance(x, (int, float)):
-        raise ValueError(f"{key} = {x!r} must be a number")
+        raise ParameterError(f"{key} = {x!r} must be a number")
     return float(x)
 
 

@@ -19,6 +19,7 @@ from . import _core
 from ._validate import as_record, as_scalar
 from .control import is_controller
 from .simulation import ClosedLoopResult, _prepare, closed_loop, seed_from
+from .errors import ComputationError, ParameterError, ParameterTypeError
 
 __all__ = ["track", "tune", "TuningResult", "stage_from_model"]
 
@@ -44,7 +45,7 @@ def track(controller, reference, *, stage=None, velocity=None, acceleration=None
     skip = as_scalar(skip, "skip", nonnegative=True)
     first = int(round(skip / stage.sample_time))
     if first >= res.reference.size - 1:
-        raise ValueError(f"skip = {skip} s leaves fewer than 2 of the reference's {res.reference.size} samples")
+        raise ParameterError(f"skip = {skip} s leaves fewer than 2 of the reference's {res.reference.size} samples")
     object.__setattr__(res, "skip_samples", first)
     return res
 
@@ -108,20 +109,20 @@ def tune(controller, gains, references, *, stage=None, method="css", max_iterati
     t0 = time.perf_counter()
     stage = virtual_stage() if stage is None else stage
     if not is_controller(controller):
-        raise TypeError(f"controller must be a piezohyst controller, got {type(controller).__name__}")
+        raise ParameterTypeError(f"controller must be a piezohyst controller, got {type(controller).__name__}")
     if not isinstance(gains, dict) or not gains:
-        raise ValueError("gains must be a non-empty dict of name -> (low, high)")
+        raise ParameterError("gains must be a non-empty dict of name -> (low, high)")
     names = list(gains)
     fields = getattr(controller, "__dataclass_fields__", {})
     box = []
     for n in names:
         if n not in fields:
-            raise ValueError(f"gains: {type(controller).__name__} has no field {n!r}")
+            raise ParameterError(f"gains: {type(controller).__name__} has no field {n!r}")
         lo, hi = (as_scalar(b, f"gains[{n!r}]") for b in gains[n])
         if not lo < hi:
-            raise ValueError(f"gains[{n!r}] = ({lo}, {hi}): low must be < high")
+            raise ParameterError(f"gains[{n!r}] = ({lo}, {hi}): low must be < high")
         if log_scale and not lo > 0:
-            raise ValueError(f"gains[{n!r}] low = {lo} must be > 0 with log_scale=True")
+            raise ParameterError(f"gains[{n!r}] low = {lo} must be > 0 with log_scale=True")
         box.append((math.log10(lo), math.log10(hi)) if log_scale else (lo, hi))
     refs = [references] if np.ndim(references) == 1 else list(references)
     refs = [as_record(r, f"references[{j}]", min_length=2) for j, r in enumerate(refs)]
@@ -133,7 +134,7 @@ def tune(controller, gains, references, *, stage=None, method="css", max_iterati
     for v in variants:
         for n in v:
             if n not in fields:
-                raise ValueError(f"variants: {type(controller).__name__} has no field {n!r}")
+                raise ParameterError(f"variants: {type(controller).__name__} has no field {n!r}")
 
     def candidate(theta):
         values = 10.0 ** theta if log_scale else theta
@@ -165,7 +166,7 @@ def tune(controller, gains, references, *, stage=None, method="css", max_iterati
     res = minimize(cost, box, method=method, max_iterations=max_iterations, population_size=population_size,
                    rng=rng, progress=progress, callback=callback)
     if res.x is None or not np.isfinite(res.fun):
-        raise RuntimeError("tuning found no stable candidate within the gain bounds")
+        raise ComputationError("tuning found no stable candidate within the gain bounds")
     best = candidate(res.x)
     values = 10.0 ** res.x if log_scale else res.x
     return TuningResult(best, {n: float(v) for n, v in zip(names, values)}, float(res.fun), res.history,

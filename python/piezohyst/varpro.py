@@ -59,6 +59,7 @@ from . import _core
 from ._validate import as_int, as_record, as_scalar
 from .creep import Creep
 from .pi import PI, Envelope, GeneralizedPI, RateDependentPI
+from .errors import ParameterError, ParameterTypeError
 
 __all__ = ["ENVELOPES", "VP_KINDS", "identify_vp", "vp_parameters"]
 
@@ -90,7 +91,7 @@ def _tanh_shape_coefficients(a, b, offset, scale, c, h):
     t0, t1 = math.tanh(b - a), math.tanh(a + b)
     d = t1 - t0
     if not d > 0:
-        raise ValueError("tanh envelope: flat on the training range")
+        raise ParameterError("tanh envelope: flat on the training range")
     k = 2.0 * h * scale / d
     return (k, a / h, b - a * c / h, c + h * (offset - scale) - k * t0)
 
@@ -123,10 +124,10 @@ def vp_parameters(model="mpi", *, envelope="polynomial", creep=0) -> tuple:
 def _groups(model, envelope, creep, scales):
     """The parameter table ``[(name, lower, upper, domain)]`` with data-scaled defaults."""
     if model not in VP_KINDS:
-        raise ValueError(f"model = {model!r} has no structure to fit by variable projection; expected one of "
+        raise ParameterError(f"model = {model!r} has no structure to fit by variable projection; expected one of "
                          f"{list(VP_KINDS)}")
     if envelope not in ENVELOPES:
-        raise ValueError(f"envelope = {envelope!r} is unknown; expected one of {list(ENVELOPES)}")
+        raise ParameterError(f"envelope = {envelope!r} is unknown; expected one of {list(ENVELOPES)}")
     table = list(_SPREAD)
     if model in ("gpi", "mpi"):
         if envelope == "polynomial":
@@ -152,19 +153,19 @@ def _search_box(table, bounds):
     fixed = {}
     if bounds is not None:
         if not isinstance(bounds, dict):
-            raise TypeError(f"bounds must be a dict {{name: (lower, upper) or value}}, got {type(bounds).__name__}")
+            raise ParameterTypeError(f"bounds must be a dict {{name: (lower, upper) or value}}, got {type(bounds).__name__}")
         unknown = sorted(set(bounds) - set(names), key=str)
         if unknown:
-            raise ValueError(f"bounds: {unknown[0]!r} is not a parameter of this search; expected names among "
+            raise ParameterError(f"bounds: {unknown[0]!r} is not a parameter of this search; expected names among "
                              f"{names}")
         for name, b in bounds.items():
             if isinstance(b, (tuple, list, np.ndarray)):
                 if len(b) != 2:
-                    raise ValueError(f"bounds[{name!r}] = {b!r} must be a (lower, upper) pair or a value")
+                    raise ParameterError(f"bounds[{name!r}] = {b!r} must be a (lower, upper) pair or a value")
                 lo = as_scalar(b[0], f"bounds[{name!r}] lower")
                 hi = as_scalar(b[1], f"bounds[{name!r}] upper")
                 if lo > hi:
-                    raise ValueError(f"bounds[{name!r}] = ({lo}, {hi}): lower > upper")
+                    raise ParameterError(f"bounds[{name!r}] = ({lo}, {hi}): lower > upper")
                 if lo == hi:
                     fixed[name] = lo
                 else:
@@ -179,11 +180,11 @@ def _search_box(table, bounds):
         for x in vals:
             if x < dlo or (open_lo and x == dlo) or x > dhi:
                 rel = ">" if open_lo else ">="
-                raise ValueError(f"bounds[{name!r}]: {x} is outside the parameter's domain ({name} must be "
+                raise ParameterError(f"bounds[{name!r}]: {x} is outside the parameter's domain ({name} must be "
                                  f"{rel} {dlo})")
     free = [n for n in names if n not in fixed]
     if not free:
-        raise ValueError("bounds fixes every parameter; nothing to search (use identify(..., structure='fixed') "
+        raise ParameterError("bounds fixes every parameter; nothing to search (use identify(..., structure='fixed') "
                          "or leave a parameter free)")
     return free, np.array([lower[n] for n in free]), np.array([upper[n] for n in free]), fixed
 
@@ -412,34 +413,34 @@ def identify_vp(input, output, model="mpi", *, fs=None, operators=9, envelope="p
     v = as_record(input, "input", min_length=2)
     y = as_record(output, "output", min_length=2)
     if y.size != v.size:
-        raise ValueError(f"output has {y.size} samples, input has {v.size}; they must match")
+        raise ParameterError(f"output has {y.size} samples, input has {v.size}; they must match")
     if not np.ptp(v) > 0:
-        raise ValueError("input is constant: there is no hysteresis to identify")
+        raise ParameterError("input is constant: there is no hysteresis to identify")
     n = as_int(operators, "operators", minimum=1)
     creep = as_int(creep, "creep")
     if fs is not None:
         fs = as_scalar(fs, "fs", positive=True)
     if fs is None and model == "rdpi":
-        raise ValueError("fs is required for model = 'rdpi' (the rate needs the sample time)")
+        raise ParameterError("fs is required for model = 'rdpi' (the rate needs the sample time)")
     if fs is None and creep:
-        raise ValueError("fs is required with creep (the lags need the sample time)")
+        raise ParameterError("fs is required with creep (the lags need the sample time)")
     if model not in VP_KINDS:
-        raise ValueError(f"model = {model!r} has no structure to fit by variable projection; expected one of "
+        raise ParameterError(f"model = {model!r} has no structure to fit by variable projection; expected one of "
                          f"{list(VP_KINDS)}")
     if envelope not in ENVELOPES:
-        raise ValueError(f"envelope = {envelope!r} is unknown; expected one of {list(ENVELOPES)}")
+        raise ParameterError(f"envelope = {envelope!r} is unknown; expected one of {list(ENVELOPES)}")
     if model not in ("gpi", "mpi") and envelope == "tanh":
-        raise ValueError(f"envelope = {envelope!r} applies to model = 'gpi'/'mpi' only; {model!r} has no envelopes")
+        raise ParameterError(f"envelope = {envelope!r} applies to model = 'gpi'/'mpi' only; {model!r} has no envelopes")
     problem = _Problem(model, v, y, fs, n, envelope if model in ("gpi", "mpi") else "identity", creep, loss, delta)
     names, lower, upper, fixed = _search_box(problem.table, bounds)
     unknowns = (4 if model in ("gpi", "mpi") else 1) + n * (2 if model == "rdpi" else 1) + creep
     if v.size < unknowns + len(names):
-        raise ValueError(f"the record has {v.size} samples, fewer than the {unknowns + len(names)} parameters "
+        raise ParameterError(f"the record has {v.size} samples, fewer than the {unknowns + len(names)} parameters "
                          f"({unknowns} linear, {len(names)} structure)")
     if isinstance(optimizer, str) and optimizer == "ls":
         optimizer = "de"
     if not isinstance(polish, bool):
-        raise TypeError(f"polish must be True or False, got {polish!r}")
+        raise ParameterTypeError(f"polish must be True or False, got {polish!r}")
     starts = as_int(starts, "starts")
     if max_iterations is None:
         max_iterations = DEFAULT_ITERATIONS
@@ -461,7 +462,7 @@ def identify_vp(input, output, model="mpi", *, fs=None, operators=9, envelope="p
     res = minimize(cost_batch, list(zip(lower, upper)), method=optimizer, rng=rng, max_iterations=max_iterations,
                    population_size=population_size, progress=progress, callback=callback)
     if not np.isfinite(res.fun):
-        raise ValueError("every candidate structure was invalid (envelopes not increasing or crossing on the input "
+        raise ParameterError("every candidate structure was invalid (envelopes not increasing or crossing on the input "
                          "range): check the bounds")
     x = np.array(res.x, dtype=np.float64)
     history = dict(res.history)
@@ -504,7 +505,7 @@ def identify_vp(input, output, model="mpi", *, fs=None, operators=9, envelope="p
         vv = as_record(validate[0], "validate input")
         vy = as_record(validate[1], "validate output")
         if vy.size != vv.size:
-            raise ValueError(f"validate output has {vy.size} samples, validate input has {vv.size}; they must match")
+            raise ParameterError(f"validate output has {vy.size} samples, validate input has {vv.size}; they must match")
         val = fit_metrics(fitted.simulate(vv), vy)
     if loss == "huber":
         method += "+huber"

@@ -13,7 +13,7 @@ use piezohyst_core::boucwen_benchmark::{
     BoucWenBenchmark, Newmark, State,
 };
 use piezohyst_core::ModelError;
-use pyo3::exceptions::PyValueError;
+use crate::util::ParameterError;
 use pyo3::prelude::*;
 use rayon::prelude::*;
 
@@ -21,17 +21,17 @@ use rayon::prelude::*;
 type Pair<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>);
 
 fn err(e: ModelError) -> PyErr {
-    PyValueError::new_err(e.to_string())
+    ParameterError::new_err(e.to_string())
 }
 
 fn slice<'a>(a: &'a PyReadonlyArray1<'_, f64>, name: &str) -> PyResult<&'a [f64]> {
     a.as_slice()
-        .map_err(|_| PyValueError::new_err(format!("{name} must be a contiguous float64 array")))
+        .map_err(|_| ParameterError::new_err(format!("{name} must be a contiguous float64 array")))
 }
 
 fn check_finite(name: &str, xs: &[f64]) -> PyResult<()> {
     match xs.iter().position(|x| !x.is_finite()) {
-        Some(k) => Err(PyValueError::new_err(format!(
+        Some(k) => Err(ParameterError::new_err(format!(
             "{name}[{k}] = {} is not finite",
             xs[k]
         ))),
@@ -58,9 +58,9 @@ fn boucwen_benchmark_integrate<'py>(
     check_finite("input", u)?;
     let st = state
         .as_slice_mut()
-        .map_err(|_| PyValueError::new_err("state must be a contiguous float64 array"))?;
+        .map_err(|_| ParameterError::new_err("state must be a contiguous float64 array"))?;
     if st.len() != 4 {
-        return Err(PyValueError::new_err(format!(
+        return Err(ParameterError::new_err(format!(
             "state has length {}, expected 4 ([y, dy, ddy, z])",
             st.len()
         )));
@@ -74,7 +74,7 @@ fn boucwen_benchmark_integrate<'py>(
         .map_err(err)?;
     st.copy_from_slice(&s.to_array());
     if let Some(k) = failed {
-        return Err(PyValueError::new_err(format!(
+        return Err(ParameterError::new_err(format!(
             "the implicit step at internal step {k} could not be solved (y = {}, z = {}); the input or the parameters drive the system beyond what the step h = {h} resolves",
             y[k], z[k]
         )));
@@ -84,7 +84,7 @@ fn boucwen_benchmark_integrate<'py>(
         .zip(&z)
         .position(|(a, b)| !a.is_finite() || !b.is_finite())
     {
-        return Err(PyValueError::new_err(format!(
+        return Err(ParameterError::new_err(format!(
             "the simulation diverged at internal step {k} (y = {}, z = {}); the parameters or the step h = {h} do not keep it bounded for this input",
             y[k], z[k]
         )));
@@ -101,7 +101,7 @@ fn boucwen_benchmark_decimate<'py>(
     factor: usize,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
     if factor == 0 {
-        return Err(PyValueError::new_err("factor = 0 must be >= 1"));
+        return Err(ParameterError::new_err("factor = 0 must be >= 1"));
     }
     let xs = slice(&x, "x")?;
     check_finite("x", xs)?;
@@ -133,7 +133,7 @@ fn batch_args<'a>(
     let shape = params.shape();
     let width = BoucWenBenchmark::PARAM_LEN;
     if shape[1] != width {
-        return Err(PyValueError::new_err(format!(
+        return Err(ParameterError::new_err(format!(
             "params has shape ({}, {}), expected (S, {width}) rows [mass, damping, stiffness, alpha, beta, gamma, delta, nu]",
             shape[0], shape[1]
         )));
@@ -143,29 +143,29 @@ fn batch_args<'a>(
         .as_slice()
         .ok()
         .filter(|_| params.is_c_contiguous())
-        .ok_or_else(|| PyValueError::new_err("params must be a C-contiguous float64 array"))?;
+        .ok_or_else(|| ParameterError::new_err("params must be a C-contiguous float64 array"))?;
     if factor == 0 {
-        return Err(PyValueError::new_err("factor = 0 must be >= 1"));
+        return Err(ParameterError::new_err("factor = 0 must be >= 1"));
     }
     // the step is checked once, not per row
     Newmark::new(BoucWenBenchmark::default(), h).map_err(err)?;
     let u = slice(input, "input")?;
     if u.is_empty() {
-        return Err(PyValueError::new_err("input has 0 samples"));
+        return Err(ParameterError::new_err("input has 0 samples"));
     }
     check_finite("input", u)?;
     let mut steppers = Vec::with_capacity(shape[0]);
     for (j, row) in p.chunks_exact(width).enumerate() {
         let nu = row[width - 1];
         if raise_invalid && nu.is_finite() && nu < 1.0 {
-            return Err(PyValueError::new_err(format!(
+            return Err(ParameterError::new_err(format!(
                 "params[{j}]: nu = {nu} must be >= 1"
             )));
         }
         match BoucWenBenchmark::from_slice(row).and_then(|cfg| Newmark::new(cfg, h)) {
             Ok(s) => steppers.push(Some(s)),
             Err(e) if raise_invalid => {
-                return Err(PyValueError::new_err(format!("params[{j}]: {e}")))
+                return Err(ParameterError::new_err(format!("params[{j}]: {e}")))
             }
             Err(_) => steppers.push(None),
         }
@@ -202,7 +202,7 @@ fn boucwen_benchmark_batch_rmse<'py>(
     let t = slice(&target, "target")?;
     check_finite("target", t)?;
     if t.is_empty() || skip + t.len() > b.n_out {
-        return Err(PyValueError::new_err(format!(
+        return Err(ParameterError::new_err(format!(
             "target has length {} and skip = {skip}, but the decimated record has {} samples (len(input) = {}, factor = {factor}); need 1 <= len(target) <= {}",
             t.len(),
             b.n_out,
@@ -247,7 +247,7 @@ fn boucwen_benchmark_batch_simulate<'py>(
     let (u, n_out) = (b.input, b.n_out);
     let count = count.unwrap_or(n_out.saturating_sub(skip));
     if count == 0 || skip + count > n_out {
-        return Err(PyValueError::new_err(format!(
+        return Err(ParameterError::new_err(format!(
             "skip = {skip} and count = {count}, but the decimated record has {n_out} samples (len(input) = {}, factor = {factor}); need 1 <= count <= {}",
             u.len(),
             n_out.saturating_sub(skip)

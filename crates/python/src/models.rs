@@ -8,7 +8,7 @@ use piezohyst_core::inverse::{inverse_simulate, solve_increasing};
 use piezohyst_core::pi::Pi;
 use piezohyst_core::spec::{Family, Model};
 use piezohyst_core::{Hysteresis, ModelError};
-use pyo3::exceptions::PyValueError;
+use crate::util::ParameterError;
 use pyo3::prelude::*;
 
 use crate::util::{check_finite, err, slice};
@@ -17,7 +17,7 @@ use rayon::prelude::*;
 
 pub(crate) fn family(name: &str, dims: Vec<usize>) -> PyResult<Family> {
     Family::parse(name, &dims).map_err(|e| match e {
-        ModelError::Structure("family (unknown name)", _) => PyValueError::new_err(format!(
+        ModelError::Structure("family (unknown name)", _) => ParameterError::new_err(format!(
             "family = {name:?} is unknown; expected one of pi, gpi, rdpi, creep, preisach, boucwen, duhem, dahl"
         )),
         e => err(e),
@@ -28,7 +28,7 @@ pub(crate) fn family(name: &str, dims: Vec<usize>) -> PyResult<Family> {
 
 fn check_output(ys: &[f64]) -> PyResult<()> {
     match ys.iter().position(|y| !y.is_finite()) {
-        Some(k) => Err(PyValueError::new_err(format!(
+        Some(k) => Err(ParameterError::new_err(format!(
             "the model output diverged at sample {k} (value {}); the parameters do not keep it bounded for this input",
             ys[k]
         ))),
@@ -49,9 +49,9 @@ fn with_model<R>(
 fn state_slice<'a>(fam: Family, st: &'a mut PyReadwriteArray1<'_, f64>) -> PyResult<&'a mut [f64]> {
     let s = st
         .as_slice_mut()
-        .map_err(|_| PyValueError::new_err("state must be a contiguous float64 array"))?;
+        .map_err(|_| ParameterError::new_err("state must be a contiguous float64 array"))?;
     if s.len() != fam.state_len() {
-        return Err(PyValueError::new_err(format!(
+        return Err(ParameterError::new_err(format!(
             "state has length {}, expected {} for this model",
             s.len(),
             fam.state_len()
@@ -138,7 +138,7 @@ fn inverse<'py>(
     let yd = slice(&desired, "desired")?;
     check_finite("desired", yd)?;
     if !guess.is_finite() {
-        return Err(PyValueError::new_err(format!("guess = {guess} is not finite")));
+        return Err(ParameterError::new_err(format!("guess = {guess} is not finite")));
     }
     let st = state_slice(fam, &mut state)?;
     let mut v = vec![0.0; yd.len()];
@@ -179,7 +179,7 @@ fn envelope_inverse<'py>(
     let mut guess = 0.0;
     for (k, &y) in ys.iter().enumerate() {
         let v = g.inverse(y, guess).ok_or_else(|| {
-            PyValueError::new_err(format!("values[{k}] = {y} is outside the range of the envelope"))
+            ParameterError::new_err(format!("values[{k}] = {y} is outside the range of the envelope"))
         })?;
         out.push(v);
         guess = v;
@@ -381,7 +381,7 @@ fn check_rows(fam: Family, params: &[f64], s: usize, raise: bool) -> PyResult<Ve
         let row = &params[j * p..(j + 1) * p];
         match with_model(fam, row, |_| Ok(())) {
             Ok(()) => ok.push(true),
-            Err(e) if raise => return Err(PyValueError::new_err(format!("params[{j}]: {e}"))),
+            Err(e) if raise => return Err(ParameterError::new_err(format!("params[{j}]: {e}"))),
             Err(_) => ok.push(false),
         }
     }
@@ -450,7 +450,7 @@ fn batch_inputs<'a>(
 ) -> PyResult<(&'a [f64], usize, &'a [f64])> {
     let shape = params.shape();
     if shape[1] != fam.param_len() {
-        return Err(PyValueError::new_err(format!(
+        return Err(ParameterError::new_err(format!(
             "params has shape ({}, {}), expected (S, {}) for this family",
             shape[0],
             shape[1],
@@ -459,15 +459,15 @@ fn batch_inputs<'a>(
     }
     // as_slice also accepts Fortran order (then in memory order): insist on rows
     if !params.is_c_contiguous() {
-        return Err(PyValueError::new_err("params must be a C-contiguous float64 array"));
+        return Err(ParameterError::new_err("params must be a C-contiguous float64 array"));
     }
     let p = params
         .as_slice()
-        .map_err(|_| PyValueError::new_err("params must be a C-contiguous float64 array"))?;
+        .map_err(|_| ParameterError::new_err("params must be a C-contiguous float64 array"))?;
     let v = slice(input, "input")?;
     check_finite("input", v)?;
     if v.is_empty() {
-        return Err(PyValueError::new_err("input is empty"));
+        return Err(ParameterError::new_err("input is empty"));
     }
     Ok((p, shape[0], v))
 }
@@ -487,7 +487,7 @@ fn batch_simulate<'py>(
     let mut out = vec![0.0; s * v.len()];
     let errs = py.detach(|| batch_core(fam, p, s, v, None, &valid, &mut out));
     if let Some((j, e)) = errs.iter().enumerate().find_map(|(j, e)| e.map(|e| (j, e))) {
-        return Err(PyValueError::new_err(format!("params[{j}]: {e}")));
+        return Err(ParameterError::new_err(format!("params[{j}]: {e}")));
     }
     let arr = Array2::from_shape_vec((s, v.len()), out).expect("shape matches length");
     Ok(arr.into_pyarray(py))
@@ -511,7 +511,7 @@ fn batch_rmse<'py>(
     let t = slice(&target, "target")?;
     check_finite("target", t)?;
     if t.len() != v.len() {
-        return Err(PyValueError::new_err(format!(
+        return Err(ParameterError::new_err(format!(
             "target has length {}, input has length {}; they must match",
             t.len(),
             v.len()
@@ -552,7 +552,7 @@ fn regressors<'py>(
     check_finite("input", v)?;
     let m = fam.regressor_count();
     if m == 0 {
-        return Err(PyValueError::new_err(format!("family = {name:?} has no linear parameters to regress on")));
+        return Err(ParameterError::new_err(format!("family = {name:?} has no linear parameters to regress on")));
     }
     let mut out = vec![0.0; v.len() * m];
     let ok = py
@@ -569,7 +569,7 @@ fn regressors<'py>(
         })
         .map_err(err)?;
     if !ok {
-        return Err(PyValueError::new_err(format!("family = {name:?} has no linear parameters to regress on")));
+        return Err(ParameterError::new_err(format!("family = {name:?} has no linear parameters to regress on")));
     }
     let arr = Array2::from_shape_vec((v.len(), m), out).expect("shape matches length");
     Ok(arr.into_pyarray(py))

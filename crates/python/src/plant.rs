@@ -9,7 +9,7 @@ use piezohyst_core::closed_loop::{run_recorder, run_tracking, Recorder, Sample};
 use piezohyst_core::control::{Controller, Limits, Pid, MAX_TERMS};
 use piezohyst_core::sensor::Sensor;
 use piezohyst_core::stage::{Stage, StageParams, StageState};
-use pyo3::exceptions::PyValueError;
+use crate::util::ParameterError;
 use pyo3::prelude::*;
 
 use crate::control::{with_controller, ControllerSpec};
@@ -42,7 +42,7 @@ fn stage_simulate<'py>(
     let st = stage(slice(&params, "params")?, ts, substeps, tolerance)?;
     let u = slice(&command, "command")?;
     check_finite("command", u)?;
-    let s = state.as_slice_mut().map_err(|_| PyValueError::new_err("state must be a contiguous float64 array"))?;
+    let s = state.as_slice_mut().map_err(|_| ParameterError::new_err("state must be a contiguous float64 array"))?;
     let mut ss = StageState::from_array(s).map_err(err)?;
     let n = u.len();
     let (mut x, mut va, mut vh) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
@@ -56,7 +56,7 @@ fn stage_simulate<'py>(
     });
     s.copy_from_slice(&ss.to_array());
     if let Some(k) = x.iter().position(|v| !v.is_finite()) {
-        return Err(PyValueError::new_err(format!("the stage simulation diverged at sample {k}")));
+        return Err(ParameterError::new_err(format!("the stage simulation diverged at sample {k}")));
     }
     Ok((x.into_pyarray(py), va.into_pyarray(py), vh.into_pyarray(py)))
 }
@@ -84,7 +84,7 @@ pub(crate) fn controller_spec(arg: &ControllerArg<'_>) -> PyResult<ControllerSpe
         }
     };
     let spec = ControllerSpec { kind: kind.clone(), params: slice(params, "controller_params")?.to_vec(), inverse, ilc: *ilc };
-    with_controller(&spec, |_| ()).map_err(PyValueError::new_err)?;
+    with_controller(&spec, |_| ()).map_err(ParameterError::new_err)?;
     Ok(spec)
 }
 
@@ -285,7 +285,7 @@ fn scenario_arrays<'a>(
     check_finite_fast("acceleration", a)?;
     // empty derivatives stand for zeros
     if (!v.is_empty() && v.len() != r.len()) || (!a.is_empty() && a.len() != r.len()) {
-        return Err(PyValueError::new_err(format!(
+        return Err(ParameterError::new_err(format!(
             "velocity and acceleration must be empty or as long as the reference, got {}, {}, {}",
             r.len(),
             v.len(),
@@ -322,7 +322,7 @@ fn closed_loop<'py>(
     let sc = Scenario { reference: r, velocity: v, acceleration: a, seed, controller: c };
     let sig = py.detach(|| run_scenario(&st, &se, &sc, init));
     if let Some(k) = sig.diverged_at {
-        return Err(PyValueError::new_err(format!("the closed loop diverged at sample {k}")));
+        return Err(ParameterError::new_err(format!("the closed loop diverged at sample {k}")));
     }
     signals_dict(py, sig)
 }
@@ -354,7 +354,7 @@ fn closed_loop_batch<'py>(
     let init = StageState::from_array(slice(&initial_state, "initial_state")?).map_err(err)?;
     let mut list = Vec::with_capacity(scenarios.len());
     for (j, (cp, r, v, a, seed)) in scenarios.iter().enumerate() {
-        let prefix = |e: PyErr| PyValueError::new_err(format!("scenarios[{j}]: {}", e.value(py)));
+        let prefix = |e: PyErr| ParameterError::new_err(format!("scenarios[{j}]: {}", e.value(py)));
         let c = controller_spec(cp).map_err(prefix)?;
         let (r, v, a) = scenario_arrays(r, v, a).map_err(prefix)?;
         list.push(Scenario { reference: r, velocity: v, acceleration: a, seed: *seed, controller: c });
@@ -363,7 +363,7 @@ fn closed_loop_batch<'py>(
     let mut out = Vec::with_capacity(results.len());
     for (j, sig) in results.into_iter().enumerate() {
         if let Some(k) = sig.diverged_at {
-            return Err(PyValueError::new_err(format!("scenarios[{j}]: the closed loop diverged at sample {k}")));
+            return Err(ParameterError::new_err(format!("scenarios[{j}]: the closed loop diverged at sample {k}")));
         }
         out.push(signals_dict(py, sig)?);
     }
@@ -400,11 +400,11 @@ fn closed_loop_batch_tracking<'py>(
     let init = StageState::from_array(slice(&initial_state, "initial_state")?).map_err(err)?;
     let mut list = Vec::with_capacity(scenarios.len());
     for (j, (cp, r, v, a, seed)) in scenarios.iter().enumerate() {
-        let prefix = |e: PyErr| PyValueError::new_err(format!("scenarios[{j}]: {}", e.value(py)));
+        let prefix = |e: PyErr| ParameterError::new_err(format!("scenarios[{j}]: {}", e.value(py)));
         let c = controller_spec(cp).map_err(prefix)?;
         let (r, v, a) = scenario_arrays(r, v, a).map_err(prefix)?;
         if skip >= r.len() {
-            return Err(PyValueError::new_err(format!("skip = {skip} leaves nothing of scenarios[{j}]'s {} samples", r.len())));
+            return Err(ParameterError::new_err(format!("skip = {skip} leaves nothing of scenarios[{j}]'s {} samples", r.len())));
         }
         list.push(Scenario { reference: r, velocity: v, acceleration: a, seed: *seed, controller: c });
     }
@@ -448,24 +448,24 @@ fn stage_batch_rmse<'py>(
     let shape = params.shape();
     let width = piezohyst_core::stage::PARAM_LEN;
     if shape[1] != width {
-        return Err(PyValueError::new_err(format!(
+        return Err(ParameterError::new_err(format!(
             "params has shape ({}, {}), expected (S, {width})",
             shape[0], shape[1]
         )));
     }
     // as_slice also accepts Fortran order (then in memory order): insist on rows
     if !params.is_c_contiguous() {
-        return Err(PyValueError::new_err("params must be a C-contiguous float64 array"));
+        return Err(ParameterError::new_err("params must be a C-contiguous float64 array"));
     }
     let p = params
         .as_slice()
-        .map_err(|_| PyValueError::new_err("params must be a C-contiguous float64 array"))?;
+        .map_err(|_| ParameterError::new_err("params must be a C-contiguous float64 array"))?;
     let u = slice(&command, "command")?;
     let t = slice(&target, "target")?;
     check_finite("command", u)?;
     check_finite("target", t)?;
     if t.len() != u.len() || u.is_empty() {
-        return Err(PyValueError::new_err(format!(
+        return Err(ParameterError::new_err(format!(
             "target has length {}, command has length {}; they must match and not be empty",
             t.len(),
             u.len()
@@ -477,7 +477,7 @@ fn stage_batch_rmse<'py>(
         match stage(row, ts, substeps, tolerance) {
             Ok(s) => stages.push(Some(s)),
             Err(e) if invalid_cost.is_none() => {
-                return Err(PyValueError::new_err(format!("params[{j}]: {}", e.value(py))))
+                return Err(ParameterError::new_err(format!("params[{j}]: {}", e.value(py))))
             }
             Err(_) => stages.push(None),
         }

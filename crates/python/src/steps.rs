@@ -2,7 +2,7 @@
 //! ABI, `crates/capi`) does with the same controller, so Python can produce the reference
 //! outputs the C test replays (`make test-c`).
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1, PyReadwriteArray1};
-use pyo3::exceptions::PyValueError;
+use crate::util::ParameterError;
 use pyo3::prelude::*;
 
 use crate::control::with_controller;
@@ -10,9 +10,9 @@ use crate::plant::{controller_spec, ControllerArg};
 use crate::util::{check_finite, slice};
 
 fn state_of<'a>(state: &'a mut PyReadwriteArray1<'_, f64>, want: usize) -> PyResult<&'a mut [f64]> {
-    let s = state.as_slice_mut().map_err(|_| PyValueError::new_err("state must be a contiguous float64 array"))?;
+    let s = state.as_slice_mut().map_err(|_| ParameterError::new_err("state must be a contiguous float64 array"))?;
     if s.len() != want {
-        return Err(PyValueError::new_err(format!("state has length {}, expected {want} for this controller", s.len())));
+        return Err(ParameterError::new_err(format!("state has length {}, expected {want} for this controller", s.len())));
     }
     Ok(s)
 }
@@ -21,7 +21,7 @@ fn state_of<'a>(state: &'a mut PyReadwriteArray1<'_, f64>, want: usize) -> PyRes
 #[pyfunction]
 fn controller_initial_state<'py>(py: Python<'py>, controller: ControllerArg<'py>, y0: f64) -> PyResult<Bound<'py, PyArray1<f64>>> {
     if !y0.is_finite() {
-        return Err(PyValueError::new_err(format!("y0 = {y0} is not finite")));
+        return Err(ParameterError::new_err(format!("y0 = {y0} is not finite")));
     }
     let spec = controller_spec(&controller)?;
     let st = with_controller(&spec, |c| {
@@ -29,7 +29,7 @@ fn controller_initial_state<'py>(py: Python<'py>, controller: ControllerArg<'py>
         c.reset(&mut st, y0);
         st
     })
-    .map_err(PyValueError::new_err)?;
+    .map_err(ParameterError::new_err)?;
     Ok(st.into_pyarray(py))
 }
 
@@ -53,7 +53,7 @@ fn controller_steps<'py>(
     }
     let n = r.len();
     if y.len() != n || (!v.is_empty() && v.len() != n) || (!a.is_empty() && a.len() != n) {
-        return Err(PyValueError::new_err(format!(
+        return Err(ParameterError::new_err(format!(
             "measured must be as long as the reference and velocity/acceleration empty or as long, got reference {n}, \
              velocity {}, acceleration {}, measured {}",
             v.len(),
@@ -73,7 +73,7 @@ fn controller_steps<'py>(
         });
         Ok(())
     })
-    .map_err(PyValueError::new_err)?;
+    .map_err(ParameterError::new_err)?;
     run?;
     Ok(u.into_pyarray(py))
 }
