@@ -775,4 +775,4 @@ def identify_boucwen_benchmark(u, y, fs=FS, *, upsample=UPSAMPLE, fit_range=None
     val = None
     if validate is not None:
         val = _scored(model, vu, vy, fs, r, interpolation, v_range)
-    return IdentificationResult(model, train, val, method, time.perf_counter() - t0, history)
+    return IdentificationResult(model, train, val, method, time.perf_counter() - t0, history, partial=res.interrupted)

@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 from ._io import write_atomic
+from .errors import PiezohystError
 
 __all__ = ["main"]
 
@@ -455,7 +456,7 @@ def _pct(x) -> str:
 # piezohyst identify
 
 
-def _identify(args) -> None:
+def _identify(args) -> int:
     from .identify import identify
 
     _check_count(args.operators, "--operators")
@@ -542,6 +543,8 @@ def _identify(args) -> None:
         "fs": rec.fs,
     }
     doc = _model_document(res, args.model, train.fs)
+    if res.partial:
+        doc["partial"] = True   # Ctrl-C stopped the optimizer: the best model found before it
     doc["fit"] = fit
     text = json.dumps(doc, indent=2, allow_nan=False) + "\n"
     _write_atomic(out, text, args.force, "--out")
@@ -560,17 +563,22 @@ def _identify(args) -> None:
     if args.json:
         report = {"out": str(out), "plot": None if plot is None else str(plot), "model": doc["kind"], **fit}
         print(json.dumps(report, indent=2, allow_nan=False))
-        return
-    print(f"{args.model} identified by {res.method} in {res.wall_time:.3g} s -> {out}")
-    rows = [("train", res.train, f"{data.name}[{a}:{b}], {b - a} samples")]
-    if res.validation is not None:
-        rows.append(("validation", res.validation, f"{Path(val_where['source']).name}[{val_where['range'][0]}:"
-                                                   f"{val_where['range'][1]}], {val.n} samples"))
-    print(f"  {'':<11} {'RMSE (% of range)':>18} {'max error (%)':>14}")
-    for name, m, where in rows:
-        print(f"  {name:<11} {_pct(m['rmse_percent']):>18} {_pct(m['max_error_percent']):>14}   ({where})")
-    if plot is not None:
-        print(f"  figure: {plot}")
+    else:
+        print(f"{args.model} identified by {res.method} in {res.wall_time:.3g} s -> {out}")
+        rows = [("train", res.train, f"{data.name}[{a}:{b}], {b - a} samples")]
+        if res.validation is not None:
+            rows.append(("validation", res.validation, f"{Path(val_where['source']).name}[{val_where['range'][0]}:"
+                                                       f"{val_where['range'][1]}], {val.n} samples"))
+        print(f"  {'':<11} {'RMSE (% of range)':>18} {'max error (%)':>14}")
+        for name, m, where in rows:
+            print(f"  {name:<11} {_pct(m['rmse_percent']):>18} {_pct(m['max_error_percent']):>14}   ({where})")
+        if plot is not None:
+            print(f"  figure: {plot}")
+    if res.partial:
+        print(f"piezohyst identify: interrupted: {out} holds the best model found before Ctrl-C, marked "
+              f"\"partial\": true", file=sys.stderr)
+        return 130
+    return 0
 
 
 def _model_document(res, kind, fs) -> dict:
@@ -892,7 +900,7 @@ def main(argv=None) -> int:
             if args.json:
                 print(json.dumps(numbers, indent=2))
         elif args.command == "identify":
-            _identify(args)
+            return _identify(args)
         elif args.command == "simulate":
             _simulate(args)
         elif args.command == "track":
@@ -913,7 +921,7 @@ def main(argv=None) -> int:
             raise
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130
-    except (ValueError, TypeError, OSError, ImportError) as e:
+    except (PiezohystError, ValueError, TypeError, OSError, ImportError) as e:
         if debug:
             raise
         msg = " ".join(str(e).split())   # one line, whatever the message

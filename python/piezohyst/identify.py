@@ -300,6 +300,8 @@ class IdentificationResult:
     #: How :meth:`simulate` predicts the output for models without a ``simulate(input)`` of their
     #: own (the CEMF stage's parameters); ``None``: ``model.simulate``.
     simulator: object = field(default=None, repr=False, compare=False)
+    #: ``True`` when Ctrl-C stopped the optimizer: the model is the best found before it.
+    partial: bool = False
 
     def simulate(self, input) -> np.ndarray:
         """The identified model's free-run output for an input record (for ``cemf``: positions
@@ -315,7 +317,7 @@ class IdentificationResult:
     def to_dict(self) -> dict:
         """JSON-ready report (the model file's ``fit`` section)."""
         return {"method": self.method, "wall_time_s": self.wall_time, "train": self.train,
-                "validation": self.validation}
+                "validation": self.validation, "partial": self.partial}
 
     def plot(self, input, output):
         """Loop, fit and residual for a record (matplotlib figure)."""
@@ -491,11 +493,11 @@ def identify(input, output, model="mpi", *, fs=None, operators=9, levels=12, str
     y = as_record(output, "output", min_length=2)
     if y.size != v.size:
         raise ParameterError(f"output has {y.size} samples, input has {v.size}; they must match")
-    history = None
+    history, partial = None, False
     if model in _LINEAR_KINDS:
         fitted, method = _identify_linear(model, v, y, fs, operators, levels, loss, delta, creep), "ls"
     else:
-        fitted, method, history = _identify_boucwen(v, y, loss, delta, search)
+        fitted, method, history, partial = _identify_boucwen(v, y, loss, delta, search)
     if loss == "huber":
         method += "+huber"
     train = fit_metrics(fitted.simulate(v), y)
@@ -504,7 +506,7 @@ def identify(input, output, model="mpi", *, fs=None, operators=9, levels=12, str
         vv = as_record(validate[0], "validate input")
         vy = as_record(validate[1], "validate output")
         val = fit_metrics(fitted.simulate(vv), vy)
-    return IdentificationResult(fitted, train, val, method, time.perf_counter() - t0, history)
+    return IdentificationResult(fitted, train, val, method, time.perf_counter() - t0, history, partial=partial)
 
 
 def _identify_linear(model, v, y, fs, operators, levels, loss, delta, creep=0):
@@ -559,7 +561,7 @@ def _identify_boucwen(v, y, loss, delta, search):
             return _core.batch_rmse(family, [], np.ascontiguousarray(rows), v, y, float("inf"))
 
         res = minimize(cost, bounds, method=method, polish=True, **search)
-    return BoucWen(*res.x), method, res.history
+    return BoucWen(*res.x), method, res.history, res.interrupted
 
 
 def minimize_huber(simulate, target, bounds, delta=None, **search):
@@ -740,7 +742,7 @@ def identify_cemf(voltage, position, fs, *, capacitance=1.8e-6, bounds=None, opt
     if loss == "huber":
         method += "+huber"
     return IdentificationResult(params, train, val, method, time.perf_counter() - t0, history,
-                                simulator=lambda u_: stage.simulate(u_).position)
+                                simulator=lambda u_: stage.simulate(u_).position, partial=res.interrupted)
 
 
 def _polish_simulation(simulate, target, x0, bounds, max_nfev=None):

@@ -169,6 +169,12 @@ class OptimizeResult:
     wall_time: float
     method: str = ""
 
+    @property
+    def interrupted(self) -> bool:
+        """The run was stopped by Ctrl-C (``KeyboardInterrupt``): ``x`` is the best point
+        found before it, not a finished search."""
+        return self.message == "interrupted"
+
 
 @dataclass(frozen=True)
 class IntermediateResult:

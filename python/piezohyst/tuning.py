@@ -62,7 +62,8 @@ class TuningResult:
 
     ``controller`` is the best configuration; ``rmse`` its tracking RMSE on the tuning plant
     (m, averaged over the references); ``gains`` the tuned values by name; ``history`` the
-    optimizer's per-iteration history; ``wall_time`` in s.
+    optimizer's per-iteration history; ``wall_time`` in s. ``partial`` is ``True`` when
+    Ctrl-C stopped the search: the controller is the best found before it.
     """
 
     controller: object
@@ -71,6 +72,7 @@ class TuningResult:
     history: dict
     wall_time: float
     nfev: int
+    partial: bool = False
 
 
 def tune(controller, gains, references, *, stage=None, method="css", max_iterations=40, population_size=None,
@@ -170,4 +172,4 @@ def tune(controller, gains, references, *, stage=None, method="css", max_iterati
     best = candidate(res.x)
     values = 10.0 ** res.x if log_scale else res.x
     return TuningResult(best, {n: float(v) for n, v in zip(names, values)}, float(res.fun), res.history,
-                        time.perf_counter() - t0, int(res.nfev))
+                        time.perf_counter() - t0, int(res.nfev), partial=res.interrupted)

@@ -509,7 +509,7 @@ def identify_vp(input, output, model="mpi", *, fs=None, operators=9, envelope="p
         val = fit_metrics(fitted.simulate(vv), vy)
     if loss == "huber":
         method += "+huber"
-    return IdentificationResult(fitted, train, val, method, time.perf_counter() - t0, history)
+    return IdentificationResult(fitted, train, val, method, time.perf_counter() - t0, history, partial=res.interrupted)
 
 
 def _default_value(problem, name, n):
