@@ -90,7 +90,8 @@ def test_identify_reports_validation_metrics():
     v_train, v_val = drive(2000, 1), drive(1500, 2)
     res = ph.identify(v_train, truth.simulate(v_train), "mpi", validate=(v_val, truth.simulate(v_val)))
     assert res.train["rmse_percent"] < 0.5 and res.validation["rmse_percent"] < 0.5
-    assert set(res.to_dict()) == {"method", "wall_time_s", "train", "validation"}
+    assert set(res.to_dict()) == {"method", "wall_time_s", "train", "validation", "partial"}
+    assert res.to_dict()["partial"] is False
 
 
 def test_identify_bad_input():

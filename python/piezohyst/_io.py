@@ -8,13 +8,14 @@ the old file untouched and no temporary behind.
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import tempfile
 from pathlib import Path
 from typing import Callable
 
-from .errors import DataError, OutputExistsError, PiezohystError
+from .errors import DataError, OutputExistsError, ParameterError, PiezohystError
 
 
 def _umask() -> int:
@@ -86,3 +87,18 @@ def load_json_file(path, what: str, build: Callable[[object], object]):
         raise DataError(f"{what} '{path}': {e}") from None
     except (KeyError, IndexError, TypeError, AttributeError, ValueError, OverflowError) as e:
         raise DataError(f"{what} '{path}' is malformed: {type(e).__name__}: {e}") from None
+
+
+@contextlib.contextmanager
+def malformed_as(what: str):
+    """Inside a builder of objects from parsed JSON: a ``KeyError``/``TypeError``/
+    ``AttributeError``/``IndexError`` (a missing key, a list where an object belongs) becomes a
+    :class:`ParameterError` naming ``what``; piezohyst's own errors pass through."""
+    try:
+        yield
+    except PiezohystError:
+        raise
+    except KeyError as e:
+        raise ParameterError(f"{what} is missing {e.args[0]!r}") from None
+    except (TypeError, AttributeError, IndexError) as e:
+        raise ParameterError(f"{what} is malformed: {e}") from None

@@ -13,7 +13,10 @@ def as_record(x, name: str, *, min_length: int = 1, copy: bool = True, finite: b
     NaN/Inf check to the Rust core, which reports it with the same wording."""
     if isinstance(x, (str, bytes)):
         raise ParameterTypeError(f"{name} must be a 1-D array of numbers, got {type(x).__name__}")
-    raw = np.asarray(x) if not isinstance(x, np.ndarray) else x
+    try:
+        raw = np.asarray(x) if not isinstance(x, np.ndarray) else x
+    except (TypeError, ValueError) as e:      # ragged nesting, objects numpy cannot shape
+        raise ParameterTypeError(f"{name} must be a 1-D array of numbers: {e}") from None
     if raw.dtype.kind in "cbUSO" and raw.dtype.kind != "O":
         raise ParameterTypeError(f"{name} must be real numbers, got dtype {raw.dtype}")
     try:
@@ -62,3 +65,19 @@ def as_int(x, name: str, *, minimum: int = 0) -> int:
     if v < minimum:
         raise ParameterError(f"{name} = {v} must be >= {minimum}")
     return v
+
+
+def as_interval(x, name: str) -> tuple[float, float]:
+    """A pair ``(lower, upper)`` of real numbers (infinite allowed, NaN not) with lower < upper."""
+    if isinstance(x, (str, bytes, dict)) or not hasattr(x, "__len__"):
+        raise ParameterTypeError(f"{name} must be a pair (lower, upper), got {x!r}")
+    if len(x) != 2:
+        raise ParameterError(f"{name} must be a pair (lower, upper), got {len(x)} values: {list(x)!r}")
+    lo, hi = x
+    for i, v in enumerate((lo, hi)):
+        if isinstance(v, bool) or not isinstance(v, (numbers.Real, np.floating, np.integer)):
+            raise ParameterTypeError(f"{name}[{i}] must be a real number, got {v!r}")
+    lo, hi = float(lo), float(hi)
+    if not lo < hi:
+        raise ParameterError(f"{name} = ({lo}, {hi}) must have lower < upper")
+    return lo, hi

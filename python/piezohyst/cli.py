@@ -113,6 +113,10 @@ def _track_parser(sub) -> None:
     t.add_argument("--force", action="store_true", help="overwrite --plot")
 
 
+#: Longest `piezohyst track` run, samples (~1 GB of recorded signals).
+_TRACK_MAX_SAMPLES = 10_000_000
+
+
 def _track(args) -> None:
     import numpy as np
 
@@ -126,6 +130,9 @@ def _track(args) -> None:
     for name in ("freq", "amp", "duration"):
         if not getattr(args, name) > 0:
             raise _Fail(f"--{name} = {getattr(args, name)} must be > 0")
+    if args.duration * fs > _TRACK_MAX_SAMPLES:
+        raise _Fail(f"--duration = {args.duration:g} s is {args.duration * fs:.4g} samples at {fs:g} Hz; piezohyst track "
+                    f"runs at most {_TRACK_MAX_SAMPLES:.0e} (use piezohyst.closed_loop from Python for longer runs)")
     amp, off = args.amp * 1e-6, args.offset * 1e-6
     if args.reference == "sine":
         _, ref = refs.sine(args.freq, amp, args.duration, fs, offset=off)
@@ -921,6 +928,11 @@ def main(argv=None) -> int:
             raise
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130
+    except MemoryError as e:
+        if debug:
+            raise
+        print(f"{prog}: error: out of memory ({' '.join(str(e).split()) or 'MemoryError'})", file=sys.stderr)
+        return 2
     except (PiezohystError, ValueError, TypeError, OSError, ImportError) as e:
         if debug:
             raise

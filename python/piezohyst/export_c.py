@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _core
-from ._io import load_json_file, write_atomic
+from ._io import load_json_file, malformed_as, write_atomic
 from .errors import OutputExistsError, ParameterError, ParameterTypeError
 
 __all__ = ["FAMILY_CODES", "CONTROLLER_KINDS", "CONTROLLER_PARAMS", "CONTROLLER_SCHEMA_VERSION",
@@ -161,6 +161,11 @@ def controller_to_dict(controller, stage) -> dict:
 
 def controller_from_dict(d) -> ExportedController:
     """Read a controller file's content (validated: the core builds it once)."""
+    with malformed_as("the controller description"):
+        return _controller_from_dict(d)
+
+
+def _controller_from_dict(d) -> ExportedController:
     if not isinstance(d, dict):
         raise ParameterError(f"a controller description must be a JSON object, got {type(d).__name__}")
     if d.get("format") != _FORMAT:

@@ -14,7 +14,7 @@ import numpy as np
 
 from . import _core
 from ._validate import as_record, as_scalar
-from ._io import load_json_file, write_atomic
+from ._io import load_json_file, malformed_as, write_atomic
 from .errors import OutputExistsError, ParameterError, ParameterTypeError
 
 __all__ = ["HysteresisModel", "Inverse", "SCHEMA_VERSION", "model_from_dict", "load_model"]
@@ -45,7 +45,7 @@ class HysteresisModel:
         self._row = np.ascontiguousarray(row, dtype=np.float64)
         _core.validate(self.family, list(self.dims), self._row)
         self._row.setflags(write=False)
-        self.units = dict(units) if units else {"input": "", "output": ""}
+        self.units = _units(units)
         self._state = self.initial_state()
 
     # -- parameters -----------------------------------------------------------------
@@ -163,8 +163,22 @@ def _short(v):
     return repr(v)
 
 
+def _units(units) -> dict:
+    """A model's units: a mapping of names to strings (``None``: unitless)."""
+    if not units:
+        return {"input": "", "output": ""}
+    if not isinstance(units, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in units.items()):
+        raise ParameterTypeError(f"units must be a mapping of names to unit strings, got {units!r}")
+    return dict(units)
+
+
 def model_from_dict(d: dict) -> HysteresisModel:
     """Rebuild a model from :meth:`HysteresisModel.to_dict` output."""
+    with malformed_as("the model description"):
+        return _model_from_dict(d)
+
+
+def _model_from_dict(d: dict) -> HysteresisModel:
     if not isinstance(d, dict):
         raise ParameterTypeError(f"a model description must be a JSON object, got {type(d).__name__}")
     version = d.get("schema_version")

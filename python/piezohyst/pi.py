@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _core
-from ._validate import as_record, as_scalar, as_vector
+from ._validate import as_interval, as_record, as_scalar, as_vector
 from .creep import creep_from, creep_parts
 from .model import HysteresisModel, _register
 from .errors import ParameterError, ParameterTypeError
@@ -136,6 +136,13 @@ _register(PlayOperator)
 _ENVELOPE_CODES = {"identity": 0, "polynomial": 1, "tanh": 2}
 
 
+def _interval_from_json(x):
+    """A model file's input_range: ``null`` ends are infinite."""
+    if isinstance(x, (list, tuple)) and len(x) == 2:
+        return (-np.inf if x[0] is None else x[0], np.inf if x[1] is None else x[1])
+    return x        # as_interval names what is wrong with it
+
+
 @dataclass(frozen=True)
 class Envelope:
     """An increasing envelope of the generalized play.
@@ -229,9 +236,7 @@ class GeneralizedPI(HysteresisModel):
         self.polynomial = tuple(float(x) for x in as_vector(polynomial, "polynomial", length=4))
         self.rising = Envelope.from_any(rising, "rising")
         self.falling = Envelope.from_any(falling, "falling")
-        lo, hi = (float(x) for x in input_range)
-        if not lo < hi:
-            raise ParameterError(f"input_range = ({lo}, {hi}) must have lower < upper")
+        lo, hi = as_interval(input_range, "input_range")
         self.input_range = (lo, hi)
         self.creep = creep
         m, tail = creep_parts(creep)
@@ -255,8 +260,7 @@ class GeneralizedPI(HysteresisModel):
     @classmethod
     def _from_parameters(cls, p, units):
         p = dict(p)
-        lo, hi = p.pop("input_range", [None, None])
-        p["input_range"] = (-np.inf if lo is None else lo, np.inf if hi is None else hi)
+        p["input_range"] = _interval_from_json(p.pop("input_range", [None, None]))
         p["creep"] = creep_from(p.get("creep"))
         return cls(**p, units=units)
 
@@ -305,8 +309,7 @@ class GeneralizedPlay(GeneralizedPI):
     @classmethod
     def _from_parameters(cls, p, units):
         p = dict(p)
-        lo, hi = p.pop("input_range", [None, None])
-        p["input_range"] = (-np.inf if lo is None else lo, np.inf if hi is None else hi)
+        p["input_range"] = _interval_from_json(p.pop("input_range", [None, None]))
         return cls(**p, units=units)
 
 

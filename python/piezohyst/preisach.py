@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._validate import as_int, as_scalar, as_vector
+from ._validate import as_int, as_interval, as_scalar, as_vector
 from .model import HysteresisModel, _register
-from .errors import ParameterError
+from .errors import ParameterError, ParameterTypeError
 
 __all__ = ["Preisach"]
 
@@ -51,12 +51,15 @@ class Preisach(HysteresisModel):
 
     def __init__(self, levels, input_range, weights, offset=0.0, slope=0.0, memory=64, *, units=None):
         self.levels = as_int(levels, "levels", minimum=1)
-        lo, hi = (as_scalar(x, "input_range") for x in input_range)
-        if not lo < hi:
-            raise ParameterError(f"input_range = ({lo}, {hi}) must have lower < upper")
+        lo, hi = as_interval(input_range, "input_range")
+        if not (np.isfinite(lo) and np.isfinite(hi)):
+            raise ParameterError(f"input_range = ({lo}, {hi}) must be finite")
         self.input_range = (lo, hi)
         cells = self.levels * (self.levels + 1) // 2
-        w = np.asarray(weights, dtype=np.float64) if not isinstance(weights, (str, bytes)) else weights
+        try:
+            w = np.asarray(weights, dtype=np.float64) if not isinstance(weights, (str, bytes)) else weights
+        except (TypeError, ValueError) as e:
+            raise ParameterTypeError(f"weights must be numbers (a vector or a triangular matrix): {e}") from None
         if isinstance(w, np.ndarray) and w.ndim == 2:
             if w.shape != (self.levels, self.levels):
                 raise ParameterError(f"weights has shape {w.shape}, expected ({self.levels}, {self.levels}) or ({cells},)")

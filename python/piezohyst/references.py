@@ -44,12 +44,19 @@ __all__ = ["chirp", "multisine", "sine", "staircase", "triangle", "variable_ampl
 # --------------------------------------------------------------------------- helpers
 
 
+#: Longest reference, samples (16 GB as float64): beyond it a typo in ``duration`` or ``fs``
+#: is far more likely than a wish, and numpy would fail with a bare MemoryError.
+MAX_SAMPLES = 2**31
+
+
 def _n_samples(duration, fs):
     duration = as_scalar(duration, "duration", positive=True)
     fs = as_scalar(fs, "fs", positive=True)
     n = duration * fs
     if not np.isfinite(n) or round(n) < 2:
         raise ParameterError(f"duration * fs = {duration} * {fs} = {n} gives fewer than 2 samples")
+    if n > MAX_SAMPLES:
+        raise ParameterError(f"duration * fs = {duration} * {fs} = {n:.4g} samples is more than {MAX_SAMPLES:.4g}")
     return int(round(n)), fs
 
 

@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from . import _core
-from ._validate import as_int, as_record, as_scalar
-from ._io import load_json_file
+from ._validate import as_int, as_record, as_scalar, as_vector
+from ._io import load_json_file, malformed_as
 from .errors import ParameterError, ParameterTypeError
 
 __all__ = ["Amplifier", "Sensor", "StageParameters", "Stage", "StageResponse", "StageInfo", "virtual_stage"]
@@ -99,8 +99,8 @@ class StageParameters:
             as_scalar(getattr(self, name), name)
         if self.hyst_drive not in ("charge", "voltage"):
             raise ParameterError(f"hyst_drive = {self.hyst_drive!r} must be 'charge' or 'voltage'")
-        taus = tuple(float(x) for x in self.creep_taus)
-        weights = tuple(float(x) for x in self.creep_weights)
+        taus = tuple(float(x) for x in as_vector(self.creep_taus, "creep_taus"))
+        weights = tuple(float(x) for x in as_vector(self.creep_weights, "creep_weights"))
         if len(taus) != len(weights):
             raise ParameterError(f"creep_weights has length {len(weights)}, creep_taus has {len(taus)}")
         if len(taus) > MAX_CREEP:
@@ -202,7 +202,7 @@ class Stage:
         """Build from the stage-file layout (see ``presets/virtual_stage.json``)."""
         if not isinstance(d, dict):
             raise ParameterError(f"a stage description must be a JSON object, got {type(d).__name__}")
-        try:
+        with malformed_as("the stage description"):
             mech, cemf = d["mechanics"], d["cemf"]
             m, k = _number(mech, "mass"), _number(mech, "stiffness")
             if "damping" in mech:
@@ -225,8 +225,6 @@ class Stage:
             loop = d.get("loop", {})
             return cls(params, amp, sensor, loop.get("sample_time", 1e-4), loop.get("substeps", 1),
                        _inf(loop.get("tolerance", 0.05)), d.get("name", ""))
-        except KeyError as e:
-            raise ParameterError(f"stage description is missing {e.args[0]!r}") from None
 
     @classmethod
     def from_file(cls, path) -> "Stage":
