@@ -287,7 +287,7 @@ BAD = [
     (multisine, dict(f_min=1, f_max=10, amplitude=1, period=1, fs=1000, periods=0), ValueError, "periods = 0"),
     (multisine, dict(f_min=1, f_max=10, amplitude=1, period=1, fs=1000, periods=1.5), TypeError, "periods"),
     (multisine, dict(f_min=1, f_max=10, amplitude=1, period=1, fs=1000, scale="max"), ValueError, "scale = 'max'"),
-    (multisine, dict(f_min=1, f_max=10, amplitude=1, period=0.001, fs=1000), ValueError, "duration * fs"),
+    (multisine, dict(f_min=1, f_max=10, amplitude=1, period=0.001, fs=1000), ValueError, "period * fs"),
     (chirp, dict(f_start=1, f_end=600, amplitude=1, duration=1, fs=1000), ValueError, "f_end = 600.0"),
     (chirp, dict(f_start=0, f_end=10, amplitude=1, duration=1, fs=1000), ValueError, "f_start = 0.0"),
     (chirp, dict(f_start=1, f_end=10, amplitude=1, duration=1, fs=1000, method="quadratic"),

@@ -43,12 +43,13 @@ def as_vector(x, name: str, *, length: int | None = None, allow_empty: bool = Tr
     return a
 
 
-def as_scalar(x, name: str, *, positive: bool = False, nonnegative: bool = False) -> float:
-    """A finite real scalar."""
+def as_scalar(x, name: str, *, positive: bool = False, nonnegative: bool = False,
+              allow_infinite: bool = False) -> float:
+    """A finite real scalar (``allow_infinite``: also +-inf, never NaN)."""
     if isinstance(x, bool) or not isinstance(x, (numbers.Real, np.floating, np.integer)):
         raise ParameterTypeError(f"{name} must be a real number, got {x!r}")
     v = float(x)
-    if not np.isfinite(v):
+    if np.isnan(v) or (not allow_infinite and not np.isfinite(v)):
         raise ParameterError(f"{name} = {v} is not finite")
     if positive and not v > 0:
         raise ParameterError(f"{name} = {v} must be > 0")

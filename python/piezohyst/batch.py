@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _core
-from ._validate import as_record
+from ._validate import as_int, as_record
 from .errors import ParameterError, ParameterTypeError
 
 __all__ = ["batch_simulate", "batch_rmse"]
@@ -31,12 +31,17 @@ def _family(model_or_family, dims):
     if isinstance(model_or_family, str):
         if dims is None:
             raise ParameterTypeError("dims is required when the family is given by name")
-        return model_or_family, [int(d) for d in dims]
+        if isinstance(dims, (str, bytes)) or not hasattr(dims, "__iter__"):
+            raise ParameterTypeError(f"dims must be a list of integers, got {dims!r}")
+        return model_or_family, [as_int(d, f"dims[{i}]") for i, d in enumerate(dims)]
     return model_or_family.family, list(model_or_family.dims)
 
 
 def _params(params, width):
-    p = np.ascontiguousarray(params, dtype=np.float64)
+    try:
+        p = np.ascontiguousarray(params, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise ParameterTypeError(f"params must be a 2-D (S, P) array of numbers: {e}") from None
     if p.ndim != 2:
         raise ParameterError(f"params must be a 2-D (S, P) array, got shape {p.shape}")
     if p.shape[1] != width:

@@ -44,7 +44,11 @@ class FitResult:
 
 def fit_metrics(predicted, measured) -> dict:
     """RMSE and max error of the free-run simulation, also in % of the measured range."""
-    e = np.asarray(predicted) - np.asarray(measured)
+    predicted = as_record(predicted, "predicted", copy=False)
+    measured = as_record(measured, "measured", copy=False)
+    if predicted.size != measured.size:
+        raise ParameterError(f"predicted has {predicted.size} samples, measured has {measured.size}; they must match")
+    e = predicted - measured
     span = float(np.ptp(measured)) or 1.0
     rmse = float(np.sqrt(np.mean(e**2)))
     emax = float(np.max(np.abs(e)))

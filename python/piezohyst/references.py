@@ -49,14 +49,14 @@ __all__ = ["chirp", "multisine", "sine", "staircase", "triangle", "variable_ampl
 MAX_SAMPLES = 2**31
 
 
-def _n_samples(duration, fs):
-    duration = as_scalar(duration, "duration", positive=True)
+def _n_samples(duration, fs, name="duration"):
+    duration = as_scalar(duration, name, positive=True)
     fs = as_scalar(fs, "fs", positive=True)
     n = duration * fs
     if not np.isfinite(n) or round(n) < 2:
-        raise ParameterError(f"duration * fs = {duration} * {fs} = {n} gives fewer than 2 samples")
+        raise ParameterError(f"{name} * fs = {duration} * {fs} = {n} gives fewer than 2 samples")
     if n > MAX_SAMPLES:
-        raise ParameterError(f"duration * fs = {duration} * {fs} = {n:.4g} samples is more than {MAX_SAMPLES:.4g}")
+        raise ParameterError(f"{name} * fs = {duration} * {fs} = {n:.4g} samples is more than {MAX_SAMPLES:.4g}")
     return int(round(n)), fs
 
 
@@ -326,7 +326,7 @@ def multisine(f_min, f_max, amplitude, period, fs, *, periods=1, scale="rms", of
     >>> bool(np.array_equal(x, multisine(1.0, 20.0, 0.5, 1.0, 100.0, periods=2, rng=7)[1]))
     True
     """
-    n, fs = _n_samples(period, fs)
+    n, fs = _n_samples(period, fs, "period")
     lo = _frequency(f_min, "f_min", fs)
     hi = _frequency(f_max, "f_max", fs)
     if lo >= hi:
@@ -466,6 +466,8 @@ def staircase(levels, dwell, fs, offset=0.0):
         i = bad[0]
         raise ParameterError(f"dwell[{i}] = {d[i]} is shorter than one sample at fs = {fs} (dwell * fs < 0.5)")
     total = counts.sum()
+    if not total <= MAX_SAMPLES:
+        raise ParameterError(f"dwell * fs gives {total:.4g} samples in all, more than {MAX_SAMPLES:.4g}")
     if total < 2:
         raise ParameterError(f"levels and dwell give {int(total)} sample; at least 2 are needed")
     x = np.repeat(lv, counts.astype(np.int64))

@@ -48,8 +48,8 @@ class Amplifier:
         if not hi > lo:
             raise ParameterError(f"amplifier limits reversed: v_min = {lo} must be < v_max = {hi}")
         for name in ("bandwidth", "slew_rate"):
-            x = float(getattr(self, name))
-            if math.isnan(x) or not x > 0:
+            x = as_scalar(getattr(self, name), name, allow_infinite=True)
+            if not x > 0:
                 raise ParameterError(f"{name} = {x} must be > 0 (inf for none)")
 
 
@@ -190,7 +190,7 @@ class Stage:
         n = as_int(self.substeps, "substeps", minimum=1)
         if n > 10_000:
             raise ParameterError(f"substeps = {n} must be <= 10000")
-        tol = float(self.tolerance)
+        tol = as_scalar(self.tolerance, "tolerance", allow_infinite=True)
         if math.isnan(tol) or not tol > 0:
             raise ParameterError(f"tolerance = {tol} must be > 0 (inf: never refine)")
         if not isinstance(self.params, StageParameters):
@@ -280,7 +280,7 @@ class Stage:
         self.check_command(u)
         ts = self.sample_time if sample_time is None else as_scalar(sample_time, "sample_time", positive=True)
         m = self.substeps if substeps is None else as_int(substeps, "substeps", minimum=1)
-        tol = self.tolerance if tolerance is None else float(tolerance)
+        tol = self.tolerance if tolerance is None else as_scalar(tolerance, "tolerance", allow_infinite=True)
         st = self.rest_state() if initial_state is None else as_record(initial_state, "initial_state")
         st = st.copy()
         x, va, vh = _core.stage_simulate(self.core_params(), ts, m, tol, u, st)

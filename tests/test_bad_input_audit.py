@@ -1,0 +1,189 @@
+"""SPEC §10 audit of the public API (issue 8): every public entry point, called with a valid
+recipe in which one argument at a time is replaced by a bad value of a catalogued kind.
+
+Each call must either succeed with finite results (the value happened to be acceptable, e.g.
+a negative offset) or raise a :class:`piezohyst.PiezohystError` whose message names the
+argument — never a bare builtin error from deep inside, a NaN result or a crash. The catalogue
+and the recipes give several hundred calls; the count per kind is printed with ``-s`` and is
+part of the hardening report.
+"""
+from __future__ import annotations
+
+import collections
+import math
+
+import numpy as np
+import pytest
+
+import piezohyst as ph
+
+STAGE = ph.virtual_stage()
+T = np.arange(400) / 1000.0
+V = 0.5 + 0.4 * np.sin(2 * np.pi * 5 * T) * np.linspace(1, 0.3, T.size)
+Y = ph.mpi_seed2().simulate(V)
+REF = 8e-6 + 4e-6 * np.sin(2 * np.pi * 20 * np.arange(600) * 1e-4)
+
+def _with(a, index, value):
+    a = np.array(a, dtype=float)
+    a.flat[index] = value
+    return a
+
+
+ARRAY_BAD = {
+    "nan inside": lambda a: _with(a, np.size(a) // 2, np.nan),
+    "inf inside": lambda a: _with(a, 1, np.inf),
+    "empty": lambda a: np.array([]),
+    "one sample": lambda a: np.asarray(a)[:1],
+    "2-D": lambda a: np.stack([a, a], axis=-1),
+    "strings": lambda a: ["a", "b", "c"],
+    "None": lambda a: None,
+    "complex": lambda a: np.asarray(a) + 1j,
+    "ragged": lambda a: [[1.0, 2.0], [3.0]],
+}
+SCALAR_BAD = {
+    "nan": lambda x: math.nan,
+    "inf": lambda x: math.inf,
+    "-inf": lambda x: -math.inf,
+    "negative": lambda x: -abs(x) - 1.0,
+    "zero": lambda x: 0.0,
+    "string": lambda x: "abc",
+    "None": lambda x: None,
+    "list": lambda x: [x, x],
+    "huge": lambda x: 1e300,
+}
+
+# name -> (callable, positional args, keyword args, names of array arguments, names of scalar arguments)
+RECIPES = {
+    "identify": (ph.identify, (V, Y), dict(model="mpi", operators=5), ["input", "output"], ["operators"]),
+    "identify_pi": (ph.identify_pi, (V, Y), dict(operators=5), ["input", "output"], ["operators"]),
+    "identify_mpi": (ph.identify_mpi, (V, Y), dict(operators=5), ["input", "output"], ["operators"]),
+    "identify_preisach": (ph.identify_preisach, (V, Y), dict(levels=5), ["input", "output"], ["levels", "memory"]),
+    "fit_metrics": (ph.fit_metrics, (Y, Y + 0.01), {}, ["predicted", "measured"], []),
+    "tracking_metrics": (ph.tracking_metrics, (REF, REF * 1.01), {}, ["reference", "output"], []),
+    "linearity_error": (ph.linearity_error, (REF, REF * 1.01), {}, ["desired", "output"], []),
+    "hysteresis_percent": (ph.hysteresis_percent, (V, Y), dict(levels=50), ["input", "output"], ["levels"]),
+    "closed_loop": (ph.closed_loop, (STAGE, ph.PID(kp=1e6, ki=1e9), REF), dict(rng=1), ["reference"], []),
+    "track": (ph.track, (ph.PID(kp=1e6, ki=1e9), REF), dict(stage=STAGE, rng=1, skip=0.01), ["reference"],
+              ["skip"]),
+    "sine": (ph.sine, (10.0, 1.0, 0.1, 1000.0), {}, [], ["freq", "amplitude", "duration", "fs", "offset"]),
+    "triangle": (ph.triangle, (10.0, 1.0, 0.1, 1000.0), dict(rounding=0.1), [],
+                 ["freq", "amplitude", "duration", "fs", "rounding"]),
+    "chirp": (ph.chirp, (1.0, 50.0, 1.0, 0.5, 1000.0), {}, [], ["f_start", "f_end", "amplitude", "duration", "fs"]),
+    "multisine": (ph.multisine, (1.0, 50.0, 1.0, 1.0, 1000.0), dict(rng=0), [],
+                  ["f_min", "f_max", "amplitude", "period", "fs", "periods"]),
+    "variable_amplitude_sine": (ph.variable_amplitude_sine, (10.0, 1.0, 0.5, 1000.0), {}, [],
+                                ["freq", "amplitude", "duration", "fs", "final_fraction"]),
+    "staircase": (ph.staircase, ([0.0, 1.0, 2.0], 0.01, 1000.0), {}, ["levels"], ["dwell", "fs"]),
+    "PI": (ph.PI, ([0.0, 0.1, 0.2], [1.0, 0.5, 0.2]), dict(p0=1.0), ["thresholds", "weights"], ["p0"]),
+    "Preisach": (ph.Preisach, (3, (0.0, 1.0), np.ones(6)), dict(memory=16), ["weights"], ["levels", "memory"]),
+    "BoucWen": (ph.BoucWen, (1.0, 0.5, 0.2), dict(n=1.0, d=1.0), [], ["a", "beta", "gamma", "n", "d"]),
+    "Dahl": (ph.Dahl, (3.0, 0.7, 1.5), {}, [], []),
+    "Creep": (ph.Creep, (1e-3, [0.01, 0.1], [0.01, 0.02]), {}, ["taus", "weights"], ["ts"]),
+    "PID": (ph.PID, (), dict(kp=1e6, ki=1e9, kd=1.0, tau_d=1e-4), [], ["kp", "ki", "kd", "tau_d"]),
+    "OpenLoop": (ph.OpenLoop, (), dict(gain=7e6, offset=0.0), [], ["gain", "offset"]),
+    "VelocityObserver": (ph.VelocityObserver, (), dict(bandwidth=1000.0), [], ["bandwidth", "delay"]),
+    "SMC": (ph.SMC, (STAGE.params,), dict(kp=1e6, kv=2e3, ks=20.0, phi=0.01), [], ["kp", "kv", "ks", "phi", "alpha"]),
+    "Amplifier": (ph.Amplifier, (), dict(v_min=-20.0, v_max=150.0, bandwidth=3000.0, slew_rate=1e5), [],
+                  ["v_min", "v_max", "bandwidth", "slew_rate"]),
+    "Sensor": (ph.Sensor, (), dict(quantization=1e-7, noise_std=1e-8, delay=1), [],
+               ["quantization", "noise_std", "delay"]),
+    "StageParameters": (ph.StageParameters, (0.07, 100.0, 7e7, 10.5), {}, [],
+                        ["mass", "damping", "stiffness", "tem", "capacitance"]),
+    "Stage": (ph.Stage, (STAGE.params,), dict(sample_time=1e-4, substeps=1, tolerance=0.05), [],
+              ["sample_time", "substeps", "tolerance"]),
+    "LeafSpring": (ph.LeafSpring, (7.17e10, 0.01, 0.002, 0.02), {}, [],
+                   ["youngs_modulus", "width", "thickness", "length"]),
+    "FlexureStage": (ph.FlexureStage, (6e7, 1.3e7, 0.01, 0.06), {}, [],
+                     ["actuator_stiffness", "flexure_stiffness", "actuator_mass", "stage_mass", "zeta"]),
+    "BoucWenBenchmark": (ph.BoucWenBenchmark, (), {}, [],
+                         ["mass", "damping", "stiffness", "alpha", "beta", "gamma", "nu"]),
+    "batch_rmse": (ph.batch_rmse, (ph.mpi_seed2(), np.tile(ph.mpi_seed2()._row, (3, 1)), V, Y), {},
+                   ["params", "input", "target"], []),
+    "batch_simulate": (ph.batch_simulate, (ph.mpi_seed2(), np.tile(ph.mpi_seed2()._row, (3, 1)), V), {},
+                       ["params", "input"], []),
+    "model.simulate": (ph.mpi_seed2().simulate, (V,), {}, ["input"], []),
+    "inverse.simulate": (ph.PI([0.0, 0.1, 0.2], [1.0, 0.5, 0.2]).inverse().simulate, (np.abs(V),), {}, ["desired"],
+                         []),
+    "stage.simulate": (STAGE.simulate, (np.full(300, 50.0),), {}, ["command"], []),
+}
+
+
+def _signature_names(fn):
+    import inspect
+
+    try:
+        return list(inspect.signature(fn).parameters)
+    except (TypeError, ValueError):
+        return []
+
+
+def _calls():
+    """(recipe name, argument, bad kind, thunk) for every perturbation."""
+    out = []
+    for name, (fn, args, kwargs, arrays, scalars) in RECIPES.items():
+        params = _signature_names(fn)
+        for arg in arrays + scalars:
+            catalogue = ARRAY_BAD if arg in arrays else SCALAR_BAD
+            for kind, bad in catalogue.items():
+                a, kw = list(args), dict(kwargs)
+                if arg in kw:
+                    kw[arg] = bad(kw[arg])
+                else:
+                    i = params.index(arg)
+                    if i < len(a):
+                        a[i] = bad(a[i])
+                    else:
+                        kw[arg] = bad(1.0)
+                out.append((name, arg, kind, (lambda fn=fn, a=tuple(a), kw=kw: fn(*a, **kw))))
+    return out
+
+
+CALLS = _calls()
+OUTCOMES = collections.Counter()
+
+
+def _finite(result) -> bool:
+    """Every number in a result (arrays, tuples, dicts, dataclass fields) is finite."""
+    if result is None or isinstance(result, (str, bool)):
+        return True
+    if isinstance(result, (int, float, np.floating, np.integer)):
+        return bool(np.isfinite(result))
+    if isinstance(result, np.ndarray):
+        return result.dtype.kind not in "fc" or bool(np.all(np.isfinite(result)))
+    if isinstance(result, dict):
+        return all(_finite(v) for v in result.values())
+    if isinstance(result, (list, tuple)):
+        return all(_finite(v) for v in result)
+    for attr in ("position", "command", "output", "train", "params"):
+        if hasattr(result, attr) and not callable(getattr(result, attr)):
+            if not _finite(getattr(result, attr)):
+                return False
+    return True
+
+
+@pytest.mark.parametrize("name,arg,kind,call", CALLS, ids=[f"{n}-{a}-{k}" for n, a, k, _ in CALLS])
+def test_bad_argument_is_refused_by_name_or_harmless(name, arg, kind, call):
+    try:
+        result = call()
+    except ph.PiezohystError as e:
+        OUTCOMES["refused"] += 1
+        msg = str(e)
+        assert "\n" not in msg.strip() or len(msg) < 2000
+        # the message names the argument (or, for a record's elements, the argument with an index)
+        aliases = {arg, arg.replace("_", " ")}
+        if kind in ("empty", "one sample", "2-D"):
+            # a length/shape mismatch may be reported against the partner argument
+            aliases |= set(RECIPES[name][3])
+        if arg == "reference":
+            aliases |= {"stroke"}
+        assert any(a in msg for a in aliases), f"{name}({arg}={kind}): message does not name {arg!r}: {msg}"
+        return
+    OUTCOMES["accepted"] += 1
+    assert _finite(result), f"{name}({arg}={kind}) returned non-finite values"
+
+
+def test_zz_report_counts(capsys):
+    """Prints the audit's counts (run last in this module)."""
+    with capsys.disabled():
+        print(f"\nbad-input audit: {len(CALLS)} calls over {len(RECIPES)} entry points; outcomes {dict(OUTCOMES)}")
+    assert len(CALLS) >= 400
