@@ -21,9 +21,13 @@ pub fn solve_increasing<F: Fn(f64) -> (f64, f64)>(f: F, target: f64, guess: f64)
     if !target.is_finite() || !guess.is_finite() {
         return None;
     }
+    // A residual this small is the model's own rounding (its output is a sum of terms, each
+    // rounded): any point there solves the equation as well as the model can be evaluated,
+    // so the search stops instead of walking to the adjacent floats around the root.
+    let resolution = 4.0 * f64::EPSILON * abs(target);
     let (y0, d0) = f(guess);
     let r0 = y0 - target;
-    if r0 == 0.0 {
+    if abs(r0) <= resolution {
         return Some(guess);
     }
     if !r0.is_finite() {
@@ -54,7 +58,7 @@ pub fn solve_increasing<F: Fn(f64) -> (f64, f64)>(f: F, target: f64, guess: f64)
         if !r_outer.is_finite() {
             return None;
         }
-        if r_outer == 0.0 {
+        if abs(r_outer) <= resolution {
             return Some(outer);
         }
         if (r_outer > 0.0) != (r_inner > 0.0) {
@@ -88,7 +92,7 @@ pub fn solve_increasing<F: Fn(f64) -> (f64, f64)>(f: F, target: f64, guess: f64)
             r = y - target;
             d = slope;
         }
-        if r == 0.0 {
+        if abs(r) <= resolution {
             return Some(x);
         }
         if r < 0.0 {
