@@ -34,6 +34,7 @@ pub mod sensor;
 pub mod smc;
 pub mod rate;
 pub mod rng;
+mod ziggurat_tables;
 pub mod spec;
 pub mod stage;
 

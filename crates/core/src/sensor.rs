@@ -28,34 +28,14 @@ pub struct SensorState {
     line: [f64; RING],
     head: usize,
     rng: Rng,
-    /// The second deviate of the last polar draw, if unused.
-    spare: Option<f64>,
 }
 
 impl SensorState {
-    /// Standard normal deviate: [`Rng::normal`]'s Marsaglia polar method on the same
-    /// uniforms, written here so the sensor's hot path inlines the cheap half (every other
-    /// call returns the spare). The same stream as `Rng::normal` for the same seed.
+    /// Standard normal deviate: [`Rng::normal`] (the same stream as `Rng::normal` for the
+    /// same seed); its common case, one word and a table look-up, inlines into the loop.
     #[inline(always)]
     fn normal(&mut self) -> f64 {
-        match self.spare.take() {
-            Some(z) => z,
-            None => self.normal_pair(),
-        }
-    }
-
-    #[inline(never)]
-    fn normal_pair(&mut self) -> f64 {
-        loop {
-            let u = 2.0 * self.rng.uniform() - 1.0;
-            let v = 2.0 * self.rng.uniform() - 1.0;
-            let s = u * u + v * v;
-            if s > 0.0 && s < 1.0 {
-                let m = libm::sqrt(-2.0 * libm::log(s) / s);
-                self.spare = Some(v * m);
-                return u * m;
-            }
-        }
+        self.rng.normal()
     }
 }
 
@@ -81,7 +61,7 @@ impl Sensor {
     /// noise stream from `seed`.
     pub fn state(&self, x0: f64, seed: u64) -> SensorState {
         let q = self.quantize(x0);
-        SensorState { line: [q; RING], head: 0, rng: Rng::new(seed), spare: None }
+        SensorState { line: [q; RING], head: 0, rng: Rng::new(seed) }
     }
 
     /// Mid-tread quantization (round half to even). Adding and removing 1.5 * 2^52 rounds
