@@ -113,7 +113,8 @@ def _figures(out_dir: Path, results, runs1, runs2, mpi_fit, stage) -> dict:
     fig, ax = plt.subplots(figsize=(7, 4.2))
     for method, c in results["identification"]["convergence"].items():
         ax.semilogy(np.arange(1, len(c["best_cost"]) + 1), np.asarray(c["best_cost"]) * 1e6, lw=1.2,
-                    label=f"{method.upper()} ({c['rmse_percent']:.2f} %, {c['wall_s']:.1f} s)")
+                    label=f"{method.upper()}{' + LS polish' if c.get('polished') else ''} "
+                          f"({c['rmse_percent']:.2f} %, {c['wall_s']:.1f} s)")
     ax.set(xlabel="iteration (one Rust batch of the population)", ylabel="best RMSE so far (µm)",
            title="CEMF stage identification: optimizer convergence")
     ax.legend()
