@@ -532,3 +532,10 @@ def test_non_finite_commands_are_named(bad):
 def test_bad_simulation_arguments_are_named(kwargs, message):
     with pytest.raises(ValueError, match=message):
         virtual_stage().simulate(np.full(10, 50.0), **kwargs)
+
+
+def test_rust_virtual_stage_matches_the_preset():
+    """StageParams::virtual_stage() (Rust tests, soaks, examples) is the packaged preset."""
+    from piezohyst import _core
+
+    np.testing.assert_allclose(_core.virtual_stage_params(), virtual_stage().core_params(), rtol=1e-15, atol=0)

@@ -84,6 +84,10 @@ MAX_TERMS: int
 ControllerSpec = tuple[str, Array1, tuple[str, list[int], Array1, float, float] | None,
                        tuple[int, float, float, int, int] | None]
 
+def virtual_stage_params() -> Array1:
+    """The Rust core's copy of the packaged virtual stage's parameters (flat layout of
+    ``StageParams::from_slice``), held equal to ``presets/virtual_stage.json`` by a test."""
+
 def stage_simulate(
     params: Array1, ts: float, substeps: int, tolerance: float, command: Array1, state: Array1
 ) -> tuple[Array1, Array1, Array1]:

@@ -4,33 +4,11 @@
 use piezohyst_core::closed_loop::{run, Record};
 use piezohyst_core::control::{Limits, Pid};
 use piezohyst_core::sensor::Sensor;
-use piezohyst_core::stage::{HysteresisDrive, Stage, StageParams, StageState, MAX_CREEP};
+use piezohyst_core::stage::{Stage, StageParams, StageState};
 use std::time::Instant;
 
 fn main() {
-    let mut taus = [1.0; MAX_CREEP];
-    let mut weights = [0.0; MAX_CREEP];
-    taus[..5].copy_from_slice(&[0.01, 0.1, 1.0, 10.0, 100.0]);
-    weights[..5].copy_from_slice(&[0.015; 5]);
-    let p = StageParams {
-        mass: 0.0714,
-        damping: 2.0 * 0.03 * (7.333e7f64 * 0.0714).sqrt(),
-        stiffness: 7.333e7,
-        tem: 10.5,
-        capacitance: 1.8e-6,
-        hyst_alpha: 1.25e5,
-        hyst_beta: 8000.0,
-        hyst_gamma: 3000.0,
-        hyst_drive: HysteresisDrive::Charge,
-        electrostriction: 3.3e-4,
-        creep_taus: taus,
-        creep_weights: weights,
-        creep_terms: 5,
-        amp_min: -20.0,
-        amp_max: 150.0,
-        amp_bandwidth: 3000.0,
-        amp_slew: 1.4e5,
-    };
+    let p = StageParams::virtual_stage();
     let ts = 1e-4;
     let n = 100_000; // 10 s
     let r: Vec<f64> = (0..n).map(|k| 5e-6 * (1.0 - (2.0 * std::f64::consts::PI * 10.0 * k as f64 * ts).cos())).collect();

@@ -337,6 +337,38 @@ fn positive(name: &'static str, x: f64) -> Result<(), ModelError> {
 }
 
 impl StageParams {
+    /// The parameters of piezohyst's packaged virtual stage
+    /// (`python/piezohyst/presets/virtual_stage.json`: seed 1's flexure stage and stack, CEMF on
+    /// charge, electrostriction, five creep decades, a 3 kHz / 0.14 V/us amplifier; damping from
+    /// its damping ratio 0.03), for Rust tests, examples and benchmarks. The Python test
+    /// `tests/test_stage.py::test_rust_virtual_stage_matches_the_preset` keeps the two equal.
+    pub fn virtual_stage() -> Self {
+        let (mass, stiffness) = (0.0714, 7.333e7);
+        let mut creep_taus = [1.0; MAX_CREEP];
+        creep_taus[..5].copy_from_slice(&[0.01, 0.1, 1.0, 10.0, 100.0]);
+        let mut creep_weights = [0.0; MAX_CREEP];
+        creep_weights[..5].copy_from_slice(&[0.015; 5]);
+        StageParams {
+            mass,
+            damping: 2.0 * 0.03 * libm::sqrt(stiffness * mass),
+            stiffness,
+            tem: 10.5,
+            capacitance: 1.8e-6,
+            hyst_alpha: 1.25e5,
+            hyst_beta: 8000.0,
+            hyst_gamma: 3000.0,
+            hyst_drive: HysteresisDrive::Charge,
+            electrostriction: 3.3e-4,
+            creep_taus,
+            creep_weights,
+            creep_terms: 5,
+            amp_min: -20.0,
+            amp_max: 150.0,
+            amp_bandwidth: 3000.0,
+            amp_slew: 1.4e5,
+        }
+    }
+
     /// Check every parameter is physical.
     pub fn validate(&self) -> Result<(), ModelError> {
         for (name, x) in [
@@ -824,6 +856,31 @@ impl Stage {
 pub const PARAM_LEN: usize = 15 + 2 * MAX_CREEP;
 
 impl StageParams {
+    /// The flat layout [`StageParams::from_slice`] reads.
+    pub fn to_array(&self) -> [f64; PARAM_LEN] {
+        let mut p = [0.0; PARAM_LEN];
+        p[..15].copy_from_slice(&[
+            self.mass,
+            self.damping,
+            self.stiffness,
+            self.tem,
+            self.capacitance,
+            self.hyst_alpha,
+            self.hyst_beta,
+            self.hyst_gamma,
+            if self.hyst_drive == HysteresisDrive::Charge { 0.0 } else { 1.0 },
+            self.electrostriction,
+            self.amp_min,
+            self.amp_max,
+            self.amp_bandwidth,
+            self.amp_slew,
+            self.creep_terms as f64,
+        ]);
+        p[15..15 + MAX_CREEP].copy_from_slice(&self.creep_taus);
+        p[15 + MAX_CREEP..].copy_from_slice(&self.creep_weights);
+        p
+    }
+
     /// From the flat layout `[mass, damping, stiffness, tem, capacitance, hyst_alpha,
     /// hyst_beta, hyst_gamma, drive (0 charge, 1 voltage), electrostriction, amp_min,
     /// amp_max, amp_bandwidth, amp_slew, creep_terms, creep_taus[8], creep_weights[8]]`,
@@ -874,32 +931,17 @@ mod tests {
     extern crate std;
     use super::*;
 
+    #[test]
+    fn flat_layout_round_trips() {
+        let v = StageParams::virtual_stage();
+        let back = StageParams::from_slice(&v.to_array()).unwrap();
+        assert_eq!(back.to_array(), v.to_array());
+    }
+
     /// The virtual stage's CEMF (charge drive), with the capacitance scaled by `cz_scale`.
     fn stage(cz_scale: f64) -> Stage {
-        let mut taus = [1.0; MAX_CREEP];
-        taus[..5].copy_from_slice(&[0.01, 0.1, 1.0, 10.0, 100.0]);
-        let mut weights = [0.0; MAX_CREEP];
-        weights[..5].copy_from_slice(&[0.015; 5]);
-        let p = StageParams {
-            mass: 0.0714,
-            damping: 137.29,
-            stiffness: 7.333e7,
-            tem: 10.5,
-            capacitance: 1.8e-6 * cz_scale,
-            hyst_alpha: 1.25e5,
-            hyst_beta: 8000.0,
-            hyst_gamma: 3000.0,
-            hyst_drive: HysteresisDrive::Charge,
-            electrostriction: 3.3e-4,
-            creep_taus: taus,
-            creep_weights: weights,
-            creep_terms: 5,
-            amp_min: -20.0,
-            amp_max: 150.0,
-            amp_bandwidth: 3000.0,
-            amp_slew: 1.4e5,
-        };
-        Stage::new(p, 1e-4, 1, 0.05).unwrap()
+        let v = StageParams::virtual_stage();
+        Stage::new(StageParams { capacitance: v.capacitance * cz_scale, ..v }, 1e-4, 1, 0.05).unwrap()
     }
 
     /// The charge loop's CEMF increment solved to rounding level: Newton on

@@ -8,7 +8,7 @@ use piezohyst_core::pi::{play, Pi};
 use piezohyst_core::rng::Rng;
 use piezohyst_core::sensor::Sensor;
 use piezohyst_core::smc::{Smc, Switching};
-use piezohyst_core::stage::{HysteresisDrive, Stage, StageParams, StageState, MAX_CREEP};
+use piezohyst_core::stage::{Stage, StageParams, StageState};
 use piezohyst_core::Hysteresis;
 
 fn peak_rss_kib() -> Option<u64> {
@@ -54,30 +54,7 @@ fn hundred_million_operator_updates_keep_the_play_invariants() {
 }
 
 fn virtual_stage() -> Stage {
-    let mut taus = [1.0; MAX_CREEP];
-    let mut weights = [0.0; MAX_CREEP];
-    taus[..5].copy_from_slice(&[0.01, 0.1, 1.0, 10.0, 100.0]);
-    weights[..5].copy_from_slice(&[0.015; 5]);
-    let p = StageParams {
-        mass: 0.0714,
-        damping: 2.0 * 0.03 * (7.333e7f64 * 0.0714).sqrt(),
-        stiffness: 7.333e7,
-        tem: 10.5,
-        capacitance: 1.8e-6,
-        hyst_alpha: 1.25e5,
-        hyst_beta: 8000.0,
-        hyst_gamma: 3000.0,
-        hyst_drive: HysteresisDrive::Charge,
-        electrostriction: 3.3e-4,
-        creep_taus: taus,
-        creep_weights: weights,
-        creep_terms: 5,
-        amp_min: -20.0,
-        amp_max: 150.0,
-        amp_bandwidth: 3000.0,
-        amp_slew: 1.4e5,
-    };
-    Stage::new(p, 1e-4, 1, 0.05).unwrap()
+    Stage::new(StageParams::virtual_stage(), 1e-4, 1, 0.05).unwrap()
 }
 
 #[test]

@@ -510,7 +510,15 @@ fn stage_batch_rmse<'py>(
 }
 
 /// Add this module's functions to the extension module.
+/// The Rust core's copy of the packaged virtual stage ([`StageParams::virtual_stage`]) in the
+/// flat layout, so a test can hold it equal to the preset file.
+#[pyfunction]
+fn virtual_stage_params<'py>(py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+    StageParams::virtual_stage().to_array().to_vec().into_pyarray(py)
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(virtual_stage_params, m)?)?;
     m.add_function(wrap_pyfunction!(stage_simulate, m)?)?;
     m.add_function(wrap_pyfunction!(closed_loop, m)?)?;
     m.add_function(wrap_pyfunction!(closed_loop_batch, m)?)?;
