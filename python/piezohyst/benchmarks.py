@@ -38,13 +38,12 @@ BEGIN, END = "<!-- bench:begin -->", "<!-- bench:end -->"
 
 @dataclass(frozen=True)
 class Benchmark:
-    """One script in ``bench/``: how to run it (fully and with ``--quick``), where it writes
-    its JSON, and how to read its headline rows from that JSON."""
+    """One script in ``bench/``: how to run it (with its defaults, or with ``quick_args`` for
+    ``--quick``), where it writes its JSON, and how to read its headline rows from that JSON."""
 
     name: str
     script: str
     what: str
-    full_args: tuple[str, ...]
     quick_args: tuple[str, ...]
     rows: Callable[[dict], list[dict]] = field(repr=False)
 
@@ -127,15 +126,13 @@ def _identify_mpi_rows(d):
 def _c_step_rows(d):
     rows = []
     base = (d.get("rust_api_baseline") or {}).get("results", {})
-    rust_name = {"MPI inverse (9 operators) + SMC": "MPI inverse (9 operators) + SMC",
-                 "MPI inverse (9 operators) + ABSMC": "MPI inverse (9 operators) + ABSMC",
-                 "SMC": "SMC", "SMC + CEMF observer": "SMC + CEMF observer",
-                 "MPI inverse feedforward (open loop behind the inverse)": "PI-type inverse, 9 operators (MPI feedforward)",
+    # the C cases whose Rust-API counterpart has another name (the rest share theirs)
+    rust_name = {"MPI inverse feedforward (open loop behind the inverse)": "PI-type inverse, 9 operators (MPI feedforward)",
                  "PI inverse, 9 operators (phs_model_inverse_step)": "PI inverse, 9 operators (inverse_step)",
                  "MPI inverse, 9 operators (phs_model_inverse_step)": "MPI inverse, 9 operators (inverse_step)"}
     target = d.get("target_ns", {})
     for name, s in d["summary"].items():
-        b = base.get(rust_name.get(name, ""), {}).get("mean")
+        b = base.get(rust_name.get(name, name), {}).get("mean")
         t = target.get(name)
         rows.append(_row(f"one step from C: {name} (worst of {d['steps_per_case']:.0e}: {s['worst_ns'] / 1e3:.0f} µs)",
                          s["mean_ns"], "ns", "the same step through the Rust API" if b else "—", b,
@@ -179,19 +176,19 @@ def _demo_rows(d):
 
 
 BENCHMARKS: tuple[Benchmark, ...] = (
-    Benchmark("pi_batch", "pi_batch.py", "batch PI evaluation vs NumPy", (),
+    Benchmark("pi_batch", "pi_batch.py", "batch PI evaluation vs NumPy",
               ("--rounds", "1", "--reps", "2", "--numpy-reps", "1", "--min-time", "0.05", "--max-reps", "3"),
               _pi_batch_rows),
-    Benchmark("closed_loop", "closed_loop.py", "closed-loop real-time factor, batch scaling, integration accuracy", (),
+    Benchmark("closed_loop", "closed_loop.py", "closed-loop real-time factor, batch scaling, integration accuracy",
               ("--rounds", "1", "--reps", "2", "--batch-reps", "1", "--min-time", "0.05", "--max-reps", "3"),
               _closed_loop_rows),
-    Benchmark("identify_mpi", "identify_mpi.py", "MPI identification: least squares vs MPSO vs pyswarms", (),
+    Benchmark("identify_mpi", "identify_mpi.py", "MPI identification: least squares vs MPSO vs pyswarms",
               ("--reps", "2", "--iterations", "60", "--mpso-seeds", "0", "--vp-seeds", "0", "--cap", "5"),
               _identify_mpi_rows),
-    Benchmark("c_step", "c_step.py", "ns per step from C", (), ("--rounds", "1"), _c_step_rows),
-    Benchmark("control", "control.py", "seed 1 / seed 2 control tables, tuning time", (), ("--quick",),
+    Benchmark("c_step", "c_step.py", "ns per step from C", ("--rounds", "1"), _c_step_rows),
+    Benchmark("control", "control.py", "seed 1 / seed 2 control tables, tuning time", ("--quick",),
               _control_rows),
-    Benchmark("demo", "demo.py", "wall time of piezohyst demo", (), ("--modes", "quick"), _demo_rows),
+    Benchmark("demo", "demo.py", "wall time of piezohyst demo", ("--modes", "quick"), _demo_rows),
 )
 _BY_NAME = {b.name: b for b in BENCHMARKS}
 
@@ -231,7 +228,7 @@ def run_suite(benchmarks, bench_dir: Path, results: Path, *, quick=False, print_
     status = {}
     for i, b in enumerate(benchmarks, 1):
         out = b.result_path(results)
-        cmd = [sys.executable, str(bench_dir / b.script), "--out", str(out), *(b.quick_args if quick else b.full_args)]
+        cmd = [sys.executable, str(bench_dir / b.script), "--out", str(out), *(b.quick_args if quick else ())]
         print_fn(f"[{i}/{len(benchmarks)}] {b.name}: {b.what} ...", flush=True)
         t0 = time.perf_counter()
         p = subprocess.run(cmd, cwd=bench_dir.parent, env=env, capture_output=True, text=True)

@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 from ._io import write_atomic
-from .errors import PiezohystError
+from .errors import ParameterError, PiezohystError
 
 __all__ = ["main"]
 
@@ -34,7 +34,7 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {msg} (see {self.prog} --help)\n")
 
 
-class _Fail(ValueError):
+class _Fail(ParameterError):
     """A bad command-line input; the message names the argument and the value."""
 
 
@@ -449,12 +449,6 @@ def _load(path, **kw):
         raise _named(e) from None
 
 
-def _write_atomic(path: Path, data, force: bool, name: str, writer=None) -> None:
-    """Write ``data`` (str) or call ``writer(temp_path)``, atomically; an existing ``path``
-    is kept unless ``force``."""
-    write_atomic(path, data, writer=writer, overwrite=force, name=name)
-
-
 def _pct(x) -> str:
     return f"{x:.4g} %"
 
@@ -554,7 +548,7 @@ def _identify(args) -> int:
         doc["partial"] = True   # Ctrl-C stopped the optimizer: the best model found before it
     doc["fit"] = fit
     text = json.dumps(doc, indent=2, allow_nan=False) + "\n"
-    _write_atomic(out, text, args.force, "--out")
+    write_atomic(out, text, overwrite=args.force, name="--out")
     if plot is not None:
         import matplotlib
 
@@ -563,7 +557,8 @@ def _identify(args) -> int:
 
         fig = res.plot(train.input, train.output)
         try:
-            _write_atomic(plot, None, args.force, "--plot", writer=lambda tmp: fig.savefig(tmp, format="png", dpi=110))
+            write_atomic(plot, writer=lambda tmp: fig.savefig(tmp, format="png", dpi=110), overwrite=args.force,
+                         name="--plot")
         finally:
             plt.close(fig)
 
@@ -765,7 +760,7 @@ def _simulate(args) -> None:
     if to_stdout:
         sys.stdout.write(text)
         return
-    _write_atomic(out, text, args.force, "--out")
+    write_atomic(out, text, overwrite=args.force, name="--out")
 
     def stats(a):
         return {"min": float(np.min(a)), "max": float(np.max(a)), "mean": float(np.mean(a)), "range": float(np.ptp(a))}
