@@ -18,6 +18,7 @@ Target (issue 7): MPI inverse + SMC <= 200 ns per step (a 50 kHz loop spends < 1
 period). The machine may be shared: worst cases are dominated by preemption, and the load
 average is recorded.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -32,7 +33,7 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
 
-from common import machine_info, versions, write_json_atomic  # noqa: E402
+from common import machine_info, versions, write_json_atomic
 
 LINK = ["-lgcc_s", "-lutil", "-lrt", "-lpthread", "-lm", "-ldl", "-lc"]
 TARGET_NS = 200.0
@@ -43,8 +44,18 @@ def build(cc: str) -> Path:
     subprocess.run(["cargo", "build", "--release", "-q", "-p", "piezohyst-capi"], cwd=ROOT, check=True)
     exe = ROOT / "target" / "c-bench" / "step_bench"
     exe.parent.mkdir(parents=True, exist_ok=True)
-    cmd = [cc, "-std=c99", "-O2", "-I", str(ROOT / "crates/capi/include"), str(HERE / "c/step_bench.c"),
-           str(ROOT / "target/release/libpiezohyst.a"), *LINK, "-o", str(exe)]
+    cmd = [
+        cc,
+        "-std=c99",
+        "-O2",
+        "-I",
+        str(ROOT / "crates/capi/include"),
+        str(HERE / "c/step_bench.c"),
+        str(ROOT / "target/release/libpiezohyst.a"),
+        *LINK,
+        "-o",
+        str(exe),
+    ]
     subprocess.run(cmd, check=True)
     return exe
 
@@ -52,8 +63,13 @@ def build(cc: str) -> Path:
 def rust_baseline() -> dict | None:
     """The same cases through the Rust API (no C boundary)."""
     try:
-        out = subprocess.run(["cargo", "run", "--release", "-q", "-p", "piezohyst-core", "--example", "controller_step"],
-                             cwd=ROOT, capture_output=True, text=True, check=True).stdout
+        out = subprocess.run(
+            ["cargo", "run", "--release", "-q", "-p", "piezohyst-core", "--example", "controller_step"],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout
         return json.loads(out)
     except (OSError, subprocess.CalledProcessError, json.JSONDecodeError) as e:
         print(f"c_step: the Rust baseline did not run: {e}", file=sys.stderr)
@@ -78,8 +94,12 @@ def main(argv=None) -> int:
     summary = {}
     for name in names:
         rs = [rd["results"][name] for rd in rounds]
-        summary[name] = {"mean_ns": min(x["mean"] for x in rs), "median_ns": min(x["median"] for x in rs),
-                         "p99.9_ns": min(x["p99.9"] for x in rs), "worst_ns": max(x["worst"] for x in rs)}
+        summary[name] = {
+            "mean_ns": min(x["mean"] for x in rs),
+            "median_ns": min(x["median"] for x in rs),
+            "p99.9_ns": min(x["p99.9"] for x in rs),
+            "worst_ns": max(x["worst"] for x in rs),
+        }
     baseline = None if args.no_baseline else rust_baseline()
     try:
         info["loadavg_at_end"] = list(os.getloadavg())
@@ -87,7 +107,7 @@ def main(argv=None) -> int:
         pass
     payload = {
         "benchmark": "c_step",
-        "timestamp_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "timestamp_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         "machine": info,
         "versions": versions(),
         "compiler": subprocess.run([args.cc, "--version"], capture_output=True, text=True).stdout.splitlines()[0],

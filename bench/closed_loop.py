@@ -42,6 +42,7 @@ closed-loop baseline, accuracy timings; repeat. Figures are medians over all rep
 OPENBLAS_NUM_THREADS=1 everywhere. JSON is written atomically; a table is printed.
 The whole run takes about a minute.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -64,7 +65,7 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 if str(HERE) not in sys.path:
     sys.path.insert(0, str(HERE))
-from common import extension_digest, machine_info, n_reps, versions, write_json_atomic  # noqa: E402
+from common import extension_digest, machine_info, n_reps, versions, write_json_atomic
 
 DEFAULT_OUT = HERE / "results" / "closed_loop.json"
 
@@ -72,30 +73,30 @@ TARGET_RTF = 1000.0
 TARGET_SCALING = 1.8
 THREADS = (1, 2)
 
-TS = 1e-4                     # 10 kHz controller
-RTF_HORIZON = 10.0            # s simulated per RTF run
+TS = 1e-4  # 10 kHz controller
+RTF_HORIZON = 10.0  # s simulated per RTF run
 PID_GAINS = {"kp": 1e6, "ki": 5e9}
-RTF_REFS = {                  # name: (kind, freq Hz); 0..20 um (10 um amplitude about 10 um)
+RTF_REFS = {  # name: (kind, freq Hz); 0..20 um (10 um amplitude about 10 um)
     "sine_10Hz": ("sine", 10.0),
     "triangle_5Hz": ("triangle", 5.0),
 }
 REF_AMPLITUDE = 10e-6
-BASELINE_HORIZON = 0.05       # s simulated by the solve_ivp baseline (scaled to an RTF)
+BASELINE_HORIZON = 0.05  # s simulated by the solve_ivp baseline (scaled to an RTF)
 BASELINE_METHOD = "DOP853"
 BASELINE_RTOLS = (1e-3, 1e-6)  # headline first: scipy's default rtol, already more accurate than
-                               # piezohyst's default settings here (see "cross_check" in the JSON)
-CROSS_RTOL = 1e-10            # tight closed-loop solve_ivp run the cross-check measures against
+# piezohyst's default settings here (see "cross_check" in the JSON)
+CROSS_RTOL = 1e-10  # tight closed-loop solve_ivp run the cross-check measures against
 
 BATCH_SIZE = 64
-BATCH_DURATION = 2.0          # s per scenario
+BATCH_DURATION = 2.0  # s per scenario
 
-ACC_SAMPLES = 60              # 6 ms at 10 kHz
+ACC_SAMPLES = 60  # 6 ms at 10 kHz
 ACC_TOLERANCES = [math.inf, 0.05, 0.01, 1e-3, 1e-4, 2e-5]
 ACC_SUBSTEPS = [1, 4, 16, 64, 256]
 IVP_METHODS = ["DOP853", "RK45", "LSODA"]
 IVP_RTOLS = [1e-4, 1e-6, 1e-8, 1e-10]
-REF_RTOL = 1e-12              # the tight reference
-LEVELS = 11                   # crates/core/src/stage.rs::LEVELS (for the sub-step estimate)
+REF_RTOL = 1e-12  # the tight reference
+LEVELS = 11  # crates/core/src/stage.rs::LEVELS (for the sub-step estimate)
 
 
 # ------------------------------------------------------------------------------ helpers
@@ -108,8 +109,8 @@ def machine_busy_s() -> float | None:
             vals = [int(v) for v in f.readline().split()[1:]]
     except (OSError, ValueError):
         return None
-    idle = vals[3] + (vals[4] if len(vals) > 4 else 0)          # idle + iowait
-    return (sum(vals[:8]) - idle) / os.sysconf("SC_CLK_TCK")   # user..steal, guests are in user
+    idle = vals[3] + (vals[4] if len(vals) > 4 else 0)  # idle + iowait
+    return (sum(vals[:8]) - idle) / os.sysconf("SC_CLK_TCK")  # user..steal, guests are in user
 
 
 def stolen_s() -> float | None:
@@ -191,16 +192,26 @@ def batch_scenarios(seed: int):
         elif kind == "variable_amplitude_sine":
             _, x = ph.variable_amplitude_sine(rng.uniform(2.0, 20.0), amp, T, fs, offset=amp)
         elif kind == "multisine":
-            _, x = ph.multisine(1.0, rng.uniform(20.0, 80.0), 0.3 * amp, 1.0, fs, periods=2, offset=10e-6,
-                                rng=int(rng.integers(0, 2**31)))
+            _, x = ph.multisine(
+                1.0,
+                rng.uniform(20.0, 80.0),
+                0.3 * amp,
+                1.0,
+                fs,
+                periods=2,
+                offset=10e-6,
+                rng=int(rng.integers(0, 2**31)),
+            )
         elif kind == "chirp":
             _, x = ph.chirp(1.0, rng.uniform(20.0, 100.0), amp, T, fs, offset=amp)
         else:
             levels = rng.uniform(1e-6, 18e-6, 8)
             _, x = ph.staircase(levels, T / 8, fs)
-        pid = ph.PID(kp=float(np.exp(rng.uniform(np.log(3e5), np.log(1.5e6)))),
-                     ki=float(np.exp(rng.uniform(np.log(1e9), np.log(8e9)))))
-        out.append((pid, np.ascontiguousarray(x[: int(round(T * fs))])))
+        pid = ph.PID(
+            kp=float(np.exp(rng.uniform(np.log(3e5), np.log(1.5e6)))),
+            ki=float(np.exp(rng.uniform(np.log(1e9), np.log(8e9)))),
+        )
+        out.append((pid, np.ascontiguousarray(x[: round(T * fs)])))
         kinds.append(kind)
     return out, kinds
 
@@ -231,29 +242,57 @@ def worker(spec: dict) -> dict:
             s, params, init = stage.sensor, stage.core_params(), stage.rest_state()
 
             def core_call():
-                return _core.closed_loop(params, stage.sample_time, stage.substeps, stage.tolerance,
-                                         s.quantization, s.noise_std, s.delay, spec_, x, v, a, init,
-                                         sim.seed_from(1))
+                return _core.closed_loop(
+                    params,
+                    stage.sample_time,
+                    stage.substeps,
+                    stage.tolerance,
+                    s.quantization,
+                    s.noise_std,
+                    s.delay,
+                    spec_,
+                    x,
+                    v,
+                    a,
+                    init,
+                    sim.seed_from(1),
+                )
 
             core_times, d, _ = timed(core_call, mr, mt, mx, warmups=2)
             assert np.array_equal(d["position"], res.position), "core call differs from closed_loop"
             out["single"][name] = {
-                "samples": int(ref.size), "warmup_s": warm, "times_s": times, "core_times_s": core_times,
-                "digest": digest([res.reference, res.command, res.voltage, res.position, res.measured,
-                                  *res.terms.values(), res.final_state]),
-                "metrics": res.metrics, "load": acct,
+                "samples": int(ref.size),
+                "warmup_s": warm,
+                "times_s": times,
+                "core_times_s": core_times,
+                "digest": digest(
+                    [
+                        res.reference,
+                        res.command,
+                        res.voltage,
+                        res.position,
+                        res.measured,
+                        *res.terms.values(),
+                        res.final_state,
+                    ]
+                ),
+                "metrics": res.metrics,
+                "load": acct,
             }
 
     if spec["batch"]:
         scen, _ = batch_scenarios(spec["seed"])
         acct, core_acct = {}, {}
-        times, res, warm = timed(lambda: ph.closed_loop_batch(stage, scen, rng=spec["seed"]),
-                                 spec["batch_reps"], mt, mx, acct)
-        dig = digest([a for r in res for a in (r.position, r.command, r.voltage, r.measured,
-                                                  *r.terms.values(), r.final_state)])
+        times, res, warm = timed(
+            lambda: ph.closed_loop_batch(stage, scen, rng=spec["seed"]), spec["batch_reps"], mt, mx, acct
+        )
+        dig = digest(
+            [a for r in res for a in (r.position, r.command, r.voltage, r.measured, *r.terms.values(), r.final_state)]
+        )
         again = ph.closed_loop_batch(stage, scen, rng=spec["seed"])
-        dig2 = digest([a for r in again for a in (r.position, r.command, r.voltage, r.measured,
-                                                    *r.terms.values(), r.final_state)])
+        dig2 = digest(
+            [a for r in again for a in (r.position, r.command, r.voltage, r.measured, *r.terms.values(), r.final_state)]
+        )
         assert dig == dig2, "closed_loop_batch is not deterministic across calls"
         # the core call alone (what rayon parallelizes), for the Amdahl picture
         seeds_rng = np.random.default_rng(sim.seed_from(spec["seed"]))
@@ -264,15 +303,30 @@ def worker(spec: dict) -> dict:
         s = stage.sensor
 
         def core_batch():
-            return _core.closed_loop_batch(stage.core_params(), stage.sample_time, stage.substeps, stage.tolerance,
-                                           s.quantization, s.noise_std, s.delay, core_args, stage.rest_state())
+            return _core.closed_loop_batch(
+                stage.core_params(),
+                stage.sample_time,
+                stage.substeps,
+                stage.tolerance,
+                s.quantization,
+                s.noise_std,
+                s.delay,
+                core_args,
+                stage.rest_state(),
+            )
 
         core_times, core_res, _ = timed(core_batch, spec["batch_reps"], mt, mx, core_acct)
-        assert all(np.array_equal(cr["position"], r.position) for cr, r in zip(core_res, res)), \
+        assert all(np.array_equal(cr["position"], r.position) for cr, r in zip(core_res, res, strict=False)), (
             "core batch call differs from closed_loop_batch"
+        )
         out["batch"] = {
-            "warmup_s": warm, "times_s": times, "core_times_s": core_times, "digest": dig,
-            "rmse_um": [r.metrics["rmse"] * 1e6 for r in res], "load": acct, "core_load": core_acct,
+            "warmup_s": warm,
+            "times_s": times,
+            "core_times_s": core_times,
+            "digest": dig,
+            "rmse_um": [r.metrics["rmse"] * 1e6 for r in res],
+            "load": acct,
+            "core_load": core_acct,
         }
     out["rayon_threads"] = _core.thread_count()
     out["extension_sha256"] = extension_digest()
@@ -286,7 +340,10 @@ def run_worker(threads: int, spec: dict, extra_env: dict | None = None) -> dict:
     env.update(extra_env or {})
     proc = subprocess.run(
         [sys.executable, str(Path(__file__).resolve()), "--worker", json.dumps(spec)],
-        env=env, capture_output=True, text=True, check=False,
+        env=env,
+        capture_output=True,
+        text=True,
+        check=False,
     )
     if proc.returncode != 0:
         sys.stderr.write(proc.stderr)
@@ -377,12 +434,12 @@ def ivp_closed_loop(stage, pid_core, reference, rtol, method, noise_seed):
 
     inv_q = 1.0 / q if q > 0 else 0.0
 
-    def quantize(x):   # nearest step, ties to even (as sensor.rs)
+    def quantize(x):  # nearest step, ties to even (as sensor.rs)
         return round(x * inv_q) * q if q > 0 else x
 
     t0 = time.perf_counter()
     s = np.zeros(n)
-    line = [quantize(s[1])] * delay          # readings taken 1..delay samples ago
+    line = [quantize(s[1])] * delay  # readings taken 1..delay samples ago
     integral, deriv, y_prev = 0.0, 0.0, s[1]
     xs = np.empty(reference.size)
     for kk, r in enumerate(reference):
@@ -420,8 +477,7 @@ def refinement_substeps(stage, command, substeps, tolerance):
         level = 0
         if not math.isinf(tolerance):
             travel = abs(min(max(u, amp.v_min), amp.v_max) - va) if math.isfinite(amp.bandwidth) else 0.0
-            drive = (p.capacitance * travel + p.tem * abs(v) * stage.sample_time if p.hyst_drive == "charge"
-                     else travel)
+            drive = p.capacitance * travel + p.tem * abs(v) * stage.sample_time if p.hyst_drive == "charge" else travel
             exponent = (abs(p.hyst_beta) + abs(p.hyst_gamma)) * drive / substeps
             limit = tolerance
             while exponent > limit and level + 1 < LEVELS:
@@ -457,14 +513,14 @@ def accuracy_setup():
     import piezohyst as ph
 
     sys.path.insert(0, str(ROOT / "tests"))
-    from stage_reference import reference_positions  # noqa: E402
+    from stage_reference import reference_positions
 
     stage = ph.virtual_stage()
     stage = stage.with_(amplifier=ph.Amplifier(stage.amplifier.v_min, stage.amplifier.v_max, 3000.0))
     t = np.arange(ACC_SAMPLES) * TS
     commands = {
-        "sine_1kHz": 75.0 - 75.0 * np.cos(2 * np.pi * 1000.0 * t),     # 0..150 V
-        "step_100V": np.where(t >= 5e-4 - 1e-12, 100.0, 0.0),          # 0 -> 100 V at 0.5 ms
+        "sine_1kHz": 75.0 - 75.0 * np.cos(2 * np.pi * 1000.0 * t),  # 0..150 V
+        "step_100V": np.where(t >= 5e-4 - 1e-12, 100.0, 0.0),  # 0 -> 100 V at 0.5 ms
     }
     refs, ref_time = {}, {}
     for name, u in commands.items():
@@ -479,8 +535,9 @@ def accuracy_setup():
 
 
 def piezohyst_configs():
-    cfgs = [{"label": f"tol={'inf' if math.isinf(t) else f'{t:g}'}", "substeps": 1, "tolerance": t}
-            for t in ACC_TOLERANCES]
+    cfgs = [
+        {"label": f"tol={'inf' if math.isinf(t) else f'{t:g}'}", "substeps": 1, "tolerance": t} for t in ACC_TOLERANCES
+    ]
     cfgs += [{"label": f"substeps={m}", "substeps": m, "tolerance": math.inf} for m in ACC_SUBSTEPS if m != 1]
     return cfgs
 
@@ -492,8 +549,12 @@ def main(argv=None) -> int:
     ap.add_argument("--rounds", type=int, default=5, help="interleaved rounds to spread machine noise")
     ap.add_argument("--reps", type=int, default=9, help="minimum repetitions per case (over all rounds)")
     ap.add_argument("--batch-reps", type=int, default=9, help="minimum batch repetitions per thread count")
-    ap.add_argument("--min-time", type=float, default=0.4,
-                    help="per round and case, repeat fast calls until about this many seconds")
+    ap.add_argument(
+        "--min-time",
+        type=float,
+        default=0.4,
+        help="per round and case, repeat fast calls until about this many seconds",
+    )
     ap.add_argument("--max-reps", type=int, default=200, help="cap on repetitions per round and case")
     ap.add_argument("--worker", metavar="SPEC", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
@@ -510,9 +571,14 @@ def main(argv=None) -> int:
     vers = versions()
     rounds = max(1, args.rounds)
     ext = extension_digest()
-    base_spec = {"extension_sha256": ext, "seed": args.seed, "reps": math.ceil(args.reps / rounds),
-                 "batch_reps": math.ceil(args.batch_reps / rounds),
-                 "min_time": args.min_time, "max_reps": args.max_reps}
+    base_spec = {
+        "extension_sha256": ext,
+        "seed": args.seed,
+        "reps": math.ceil(args.reps / rounds),
+        "batch_reps": math.ceil(args.batch_reps / rounds),
+        "min_time": args.min_time,
+        "max_reps": args.max_reps,
+    }
     specs = {1: {**base_spec, "single": True, "batch": True}, 2: {**base_spec, "single": False, "batch": True}}
     # the loop without AVX2 (what a CPU without it runs): a few timed calls per round, and
     # its signals must equal the AVX2 path's bit for bit
@@ -520,8 +586,8 @@ def main(argv=None) -> int:
 
     vstage = ph.virtual_stage()
     pid = ph.PID(**PID_GAINS)
-    pid_core = pid.core(vstage)[1]   # (kind, params, inverse, learning)
-    n_base = int(round(BASELINE_HORIZON / TS))
+    pid_core = pid.core(vstage)[1]  # (kind, params, inverse, learning)
+    n_base = round(BASELINE_HORIZON / TS)
     base_refs = {name: rtf_reference(kind, f, RTF_HORIZON)[:n_base] for name, (kind, f) in RTF_REFS.items()}
 
     # part 3 setup: tight references, piezohyst errors and sub-step counts (untimed)
@@ -535,19 +601,26 @@ def main(argv=None) -> int:
             x = acc_stage.simulate(u, substeps=c["substeps"], tolerance=c["tolerance"]).position
             counts, xs_step = refinement_substeps(acc_stage, u, c["substeps"], c["tolerance"])
             acc[name]["piezohyst"][c["label"]] = {
-                "substeps": c["substeps"], "tolerance": jnum(c["tolerance"]),
+                "substeps": c["substeps"],
+                "tolerance": jnum(c["tolerance"]),
                 "max_rel_error": float(np.max(np.abs(x - xr)) / scale),
-                "substeps_per_period_mean": float(counts.mean()), "substeps_per_period_max": int(counts.max()),
+                "substeps_per_period_mean": float(counts.mean()),
+                "substeps_per_period_max": int(counts.max()),
                 "hit_refinement_cap": bool(counts.max() >= c["substeps"] << (LEVELS - 1)),
                 "stepwise_equals_full_run": bool(np.array_equal(xs_step, x)),
-                "times_s": [], "core_times_s": [],
+                "times_s": [],
+                "core_times_s": [],
             }
         for meth in IVP_METHODS:
             for rtol in IVP_RTOLS:
                 x = ivp_open_loop(acc_stage, u, rtol, meth)
                 acc[name]["solve_ivp"][f"{meth} rtol={rtol:g}"] = {
-                    "method": meth, "rtol": rtol, "atol": "1e-2 * rtol * [150 V, 2e-5 m, 1 m/s, 20 V, 150 V...]",
-                    "max_rel_error_vs_rtol_1e-12": float(np.max(np.abs(x - xr)) / scale), "times_s": []}
+                    "method": meth,
+                    "rtol": rtol,
+                    "atol": "1e-2 * rtol * [150 V, 2e-5 m, 1 m/s, 20 V, 150 V...]",
+                    "max_rel_error_vs_rtol_1e-12": float(np.max(np.abs(x - xr)) / scale),
+                    "times_s": [],
+                }
 
     # cross-check of the closed-loop baseline and piezohyst (noise-free, unquantized sensor,
     # same delay) against a tight solve_ivp closed loop: both compute the same loop, and
@@ -558,9 +631,11 @@ def main(argv=None) -> int:
     for name, ref in base_refs.items():
         xt, _ = ivp_closed_loop(clean, pid_core, ref, CROSS_RTOL, BASELINE_METHOD, 0)
         sc = float(np.max(np.abs(xt)))
-        c = {"against": f"solve_ivp {BASELINE_METHOD} rtol {CROSS_RTOL:g} closed loop, noise-free sensor",
-             "piezohyst_default": float(np.max(np.abs(ph.closed_loop(clean, pid, ref).position - xt)) / sc),
-             "piezohyst_substeps64_tol1e-4": float(np.max(np.abs(ph.closed_loop(fine, pid, ref).position - xt)) / sc)}
+        c = {
+            "against": f"solve_ivp {BASELINE_METHOD} rtol {CROSS_RTOL:g} closed loop, noise-free sensor",
+            "piezohyst_default": float(np.max(np.abs(ph.closed_loop(clean, pid, ref).position - xt)) / sc),
+            "piezohyst_substeps64_tol1e-4": float(np.max(np.abs(ph.closed_loop(fine, pid, ref).position - xt)) / sc),
+        }
         for rt in BASELINE_RTOLS:
             xb, _ = ivp_closed_loop(clean, pid_core, ref, rt, BASELINE_METHOD, 0)
             c[f"baseline_rtol_{rt:g}"] = float(np.max(np.abs(xb - xt)) / sc)
@@ -580,17 +655,27 @@ def main(argv=None) -> int:
                 xb, wall = ivp_closed_loop(vstage, pid_core, ref, rt, BASELINE_METHOD, args.seed + rnd)
                 base_times[name, rt].append(wall)
                 e = ref - xb
-                base_metrics[name, rt] = {"rmse_um": float(np.sqrt(np.mean(e**2)) * 1e6),
-                                          "max_error_um": float(np.max(np.abs(e)) * 1e6)}
+                base_metrics[name, rt] = {
+                    "rmse_um": float(np.sqrt(np.mean(e**2)) * 1e6),
+                    "max_error_um": float(np.max(np.abs(e)) * 1e6),
+                }
         for name, u in commands.items():
             for c in cfgs:
                 ent = acc[name]["piezohyst"][c["label"]]
-                ts_, _, _ = timed(lambda: acc_stage.simulate(u, substeps=c["substeps"], tolerance=c["tolerance"]),
-                                  base_spec["reps"], 0.05, args.max_reps)
+                ts_, _, _ = timed(
+                    lambda: acc_stage.simulate(u, substeps=c["substeps"], tolerance=c["tolerance"]),
+                    base_spec["reps"],
+                    0.05,
+                    args.max_reps,
+                )
                 ent["times_s"].extend(ts_)
                 params, st0 = acc_stage.core_params(), acc_stage.rest_state()
-                ts_, _, _ = timed(lambda: _core.stage_simulate(params, TS, c["substeps"], c["tolerance"], u, st0.copy()),
-                                  base_spec["reps"], 0.05, args.max_reps)
+                ts_, _, _ = timed(
+                    lambda: _core.stage_simulate(params, TS, c["substeps"], c["tolerance"], u, st0.copy()),
+                    base_spec["reps"],
+                    0.05,
+                    args.max_reps,
+                )
                 ent["core_times_s"].extend(ts_)
             for meth in IVP_METHODS:
                 for rtol in IVP_RTOLS:
@@ -611,8 +696,12 @@ def main(argv=None) -> int:
         for rt in BASELINE_RTOLS:
             bm = med(base_times[name, rt])
             baselines[f"rtol_{rt:g}"] = {
-                "method": BASELINE_METHOD, "rtol": rt, "simulated_s": BASELINE_HORIZON,
-                "times_s": base_times[name, rt], "median_s": bm, "rtf": BASELINE_HORIZON / bm,
+                "method": BASELINE_METHOD,
+                "rtol": rt,
+                "simulated_s": BASELINE_HORIZON,
+                "times_s": base_times[name, rt],
+                "median_s": bm,
+                "rtf": BASELINE_HORIZON / bm,
                 "projected_wall_s_for_10s": RTF_HORIZON * bm / BASELINE_HORIZON,
                 "speedup_piezohyst_vs_this": (RTF_HORIZON / m) / (BASELINE_HORIZON / bm),
                 "tracking_last_round_with_noise": base_metrics[name, rt],
@@ -620,18 +709,29 @@ def main(argv=None) -> int:
             }
         head = baselines[f"rtol_{BASELINE_RTOLS[0]:g}"]
         rtf[name] = {
-            "samples": per[0]["samples"], "simulated_s": RTF_HORIZON, "reps": len(times),
-            "times_s_by_round": [p["times_s"] for p in per], "median_s": m, "min_s": min(times),
-            "rtf": RTF_HORIZON / m, "rtf_best": RTF_HORIZON / min(times),
+            "samples": per[0]["samples"],
+            "simulated_s": RTF_HORIZON,
+            "reps": len(times),
+            "times_s_by_round": [p["times_s"] for p in per],
+            "median_s": m,
+            "min_s": min(times),
+            "rtf": RTF_HORIZON / m,
+            "rtf_best": RTF_HORIZON / min(times),
             "ns_per_sample": 1e9 * m / per[0]["samples"],
-            "core_call_only": {"median_s": med(core_times), "rtf": RTF_HORIZON / med(core_times),
-                               "python_overhead_fraction": 1 - med(core_times) / m},
+            "core_call_only": {
+                "median_s": med(core_times),
+                "rtf": RTF_HORIZON / med(core_times),
+                "python_overhead_fraction": 1 - med(core_times) / m,
+            },
             "tracking": {k: v for k, v in per[0]["metrics"].items()},
             "load_by_round": [p["load"] for p in per],
             "rtf_by_round": [RTF_HORIZON / med(p["times_s"]) for p in per],
             "other_cores_busy_median": _med_load(per, "load"),
-            "stolen_cores_median": (med([p["load"]["stolen_cores"] for p in per])
-                                    if all(p["load"].get("stolen_cores") is not None for p in per) else None),
+            "stolen_cores_median": (
+                med([p["load"]["stolen_cores"] for p in per])
+                if all(p["load"].get("stolen_cores") is not None for p in per)
+                else None
+            ),
             "baseline_solve_ivp": {"headline": f"rtol_{BASELINE_RTOLS[0]:g}", **baselines},
             "baseline_rtf": head["rtf"],
             "speedup_vs_baseline": head["speedup_piezohyst_vs_this"],
@@ -647,8 +747,12 @@ def main(argv=None) -> int:
             raise AssertionError(f"{name}: closed_loop without AVX2 differs from the AVX2 path")
         times = [x for p in per for x in p["times_s"]]
         rtf[name]["without_avx2"] = {
-            "env": "PIEZOHYST_NO_AVX2=1", "reps": len(times), "median_s": med(times), "min_s": min(times),
-            "rtf": RTF_HORIZON / med(times), "bitwise_identical_to_default": True,
+            "env": "PIEZOHYST_NO_AVX2=1",
+            "reps": len(times),
+            "median_s": med(times),
+            "min_s": min(times),
+            "rtf": RTF_HORIZON / med(times),
+            "bitwise_identical_to_default": True,
             "default_path": "AVX2" if has_avx2 else "baseline x86-64 (no AVX2 on this CPU)",
         }
 
@@ -675,11 +779,17 @@ def main(argv=None) -> int:
         times = [x for p in per for x in p["times_s"]]
         core_times = [x for p in per for x in p["core_times_s"]]
         batch[f"{t}_thread"] = {
-            "rayon_threads": worker_rounds[t][0]["rayon_threads"], "reps": len(times),
-            "times_s_by_round": [p["times_s"] for p in per], "median_s": med(times), "min_s": min(times),
+            "rayon_threads": worker_rounds[t][0]["rayon_threads"],
+            "reps": len(times),
+            "times_s_by_round": [p["times_s"] for p in per],
+            "median_s": med(times),
+            "min_s": min(times),
             "rtf_aggregate": BATCH_SIZE * BATCH_DURATION / med(times),
-            "core_call_only": {"median_s": med(core_times), "min_s": min(core_times),
-                               "load_by_round": [p["core_load"] for p in per]},
+            "core_call_only": {
+                "median_s": med(core_times),
+                "min_s": min(core_times),
+                "load_by_round": [p["core_load"] for p in per],
+            },
             "load_by_round": [p["load"] for p in per],
             "other_cores_busy_median": _med_load(per, "load"),
         }
@@ -692,14 +802,18 @@ def main(argv=None) -> int:
     batch["digest"] = digests[1]
     batch["scaling_2T_over_1T"] = batch["1_thread"]["median_s"] / batch["2_thread"]["median_s"]
     batch["scaling_best_of"] = batch["1_thread"]["min_s"] / batch["2_thread"]["min_s"]
-    batch["scaling_by_round"] = [med(a["times_s"]) / med(b["times_s"]) for a, b in
-                                 zip((w["batch"] for w in worker_rounds[1]), (w["batch"] for w in worker_rounds[2]))]
-    batch["core_call_scaling_2T_over_1T"] = (batch["1_thread"]["core_call_only"]["median_s"]
-                                             / batch["2_thread"]["core_call_only"]["median_s"])
+    batch["scaling_by_round"] = [
+        med(a["times_s"]) / med(b["times_s"])
+        for a, b in zip((w["batch"] for w in worker_rounds[1]), (w["batch"] for w in worker_rounds[2]), strict=False)
+    ]
+    batch["core_call_scaling_2T_over_1T"] = (
+        batch["1_thread"]["core_call_only"]["median_s"] / batch["2_thread"]["core_call_only"]["median_s"]
+    )
     serial = batch["1_thread"]["median_s"] - batch["1_thread"]["core_call_only"]["median_s"]
     batch["serial_python_s_1T"] = serial
-    batch["public_scaling_bound_if_core_scaled_2x"] = (
-        batch["1_thread"]["median_s"] / (serial + batch["1_thread"]["core_call_only"]["median_s"] / 2))
+    batch["public_scaling_bound_if_core_scaled_2x"] = batch["1_thread"]["median_s"] / (
+        serial + batch["1_thread"]["core_call_only"]["median_s"] / 2
+    )
     batch["pass"] = batch["scaling_2T_over_1T"] >= TARGET_SCALING
     loads = [batch[f"{t}_thread"]["other_cores_busy_median"] for t in THREADS]
     loads = [x for x in loads if x is not None]
@@ -723,98 +837,108 @@ def main(argv=None) -> int:
             if ok:
                 k, e = min(ok, key=lambda ke: ke[1]["median_s"])
                 ent["fastest_solve_ivp_at_least_as_accurate"] = {
-                    "run": k, "median_s": e["median_s"], "max_rel_error": e["max_rel_error_vs_rtol_1e-12"],
-                    "speedup": e["median_s"] / ent["median_s"]}
+                    "run": k,
+                    "median_s": e["median_s"],
+                    "max_rel_error": e["max_rel_error_vs_rtol_1e-12"],
+                    "speedup": e["median_s"] / ent["median_s"],
+                }
             else:
                 ent["fastest_solve_ivp_at_least_as_accurate"] = None
-        acc[name]["reference"] = {"method": "DOP853 (tests/stage_reference.py::reference_positions)",
-                                  "rtol": REF_RTOL, "atol_scale": REF_RTOL * 1e-2, "time_s": ref_time[name],
-                                  "max_abs_position_m": float(np.max(np.abs(acc_refs[name])))}
+        acc[name]["reference"] = {
+            "method": "DOP853 (tests/stage_reference.py::reference_positions)",
+            "rtol": REF_RTOL,
+            "atol_scale": REF_RTOL * 1e-2,
+            "time_s": ref_time[name],
+            "max_abs_position_m": float(np.max(np.abs(acc_refs[name]))),
+        }
 
     rtf_pass = all(v["pass"] for v in rtf.values())
     payload = {
         "benchmark": "closed_loop",
-        "timestamp_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "timestamp_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         "machine": info,
         "versions": vers,
         "method": {
             "blas": "OPENBLAS_NUM_THREADS=1 in this process and the workers",
             "statistic": "median of repetitions over all rounds (min and raw times also given)",
             "rounds": f"{rounds} interleaved rounds: 1-thread worker (RTF + batch), 2-thread worker (batch), "
-                      "solve_ivp closed-loop baseline, accuracy timings",
+            "solve_ivp closed-loop baseline, accuracy timings",
             "workers": "one subprocess per thread count with RAYON_NUM_THREADS set; one warm-up call per case "
-                       "(two for the RTF cases: the first call in a fresh worker pays one-time allocator costs, "
-                       "and the number of repetitions per round is sized by the second)",
+            "(two for the RTF cases: the first call in a fresh worker pays one-time allocator costs, "
+            "and the number of repetitions per round is sized by the second)",
             "rtf": {
                 "call": "piezohyst.closed_loop(virtual_stage(), PID(kp=1e6, ki=5e9), reference, rng=1) — public API, "
-                        "Python preparation (validation, finite and stroke check of the reference; a PID "
-                        "needs no reference derivatives) and result objects included; single thread "
-                        "(1-thread worker)",
+                "Python preparation (validation, finite and stroke check of the reference; a PID "
+                "needs no reference derivatives) and result objects included; single thread "
+                "(1-thread worker)",
                 "stage": "virtual_stage() as shipped (its own loop settings, below)",
                 "stage_file": vstage.to_dict(),
                 "references": "10 Hz sine and 5 Hz triangle, 0..20 um (10 um amplitude about 10 um), 10 s at 10 kHz",
                 "core_call_only": "the same run through piezohyst._core.closed_loop alone (diagnostic)",
                 "approx_substeps_per_period_sine": approx_substeps,
                 "approx_substeps_note": "from the core's refinement rule applied to the recorded signals, "
-                                        "velocity by finite differences (approximate)",
+                "velocity by finite differences (approximate)",
                 "instruction_set": "the loop runs compiled for AVX2 when the CPU has it (runtime detection), "
-                                   "else for baseline x86-64; the same scalar IEEE operations either way (no "
-                                   "fused multiply-add), so the same bits. without_avx2: the same call in a "
-                                   "worker with PIEZOHYST_NO_AVX2=1, a few calls per round; its signals are "
-                                   "asserted bit-identical (digest over every signal)",
+                "else for baseline x86-64; the same scalar IEEE operations either way (no "
+                "fused multiply-add), so the same bits. without_avx2: the same call in a "
+                "worker with PIEZOHYST_NO_AVX2=1, a few calls per round; its signals are "
+                "asserted bit-identical (digest over every signal)",
                 "target": TARGET_RTF,
             },
             "baseline": {
                 "name": "solve_ivp plant + Python PID/sensor per sample",
                 "description": "the same closed loop (same stage incl. slew limit and creep, same PID equations "
-                               "incl. feedforward and anti-windup, same sensor quantization/delay; sensor noise "
-                               "from a NumPy Generator, so the noise sequence differs) with the plant integrated "
-                               "by scipy.integrate.solve_ivp over each 0.1 ms controller period",
+                "incl. feedforward and anti-windup, same sensor quantization/delay; sensor noise "
+                "from a NumPy Generator, so the noise sequence differs) with the plant integrated "
+                "by scipy.integrate.solve_ivp over each 0.1 ms controller period",
                 "equations": "tests/stage_reference.py's continuous equations (copied into bench/closed_loop.py:"
-                             "make_rhs, plus |Va'| <= slew); checked against reference_positions to 1e-9",
-                "solver": {"method": BASELINE_METHOD, "rtols": list(BASELINE_RTOLS),
-                           "headline_rtol": BASELINE_RTOLS[0],
-                           "atol": "1e-2 * rtol * [150 V, 2e-5 m, 1 m/s, 20 V, 150 V x creep]"},
+                "make_rhs, plus |Va'| <= slew); checked against reference_positions to 1e-9",
+                "solver": {
+                    "method": BASELINE_METHOD,
+                    "rtols": list(BASELINE_RTOLS),
+                    "headline_rtol": BASELINE_RTOLS[0],
+                    "atol": "1e-2 * rtol * [150 V, 2e-5 m, 1 m/s, 20 V, 150 V x creep]",
+                },
                 "why_this_rtol": "the headline rtol (scipy's default 1e-3) already computes this loop more "
-                                 "accurately than piezohyst's default settings do (cross_check_noise_free); "
-                                 "rtol 1e-6 is given too",
+                "accurately than piezohyst's default settings do (cross_check_noise_free); "
+                "rtol 1e-6 is given too",
                 "horizon_s": BASELINE_HORIZON,
                 "scaled": True,
                 "scaling": "RTF = horizon / wall time of the loop over the horizon (not run for 10 s)",
                 "not_used": "a pure-Python/NumPy per-sample loop of the exact discretization (too slow to be "
-                            "interesting); the solve_ivp loop is the named baseline",
+                "interesting); the solve_ivp loop is the named baseline",
                 "cross_check": "with a noise-free, unquantized sensor (delay kept), the baseline at each rtol, "
-                               "piezohyst at its defaults and piezohyst at substeps=64/tolerance=1e-4 are "
-                               f"compared with a solve_ivp closed loop at rtol {CROSS_RTOL:g} over the horizon "
-                               "(max |dx| / max |x|)",
+                "piezohyst at its defaults and piezohyst at substeps=64/tolerance=1e-4 are "
+                f"compared with a solve_ivp closed loop at rtol {CROSS_RTOL:g} over the horizon "
+                "(max |dx| / max |x|)",
             },
             "batch": {
                 "call": "piezohyst.closed_loop_batch(virtual_stage(), scenarios, rng=seed) — public API",
                 "scenarios": f"{BATCH_SIZE} scenarios of {BATCH_DURATION} s: sine, triangle (rounded), variable-"
-                             "amplitude sine, multisine, chirp, staircase in turn; amplitudes 2..9 um; PID kp "
-                             "log-uniform 3e5..1.5e6 V/m, ki 1e9..8e9 V/(m s); seeded",
+                "amplitude sine, multisine, chirp, staircase in turn; amplitudes 2..9 um; PID kp "
+                "log-uniform 3e5..1.5e6 V/m, ki 1e9..8e9 V/(m s); seeded",
                 "identity_check": "sha256 over every scenario's position, command, voltage, measured, terms and "
-                                  "final state; equal across repetitions, rounds and thread counts (asserted)",
+                "final state; equal across repetitions, rounds and thread counts (asserted)",
                 "core_call_only": "piezohyst._core.closed_loop_batch alone (diagnostic: the part rayon "
-                                  "parallelizes; the public call adds serial Python preparation and results)",
+                "parallelizes; the public call adds serial Python preparation and results)",
                 "target_scaling": TARGET_SCALING,
                 "load": "own_cores_busy / other_cores_busy: this worker's CPU seconds and the rest of the "
-                        "machine's (/proc/stat busy minus own, hypervisor steal included) per wall second over "
-                        "the repetitions; stolen_cores: the steal part alone; other load > 0 on 2 CPUs means "
-                        "the 2-thread figure was contended",
+                "machine's (/proc/stat busy minus own, hypervisor steal included) per wall second over "
+                "the repetitions; stolen_cores: the steal part alone; other load > 0 on 2 CPUs means "
+                "the 2-thread figure was contended",
                 "public_scaling_bound_if_core_scaled_2x": "1T public time / (serial Python part + 1T core "
-                                                          "time / 2): Amdahl's bound for the public call",
+                "time / 2): Amdahl's bound for the public call",
             },
             "accuracy": {
                 "stage": "virtual_stage() with amplifier Amplifier(-20, 150, 3000.0) (no slew limit)",
                 "commands": "1 kHz sine 75 - 75 cos(2 pi 1000 t) V and a 0 -> 100 V step at 0.5 ms, ZOH at 10 kHz, "
-                            f"{ACC_SAMPLES} samples (6 ms)",
+                f"{ACC_SAMPLES} samples (6 ms)",
                 "error": "max |x - x_ref| / max |x_ref| over the samples",
                 "reference": "tests/stage_reference.py::reference_positions, DOP853, rtol 1e-12, atol 1e-14 * scale",
                 "piezohyst_time": "stage.simulate(u, substeps=..., tolerance=...) public call (median_s); "
-                                  "core_median_s: piezohyst._core.stage_simulate alone",
+                "core_median_s: piezohyst._core.stage_simulate alone",
                 "substeps_per_period": "the core's refinement rule (Stage::refinement) replicated from the state "
-                                       "at each period start; cap 2^10 x substeps",
+                "at each period start; cap 2^10 x substeps",
                 "solve_ivp_time": "one period at a time (as the reference), per-call setup included",
             },
             "seed": args.seed,
@@ -823,10 +947,12 @@ def main(argv=None) -> int:
         "batch": batch,
         "accuracy": acc,
         "targets": {
-            "rtf_ge_1000_single_thread": {"pass": rtf_pass,
-                                          "measured": {k: v["rtf"] for k, v in rtf.items()}},
-            "batch_scaling_ge_1_8": {"pass": batch["pass"], "measured": batch["scaling_2T_over_1T"],
-                                     "core_call_only": batch["core_call_scaling_2T_over_1T"]},
+            "rtf_ge_1000_single_thread": {"pass": rtf_pass, "measured": {k: v["rtf"] for k, v in rtf.items()}},
+            "batch_scaling_ge_1_8": {
+                "pass": batch["pass"],
+                "measured": batch["scaling_2T_over_1T"],
+                "core_call_only": batch["core_call_scaling_2T_over_1T"],
+            },
             "batch_threads_identical": identical,
             "batch_timings_contended_by_other_processes": batch["contended"],
         },
@@ -843,87 +969,130 @@ def main(argv=None) -> int:
 
     # ---- tables
     yes = {True: "PASS", False: "FAIL"}
-    print(f"Closed-loop benchmark — {info['cpu_model']}, {info['cpu_count']} CPUs, piezohyst {vers['piezohyst']}, "
-          f"numpy {vers['numpy']}, scipy {vers['scipy']}")
+    print(
+        f"Closed-loop benchmark — {info['cpu_model']}, {info['cpu_count']} CPUs, piezohyst {vers['piezohyst']}, "
+        f"numpy {vers['numpy']}, scipy {vers['scipy']}"
+    )
     print("\n1. Real-time factor, 10 kHz PID(kp=1e6, ki=5e9) on virtual_stage(), 10 s simulated, 1 thread")
-    hdr = (f"{'reference':<13} | {'wall (ms)':>9} {'RTF':>7} {'best':>7} {'ns/sample':>9} | {'core RTF':>8} "
-           f"{'py ovh':>6} | {'solve_ivp RTF':>13} {'speedup':>8} | {'>=1000x':>7}")
+    hdr = (
+        f"{'reference':<13} | {'wall (ms)':>9} {'RTF':>7} {'best':>7} {'ns/sample':>9} | {'core RTF':>8} "
+        f"{'py ovh':>6} | {'solve_ivp RTF':>13} {'speedup':>8} | {'>=1000x':>7}"
+    )
     b0 = f"rtol_{BASELINE_RTOLS[0]:g}"
     print(hdr)
     print("-" * len(hdr))
     for name, v in rtf.items():
         b = v["baseline_solve_ivp"][b0]
-        print(f"{name:<13} | {1e3 * v['median_s']:>9.1f} {v['rtf']:>6.0f}x {v['rtf_best']:>6.0f}x "
-              f"{v['ns_per_sample']:>9.0f} | {v['core_call_only']['rtf']:>7.0f}x "
-              f"{100 * v['core_call_only']['python_overhead_fraction']:>5.0f}% | {b['rtf']:>12.4f}x "
-              f"{v['speedup_vs_baseline']:>7.0f}x | {yes[v['pass']]:>7}")
-    print(f"  baseline: same loop, plant by solve_ivp ({BASELINE_METHOD}, rtol {BASELINE_RTOLS[0]:g}) per 0.1 ms "
-          f"period, PID/sensor in Python, {BASELINE_HORIZON} s horizon, scaled")
+        print(
+            f"{name:<13} | {1e3 * v['median_s']:>9.1f} {v['rtf']:>6.0f}x {v['rtf_best']:>6.0f}x "
+            f"{v['ns_per_sample']:>9.0f} | {v['core_call_only']['rtf']:>7.0f}x "
+            f"{100 * v['core_call_only']['python_overhead_fraction']:>5.0f}% | {b['rtf']:>12.4f}x "
+            f"{v['speedup_vs_baseline']:>7.0f}x | {yes[v['pass']]:>7}"
+        )
+    print(
+        f"  baseline: same loop, plant by solve_ivp ({BASELINE_METHOD}, rtol {BASELINE_RTOLS[0]:g}) per 0.1 ms "
+        f"period, PID/sensor in Python, {BASELINE_HORIZON} s horizon, scaled"
+    )
     for name, v in rtf.items():
-        others = ", ".join(f"rtol {bb['rtol']:g}: RTF {bb['rtf']:.4f}x (speedup {bb['speedup_piezohyst_vs_this']:.0f}x)"
-                           for k, bb in v["baseline_solve_ivp"].items() if k not in ("headline", b0))
+        others = ", ".join(
+            f"rtol {bb['rtol']:g}: RTF {bb['rtf']:.4f}x (speedup {bb['speedup_piezohyst_vs_this']:.0f}x)"
+            for k, bb in v["baseline_solve_ivp"].items()
+            if k not in ("headline", b0)
+        )
         c = cross[name]
-        print(f"  {name}: {others}; noise-free accuracy vs solve_ivp rtol {CROSS_RTOL:g}: piezohyst default "
-              f"{c['piezohyst_default']:.1e}, piezohyst substeps=64/tol=1e-4 {c['piezohyst_substeps64_tol1e-4']:.1e}, "
-              + ", ".join(f"baseline rtol {rt:g} {c[f'baseline_rtol_{rt:g}']:.1e}" for rt in BASELINE_RTOLS))
-    print(f"  stage loop settings: substeps={vstage.substeps}, tolerance={vstage.tolerance}; approx. sub-steps per "
-          f"period on the sine: {approx_substeps:.2f}")
+        print(
+            f"  {name}: {others}; noise-free accuracy vs solve_ivp rtol {CROSS_RTOL:g}: piezohyst default "
+            f"{c['piezohyst_default']:.1e}, piezohyst substeps=64/tol=1e-4 {c['piezohyst_substeps64_tol1e-4']:.1e}, "
+            + ", ".join(f"baseline rtol {rt:g} {c[f'baseline_rtol_{rt:g}']:.1e}" for rt in BASELINE_RTOLS)
+        )
+    print(
+        f"  stage loop settings: substeps={vstage.substeps}, tolerance={vstage.tolerance}; approx. sub-steps per "
+        f"period on the sine: {approx_substeps:.2f}"
+    )
     for name, v in rtf.items():
         st_ = v["stolen_cores_median"]
-        print(f"  {name}: RTF by round " + ", ".join(f"{x:.0f}x" for x in v["rtf_by_round"])
-              + (f"; machine during the timings (median over rounds): other load {v['other_cores_busy_median']:.2f} "
-                 "cores" if v["other_cores_busy_median"] is not None else "")
-              + (f", of which stolen by the hypervisor {st_:.2f}" if st_ is not None else ""))
-    print("  without AVX2 (PIEZOHYST_NO_AVX2=1, bit-identical signals): "
-          + ", ".join(f"{k} RTF {v['without_avx2']['rtf']:.0f}x" for k, v in rtf.items())
-          + f"; default path here: {next(iter(rtf.values()))['without_avx2']['default_path']}")
+        print(
+            f"  {name}: RTF by round "
+            + ", ".join(f"{x:.0f}x" for x in v["rtf_by_round"])
+            + (
+                f"; machine during the timings (median over rounds): other load {v['other_cores_busy_median']:.2f} "
+                "cores"
+                if v["other_cores_busy_median"] is not None
+                else ""
+            )
+            + (f", of which stolen by the hypervisor {st_:.2f}" if st_ is not None else "")
+        )
+    print(
+        "  without AVX2 (PIEZOHYST_NO_AVX2=1, bit-identical signals): "
+        + ", ".join(f"{k} RTF {v['without_avx2']['rtf']:.0f}x" for k, v in rtf.items())
+        + f"; default path here: {next(iter(rtf.values()))['without_avx2']['default_path']}"
+    )
 
     print(f"\n2. Batch: {BATCH_SIZE} scenarios x {BATCH_DURATION} s via closed_loop_batch")
     b1, b2 = batch["1_thread"], batch["2_thread"]
-    hdr = (f"{'threads':>7} | {'wall (ms)':>9} {'best':>7} | {'core (ms)':>9} | {'agg. RTF':>8} | "
-           f"{'other load':>10}")
+    hdr = f"{'threads':>7} | {'wall (ms)':>9} {'best':>7} | {'core (ms)':>9} | {'agg. RTF':>8} | {'other load':>10}"
     print(hdr)
     print("-" * len(hdr))
     for t, bb in ((1, b1), (2, b2)):
-        print(f"{t:>7} | {1e3 * bb['median_s']:>9.1f} {1e3 * bb['min_s']:>7.1f} | "
-              f"{1e3 * bb['core_call_only']['median_s']:>9.1f} | {bb['rtf_aggregate']:>7.0f}x | "
-              + (f"{bb['other_cores_busy_median']:>4.2f} cores" if bb["other_cores_busy_median"] is not None
-                 else f"{'n/a':>10}"))
-    print(f"  scaling 2T/1T: {batch['scaling_2T_over_1T']:.2f}x (best-of {batch['scaling_best_of']:.2f}x; core call "
-          f"alone {batch['core_call_scaling_2T_over_1T']:.2f}x) — target >= {TARGET_SCALING}: {yes[batch['pass']]}; "
-          f"1T/2T bit-identical: {identical}")
-    print(f"  serial Python part of the public call (1T): {1e3 * serial:.0f} ms of {1e3 * b1['median_s']:.0f} ms; "
-          f"public-call scaling if the core call scaled exactly 2x: "
-          f"{batch['public_scaling_bound_if_core_scaled_2x']:.2f}x. 'other load': CPU used by other processes "
-          f"during the repetitions (median over rounds)")
+        print(
+            f"{t:>7} | {1e3 * bb['median_s']:>9.1f} {1e3 * bb['min_s']:>7.1f} | "
+            f"{1e3 * bb['core_call_only']['median_s']:>9.1f} | {bb['rtf_aggregate']:>7.0f}x | "
+            + (
+                f"{bb['other_cores_busy_median']:>4.2f} cores"
+                if bb["other_cores_busy_median"] is not None
+                else f"{'n/a':>10}"
+            )
+        )
+    print(
+        f"  scaling 2T/1T: {batch['scaling_2T_over_1T']:.2f}x (best-of {batch['scaling_best_of']:.2f}x; core call "
+        f"alone {batch['core_call_scaling_2T_over_1T']:.2f}x) — target >= {TARGET_SCALING}: {yes[batch['pass']]}; "
+        f"1T/2T bit-identical: {identical}"
+    )
+    print(
+        f"  serial Python part of the public call (1T): {1e3 * serial:.0f} ms of {1e3 * b1['median_s']:.0f} ms; "
+        f"public-call scaling if the core call scaled exactly 2x: "
+        f"{batch['public_scaling_bound_if_core_scaled_2x']:.2f}x. 'other load': CPU used by other processes "
+        f"during the repetitions (median over rounds)"
+    )
 
     print("\n3. Plant integration accuracy vs cost (6 ms at 10 kHz ZOH, amplifier 3 kHz, no slew limit)")
     for name in commands:
         a = acc[name]
         print(f"  {name} (reference: DOP853 rtol 1e-12, {1e3 * a['reference']['time_s']:.0f} ms)")
-        hdr = (f"    {'piezohyst':<14} {'sub/period':>10} {'max rel err':>11} {'time (us)':>9} {'core (us)':>9} | "
-               f"{'fastest solve_ivp as accurate':<29} {'time (ms)':>9} {'speedup':>8}")
+        hdr = (
+            f"    {'piezohyst':<14} {'sub/period':>10} {'max rel err':>11} {'time (us)':>9} {'core (us)':>9} | "
+            f"{'fastest solve_ivp as accurate':<29} {'time (ms)':>9} {'speedup':>8}"
+        )
         print(hdr)
         print("    " + "-" * (len(hdr) - 4))
         for label, e in a["piezohyst"].items():
             f = e["fastest_solve_ivp_at_least_as_accurate"]
             cap = "*" if e["hit_refinement_cap"] else " "
-            side = (f"{f['run']:<29} {1e3 * f['median_s']:>9.1f} {f['speedup']:>7.0f}x" if f
-                    else f"{'(none reaches it)':<29} {'':>9} {'':>8}")
-            print(f"    {label:<14} {e['substeps_per_period_mean']:>9.1f}{cap} {e['max_rel_error']:>11.2e} "
-                  f"{1e6 * e['median_s']:>9.0f} {1e6 * e['core_median_s']:>9.0f} | {side}")
+            side = (
+                f"{f['run']:<29} {1e3 * f['median_s']:>9.1f} {f['speedup']:>7.0f}x"
+                if f
+                else f"{'(none reaches it)':<29} {'':>9} {'':>8}"
+            )
+            print(
+                f"    {label:<14} {e['substeps_per_period_mean']:>9.1f}{cap} {e['max_rel_error']:>11.2e} "
+                f"{1e6 * e['median_s']:>9.0f} {1e6 * e['core_median_s']:>9.0f} | {side}"
+            )
         print(f"    {'solve_ivp':<20} {'max rel err':>11} {'time (ms)':>9}")
         for label, e in a["solve_ivp"].items():
             print(f"    {label:<20} {e['max_rel_error_vs_rtol_1e-12']:>11.2e} {1e3 * e['median_s']:>9.1f}")
     print("  (* = refinement reached its cap of 1024 sub-steps per period somewhere)")
 
     if batch["contended"]:
-        print(f"  WARNING: other processes kept {batch['max_other_cores_busy']:.2f} of {info['cpu_count']} CPUs busy "
-              "during the batch timings; the 2-thread figure and the scaling are contended (load_by_round in the JSON)")
-    print(f"\nTargets: RTF >= {TARGET_RTF:.0f}x single thread: {yes[rtf_pass]} ("
-          + ", ".join(f"{k} {v['rtf']:.0f}x" for k, v in rtf.items())
-          + f"); batch scaling >= {TARGET_SCALING}x: {yes[batch['pass']]} ({batch['scaling_2T_over_1T']:.2f}x). "
-          f"Wrote {args.out} in {payload['wall_time_s']} s.")
+        print(
+            f"  WARNING: other processes kept {batch['max_other_cores_busy']:.2f} of {info['cpu_count']} CPUs busy "
+            "during the batch timings; the 2-thread figure and the scaling are contended (load_by_round in the JSON)"
+        )
+    print(
+        f"\nTargets: RTF >= {TARGET_RTF:.0f}x single thread: {yes[rtf_pass]} ("
+        + ", ".join(f"{k} {v['rtf']:.0f}x" for k, v in rtf.items())
+        + f"); batch scaling >= {TARGET_SCALING}x: {yes[batch['pass']]} ({batch['scaling_2T_over_1T']:.2f}x). "
+        f"Wrote {args.out} in {payload['wall_time_s']} s."
+    )
     return 0
 
 

@@ -1,5 +1,6 @@
 """Shared plumbing of the benchmarks: machine and version info, repetition counts, atomic
 JSON output."""
+
 from __future__ import annotations
 
 import hashlib
@@ -11,7 +12,6 @@ import subprocess
 from pathlib import Path
 
 import numpy as np
-
 
 HERE = Path(__file__).resolve().parent
 
@@ -73,15 +73,32 @@ def versions() -> dict:
     except metadata.PackageNotFoundError:
         dist = None
     try:
-        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=HERE, capture_output=True,
-                                text=True, check=True).stdout.strip() or None
-        dirty = bool(subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=HERE,
-                                    capture_output=True, text=True, check=True).stdout.strip())
+        commit = (
+            subprocess.run(
+                ["git", "rev-parse", "HEAD"], cwd=HERE, capture_output=True, text=True, check=True
+            ).stdout.strip()
+            or None
+        )
+        dirty = bool(
+            subprocess.run(
+                ["git", "status", "--porcelain", "--untracked-files=no"],
+                cwd=HERE,
+                capture_output=True,
+                text=True,
+                check=True,
+            ).stdout.strip()
+        )
     except (OSError, subprocess.CalledProcessError):
         commit, dirty = None, None
-    return {"numpy": np.__version__, "scipy": scipy.__version__, "piezohyst": dist,
-            "piezohyst_core": _core.__version__, "extension_sha256": extension_digest(),
-            "git_commit": commit, "git_tracked_changes": dirty}
+    return {
+        "numpy": np.__version__,
+        "scipy": scipy.__version__,
+        "piezohyst": dist,
+        "piezohyst_core": _core.__version__,
+        "extension_sha256": extension_digest(),
+        "git_commit": commit,
+        "git_tracked_changes": dirty,
+    }
 
 
 def write_json_atomic(path: Path, payload: dict) -> None:

@@ -4,12 +4,12 @@ bench/results/demo.json.
 
 Run: ``.venv/bin/python bench/demo.py``.
 """
+
 from __future__ import annotations
 
 import argparse
 import datetime as _dt
 import json
-import os
 import subprocess
 import sys
 import tempfile
@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import machine_info, write_json_atomic  # noqa: E402
+from common import machine_info, write_json_atomic
 
 OUT = Path(__file__).with_name("results") / "demo.json"
 TARGETS = {"full": 180.0, "quick": 30.0}
@@ -34,8 +34,12 @@ def run(mode: str) -> dict:
             raise RuntimeError(f"{cmd} failed: {p.stderr[-2000:]}")
         wall = time.perf_counter() - t0
         numbers = json.loads(p.stdout)
-    return {"wall_s": wall, "target_s": TARGETS[mode], "pass": wall <= TARGETS[mode],
-            "demo_internal_wall_s": numbers["wall_s"]}
+    return {
+        "wall_s": wall,
+        "target_s": TARGETS[mode],
+        "pass": wall <= TARGETS[mode],
+        "demo_internal_wall_s": numbers["wall_s"],
+    }
 
 
 def main(argv=None):
@@ -43,8 +47,11 @@ def main(argv=None):
     ap.add_argument("--out", type=Path, default=OUT, help=f"JSON output (default {OUT})")
     ap.add_argument("--modes", nargs="+", choices=("quick", "full"), default=["quick", "full"])
     args = ap.parse_args(argv)
-    result = {"timestamp_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-              "machine": machine_info(), "runs": {m: run(m) for m in args.modes}}
+    result = {
+        "timestamp_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "machine": machine_info(),
+        "runs": {m: run(m) for m in args.modes},
+    }
     write_json_atomic(args.out, result)
     print(json.dumps(result, indent=1))
 

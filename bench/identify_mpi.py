@@ -81,6 +81,7 @@ Threads: OPENBLAS_NUM_THREADS=1 (no BLAS pool competing with rayon, as in pi_bat
 RAYON_NUM_THREADS=2 unless set. Results go to JSON (written atomically) and a table is
 printed. The whole run takes about 2.5-3 minutes (mostly (c)'s cap).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -96,22 +97,22 @@ from pathlib import Path
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("RAYON_NUM_THREADS", "2")
 
-import numpy as np  # noqa: E402
+import numpy as np
 
 HERE = Path(__file__).resolve().parent
 if str(HERE) not in sys.path:
     sys.path.insert(0, str(HERE))
 
-from common import machine_info, versions, write_json_atomic  # noqa: E402
+from common import machine_info, versions, write_json_atomic
 
 DEFAULT_OUT = HERE / "results" / "identify_mpi.json"
 N_SAMPLES = 10_000
 N_OPS = 9
-TOL = 0.01                  # "within 1 % of the best RMSE"
-TARGET_TIME_A = 1.0         # issue target for (a), seconds on 2 cores
+TOL = 0.01  # "within 1 % of the best RMSE"
+TARGET_TIME_A = 1.0  # issue target for (a), seconds on 2 cores
 RTOL_NUMPY = 1e-12
-SEED_THRESHOLDS = np.arange(1, N_OPS + 1) / 10.0   # 0.1 .. 0.9 (seed 2, Table 1)
-VP_BOUNDS = (0.3, 1.2)      # (a+vp): largest threshold r_n, in units of the input span
+SEED_THRESHOLDS = np.arange(1, N_OPS + 1) / 10.0  # 0.1 .. 0.9 (seed 2, Table 1)
+VP_BOUNDS = (0.3, 1.2)  # (a+vp): largest threshold r_n, in units of the input span
 PIP_COMMAND = ".venv/bin/python -m pip install pyswarms"
 #: How the pyswarms settings of (c) were chosen: S = 40, T = 2000, cost piezohyst.batch_rmse
 #: (same trajectory as the NumPy model), seeds 0, 1, 2, this record; final best RMSE / best
@@ -134,8 +135,8 @@ def make_record(N: int, seed: int, noise: float):
     import piezohyst
 
     t = np.arange(N) / N
-    swell = 0.3 + 0.7 * np.abs(np.sin(2.0 * np.pi * t))                  # amplitude 0.3 .. 1, twice
-    carrier = 0.5 * (1.0 - np.cos(2.0 * np.pi * 20.0 * t))               # 20 raised-cosine periods
+    swell = 0.3 + 0.7 * np.abs(np.sin(2.0 * np.pi * t))  # amplitude 0.3 .. 1, twice
+    carrier = 0.5 * (1.0 - np.cos(2.0 * np.pi * 20.0 * t))  # 20 raised-cosine periods
     ripple = 1.0 + 0.2 * np.sin(2.0 * np.pi * 53.0 * t + 1.0) + 0.1 * np.sin(2.0 * np.pi * 97.0 * t + 2.0)
     x = swell * carrier * ripple
     v = x / x.max()
@@ -164,8 +165,8 @@ def rows_from(template_row: np.ndarray, X: np.ndarray) -> np.ndarray:
     """(S, 12) search vectors [a1, a2, a3, b1..b9] -> (S, 14 + 2n) GPI rows
     (layout ``range_lo, range_hi, poly[4], rising[4], falling[4], r[n], b[n]``)."""
     R = np.repeat(template_row[None, :], X.shape[0], axis=0)
-    R[:, 3:6] = X[:, :3]                       # poly = [c0 = 0, a1, a2, a3]
-    R[:, 14 + N_OPS:14 + 2 * N_OPS] = X[:, 3:]
+    R[:, 3:6] = X[:, :3]  # poly = [c0 = 0, a1, a2, a3]
+    R[:, 14 + N_OPS : 14 + 2 * N_OPS] = X[:, 3:]
     return np.ascontiguousarray(R)
 
 
@@ -183,15 +184,15 @@ def mpi_rmse_numpy(X, v, y, r):
     S, n, N = X.shape[0], r.size, v.size
     a, b = X[:, :3], np.ascontiguousarray(X[:, 3:])
     # non-recursive parts, whole-array: band edges, polynomial minus target
-    lo = v[:, None] - r                        # (N, n)   g_l(v) - r
-    hi = v[:, None] + r                        # (N, n)   g_r(v) + r
+    lo = v[:, None] - r  # (N, n)   g_l(v) - r
+    hi = v[:, None] + r  # (N, n)   g_r(v) + r
     Y = np.outer(v, a[:, 0]) + np.outer(v * v, a[:, 1]) + np.outer(v * v * v, a[:, 2]) - y[:, None]  # (N, S)
-    W = np.empty((N, S))                       # sum_i b_i z_i(k)
+    W = np.empty((N, S))  # sum_i b_i z_i(k)
     z = np.zeros((S, n))
     minimum, maximum, einsum = np.minimum, np.maximum, np.einsum
-    for lk, hk, wk in zip(lo, hi, W):          # rows are views
-        minimum(z, hk, out=z)                  # min(g_r(v) + r, z(k-1))
-        maximum(z, lk, out=z)                  # max(g_l(v) - r, .)
+    for lk, hk, wk in zip(lo, hi, W, strict=False):  # rows are views
+        minimum(z, hk, out=z)  # min(g_r(v) + r, z(k-1))
+        maximum(z, lk, out=z)  # max(g_l(v) - r, .)
         einsum("ij,ij->i", b, z, out=wk)
     Y += W
     Y *= Y
@@ -236,8 +237,7 @@ class NumpyCost:
 
 
 def _trajectory(times, best, nfev):
-    return {"time_s": [float(t) for t in times], "best_rmse": [float(b) for b in best],
-            "nfev": [int(n) for n in nfev]}
+    return {"time_s": [float(t) for t in times], "best_rmse": [float(b) for b in best], "nfev": [int(n) for n in nfev]}
 
 
 def run_a(v, y, reps, thresholds):
@@ -272,13 +272,26 @@ def run_vp(v, y, seed, population, iterations):
 
     times = []
     t0 = time.perf_counter()
-    res = minimize(cost, [VP_BOUNDS], method="mpso", rng=seed, max_iterations=iterations,
-                   population_size=population, callback=lambda ir: times.append(time.perf_counter() - t0))
+    res = minimize(
+        cost,
+        [VP_BOUNDS],
+        method="mpso",
+        rng=seed,
+        max_iterations=iterations,
+        population_size=population,
+        callback=lambda ir: times.append(time.perf_counter() - t0),
+    )
     total = time.perf_counter() - t0
     h = res.history
-    return {"trajectory": _trajectory(times, h["best_cost"], h["nfev"]), "total_s": total,
-            "best_rmse": float(res.fun), "nit": int(res.nit), "nfev": int(res.nfev),
-            "x": {"r_n_over_input_span": float(res.x[0])}, "fit": best_fit["fit"]}
+    return {
+        "trajectory": _trajectory(times, h["best_cost"], h["nfev"]),
+        "total_s": total,
+        "best_rmse": float(res.fun),
+        "nit": int(res.nit),
+        "nfev": int(res.nfev),
+        "x": {"r_n_over_input_span": float(res.x[0])},
+        "fit": best_fit["fit"],
+    }
 
 
 def run_mpso(v, y, seed, population, iterations, bounds):
@@ -293,12 +306,25 @@ def run_mpso(v, y, seed, population, iterations, bounds):
 
     times = []
     t0 = time.perf_counter()
-    res = minimize(cost, bounds, method="mpso", rng=seed, max_iterations=iterations, population_size=population,
-                   callback=lambda ir: times.append(time.perf_counter() - t0))
+    res = minimize(
+        cost,
+        bounds,
+        method="mpso",
+        rng=seed,
+        max_iterations=iterations,
+        population_size=population,
+        callback=lambda ir: times.append(time.perf_counter() - t0),
+    )
     total = time.perf_counter() - t0
     h = res.history
-    return {"trajectory": _trajectory(times, h["best_cost"], h["nfev"]), "total_s": total,
-            "best_rmse": float(res.fun), "nit": int(res.nit), "nfev": int(res.nfev), "x": np.asarray(res.x).copy()}
+    return {
+        "trajectory": _trajectory(times, h["best_cost"], h["nfev"]),
+        "total_s": total,
+        "best_rmse": float(res.fun),
+        "nit": int(res.nit),
+        "nfev": int(res.nfev),
+        "x": np.asarray(res.x).copy(),
+    }
 
 
 class _CapReached(Exception):
@@ -332,16 +358,28 @@ def run_pyswarms(ps, cost_fn, seed, population, iterations, bounds, cap):
     capped = False
     t0 = time.perf_counter()
     opt = ps.single.GlobalBestPSO(
-        n_particles=population, dimensions=D, options={"c1": 1.5, "c2": 1.5, "w": 0.9},
-        bounds=(np.zeros(D), np.ones(D)), oh_strategy={"w": "lin_variation"}, bh_strategy="reflective",
-        velocity_clamp=(-0.2, 0.2))
+        n_particles=population,
+        dimensions=D,
+        options={"c1": 1.5, "c2": 1.5, "w": 0.9},
+        bounds=(np.zeros(D), np.ones(D)),
+        oh_strategy={"w": "lin_variation"},
+        bh_strategy="reflective",
+        velocity_clamp=(-0.2, 0.2),
+    )
     try:
         opt.optimize(objective, iters=iterations, verbose=False)
     except _CapReached:
         capped = True
     total = time.perf_counter() - t0
-    return {"trajectory": _trajectory(times, best, nfev), "total_s": total, "best_rmse": state["best"],
-            "nit": len(times), "nfev": state["n"], "x": state["x"], "capped": capped}
+    return {
+        "trajectory": _trajectory(times, best, nfev),
+        "total_s": total,
+        "best_rmse": state["best"],
+        "nit": len(times),
+        "nfev": state["n"],
+        "x": state["x"],
+        "capped": capped,
+    }
 
 
 def import_pyswarms_quietly():
@@ -352,9 +390,11 @@ def import_pyswarms_quietly():
 
     fd, path = tempfile.mkstemp(prefix="pyswarms-log-", suffix=".yaml")
     with os.fdopen(fd, "w") as f:
-        f.write("version: 1\ndisable_existing_loggers: false\n"
-                "handlers:\n  null:\n    class: logging.NullHandler\n"
-                "loggers:\n  pyswarms:\n    handlers: [null]\n    level: WARNING\n    propagate: false\n")
+        f.write(
+            "version: 1\ndisable_existing_loggers: false\n"
+            "handlers:\n  null:\n    class: logging.NullHandler\n"
+            "loggers:\n  pyswarms:\n    handlers: [null]\n    level: WARNING\n    propagate: false\n"
+        )
     atexit.register(lambda: os.path.exists(path) and os.unlink(path))
     os.environ["LOG_CFG"] = path
     try:
@@ -392,8 +432,10 @@ def param_error(x, truth_vec):
     if x is None:
         return None
     x = np.asarray(x)
-    return {"max_abs_error_poly_a1_a3": float(np.max(np.abs(x[:3] - truth_vec[:3]))),
-            "max_abs_error_weights": float(np.max(np.abs(x[3:] - truth_vec[3:])))}
+    return {
+        "max_abs_error_poly_a1_a3": float(np.max(np.abs(x[:3] - truth_vec[:3]))),
+        "max_abs_error_weights": float(np.max(np.abs(x[3:] - truth_vec[3:]))),
+    }
 
 
 def fmt_t(x):
@@ -419,8 +461,12 @@ def main(argv=None) -> int:
     ap.add_argument("--vp-iterations", type=int, default=6)
     ap.add_argument("--pyswarms-seed", type=int, default=0)
     ap.add_argument("--cap", type=float, default=120.0, help="wall-time cap of (c), seconds")
-    ap.add_argument("--numpy-processes", type=int, default=None,
-                    help="worker processes for the NumPy model (default: 1 or 2, whichever is faster here)")
+    ap.add_argument(
+        "--numpy-processes",
+        type=int,
+        default=None,
+        help="worker processes for the NumPy model (default: 1 or 2, whichever is faster here)",
+    )
     args = ap.parse_args(argv)
 
     from piezohyst import _core
@@ -435,65 +481,106 @@ def main(argv=None) -> int:
     truth_vec = true_vector(truth)
     truth_rmse = float(np.sqrt(np.mean((y_clean - y) ** 2)))
     bounds = search_bounds(v, y)
-    print(f"record: N={N_SAMPLES}, input [0, 1] with {reversals} reversals, output range {np.ptp(y_clean):.4f}, "
-          f"noise std {sigma:.3g} ({100 * args.noise:g} % of range); true-parameter RMSE {truth_rmse:.5g}; "
-          f"rayon threads {_core.thread_count()}", flush=True)
+    print(
+        f"record: N={N_SAMPLES}, input [0, 1] with {reversals} reversals, output range {np.ptp(y_clean):.4f}, "
+        f"noise std {sigma:.3g} ({100 * args.noise:g} % of range); true-parameter RMSE {truth_rmse:.5g}; "
+        f"rayon threads {_core.thread_count()}",
+        flush=True,
+    )
 
-    runs = []   # each: method, label, kind (oneshot/iterative), ...
+    runs = []  # each: method, label, kind (oneshot/iterative), ...
 
     # (a) least squares, seed thresholds
     times, fit = run_a(v, y, args.reps, SEED_THRESHOLDS)
-    runs.append({"method": "a", "label": "(a) identify_mpi LS, r = 0.1..0.9", "kind": "oneshot",
-                 "times_s": times, "median_s": statistics.median(times), "min_s": min(times),
-                 "best_rmse": fit.metrics["rmse"], "fit_metrics": fit.metrics,
-                 "x": np.r_[fit.model.polynomial[1:], fit.model.weights], "c0": fit.model.polynomial[0],
-                 "description": "identify_mpi(v, y, operators=9, thresholds=0.1..0.9): bounded least squares "
-                                "over c0..c3 and b_i >= 0, thresholds fixed at seed 2's; median of "
-                                f"{args.reps} calls (regressors + solve + free-run RMSE)"})
-    print(f"(a)    {runs[-1]['median_s'] * 1e3:.1f} ms (median of {args.reps}; first call {times[0] * 1e3:.0f} ms, "
-          f"it imports scipy.optimize), RMSE {runs[-1]['best_rmse']:.6g}", flush=True)
+    runs.append(
+        {
+            "method": "a",
+            "label": "(a) identify_mpi LS, r = 0.1..0.9",
+            "kind": "oneshot",
+            "times_s": times,
+            "median_s": statistics.median(times),
+            "min_s": min(times),
+            "best_rmse": fit.metrics["rmse"],
+            "fit_metrics": fit.metrics,
+            "x": np.r_[fit.model.polynomial[1:], fit.model.weights],
+            "c0": fit.model.polynomial[0],
+            "description": "identify_mpi(v, y, operators=9, thresholds=0.1..0.9): bounded least squares "
+            "over c0..c3 and b_i >= 0, thresholds fixed at seed 2's; median of "
+            f"{args.reps} calls (regressors + solve + free-run RMSE)",
+        }
+    )
+    print(
+        f"(a)    {runs[-1]['median_s'] * 1e3:.1f} ms (median of {args.reps}; first call {times[0] * 1e3:.0f} ms, "
+        f"it imports scipy.optimize), RMSE {runs[-1]['best_rmse']:.6g}",
+        flush=True,
+    )
 
     # (a0) least squares, identify_mpi's default thresholds
     times, fit0 = run_a(v, y, args.reps, None)
-    runs.append({"method": "a0", "label": "(a0) identify_mpi LS, default r", "kind": "oneshot",
-                 "times_s": times, "median_s": statistics.median(times), "min_s": min(times),
-                 "best_rmse": fit0.metrics["rmse"], "fit_metrics": fit0.metrics,
-                 "thresholds": fit0.model.thresholds.tolist(),
-                 "description": "identify_mpi(v, y, operators=9): default thresholds over half the input "
-                                "range (no knowledge of the true thresholds)"})
+    runs.append(
+        {
+            "method": "a0",
+            "label": "(a0) identify_mpi LS, default r",
+            "kind": "oneshot",
+            "times_s": times,
+            "median_s": statistics.median(times),
+            "min_s": min(times),
+            "best_rmse": fit0.metrics["rmse"],
+            "fit_metrics": fit0.metrics,
+            "thresholds": fit0.model.thresholds.tolist(),
+            "description": "identify_mpi(v, y, operators=9): default thresholds over half the input "
+            "range (no knowledge of the true thresholds)",
+        }
+    )
     print(f"(a0)   {runs[-1]['median_s'] * 1e3:.1f} ms, RMSE {runs[-1]['best_rmse']:.6g}", flush=True)
 
     # (a+vp) variable projection over the threshold scale r_n
     for s in args.vp_seeds:
         r = run_vp(v, y, s, args.vp_population, args.vp_iterations)
         fit_vp = r.pop("fit")
-        r.update(method="a+vp", label=f"(a+vp) MPSO(r_n) + LS, seed {s}", kind="iterative", seed=s,
-                 description=f"MPSO ({args.vp_population} x {args.vp_iterations}) over the largest threshold "
-                             f"r_n in {VP_BOUNDS} x input span, thresholds r_i = i r_n / 9 (identify_mpi's "
-                             "default layout, whose r_n is 0.45 x span), one identify_mpi least-squares solve per "
-                             "candidate (sequential in Python); the true thresholds are not given",
-                 x_linear=None if fit_vp is None else np.r_[fit_vp.model.polynomial, fit_vp.model.weights])
+        r.update(
+            method="a+vp",
+            label=f"(a+vp) MPSO(r_n) + LS, seed {s}",
+            kind="iterative",
+            seed=s,
+            description=f"MPSO ({args.vp_population} x {args.vp_iterations}) over the largest threshold "
+            f"r_n in {VP_BOUNDS} x input span, thresholds r_i = i r_n / 9 (identify_mpi's "
+            "default layout, whose r_n is 0.45 x span), one identify_mpi least-squares solve per "
+            "candidate (sequential in Python); the true thresholds are not given",
+            x_linear=None if fit_vp is None else np.r_[fit_vp.model.polynomial, fit_vp.model.weights],
+        )
         runs.append(r)
         print(f"(a+vp) seed {s}: {r['total_s']:.2f} s, RMSE {r['best_rmse']:.6g}, r = {r['x']}", flush=True)
 
     # (b) MPSO alone on all 12 parameters, piezohyst batch cost
     for s in args.mpso_seeds:
         r = run_mpso(v, y, s, args.population, args.iterations, bounds)
-        r.update(method="b", label=f"(b) MPSO alone, seed {s}", kind="iterative", seed=s,
-                 description=f"piezohyst MPSO over a1..a3, b1..b9 (thresholds fixed 0.1..0.9, c0 = 0), "
-                             f"S = {args.population}, T = {args.iterations}, cost = piezohyst.batch_rmse "
-                             "of the whole swarm per iteration, no polish")
+        r.update(
+            method="b",
+            label=f"(b) MPSO alone, seed {s}",
+            kind="iterative",
+            seed=s,
+            description=f"piezohyst MPSO over a1..a3, b1..b9 (thresholds fixed 0.1..0.9, c0 = 0), "
+            f"S = {args.population}, T = {args.iterations}, cost = piezohyst.batch_rmse "
+            "of the whole swarm per iteration, no polish",
+        )
         runs.append(r)
         print(f"(b)    seed {s}: {r['total_s']:.2f} s, RMSE {r['best_rmse']:.6g}", flush=True)
 
     # (c) pyswarms + NumPy, and (c') pyswarms + piezohyst
     ps = import_pyswarms_quietly()
-    pyswarms_info = {"available": ps is not None, "version": getattr(ps, "__version__", None),
-                     "install_command": PIP_COMMAND}
+    pyswarms_info = {
+        "available": ps is not None,
+        "version": getattr(ps, "__version__", None),
+        "install_command": PIP_COMMAND,
+    }
     numpy_check = None
     if ps is None:
-        print(f"(c)    SKIPPED: pyswarms is not installed in this environment. Install it with\n"
-              f"           {PIP_COMMAND}\n       (a benchmark-only dependency) and run again.", flush=True)
+        print(
+            f"(c)    SKIPPED: pyswarms is not installed in this environment. Install it with\n"
+            f"           {PIP_COMMAND}\n       (a benchmark-only dependency) and run again.",
+            flush=True,
+        )
     else:
         model = template_model()
         trow = model.to_row()
@@ -502,15 +589,18 @@ def main(argv=None) -> int:
         ref = batch_rmse(model, rows_from(trow, X), v, y)
         got = mpi_rmse_numpy(X, v, y, SEED_THRESHOLDS)
         np.testing.assert_allclose(got, ref, rtol=RTOL_NUMPY, atol=0, err_msg="NumPy MPI model != piezohyst")
-        numpy_check = {"rows": int(X.shape[0]), "max_rel_diff": float(np.max(np.abs(got - ref) / ref)),
-                       "rtol": RTOL_NUMPY}
+        numpy_check = {
+            "rows": int(X.shape[0]),
+            "max_rel_diff": float(np.max(np.abs(got - ref) / ref)),
+            "rtol": RTOL_NUMPY,
+        }
         # 1 or 2 processes for the NumPy model: whichever is faster here (untimed set-up)
         choices = [args.numpy_processes] if args.numpy_processes else sorted({1, min(2, cpus)})
         numpy_choice = {}
         cost_np = None
         for p in choices:
             c = NumpyCost(v, y, SEED_THRESHOLDS, p)
-            np.testing.assert_allclose(c(X), ref, rtol=RTOL_NUMPY, atol=0)   # also warms the pool
+            np.testing.assert_allclose(c(X), ref, rtol=RTOL_NUMPY, atol=0)  # also warms the pool
             ts = []
             for _ in range(3 if len(choices) > 1 else 0):
                 t0 = time.perf_counter()
@@ -527,30 +617,45 @@ def main(argv=None) -> int:
         numpy_check["processes_trial_median_s"] = {str(k): w for k, w in numpy_choice.items()}
         numpy_check["processes_used"] = nproc
         try:
-            print(f"(c)    pyswarms {ps.__version__} + NumPy model on {nproc} process(es), cap {args.cap:g} s ...",
-                  flush=True)
+            print(
+                f"(c)    pyswarms {ps.__version__} + NumPy model on {nproc} process(es), cap {args.cap:g} s ...",
+                flush=True,
+            )
             r = run_pyswarms(ps, cost_np, args.pyswarms_seed, args.population, args.iterations, bounds, args.cap)
         finally:
             cost_np.close()
-        r.update(method="c", label="(c) pyswarms + NumPy", kind="iterative", seed=args.pyswarms_seed,
-                 numpy_processes=nproc,
-                 description=f"pyswarms {ps.__version__} GlobalBestPSO (c1 = c2 = 1.5, w 0.9 -> 0.4 lin_variation, "
-                             "velocity clamp 0.2, bh reflective, normalized box) driving a NumPy MPI model "
-                             f"(vectorized over swarm and operators, Python loop over time) in {nproc} "
-                             f"process(es); S = {args.population}, T = {args.iterations} or {args.cap:g} s, "
-                             "whichever first")
+        r.update(
+            method="c",
+            label="(c) pyswarms + NumPy",
+            kind="iterative",
+            seed=args.pyswarms_seed,
+            numpy_processes=nproc,
+            description=f"pyswarms {ps.__version__} GlobalBestPSO (c1 = c2 = 1.5, w 0.9 -> 0.4 lin_variation, "
+            "velocity clamp 0.2, bh reflective, normalized box) driving a NumPy MPI model "
+            f"(vectorized over swarm and operators, Python loop over time) in {nproc} "
+            f"process(es); S = {args.population}, T = {args.iterations} or {args.cap:g} s, "
+            "whichever first",
+        )
         runs.append(r)
-        print(f"(c)    {r['total_s']:.2f} s, {r['nit']} iterations{' (capped)' if r['capped'] else ''}, "
-              f"RMSE {r['best_rmse']:.6g}", flush=True)
+        print(
+            f"(c)    {r['total_s']:.2f} s, {r['nit']} iterations{' (capped)' if r['capped'] else ''}, "
+            f"RMSE {r['best_rmse']:.6g}",
+            flush=True,
+        )
 
         def cost_ph(X):
             return batch_rmse(model, rows_from(trow, X), v, y, invalid_cost=np.inf)
 
         r2 = run_pyswarms(ps, cost_ph, args.pyswarms_seed, args.population, args.iterations, bounds, None)
-        r2.update(method="c'", label="(c') pyswarms + piezohyst", kind="iterative", seed=args.pyswarms_seed,
-                  description="the same pyswarms run (same seed and settings) with the cost from "
-                              "piezohyst.batch_rmse: pyswarms' algorithm without the cap, and the "
-                              "evaluation speed-up at an identical trajectory")
+        r2.update(
+            method="c'",
+            label="(c') pyswarms + piezohyst",
+            kind="iterative",
+            seed=args.pyswarms_seed,
+            description="the same pyswarms run (same seed and settings) with the cost from "
+            "piezohyst.batch_rmse: pyswarms' algorithm without the cap, and the "
+            "evaluation speed-up at an identical trajectory",
+        )
         runs.append(r2)
         print(f"(c')   {r2['total_s']:.2f} s, {r2['nit']} iterations, RMSE {r2['best_rmse']:.6g}", flush=True)
 
@@ -591,13 +696,17 @@ def main(argv=None) -> int:
         b2 = np.asarray(rc2["trajectory"]["best_rmse"][:m])
         rel = float(np.max(np.abs(b1 - b2) / b2)) if m else None
         same = rel is not None and rel <= 1e-9
-        rc["same_trajectory_as_c_prime"] = {"compared_iterations": m, "max_rel_diff": rel, "same": same,
-                                            "tolerance": 1e-9}
+        rc["same_trajectory_as_c_prime"] = {
+            "compared_iterations": m,
+            "max_rel_diff": rel,
+            "same": same,
+            "tolerance": 1e-9,
+        }
         rc["speedup_per_iteration_c_prime_over_c"] = rc["median_iteration_s"] / rc2["median_iteration_s"]
         rc["extrapolated_time_to_target_s"] = None
         if not rc["reached"] and rc["capped"] and same and rc2["reached"]:
             rc["extrapolated_time_to_target_s"] = rc2["iterations_to_target"] * rc["median_iteration_s"]
-            rc["extrapolation"] = ("(c') iterations to target x (c) median iteration time; not measured")
+            rc["extrapolation"] = "(c') iterations to target x (c) median iteration time; not measured"
         rc["full_budget_estimate_s"] = args.iterations * rc["median_iteration_s"]
 
     for r in runs:
@@ -606,13 +715,20 @@ def main(argv=None) -> int:
 
     ra = runs[0]
     headline = {
-        "target_rmse": target, "best_rmse": best_rmse, "best_run": best_run, "tolerance": TOL,
-        "a_time_to_target_s": ra["time_to_target_s"], "a_reached": ra["reached"],
+        "target_rmse": target,
+        "best_rmse": best_rmse,
+        "best_run": best_run,
+        "tolerance": TOL,
+        "a_time_to_target_s": ra["time_to_target_s"],
+        "a_reached": ra["reached"],
         "a_target_time_s": TARGET_TIME_A,
         "pass": bool(ra["reached"] and ra["time_to_target_s"] <= TARGET_TIME_A),
         "rayon_threads": _core.thread_count(),
-        "b_median_time_to_target_s": (statistics.median([r["time_to_target_s"] for r in runs if r["method"] == "b"])
-                                      if all(r["reached"] for r in runs if r["method"] == "b") else None),
+        "b_median_time_to_target_s": (
+            statistics.median([r["time_to_target_s"] for r in runs if r["method"] == "b"])
+            if all(r["reached"] for r in runs if r["method"] == "b")
+            else None
+        ),
         "b_reached": [r["reached"] for r in runs if r["method"] == "b"],
         "pyswarms_available": ps is not None,
     }
@@ -624,32 +740,40 @@ def main(argv=None) -> int:
 
     payload = {
         "benchmark": "identify_mpi",
-        "timestamp_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "timestamp_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         "machine": info,
         "versions": {**vers, "pyswarms": pyswarms_info["version"]},
         "data": {
             "model": "piezohyst.mpi_seed2() (seed 2 Table 1: r = 0.1..0.9, b, P = 0.2547 v - 0.00358 v^2 + "
-                     "0.7123 v^3, identity envelopes)",
-            "N": N_SAMPLES, "input": "v = swell * raised-cosine carrier (20 periods) * (1 + 0.2 sin(53) + "
-                                     "0.1 sin(97)), normalized to [0, 1], starts at 0; swell 0.3..1 twice",
-            "input_reversals": reversals, "output_range": float(np.ptp(y_clean)),
-            "noise_std": sigma, "noise_fraction_of_range": args.noise, "noise_seed": args.seed,
-            "true_parameter_rmse": truth_rmse, "true_vector_a1_a3_b": truth_vec.tolist(),
+            "0.7123 v^3, identity envelopes)",
+            "N": N_SAMPLES,
+            "input": "v = swell * raised-cosine carrier (20 periods) * (1 + 0.2 sin(53) + "
+            "0.1 sin(97)), normalized to [0, 1], starts at 0; swell 0.3..1 twice",
+            "input_reversals": reversals,
+            "output_range": float(np.ptp(y_clean)),
+            "noise_std": sigma,
+            "noise_fraction_of_range": args.noise,
+            "noise_seed": args.seed,
+            "true_parameter_rmse": truth_rmse,
+            "true_vector_a1_a3_b": truth_vec.tolist(),
         },
         "method": {
             "metric": f"wall time until the run's best-so-far RMSE <= (1 + {TOL}) x the best RMSE any run "
-                      "found (optimizer set-up included); one-shot least squares: median call time",
-            "search_box_b_c": {"a1..a3": bounds[0].tolist(), "b_i": bounds[3].tolist(),
-                               "rule": "a_j in [-g, g], b_i in [0, g/2], g = range(y)/range(v)"},
+            "found (optimizer set-up included); one-shot least squares: median call time",
+            "search_box_b_c": {
+                "a1..a3": bounds[0].tolist(),
+                "b_i": bounds[3].tolist(),
+                "rule": "a_j in [-g, g], b_i in [0, g/2], g = range(y)/range(v)",
+            },
             "budget_b_c": {"population": args.population, "iterations": args.iterations, "cap_c_s": args.cap},
             "threads": "OPENBLAS_NUM_THREADS=1; RAYON_NUM_THREADS=2 unless set; NumPy model in this "
-                       "process or split over a 2-process pool, whichever was faster in an untimed trial "
-                       "(see numpy_model_check)",
+            "process or split over a 2-process pool, whichever was faster in an untimed trial "
+            "(see numpy_model_check)",
             "pyswarms": pyswarms_info,
             "pyswarms_settings_tried": PYSWARMS_SETTINGS_TRIED,
             "numpy_model_check": numpy_check,
             "note": "(a) minimizes the squared error exactly over a superset of (b)/(c)'s search space "
-                    "(c0 free, polynomial unbounded), so no run of (b)/(c) can beat it on this record",
+            "(c0 free, polynomial unbounded), so no run of (b)/(c) can beat it on this record",
         },
         "runs": runs,
         "headline": headline,
@@ -665,35 +789,53 @@ def main(argv=None) -> int:
 
     # table
     print()
-    print(f"MPI identification, N = {N_SAMPLES}, noise {100 * args.noise:g} % of range — {info['cpu_model']}, "
-          f"{cpus} usable CPUs, rayon {_core.thread_count()} threads, piezohyst {vers['piezohyst']}")
-    print(f"best RMSE found {best_rmse:.6g} ({best_run}); target = 1.01 x best = {target:.6g}; "
-          f"true-parameter RMSE {truth_rmse:.6g}")
-    hdr = (f"{'run':<34} {'evals':>7} | {'reached':>7} {'time->target':>12} {'RMSE at target':>14} | "
-           f"{'best RMSE':>10} {'x best':>7} {'total time':>10} {'iters':>6}")
+    print(
+        f"MPI identification, N = {N_SAMPLES}, noise {100 * args.noise:g} % of range — {info['cpu_model']}, "
+        f"{cpus} usable CPUs, rayon {_core.thread_count()} threads, piezohyst {vers['piezohyst']}"
+    )
+    print(
+        f"best RMSE found {best_rmse:.6g} ({best_run}); target = 1.01 x best = {target:.6g}; "
+        f"true-parameter RMSE {truth_rmse:.6g}"
+    )
+    hdr = (
+        f"{'run':<34} {'evals':>7} | {'reached':>7} {'time->target':>12} {'RMSE at target':>14} | "
+        f"{'best RMSE':>10} {'x best':>7} {'total time':>10} {'iters':>6}"
+    )
     print(hdr)
     print("-" * len(hdr))
     for r in runs:
         at = "—" if r["rmse_at_target"] is None else f"{r['rmse_at_target']:.6g}"
-        print(f"{r['label']:<34} {r['evaluations']:>7} | {'yes' if r['reached'] else 'NO':>7} "
-              f"{fmt_t(r['time_to_target_s']):>12} "
-              f"{at:>14} | "
-              f"{r['best_rmse']:>10.6g} {r['best_over_overall_best']:>7.4f} {fmt_t(r['total_s']):>10} "
-              f"{(r.get('nit') or '—')!s:>6}")
+        print(
+            f"{r['label']:<34} {r['evaluations']:>7} | {'yes' if r['reached'] else 'NO':>7} "
+            f"{fmt_t(r['time_to_target_s']):>12} "
+            f"{at:>14} | "
+            f"{r['best_rmse']:>10.6g} {r['best_over_overall_best']:>7.4f} {fmt_t(r['total_s']):>10} "
+            f"{(r.get('nit') or '—')!s:>6}"
+        )
     if rc is not None:
         sm = rc["same_trajectory_as_c_prime"]
-        print(f"(c) vs (c'): same trajectory over {sm['compared_iterations']} compared iterations: {sm['same']} "
-              f"(max rel diff {sm['max_rel_diff']:.1e}); per-iteration time {fmt_t(rc['median_iteration_s'])} "
-              f"vs {fmt_t(rc2['median_iteration_s'])} ({rc['speedup_per_iteration_c_prime_over_c']:.0f}x); "
-              + (f"(c) full budget would take ~{rc['full_budget_estimate_s']:.0f} s" if rc["capped"]
-                 else "(c) ran its full budget")
-              + (f"; (c) extrapolated time to target {rc['extrapolated_time_to_target_s']:.0f} s (not measured)"
-                 if rc.get("extrapolated_time_to_target_s") else ""))
+        print(
+            f"(c) vs (c'): same trajectory over {sm['compared_iterations']} compared iterations: {sm['same']} "
+            f"(max rel diff {sm['max_rel_diff']:.1e}); per-iteration time {fmt_t(rc['median_iteration_s'])} "
+            f"vs {fmt_t(rc2['median_iteration_s'])} ({rc['speedup_per_iteration_c_prime_over_c']:.0f}x); "
+            + (
+                f"(c) full budget would take ~{rc['full_budget_estimate_s']:.0f} s"
+                if rc["capped"]
+                else "(c) ran its full budget"
+            )
+            + (
+                f"; (c) extrapolated time to target {rc['extrapolated_time_to_target_s']:.0f} s (not measured)"
+                if rc.get("extrapolated_time_to_target_s")
+                else ""
+            )
+        )
     elif ps is None:
         print(f"(c) skipped: pyswarms not installed ({PIP_COMMAND})")
     verdict = "PASS" if headline["pass"] else "FAIL"
-    print(f"Target (a) within 1 % of the best RMSE in <= {TARGET_TIME_A:g} s on 2 cores: {verdict} "
-          f"({fmt_t(ra['time_to_target_s'])}). Wrote {args.out} in {payload['wall_time_s']} s.")
+    print(
+        f"Target (a) within 1 % of the best RMSE in <= {TARGET_TIME_A:g} s on 2 cores: {verdict} "
+        f"({fmt_t(ra['time_to_target_s'])}). Wrote {args.out} in {payload['wall_time_s']} s."
+    )
     return 0
 
 

@@ -1,7 +1,7 @@
 """Vectorized NumPy reference for batch PI (Prandtl–Ishlinskii) RMSE — the benchmark baseline.
 
 Same model and cost as ``piezohyst.batch.batch_rmse("pi", params, v, target, dims=[n, 0])``
-(SPEC §2.1)::
+(docs/spec.md §2.1)::
 
     z_r(k) = max(v(k) - r, min(v(k) + r, z_r(k-1))),   z_r(-1) = 0
     y(k)   = p0*v(k) + sum_i w_i z_{r_i}(k)
@@ -18,18 +18,19 @@ How it is made fast (it is a baseline, so it should be a good one):
   before the loop, and the weighted sum (one ``einsum``), ``p0*v``, the error and its square
   are computed after it.
 * Per sample, the recurrence costs two ufunc calls, ``np.minimum`` then ``np.maximum``, in
-  the SPEC's order. They write into views that were made before the loop, so the loop
+  the spec's (docs/spec.md) order. They write into views that were made before the loop, so the loop
   allocates nothing. The play outputs ``z`` are therefore bit-identical to a scalar
   evaluation. ``y`` and the RMSE differ from piezohyst only by the rounding of the sums
   (the summation order is different), which is about 1e-15 relative.
 * Single-threaded: only ufuncs and ``einsum`` without ``optimize`` are used, so there are no
   BLAS calls and no threads.
 """
+
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["pi_batch_rmse", "pi_batch_rmse_per_step", "block_size"]
+__all__ = ["block_size", "pi_batch_rmse", "pi_batch_rmse_per_step"]
 
 DEFAULT_BUDGET = 512 * 1024  # bytes for the three (B, S, n) block buffers
 
@@ -53,11 +54,11 @@ def pi_batch_rmse(params, v, target, n: int, *, budget: int = DEFAULT_BUDGET) ->
     w = np.ascontiguousarray(params[:, 1 + n : 1 + 2 * n])
 
     B = block_size(S, n, N, budget)
-    z = np.zeros((S, n))                      # z(-1) = 0
-    lo = np.empty((B, S, n))                  # v(k) - r
-    hi = np.empty((B, S, n))                  # v(k) + r
-    Z = np.empty((B, S, n))                   # z(k) for the block
-    lo_rows, hi_rows, z_rows = list(lo), list(hi), list(Z)   # views made once
+    z = np.zeros((S, n))  # z(-1) = 0
+    lo = np.empty((B, S, n))  # v(k) - r
+    hi = np.empty((B, S, n))  # v(k) + r
+    Z = np.empty((B, S, n))  # z(k) for the block
+    lo_rows, hi_rows, z_rows = list(lo), list(hi), list(Z)  # views made once
     Y = np.empty((B, S))
     sse = np.zeros(S)
     minimum, maximum = np.minimum, np.maximum
@@ -69,13 +70,13 @@ def pi_batch_rmse(params, v, target, n: int, *, budget: int = DEFAULT_BUDGET) ->
         np.subtract(vcol, r, out=lo[:b])
         np.add(vcol, r, out=hi[:b])
         prev = z
-        for lk, hk, zk in zip(lo_rows[:b], hi_rows[:b], z_rows[:b]):
-            minimum(prev, hk, out=zk)         # min(v + r, z(k-1))
-            maximum(zk, lk, out=zk)           # max(v - r, .)
+        for lk, hk, zk in zip(lo_rows[:b], hi_rows[:b], z_rows[:b], strict=False):
+            minimum(prev, hk, out=zk)  # min(v + r, z(k-1))
+            maximum(zk, lk, out=zk)  # max(v - r, .)
             prev = zk
         z[...] = prev
         y = Y[:b]
-        np.einsum("bij,ij->bi", Z[:b], w, out=y)   # sum_i w_i z_i(k)
+        np.einsum("bij,ij->bi", Z[:b], w, out=y)  # sum_i w_i z_i(k)
         y += np.multiply.outer(vb, p0)
         y -= target[k0 : k0 + b, None]
         y *= y
@@ -91,7 +92,7 @@ def pi_batch_rmse_scalar(params, v, target, n: int) -> np.ndarray:
         p0, r, w = row[0], row[1 : 1 + n], row[1 + n :]
         z = [0.0] * n
         sse = 0.0
-        for vk, tk in zip(v.tolist(), target.tolist()):
+        for vk, tk in zip(v.tolist(), target.tolist(), strict=False):
             y = p0 * vk
             for i in range(n):
                 z[i] = max(vk - r[i], min(vk + r[i], z[i]))
@@ -113,7 +114,7 @@ def pi_batch_rmse_per_step(params, v, target, n: int) -> np.ndarray:
     lo = np.empty_like(r)
     hi = np.empty_like(r)
     sse = np.zeros(params.shape[0])
-    for vk, tk in zip(v.tolist(), target.tolist()):
+    for vk, tk in zip(v.tolist(), target.tolist(), strict=False):
         np.subtract(vk, r, out=lo)
         np.add(vk, r, out=hi)
         np.minimum(z, hi, out=z)

@@ -1,4 +1,5 @@
 """One instance of every model kind, for tests that must cover them all."""
+
 import numpy as np
 
 import piezohyst as ph
@@ -13,13 +14,22 @@ def zoo():
         "pi": ph.PI(r, w, 0.9),
         "pi+creep": ph.PI(r, w, 0.9, creep=creep),
         "play": ph.PlayOperator(0.3),
-        "gpi": ph.GeneralizedPI(r, w, (0, 0, 0, 0), Envelope.tanh(2.0, 0.8), Envelope.tanh(2.1, 0.75, 0.05, 0.02),
-                                input_range=(-1.5, 1.5)),
+        "gpi": ph.GeneralizedPI(
+            r, w, (0, 0, 0, 0), Envelope.tanh(2.0, 0.8), Envelope.tanh(2.1, 0.75, 0.05, 0.02), input_range=(-1.5, 1.5)
+        ),
         "mpi": ph.mpi_seed2(),
-        "mpi+creep": ph.GeneralizedPI(ph.SEED2_TABLE1["thresholds"], ph.SEED2_TABLE1["weights"],
-                                      ph.SEED2_TABLE1["polynomial"], Envelope.polynomial(0.0, 1.0, 0.0, 0.05),
-                                      Envelope.polynomial(0.02, 0.9, 0.05, 0.07), input_range=(0, 1), creep=creep),
-        "generalized_play": ph.GeneralizedPlay(0.2, Envelope.polynomial(0, 1.1), Envelope.identity(), input_range=(0, 1)),
+        "mpi+creep": ph.GeneralizedPI(
+            ph.SEED2_TABLE1["thresholds"],
+            ph.SEED2_TABLE1["weights"],
+            ph.SEED2_TABLE1["polynomial"],
+            Envelope.polynomial(0.0, 1.0, 0.0, 0.05),
+            Envelope.polynomial(0.02, 0.9, 0.05, 0.07),
+            input_range=(0, 1),
+            creep=creep,
+        ),
+        "generalized_play": ph.GeneralizedPlay(
+            0.2, Envelope.polynomial(0, 1.1), Envelope.identity(), input_range=(0, 1)
+        ),
         "rdpi": ph.RateDependentPI(r, w, ts=1e-3, p0=0.8, beta=2e-4, rate_weights=np.full(6, 1e-4), filter_tau=2e-3),
         "creep": creep,
         "preisach": ph.Preisach(6, (-1.0, 1.0), np.linspace(0.1, 1.0, 21), offset=0.1, slope=0.3, memory=32),

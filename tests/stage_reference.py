@@ -2,6 +2,7 @@
 scipy.integrate.solve_ivp at a tight tolerance, one controller period at a time (the
 command is held over each period, so the right-hand side is smooth inside a period).
 The amplifier must have a finite bandwidth and no slew limit (no jumps, no kinks)."""
+
 import math
 
 import numpy as np
@@ -21,7 +22,7 @@ def reference_positions(stage, command, ts, rtol=1e-12, atol_scale=1e-14):
         w = s[4:]
         dva = (u - va) / tau_a
         if p.hyst_drive == "charge":
-            drive = p.tem * v + p.capacitance * dva            # q' before the CEMF feedback
+            drive = p.tem * v + p.capacitance * dva  # q' before the CEMF feedback
             sg = math.copysign(1.0, drive) if drive != 0 else 0.0
             g = p.hyst_alpha - p.hyst_beta * sg * vh - p.hyst_gamma * abs(vh)
             dq = drive / (1 + p.capacitance * g)

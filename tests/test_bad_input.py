@@ -1,4 +1,5 @@
-"""SPEC §10: bad input gets a clear error naming the argument and the value."""
+"""docs/spec.md §10: bad input gets a clear error naming the argument and the value."""
+
 import numpy as np
 import pytest
 
@@ -14,11 +15,21 @@ CASES = [
     (lambda: ph.PI("0.1", [1]), TypeError, "thresholds must be a 1-D array of numbers, got str"),
     (lambda: ph.PI([0.1], [1], p0="1"), TypeError, "p0 must be a real number"),
     (lambda: ph.PI([[0.1]], [1]), ValueError, r"thresholds must be 1-D, got shape \(1, 1\)"),
-    (lambda: ph.GeneralizedPI([0.1], [1], rising=Envelope.polynomial(0, 1, 0, -1), input_range=(-1, 1)), ValueError,
-     "envelope rising is not increasing"),
-    (lambda: ph.GeneralizedPI([0.1], [1], falling=Envelope.tanh(1, 0)), ValueError, "envelope falling is not increasing"),
-    (lambda: ph.GeneralizedPI([0.1], [1], rising=Envelope.polynomial(0, 1, 1, 0)), ValueError,
-     "envelope rising is not increasing at input -inf"),  # a parabola is monotone on no infinite range
+    (
+        lambda: ph.GeneralizedPI([0.1], [1], rising=Envelope.polynomial(0, 1, 0, -1), input_range=(-1, 1)),
+        ValueError,
+        "envelope rising is not increasing",
+    ),
+    (
+        lambda: ph.GeneralizedPI([0.1], [1], falling=Envelope.tanh(1, 0)),
+        ValueError,
+        "envelope falling is not increasing",
+    ),
+    (
+        lambda: ph.GeneralizedPI([0.1], [1], rising=Envelope.polynomial(0, 1, 1, 0)),
+        ValueError,
+        "envelope rising is not increasing at input -inf",
+    ),  # a parabola is monotone on no infinite range
     (lambda: ph.GeneralizedPI([0.1], [1], input_range=(1, 0)), ValueError, r"input_range = \(1.0, 0.0\)"),
     (lambda: Envelope("cubic"), ValueError, "kind = 'cubic' is not an envelope"),
     (lambda: ph.RateDependentPI([0.1], [1], ts=0), ValueError, "ts = 0.0 must be > 0"),

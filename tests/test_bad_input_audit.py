@@ -1,4 +1,4 @@
-"""SPEC §10 audit of the public API (issue 8): every public entry point, called with a valid
+"""docs/spec.md §10 audit of the public API (issue 8): every public entry point, called with a valid
 recipe in which one argument at a time is replaced by a bad value of a catalogued kind.
 
 Each call must either succeed with finite results (the value happened to be acceptable, e.g.
@@ -7,6 +7,7 @@ argument — never a bare builtin error from deep inside, a NaN result or a cras
 and the recipes give several hundred calls; the count per kind is printed with ``-s`` and is
 part of the hardening report.
 """
+
 from __future__ import annotations
 
 import collections
@@ -22,6 +23,7 @@ T = np.arange(400) / 1000.0
 V = 0.5 + 0.4 * np.sin(2 * np.pi * 5 * T) * np.linspace(1, 0.3, T.size)
 Y = ph.mpi_seed2().simulate(V)
 REF = 8e-6 + 4e-6 * np.sin(2 * np.pi * 20 * np.arange(600) * 1e-4)
+
 
 def _with(a, index, value):
     a = np.array(a, dtype=float)
@@ -63,16 +65,30 @@ RECIPES = {
     "linearity_error": (ph.linearity_error, (REF, REF * 1.01), {}, ["desired", "output"], []),
     "hysteresis_percent": (ph.hysteresis_percent, (V, Y), dict(levels=50), ["input", "output"], ["levels"]),
     "closed_loop": (ph.closed_loop, (STAGE, ph.PID(kp=1e6, ki=1e9), REF), dict(rng=1), ["reference"], []),
-    "track": (ph.track, (ph.PID(kp=1e6, ki=1e9), REF), dict(stage=STAGE, rng=1, skip=0.01), ["reference"],
-              ["skip"]),
+    "track": (ph.track, (ph.PID(kp=1e6, ki=1e9), REF), dict(stage=STAGE, rng=1, skip=0.01), ["reference"], ["skip"]),
     "sine": (ph.sine, (10.0, 1.0, 0.1, 1000.0), {}, [], ["freq", "amplitude", "duration", "fs", "offset"]),
-    "triangle": (ph.triangle, (10.0, 1.0, 0.1, 1000.0), dict(rounding=0.1), [],
-                 ["freq", "amplitude", "duration", "fs", "rounding"]),
+    "triangle": (
+        ph.triangle,
+        (10.0, 1.0, 0.1, 1000.0),
+        dict(rounding=0.1),
+        [],
+        ["freq", "amplitude", "duration", "fs", "rounding"],
+    ),
     "chirp": (ph.chirp, (1.0, 50.0, 1.0, 0.5, 1000.0), {}, [], ["f_start", "f_end", "amplitude", "duration", "fs"]),
-    "multisine": (ph.multisine, (1.0, 50.0, 1.0, 1.0, 1000.0), dict(rng=0), [],
-                  ["f_min", "f_max", "amplitude", "period", "fs", "periods"]),
-    "variable_amplitude_sine": (ph.variable_amplitude_sine, (10.0, 1.0, 0.5, 1000.0), {}, [],
-                                ["freq", "amplitude", "duration", "fs", "final_fraction"]),
+    "multisine": (
+        ph.multisine,
+        (1.0, 50.0, 1.0, 1.0, 1000.0),
+        dict(rng=0),
+        [],
+        ["f_min", "f_max", "amplitude", "period", "fs", "periods"],
+    ),
+    "variable_amplitude_sine": (
+        ph.variable_amplitude_sine,
+        (10.0, 1.0, 0.5, 1000.0),
+        {},
+        [],
+        ["freq", "amplitude", "duration", "fs", "final_fraction"],
+    ),
     "staircase": (ph.staircase, ([0.0, 1.0, 2.0], 0.01, 1000.0), {}, ["levels"], ["dwell", "fs"]),
     "PI": (ph.PI, ([0.0, 0.1, 0.2], [1.0, 0.5, 0.2]), dict(p0=1.0), ["thresholds", "weights"], ["p0"]),
     "Preisach": (ph.Preisach, (3, (0.0, 1.0), np.ones(6)), dict(memory=16), ["weights"], ["levels", "memory"]),
@@ -83,27 +99,71 @@ RECIPES = {
     "OpenLoop": (ph.OpenLoop, (), dict(gain=7e6, offset=0.0), [], ["gain", "offset"]),
     "VelocityObserver": (ph.VelocityObserver, (), dict(bandwidth=1000.0), [], ["bandwidth", "delay"]),
     "SMC": (ph.SMC, (STAGE.params,), dict(kp=1e6, kv=2e3, ks=20.0, phi=0.01), [], ["kp", "kv", "ks", "phi", "alpha"]),
-    "Amplifier": (ph.Amplifier, (), dict(v_min=-20.0, v_max=150.0, bandwidth=3000.0, slew_rate=1e5), [],
-                  ["v_min", "v_max", "bandwidth", "slew_rate"]),
-    "Sensor": (ph.Sensor, (), dict(quantization=1e-7, noise_std=1e-8, delay=1), [],
-               ["quantization", "noise_std", "delay"]),
-    "StageParameters": (ph.StageParameters, (0.07, 100.0, 7e7, 10.5), {}, [],
-                        ["mass", "damping", "stiffness", "tem", "capacitance"]),
-    "Stage": (ph.Stage, (STAGE.params,), dict(sample_time=1e-4, substeps=1, tolerance=0.05), [],
-              ["sample_time", "substeps", "tolerance"]),
-    "LeafSpring": (ph.LeafSpring, (7.17e10, 0.01, 0.002, 0.02), {}, [],
-                   ["youngs_modulus", "width", "thickness", "length"]),
-    "FlexureStage": (ph.FlexureStage, (6e7, 1.3e7, 0.01, 0.06), {}, [],
-                     ["actuator_stiffness", "flexure_stiffness", "actuator_mass", "stage_mass", "zeta"]),
-    "BoucWenBenchmark": (ph.BoucWenBenchmark, (), {}, [],
-                         ["mass", "damping", "stiffness", "alpha", "beta", "gamma", "nu"]),
-    "batch_rmse": (ph.batch_rmse, (ph.mpi_seed2(), np.tile(ph.mpi_seed2()._row, (3, 1)), V, Y), {},
-                   ["params", "input", "target"], []),
-    "batch_simulate": (ph.batch_simulate, (ph.mpi_seed2(), np.tile(ph.mpi_seed2()._row, (3, 1)), V), {},
-                       ["params", "input"], []),
+    "Amplifier": (
+        ph.Amplifier,
+        (),
+        dict(v_min=-20.0, v_max=150.0, bandwidth=3000.0, slew_rate=1e5),
+        [],
+        ["v_min", "v_max", "bandwidth", "slew_rate"],
+    ),
+    "Sensor": (
+        ph.Sensor,
+        (),
+        dict(quantization=1e-7, noise_std=1e-8, delay=1),
+        [],
+        ["quantization", "noise_std", "delay"],
+    ),
+    "StageParameters": (
+        ph.StageParameters,
+        (0.07, 100.0, 7e7, 10.5),
+        {},
+        [],
+        ["mass", "damping", "stiffness", "tem", "capacitance"],
+    ),
+    "Stage": (
+        ph.Stage,
+        (STAGE.params,),
+        dict(sample_time=1e-4, substeps=1, tolerance=0.05),
+        [],
+        ["sample_time", "substeps", "tolerance"],
+    ),
+    "LeafSpring": (
+        ph.LeafSpring,
+        (7.17e10, 0.01, 0.002, 0.02),
+        {},
+        [],
+        ["youngs_modulus", "width", "thickness", "length"],
+    ),
+    "FlexureStage": (
+        ph.FlexureStage,
+        (6e7, 1.3e7, 0.01, 0.06),
+        {},
+        [],
+        ["actuator_stiffness", "flexure_stiffness", "actuator_mass", "stage_mass", "zeta"],
+    ),
+    "BoucWenBenchmark": (
+        ph.BoucWenBenchmark,
+        (),
+        {},
+        [],
+        ["mass", "damping", "stiffness", "alpha", "beta", "gamma", "nu"],
+    ),
+    "batch_rmse": (
+        ph.batch_rmse,
+        (ph.mpi_seed2(), np.tile(ph.mpi_seed2()._row, (3, 1)), V, Y),
+        {},
+        ["params", "input", "target"],
+        [],
+    ),
+    "batch_simulate": (
+        ph.batch_simulate,
+        (ph.mpi_seed2(), np.tile(ph.mpi_seed2()._row, (3, 1)), V),
+        {},
+        ["params", "input"],
+        [],
+    ),
     "model.simulate": (ph.mpi_seed2().simulate, (V,), {}, ["input"], []),
-    "inverse.simulate": (ph.PI([0.0, 0.1, 0.2], [1.0, 0.5, 0.2]).inverse().simulate, (np.abs(V),), {}, ["desired"],
-                         []),
+    "inverse.simulate": (ph.PI([0.0, 0.1, 0.2], [1.0, 0.5, 0.2]).inverse().simulate, (np.abs(V),), {}, ["desired"], []),
     "stage.simulate": (STAGE.simulate, (np.full(300, 50.0),), {}, ["command"], []),
 }
 

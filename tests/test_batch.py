@@ -1,4 +1,5 @@
 """Batch evaluation equals one-by-one simulation, bit for bit, whatever the thread count."""
+
 import json
 import os
 import subprocess

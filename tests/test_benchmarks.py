@@ -1,9 +1,9 @@
 """`piezohyst bench`: every benchmark in bench/ runs, one JSON + one Markdown table, each
 figure beside its same-run baseline, the README section generated from it (issue 7)."""
+
 from __future__ import annotations
 
 import json
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -29,12 +29,12 @@ def test_summary_rows_carry_the_figures_of_the_result_files():
     assert set(summary["benchmarks"]) == {b.name for b in bm.BENCHMARKS}
     cl = json.loads((RESULTS / "closed_loop.json").read_text())
     rows = summary["benchmarks"]["closed_loop"]["rows"]
-    rtf = [r for r in rows if "sine_10Hz" in r["figure"]][0]
+    rtf = next(r for r in rows if "sine_10Hz" in r["figure"])
     e = cl["closed_loop_rtf"]["sine_10Hz"]
     assert rtf["value"] == e["rtf"] and rtf["baseline_value"] == e["baseline_rtf"]
     assert rtf["ratio"] == e["speedup_vs_baseline"] and rtf["pass"] == (e["rtf"] >= 1000)
     cs = json.loads((RESULTS / "c_step.json").read_text())
-    head = [r for r in summary["benchmarks"]["c_step"]["rows"] if r["target"]][0]
+    head = next(r for r in summary["benchmarks"]["c_step"]["rows"] if r["target"])
     assert head["value"] == cs["summary"]["MPI inverse (9 operators) + SMC"]["mean_ns"]
     assert head["baseline_value"] == cs["rust_api_baseline"]["results"]["MPI inverse (9 operators) + SMC"]["mean"]
     # every benchmark has at least one row and every row a baseline or a target
@@ -62,10 +62,12 @@ def test_readme_section_is_the_generated_table():
     generates from the checked-in results (regenerate it after running benchmarks)."""
     readme = (ROOT / "README.md").read_text()
     i, j = readme.index(bm.BEGIN), readme.index(bm.END)
-    section = readme[i + len(bm.BEGIN):j]
+    section = readme[i + len(bm.BEGIN) : j]
     table = bm.to_markdown(bm.summarize(bm.BENCHMARKS, RESULTS))
     # the generation time stamp is the only line allowed to differ: there is none in the table
-    assert table in section, "README performance section is stale: run `piezohyst bench --report-only --readme README.md`"
+    assert table in section, (
+        "README performance section is stale: run `piezohyst bench --report-only --readme README.md`"
+    )
 
 
 def test_update_readme_replaces_only_the_marked_section(tmp_path):
@@ -101,11 +103,11 @@ def test_a_failing_benchmark_is_reported_and_the_others_still_run(tmp_path, caps
     (bench / "pi_batch.py").write_text("import sys\nprint('boom: no luck', file=sys.stderr)\nsys.exit(3)\n")
     src = json.loads((RESULTS / "demo.json").read_text())
     (bench / "demo.py").write_text(
-        "import shutil, sys\n"
-        f"shutil.copy({str(RESULTS / 'demo.json')!r}, sys.argv[sys.argv.index('--out') + 1])\n")
+        f"import shutil, sys\nshutil.copy({str(RESULTS / 'demo.json')!r}, sys.argv[sys.argv.index('--out') + 1])\n"
+    )
     results = tmp_path / "res"
     code = main(["bench", "--bench-dir", str(bench), "--results", str(results), "--only", "pi_batch", "demo"])
-    out, err = capsys.readouterr()
+    _out, err = capsys.readouterr()
     assert code == 1 and "pi_batch" in err
     s = json.loads((results / "summary.json").read_text())
     assert s["benchmarks"]["pi_batch"]["status"] == "failed" and s["benchmarks"]["pi_batch"]["exit_code"] == 3
@@ -117,8 +119,12 @@ def test_a_failing_benchmark_is_reported_and_the_others_still_run(tmp_path, caps
 def test_quick_run_of_real_benchmarks(tmp_path):
     """A real (smoke) run through the command line: two benchmarks with --quick budgets."""
     res = tmp_path / "res"
-    p = subprocess.run([sys.executable, "-m", "piezohyst", "bench", "--quick", "--only", "pi_batch", "control",
-                        "--results", str(res)], capture_output=True, text=True, cwd=tmp_path)
+    p = subprocess.run(
+        [sys.executable, "-m", "piezohyst", "bench", "--quick", "--only", "pi_batch", "control", "--results", str(res)],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
     assert p.returncode == 0, p.stderr
     s = json.loads((res / "summary.json").read_text())
     assert s["quick"] is True and set(s["benchmarks"]) == {"pi_batch", "control"}

@@ -1,9 +1,8 @@
 """The command line: the demo runs, writes its report, refuses to overwrite, fails cleanly."""
+
 import json
 import subprocess
 import sys
-
-import numpy as np
 
 
 def run(*args, cwd):
@@ -16,7 +15,7 @@ def test_demo_quick_writes_the_report_and_prints_json(tmp_path):
     numbers = json.loads(out.stdout)
     assert numbers["seed"] == 1 and numbers["quick"] is True
     assert set(numbers) >= {"identification", "seed1", "seed2", "figures"}
-    assert "[5/5] write the report" in out.stderr          # progress per stage on stderr
+    assert "[5/5] write the report" in out.stderr  # progress per stage on stderr
     report = tmp_path / "report"
     for name in ("index.html", "report.md", "results.json", *numbers["figures"].values()):
         assert (report / name).stat().st_size > 0, name
@@ -37,18 +36,20 @@ def test_stage_info_measures_the_virtual_stage_within_the_spec_ranges(tmp_path):
     out = run("stage", "info", "--json", cwd=tmp_path)
     assert out.returncode == 0, out.stderr
     info = json.loads(out.stdout)
-    assert 18 <= info["stroke_um"] <= 22                       # SPEC 3.2: ~20 um at 150 V
+    assert 18 <= info["stroke_um"] <= 22  # docs/spec.md §3.2: ~20 um at 150 V
     assert 10 <= info["hysteresis_percent_1hz_full_range"] <= 15
     assert 1 <= info["creep_percent_per_decade"] <= 2
-    assert abs(info["natural_frequency_hz"] - 5100) < 60        # SPEC 3.1: ~5.1 kHz
+    assert abs(info["natural_frequency_hz"] - 5100) < 60  # docs/spec.md §3.1: ~5.1 kHz
     # the charge coupling stiffens the stack: the measured resonance sits a little higher
     assert info["natural_frequency_hz"] < info["first_resonance_hz"] < 6000
 
 
 def test_stage_info_bad_file_is_one_line_error(tmp_path):
     bad = tmp_path / "stage.json"
-    bad.write_text('{"mechanics": {"mass": -1, "stiffness": 1e7, "damping_ratio": 0.03, "tem": 10}, '
-                   '"cemf": {"alpha": 1, "beta": 1, "gamma": 1}}')
+    bad.write_text(
+        '{"mechanics": {"mass": -1, "stiffness": 1e7, "damping_ratio": 0.03, "tem": 10}, '
+        '"cemf": {"alpha": 1, "beta": 1, "gamma": 1}}'
+    )
     out = run("stage", "info", "--stage", str(bad), cwd=tmp_path)
     assert out.returncode == 2
     assert out.stderr.strip().count("\n") == 0 and "mass = -1.0 must be > 0" in out.stderr

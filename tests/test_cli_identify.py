@@ -1,9 +1,10 @@
-"""`piezohyst identify` and `piezohyst simulate` from the command line (SPEC §8, §10).
+"""`piezohyst identify` and `piezohyst simulate` from the command line (docs/spec.md §8, §10).
 
 Synthetic records from known models (seed-2 MPI, Bouc–Wen), the real 1 Hz piezo record when
 it is present, bit-identical simulate, --json, refusal to overwrite, and one-line errors with
 exit code 2 on every kind of bad input.
 """
+
 import json
 import subprocess
 import sys
@@ -21,13 +22,16 @@ N = 4000
 
 
 def run(*args, cwd):
-    return subprocess.run([sys.executable, "-m", "piezohyst", *map(str, args)], cwd=cwd, capture_output=True,
-                          text=True)
+    return subprocess.run([sys.executable, "-m", "piezohyst", *map(str, args)], cwd=cwd, capture_output=True, text=True)
 
 
 def one_line_error(out):
-    return out.returncode == 2 and out.stderr.strip() != "" and "\n" not in out.stderr.strip() \
+    return (
+        out.returncode == 2
+        and out.stderr.strip() != ""
+        and "\n" not in out.stderr.strip()
         and "Traceback" not in out.stderr
+    )
 
 
 def mpi_signal():
@@ -50,14 +54,27 @@ def data(tmp_path_factory):
     time column), a record with a NaN, one with a constant input, one at half the rate, and model files."""
     d = tmp_path_factory.mktemp("cli_identify")
     t, v = mpi_signal()
-    np.savetxt(d / "mpi.csv", np.c_[t, v, ph.mpi_seed2().simulate(v)], delimiter=",", header="t,v,y", comments="",
-               fmt="%.17g")
+    np.savetxt(
+        d / "mpi.csv", np.c_[t, v, ph.mpi_seed2().simulate(v)], delimiter=",", header="t,v,y", comments="", fmt="%.17g"
+    )
     u = bw_signal()
-    np.savetxt(d / "bw.csv", np.c_[u, ph.BoucWen(**BW_TRUTH).simulate(u)], delimiter=",", header="input,output",
-               comments="", fmt="%.17g")
+    np.savetxt(
+        d / "bw.csv",
+        np.c_[u, ph.BoucWen(**BW_TRUTH).simulate(u)],
+        delimiter=",",
+        header="input,output",
+        comments="",
+        fmt="%.17g",
+    )
     th = np.arange(200) / (FS / 2)
-    np.savetxt(d / "half_rate.csv", np.c_[th, 0.5 + 0.4 * np.sin(2 * np.pi * th), np.zeros(200)], delimiter=",",
-               header="t,v,y", comments="", fmt="%.17g")
+    np.savetxt(
+        d / "half_rate.csv",
+        np.c_[th, 0.5 + 0.4 * np.sin(2 * np.pi * th), np.zeros(200)],
+        delimiter=",",
+        header="t,v,y",
+        comments="",
+        fmt="%.17g",
+    )
     (d / "nan.csv").write_text("v,y\n0,0\n0.5,0.4\nnan,1\n0.5,0.6\n")
     (d / "const.csv").write_text("v,y\n" + "".join(f"1.0,{0.1 * k}\n" for k in range(20)))
     ph.mpi_seed2().save(d / "seed2.json")
@@ -72,11 +89,30 @@ def data(tmp_path_factory):
 
 
 def test_mpi_identify_then_simulate_bit_identical(data, tmp_path):
-    out = run("identify", data / "mpi.csv", "--model", "mpi", "--input", "v", "--output", "y", "--time", "t",
-              "--train", "0:3000", "--validate", "3000:4000", "--out", "mpi.json", "--plot", "mpi.png", "--json",
-              cwd=tmp_path)
+    out = run(
+        "identify",
+        data / "mpi.csv",
+        "--model",
+        "mpi",
+        "--input",
+        "v",
+        "--output",
+        "y",
+        "--time",
+        "t",
+        "--train",
+        "0:3000",
+        "--validate",
+        "3000:4000",
+        "--out",
+        "mpi.json",
+        "--plot",
+        "mpi.png",
+        "--json",
+        cwd=tmp_path,
+    )
     assert out.returncode == 0, out.stderr
-    assert out.stderr == ""                       # not a terminal: no progress bar
+    assert out.stderr == ""  # not a terminal: no progress bar
     report = json.loads(out.stdout)
     # measured: train 0.283 % / max 1.02 %; validation 1.55 % (relaxed start of the held-out part)
     assert report["train"]["rmse_percent"] < 0.35
@@ -90,22 +126,35 @@ def test_mpi_identify_then_simulate_bit_identical(data, tmp_path):
     assert doc["fit"]["train"] == report["train"] and doc["fit"]["validation"] == report["validation"]
     assert doc["fit"]["method"] == "ls"
     assert (tmp_path / "mpi.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(".")]    # no temp files left
+    assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temp files left
 
-    sim = run("simulate", "mpi.json", data / "mpi.csv", "--input", "v", "--output", "y", "--time", "t",
-              "--out", "pred.csv", "--json", cwd=tmp_path)
+    sim = run(
+        "simulate",
+        "mpi.json",
+        data / "mpi.csv",
+        "--input",
+        "v",
+        "--output",
+        "y",
+        "--time",
+        "t",
+        "--out",
+        "pred.csv",
+        "--json",
+        cwd=tmp_path,
+    )
     assert sim.returncode == 0, sim.stderr
     summary = json.loads(sim.stdout)
     assert summary["samples"] == N and summary["out"] == "pred.csv" and summary["model"] == "gpi"
     assert 0 < summary["error"]["rmse_percent"] < 0.35
 
-    t, v = mpi_signal()
+    _t, v = mpi_signal()
     table = np.loadtxt(tmp_path / "pred.csv", delimiter=",", skiprows=1)
     assert (tmp_path / "pred.csv").read_text().splitlines()[0] == "time,input,output"
-    model = ph.load_model(tmp_path / "mpi.json")       # the "fit" section does not disturb loading
+    model = ph.load_model(tmp_path / "mpi.json")  # the "fit" section does not disturb loading
     expected = model.simulate(table[:, 1])
     assert np.array_equal(table[:, 1], v)
-    assert np.array_equal(table[:, 2], expected)        # bit for bit
+    assert np.array_equal(table[:, 2], expected)  # bit for bit
     assert np.array_equal(table[:, 0], np.loadtxt(data / "mpi.csv", delimiter=",", skiprows=1)[:, 0])
 
     # without --out the CSV goes to stdout, the same text
@@ -115,10 +164,26 @@ def test_mpi_identify_then_simulate_bit_identical(data, tmp_path):
 
 
 def test_boucwen_de_recovers_the_parameters(data, tmp_path):
-    out = run("identify", data / "bw.csv", "--model", "boucwen", "--optimizer", "de", "--seed", "1",
-              "--iterations", "80", "--fs", FS, "--out", "bw.json", "--progress", cwd=tmp_path)
+    out = run(
+        "identify",
+        data / "bw.csv",
+        "--model",
+        "boucwen",
+        "--optimizer",
+        "de",
+        "--seed",
+        "1",
+        "--iterations",
+        "80",
+        "--fs",
+        FS,
+        "--out",
+        "bw.json",
+        "--progress",
+        cwd=tmp_path,
+    )
     assert out.returncode == 0, out.stderr
-    assert "80/80" in out.stderr                        # --progress: the optimizer's bar on stderr
+    assert "80/80" in out.stderr  # --progress: the optimizer's bar on stderr
     assert "RMSE" in out.stdout and "bw.json" in out.stdout
     doc = json.loads((tmp_path / "bw.json").read_text())
     assert doc["kind"] == "boucwen" and doc["fit"]["method"] == "de"
@@ -132,11 +197,29 @@ def test_boucwen_de_recovers_the_parameters(data, tmp_path):
 
 @pytest.mark.skipif(not YAN9A.exists(), reason=f"{YAN9A} is not present")
 def test_real_piezo_record_preisach(tmp_path):
-    out = run("identify", YAN9A, "--input", "0", "--output", "4", "--fs", "200", "--train", "3152:4152",
-              "--model", "preisach", "--levels", "10", "--out", "preisach.json", "--json", cwd=tmp_path)
+    out = run(
+        "identify",
+        YAN9A,
+        "--input",
+        "0",
+        "--output",
+        "4",
+        "--fs",
+        "200",
+        "--train",
+        "3152:4152",
+        "--model",
+        "preisach",
+        "--levels",
+        "10",
+        "--out",
+        "preisach.json",
+        "--json",
+        cwd=tmp_path,
+    )
     assert out.returncode == 0, out.stderr
     report = json.loads(out.stdout)
-    assert report["train"]["rmse_percent"] < 0.3        # measured 0.253 %, max error 0.93 %
+    assert report["train"]["rmse_percent"] < 0.3  # measured 0.253 %, max error 0.93 %
     assert report["validation"] is None
     assert report["data"]["train"] == {"source": str(YAN9A), "range": [3152, 4152], "samples": 1000}
     assert report["data"]["columns"] == {"input": "column 0", "output": "column 4"}
@@ -153,14 +236,14 @@ def test_real_piezo_record_preisach(tmp_path):
 def test_refuses_to_overwrite_without_force(data, tmp_path):
     args = ("identify", data / "mpi.csv", "--model", "pi", "--input", "v", "--output", "y", "--time", "t")
     (tmp_path / "model.json").write_text("mine")
-    out = run(*args, cwd=tmp_path)                        # default --out model.json
+    out = run(*args, cwd=tmp_path)  # default --out model.json
     assert one_line_error(out) and "model.json" in out.stderr and "--force" in out.stderr
     assert (tmp_path / "model.json").read_text() == "mine"
 
     (tmp_path / "fig.png").write_text("my figure")
     out = run(*args, "--out", "new.json", "--plot", "fig.png", cwd=tmp_path)
     assert one_line_error(out) and "fig.png" in out.stderr and "--force" in out.stderr
-    assert not (tmp_path / "new.json").exists()           # checked before any work is done
+    assert not (tmp_path / "new.json").exists()  # checked before any work is done
 
     out = run(*args, "--force", cwd=tmp_path)
     assert out.returncode == 0, out.stderr
@@ -173,16 +256,47 @@ def test_refuses_to_overwrite_without_force(data, tmp_path):
     assert (tmp_path / "pred.csv").read_text() == "mine"
     out = run(*sim, "--force", cwd=tmp_path)
     assert out.returncode == 0, out.stderr
-    assert (tmp_path / "pred.csv").read_text().startswith("input,output\n")   # no --fs/--time: no time column
+    assert (tmp_path / "pred.csv").read_text().startswith("input,output\n")  # no --fs/--time: no time column
 
 
 def test_help_documents_every_option(tmp_path):
     for command, options in {
-        "identify": ["--model", "--input", "--output", "--fs", "--time", "--dataset", "--train", "--validate",
-                     "--optimizer", "--seed", "--operators", "--levels", "--iterations", "--population", "--out",
-                     "--plot", "--force", "--json", "--progress", "--debug", "DATA"],
-        "simulate": ["--input", "--output", "--fs", "--time", "--dataset", "--out", "--force", "--json", "--debug",
-                     "MODEL.json", "INPUT"],
+        "identify": [
+            "--model",
+            "--input",
+            "--output",
+            "--fs",
+            "--time",
+            "--dataset",
+            "--train",
+            "--validate",
+            "--optimizer",
+            "--seed",
+            "--operators",
+            "--levels",
+            "--iterations",
+            "--population",
+            "--out",
+            "--plot",
+            "--force",
+            "--json",
+            "--progress",
+            "--debug",
+            "DATA",
+        ],
+        "simulate": [
+            "--input",
+            "--output",
+            "--fs",
+            "--time",
+            "--dataset",
+            "--out",
+            "--force",
+            "--json",
+            "--debug",
+            "MODEL.json",
+            "INPUT",
+        ],
     }.items():
         out = run(command, "--help", cwd=tmp_path)
         assert out.returncode == 0, out.stderr
@@ -200,21 +314,35 @@ MPI = ("identify", "{d}/mpi.csv", "--model", "mpi", "--input", "v", "--output", 
 BAD = {
     # identify
     "missing data file": (("identify", "{d}/none.csv", "--model", "mpi", "--fs", "10"), ["DATA", "none.csv"]),
-    "unknown model kind": (("identify", "{d}/mpi.csv", "--model", "warp", "--time", "t", "--input", "v",
-                            "--output", "y"), ["--model", "'warp'"]),
+    "unknown model kind": (
+        ("identify", "{d}/mpi.csv", "--model", "warp", "--time", "t", "--input", "v", "--output", "y"),
+        ["--model", "'warp'"],
+    ),
     "missing --model": (("identify", "{d}/mpi.csv", "--fs", "10"), ["--model"]),
-    "unknown column name": (("identify", "{d}/mpi.csv", "--model", "mpi", "--time", "t", "--input", "volts",
-                             "--output", "y"), ["--input", "'volts'"]),
-    "column index out of range": (("identify", "{d}/mpi.csv", "--model", "mpi", "--time", "t", "--input", "1",
-                                   "--output", "9"), ["--output = 9"]),
-    "negative --fs": (("identify", "{d}/mpi.csv", "--model", "mpi", "--fs", "-3", "--input", "v", "--output", "y"),
-                      ["--fs = -3"]),
-    "non-numeric --fs": (("identify", "{d}/mpi.csv", "--model", "mpi", "--fs", "fast", "--input", "v",
-                          "--output", "y"), ["--fs", "'fast'"]),
-    "no sample rate": (("identify", "{d}/mpi.csv", "--model", "mpi", "--input", "v", "--output", "y"),
-                       ["--fs", "--time"]),
-    "non-increasing time": (("identify", "{d}/mpi.csv", "--model", "mpi", "--time", "v", "--input", "t",
-                             "--output", "y"), ["--time", "not strictly increasing"]),
+    "unknown column name": (
+        ("identify", "{d}/mpi.csv", "--model", "mpi", "--time", "t", "--input", "volts", "--output", "y"),
+        ["--input", "'volts'"],
+    ),
+    "column index out of range": (
+        ("identify", "{d}/mpi.csv", "--model", "mpi", "--time", "t", "--input", "1", "--output", "9"),
+        ["--output = 9"],
+    ),
+    "negative --fs": (
+        ("identify", "{d}/mpi.csv", "--model", "mpi", "--fs", "-3", "--input", "v", "--output", "y"),
+        ["--fs = -3"],
+    ),
+    "non-numeric --fs": (
+        ("identify", "{d}/mpi.csv", "--model", "mpi", "--fs", "fast", "--input", "v", "--output", "y"),
+        ["--fs", "'fast'"],
+    ),
+    "no sample rate": (
+        ("identify", "{d}/mpi.csv", "--model", "mpi", "--input", "v", "--output", "y"),
+        ["--fs", "--time"],
+    ),
+    "non-increasing time": (
+        ("identify", "{d}/mpi.csv", "--model", "mpi", "--time", "v", "--input", "t", "--output", "y"),
+        ["--time", "not strictly increasing"],
+    ),
     "reversed --train": ((*MPI, "--train", "10:5"), ["--train = '10:5'", "not before"]),
     "non-integer --train": ((*MPI, "--train", "a:5"), ["--train = 'a:5'", "'a'"]),
     "--train without colon": ((*MPI, "--train", "500"), ["--train = '500'", "A:B"]),
@@ -222,8 +350,10 @@ BAD = {
     "--train start beyond the end": ((*MPI, "--train", "5000:"), ["--train = '5000:'", "4000 samples"]),
     "--train of one sample": ((*MPI, "--train", "5:6"), ["--train = '5:6'", "at least 2"]),
     "negative --train": ((*MPI, "--train=-5:"), ["--train = '-5:'", "'-5'"]),
-    "overlapping --validate": ((*MPI, "--train", "0:3000", "--validate", "2000:4000"), ["--train", "--validate",
-                                                                                       "overlap"]),
+    "overlapping --validate": (
+        (*MPI, "--train", "0:3000", "--validate", "2000:4000"),
+        ["--train", "--validate", "overlap"],
+    ),
     "--validate beyond the end": ((*MPI, "--validate", "3000:5000"), ["--validate = '3000:5000'"]),
     "missing --validate file": ((*MPI, "--validate", "{d}/none.csv"), ["--validate", "none.csv"]),
     "--validate file without the column": ((*MPI, "--validate", "{d}/bw.csv"), ["bw.csv", "--input = 'v'"]),
@@ -233,22 +363,31 @@ BAD = {
     "--out in a missing directory": ((*MPI, "--out", "nowhere/m.json"), ["--out", "nowhere"]),
     "NaN in the data": (("identify", "{d}/nan.csv", "--model", "mpi", "--fs", "10"), ["nan.csv", "nan"]),
     "constant input": (("identify", "{d}/const.csv", "--model", "mpi", "--fs", "10"), ["input", "constant"]),
-    "unsupported file": (("identify", "{d}/seed2.json", "--model", "mpi", "--fs", "10"), ["seed2.json",
-                                                                                         "extension"]),
+    "unsupported file": (("identify", "{d}/seed2.json", "--model", "mpi", "--fs", "10"), ["seed2.json", "extension"]),
     # simulate
     "missing model file": (("simulate", "{d}/none.json", "{d}/mpi.csv", "--input", "v"), ["MODEL", "none.json"]),
-    "model file not JSON": (("simulate", "{d}/not_json.json", "{d}/mpi.csv", "--input", "v"),
-                            ["MODEL", "not valid JSON"]),
-    "unknown model kind in file": (("simulate", "{d}/kind.json", "{d}/mpi.csv", "--input", "v"),
-                                   ["MODEL", "'warp-drive'"]),
+    "model file not JSON": (
+        ("simulate", "{d}/not_json.json", "{d}/mpi.csv", "--input", "v"),
+        ["MODEL", "not valid JSON"],
+    ),
+    "unknown model kind in file": (
+        ("simulate", "{d}/kind.json", "{d}/mpi.csv", "--input", "v"),
+        ["MODEL", "'warp-drive'"],
+    ),
     "missing input file": (("simulate", "{d}/seed2.json", "{d}/none.csv", "--input", "v"), ["INPUT", "none.csv"]),
-    "simulate: unknown column": (("simulate", "{d}/seed2.json", "{d}/mpi.csv", "--input", "volts"),
-                                 ["--input = 'volts'"]),
+    "simulate: unknown column": (
+        ("simulate", "{d}/seed2.json", "{d}/mpi.csv", "--input", "volts"),
+        ["--input = 'volts'"],
+    ),
     "simulate: ambiguous input": (("simulate", "{d}/seed2.json", "{d}/mpi.csv"), ["--input"]),
-    "simulate: --fs against the model's ts": (("simulate", "{d}/rdpi.json", "{d}/mpi.csv", "--input", "v",
-                                               "--fs", "500"), ["--fs", "ts = 0.001"]),
-    "simulate: --json to stdout": (("simulate", "{d}/seed2.json", "{d}/mpi.csv", "--input", "v", "--json"),
-                                   ["--json", "--out"]),
+    "simulate: --fs against the model's ts": (
+        ("simulate", "{d}/rdpi.json", "{d}/mpi.csv", "--input", "v", "--fs", "500"),
+        ["--fs", "ts = 0.001"],
+    ),
+    "simulate: --json to stdout": (
+        ("simulate", "{d}/seed2.json", "{d}/mpi.csv", "--input", "v", "--json"),
+        ["--json", "--out"],
+    ),
 }
 
 
@@ -280,10 +419,24 @@ def test_bad_input_is_one_line_error(case, bad_results):
     assert out.stdout == ""
     for needle in BAD[case][1]:
         assert needle in out.stderr, (needle, out.stderr)
-    assert list(case_dir.iterdir()) == []                  # nothing written, no temp files
+    assert list(case_dir.iterdir()) == []  # nothing written, no temp files
 
 
 def test_debug_shows_the_traceback(data, tmp_path):
-    out = run("identify", data / "mpi.csv", "--model", "mpi", "--time", "t", "--input", "v", "--output", "y",
-              "--train", "10:5", "--debug", cwd=tmp_path)
+    out = run(
+        "identify",
+        data / "mpi.csv",
+        "--model",
+        "mpi",
+        "--time",
+        "t",
+        "--input",
+        "v",
+        "--output",
+        "y",
+        "--train",
+        "10:5",
+        "--debug",
+        cwd=tmp_path,
+    )
     assert out.returncode != 0 and "Traceback" in out.stderr and "--train = '10:5'" in out.stderr

@@ -1,6 +1,7 @@
-"""The closed-loop engine (issue 3, SPEC §3.2, §5, §10): open loop and PID on the virtual
+"""The closed-loop engine (issue 3, docs/spec.md §3.2, §5, §10): open loop and PID on the virtual
 stage, saturation and anti-windup, the recorded controller terms, the sensor (quantization,
 delay, noise and its seed), batch runs, and bad input."""
+
 import json
 import os
 import subprocess
@@ -9,7 +10,6 @@ import sys
 import numpy as np
 import pytest
 
-import piezohyst as ph
 from piezohyst import PID, OpenLoop, Sensor, closed_loop, closed_loop_batch, virtual_stage
 
 STAGE = virtual_stage()
@@ -27,12 +27,13 @@ def noiseless(stage=STAGE, delay=1):
 
 def tracking_rms(result, skip=0.1):
     e = result.error[result.time >= skip]  # after the first period's transient
-    return float(np.sqrt(np.mean(e ** 2)))
+    return float(np.sqrt(np.mean(e**2)))
 
 
 # --------------------------------------------------------------------------------------------
 # open loop vs PID
 # --------------------------------------------------------------------------------------------
+
 
 def test_open_loop_shows_hysteresis_and_pid_removes_most_of_it():
     ref = sine_reference()
@@ -43,7 +44,7 @@ def test_open_loop_shows_hysteresis_and_pid_removes_most_of_it():
     assert e_ol > 0.04 * span  # measured 1.1 um = 7 % of the 16 um span (hysteresis + creep)
     assert e_pid < 0.01 * span  # measured 0.08 um
     assert e_pid < e_ol / 8
-    assert ol.metrics["rmse"] == pytest.approx(np.sqrt(np.mean(ol.error ** 2)), rel=1e-12)
+    assert ol.metrics["rmse"] == pytest.approx(np.sqrt(np.mean(ol.error**2)), rel=1e-12)
     assert ol.metrics["max_error"] == pytest.approx(np.max(np.abs(ol.error)), rel=1e-12)
     assert ol.controller == "OpenLoop" and pid.controller == "PID"
 
@@ -90,13 +91,16 @@ N1, N2, N3 = 200, 500, 400
 PLATEAU = np.concatenate([np.full(N1, 10e-6), np.full(N2, 23.5e-6), np.full(N3, 10e-6)])
 
 
-@pytest.mark.parametrize("controller, lo, hi", [
-    (PID(kp=1e6, ki=5e9), -20.0, 150.0),
-    (PID(kp=1e6, ki=5e9, u_max=100.0), -20.0, 100.0),
-    (PID(kp=1e12, ki=1e16, kd=1e3), -20.0, 150.0),  # absurd gains: bang-bang, still bounded
-    (PID(kp=1e12, ki=1e16, u_min=0.0, u_max=80.0), 0.0, 80.0),
-    (OpenLoop(gain=1e13), -20.0, 150.0),
-])
+@pytest.mark.parametrize(
+    "controller, lo, hi",
+    [
+        (PID(kp=1e6, ki=5e9), -20.0, 150.0),
+        (PID(kp=1e6, ki=5e9, u_max=100.0), -20.0, 100.0),
+        (PID(kp=1e12, ki=1e16, kd=1e3), -20.0, 150.0),  # absurd gains: bang-bang, still bounded
+        (PID(kp=1e12, ki=1e16, u_min=0.0, u_max=80.0), 0.0, 80.0),
+        (OpenLoop(gain=1e13), -20.0, 150.0),
+    ],
+)
 def test_command_never_leaves_its_limits(controller, lo, hi):
     r = closed_loop(STAGE, controller, PLATEAU, rng=5)
     assert r.command.min() >= lo and r.command.max() <= hi
@@ -125,7 +129,7 @@ def test_anti_windup_holds_the_integrator_and_recovers_quickly():
     np.testing.assert_allclose(I[k][free], I[k - 1][free] + 5e9 * TS * e[k][free], rtol=0, atol=1e-9)
     assert abs(I[N1 + N2 - 1]) < 40.0  # no wind-up: bounded by the unsaturated operating point
     # back at 10 um within 10 ms of the plateau's end
-    after = np.abs(r.error[N1 + N2:])
+    after = np.abs(r.error[N1 + N2 :])
     late = np.flatnonzero(after > 0.2e-6)
     assert late.size == 0 or late.max() < 100, late.max()
     assert np.max(after[-100:]) < 0.15e-6
@@ -144,6 +148,7 @@ def test_controller_limits_beyond_the_amplifier_do_not_wind_up():
 # --------------------------------------------------------------------------------------------
 # recorded terms
 # --------------------------------------------------------------------------------------------
+
 
 def test_pid_terms_add_up_exactly():
     kp, ki, kd, tau_d, offset, ff = 1.2e6, 4e9, 100.0, 2e-4, 1.5, 6.5e6
@@ -173,6 +178,7 @@ def test_pid_terms_add_up_exactly():
 # sensor
 # --------------------------------------------------------------------------------------------
 
+
 def test_measured_signal_is_quantized_to_0p1_um():
     r = closed_loop(STAGE, PID(kp=1e6, ki=5e9), sine_reference(duration=0.1), rng=8)
     steps = r.measured / 1e-7
@@ -185,7 +191,7 @@ def test_noiseless_reading_is_the_quantized_position_delayed(delay):
     st = noiseless(delay=delay)
     r = closed_loop(st, PID(kp=1e6, ki=5e9), sine_reference(duration=0.05), rng=9)
     q = np.round(r.position * (1 / 1e-7)) * 1e-7
-    assert np.array_equal(r.measured[delay:], q[:q.size - delay])
+    assert np.array_equal(r.measured[delay:], q[: q.size - delay])
     assert np.all(r.measured[:delay] == 0.0)  # the delay line starts at the reading at rest
     if delay:
         assert np.mean(r.measured != q) > 0.3  # the lag is visible: not the current reading
@@ -228,6 +234,7 @@ def test_same_seed_same_run_other_seed_other_run():
 # batch
 # --------------------------------------------------------------------------------------------
 
+
 def scenarios():
     return [
         (OpenLoop(), sine_reference(duration=0.05)),
@@ -241,7 +248,7 @@ def test_noiseless_batch_equals_single_runs():
     st = noiseless()
     batch = closed_loop_batch(st, scenarios(), rng=13)
     assert len(batch) == 4
-    for (c, ref), b in zip(scenarios(), batch):
+    for (c, ref), b in zip(scenarios(), batch, strict=False):
         single = closed_loop(st, c, ref, rng=14)
         for field in ("command", "voltage", "position", "measured", "final_state"):
             assert np.array_equal(getattr(b, field), getattr(single, field)), field
@@ -254,7 +261,7 @@ def test_noiseless_batch_equals_single_runs():
 def test_batch_is_deterministic_and_scenarios_get_their_own_noise():
     a = closed_loop_batch(STAGE, scenarios(), rng=15)
     b = closed_loop_batch(STAGE, scenarios(), rng=15)
-    for ra, rb in zip(a, b):
+    for ra, rb in zip(a, b, strict=False):
         assert np.array_equal(ra.measured, rb.measured) and np.array_equal(ra.position, rb.position)
     assert np.mean(a[1].measured != a[3].measured) > 0.05  # twins, different noise
     c = closed_loop_batch(STAGE, scenarios(), rng=16)
@@ -291,6 +298,7 @@ def test_batch_does_not_depend_on_thread_count():
 # bad input
 # --------------------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("index, value", [(17, 30e-6), (3, -5e-6)])
 def test_reference_beyond_the_stroke_is_named(index, value):
     ref = np.full(40, 5e-6)
@@ -320,18 +328,21 @@ def test_non_controllers_are_type_errors(thing):
         closed_loop(STAGE, thing, np.full(10, 1e-6))
 
 
-@pytest.mark.parametrize("controller, message", [
-    (PID(kp=-1.0), r"kp = -1\.0 must be >= 0"),
-    (PID(ki=-5e9), r"ki = -5000000000\.0 must be >= 0"),
-    (PID(kd=-0.1), r"kd = -0\.1 must be >= 0"),
-    (PID(tau_d=0.0), r"tau_d = 0\.0 must be > 0"),
-    (PID(tau_d=-1e-4), r"tau_d = -0\.0001 must be > 0"),
-    (PID(kp=float("nan")), r"kp = nan is not finite"),
-    (PID(u_min=100.0, u_max=100.0), r"u_min = 100\.0 must be < u_max = 100\.0"),
-    (PID(u_min=160.0), r"u_min = 160\.0 must be < u_max = 150\.0"),
-    (OpenLoop(u_min=50.0, u_max=10.0), r"u_min = 50\.0 must be < u_max = 10\.0"),
-    (OpenLoop(gain=float("inf")), r"gain = inf is not finite"),
-])
+@pytest.mark.parametrize(
+    "controller, message",
+    [
+        (PID(kp=-1.0), r"kp = -1\.0 must be >= 0"),
+        (PID(ki=-5e9), r"ki = -5000000000\.0 must be >= 0"),
+        (PID(kd=-0.1), r"kd = -0\.1 must be >= 0"),
+        (PID(tau_d=0.0), r"tau_d = 0\.0 must be > 0"),
+        (PID(tau_d=-1e-4), r"tau_d = -0\.0001 must be > 0"),
+        (PID(kp=float("nan")), r"kp = nan is not finite"),
+        (PID(u_min=100.0, u_max=100.0), r"u_min = 100\.0 must be < u_max = 100\.0"),
+        (PID(u_min=160.0), r"u_min = 160\.0 must be < u_max = 150\.0"),
+        (OpenLoop(u_min=50.0, u_max=10.0), r"u_min = 50\.0 must be < u_max = 10\.0"),
+        (OpenLoop(gain=float("inf")), r"gain = inf is not finite"),
+    ],
+)
 def test_bad_controller_parameters_are_named(controller, message):
     with pytest.raises(ValueError, match=message):
         closed_loop(STAGE, controller, np.full(10, 1e-6))

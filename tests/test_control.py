@@ -1,9 +1,10 @@
-"""Controllers on the virtual stage (SPEC §5): parameter checks, saturation, the recorded terms
+"""Controllers on the virtual stage (docs/spec.md §5): parameter checks, saturation, the recorded terms
 against the control laws of ``crates/core/src/{smc,absmc,ilc}.rs``, the velocity observer,
 the CEMF feedforward and observer (seed 1), inverse feedforward and compensated feedback,
 ABSMC (seed 2) with projection, ILC, and determinism of single and batch runs.
 
 Every threshold below is set from a measured value (quoted next to it) with some margin."""
+
 import dataclasses
 
 import numpy as np
@@ -11,8 +12,16 @@ import pytest
 
 import piezohyst as ph
 from piezohyst import PID, Amplifier, OpenLoop, Sensor, closed_loop, closed_loop_batch, virtual_stage
-from piezohyst.control import (ABSMC, ILC, SMC, CemfFeedforward, Compensated, InverseFeedforward, VelocityObserver,
-                               cemf_model_parameters)
+from piezohyst.control import (
+    ABSMC,
+    ILC,
+    SMC,
+    CemfFeedforward,
+    Compensated,
+    InverseFeedforward,
+    VelocityObserver,
+    cemf_model_parameters,
+)
 from piezohyst.metrics import linearity_error
 from piezohyst.simulation import seed_from
 
@@ -29,7 +38,7 @@ ABSMC_LIN = ABSMC.linearized(2000.0, 0.7, c1=2e3, lam=2e3, ks=5e3, gamma_d=1e4)
 
 
 def times(duration):
-    return np.arange(int(round(duration / TS))) * TS
+    return np.arange(round(duration / TS)) * TS
 
 
 def rms(x):
@@ -78,53 +87,62 @@ def model_range(model):
 CONST = np.full(50, 5e-6)
 
 
-@pytest.mark.parametrize("controller, message", [
-    (SMC(P, kv=-10.0, alpha=5.0), r"kv \+ alpha = -5\.0 must be > 0"),
-    (SMC(P, kv=0.0, alpha=0.0), r"kv \+ alpha = 0\.0 must be > 0"),
-    (SMC(P, kp=-1e6, kv=100.0, alpha=5.0), r"alpha \* kv \+ kp = -999500\.0 must be > 0"),
-    (SMC(P, kp=0.0), r"alpha \* kv \+ kp = 0\.0 must be > 0"),
-    (SMC(P, phi=-1e-3), r"phi = -0\.001 must be > 0"),
-    (SMC(P, phi=0.0), r"phi = 0\.0 must be > 0"),
-    (SMC(P, ks=-1.0), r"ks = -1\.0 must be >= 0"),
-    (SMC(P, alpha=-1.0), r"alpha = -1\.0 must be >= 0"),
-    (SMC(P, ks=float("nan")), r"ks = nan is not finite"),
-    (SMC(P, switching="bang_bang"), r"switching = 'bang_bang' must be 'boundary_layer' or 'super_twisting'"),
-    (SMC(P, switching="super_twisting", k1=-1.0), r"k1 = -1\.0 must be >= 0"),
-    (SMC(P, switching="super_twisting", k2=-1.0), r"k2 = -1\.0 must be >= 0"),
-    (SMC(dataclasses.replace(P, hyst_drive="voltage")), r"model\.hyst_drive = 'voltage'"),
-    (CemfFeedforward(dataclasses.replace(P, hyst_drive="voltage")), r"model\.hyst_drive = 'voltage'"),
-    (ABSMC.for_stage(P, c1=0.0), r"c1 = 0\.0 must be > 0"),
-    (ABSMC.for_stage(P, c1=-2e3), r"c1 = -2000\.0 must be > 0"),
-    (ABSMC.for_stage(P, lam=0.0), r"lam = 0\.0 must be > 0"),
-    (ABSMC.for_stage(P, lam=-1.0), r"lam = -1\.0 must be > 0"),
-    (ABSMC.for_stage(P, gamma_d=0.0), r"gamma_d = 0\.0 must be > 0"),
-    (ABSMC.for_stage(P, gamma_theta=(1e12, 0.0)), r"gamma_theta\[1\] = 0\.0 must be > 0"),
-    (ABSMC.for_stage(P, gamma_theta=(-1.0, 1e6)), r"gamma_theta\[0\] = -1\.0 must be > 0"),
-    (ABSMC.for_stage(P, phi=0.0), r"phi = 0\.0 must be > 0"),
-    (ABSMC.for_stage(P, ks=-1.0), r"ks = -1\.0 must be >= 0"),
-    (ABSMC.for_stage(P, theta_range=0.5), r"theta_range = 0\.5 must be >= 1"),
-    (ABSMC.for_stage(P, regressor="estimated"), r"regressor = 'estimated' must be 'desired' or 'measured'"),
-    (ABSMC(b=0.0, theta=(1.0, 1.0)), r"b = 0\.0 must be > 0"),
-    (ABSMC(b=1.0, theta=(1.0, 1.0, 1.0)), r"theta must have 2 values"),
-    (SMC(P, observer=VelocityObserver(5000.0)), r"observer_bandwidth = 5000\.0 Hz must be below the Nyquist frequency 5000 Hz"),
-    (SMC(P, observer=VelocityObserver(7000.0)), r"observer_bandwidth = 7000\.0 Hz must be below the Nyquist"),
-    (ABSMC.for_stage(P, observer=VelocityObserver(5000.0)), r"observer_bandwidth = 5000\.0 Hz must be below the Nyquist"),
-    (SMC(P, observer=VelocityObserver(0.0)), r"observer_bandwidth = 0\.0 must be > 0"),
-    (SMC(P, observer=VelocityObserver(300.0, delay=-1.0)), r"observer_delay = -1\.0 must be >= 0"),
-    (ILC(OpenLoop(), period=100, forgetting=1.5), r"forgetting = 1\.5 must lie in \(0, 1\]"),
-    (ILC(OpenLoop(), period=100, forgetting=0.0), r"forgetting = 0\.0 must be > 0"),
-    (ILC(OpenLoop(), period=100, lead=100), r"lead = 100 must be below the period 100"),
-    (ILC(OpenLoop(), period=100, lead=250), r"lead = 250 must be below the period 100"),
-    (ILC(OpenLoop(), period=1, lead=0), r"period = 1 must be >= 2"),
-    (ILC(OpenLoop(), period=100, gain=-0.5), r"gain = -0\.5 must be >= 0"),
-    (OpenLoop(u_max=200.0), r"u_max = 200\.0 V is above the amplifier's v_max = 150\.0 V"),
-    (PID(kp=1e6, u_min=-30.0), r"u_min = -30\.0 V is below the amplifier's v_min = -20\.0 V"),
-    (SMC(P, u_min=-20.5), r"u_min = -20\.5 V is below the amplifier's v_min = -20\.0 V"),
-    (SMC(P, u_max=150.5), r"u_max = 150\.5 V is above the amplifier's v_max = 150\.0 V"),
-    (ABSMC.for_stage(P, u_max=1000.0), r"u_max = 1000\.0 V is above the amplifier's v_max = 150\.0 V"),
-    (CemfFeedforward(P, u_max=151.0), r"u_max = 151\.0 V is above the amplifier's v_max = 150\.0 V"),
-    (CemfFeedforward(P, u_min=100.0, u_max=50.0), r"u_min = 100\.0 must be < u_max = 50\.0"),
-])
+@pytest.mark.parametrize(
+    "controller, message",
+    [
+        (SMC(P, kv=-10.0, alpha=5.0), r"kv \+ alpha = -5\.0 must be > 0"),
+        (SMC(P, kv=0.0, alpha=0.0), r"kv \+ alpha = 0\.0 must be > 0"),
+        (SMC(P, kp=-1e6, kv=100.0, alpha=5.0), r"alpha \* kv \+ kp = -999500\.0 must be > 0"),
+        (SMC(P, kp=0.0), r"alpha \* kv \+ kp = 0\.0 must be > 0"),
+        (SMC(P, phi=-1e-3), r"phi = -0\.001 must be > 0"),
+        (SMC(P, phi=0.0), r"phi = 0\.0 must be > 0"),
+        (SMC(P, ks=-1.0), r"ks = -1\.0 must be >= 0"),
+        (SMC(P, alpha=-1.0), r"alpha = -1\.0 must be >= 0"),
+        (SMC(P, ks=float("nan")), r"ks = nan is not finite"),
+        (SMC(P, switching="bang_bang"), r"switching = 'bang_bang' must be 'boundary_layer' or 'super_twisting'"),
+        (SMC(P, switching="super_twisting", k1=-1.0), r"k1 = -1\.0 must be >= 0"),
+        (SMC(P, switching="super_twisting", k2=-1.0), r"k2 = -1\.0 must be >= 0"),
+        (SMC(dataclasses.replace(P, hyst_drive="voltage")), r"model\.hyst_drive = 'voltage'"),
+        (CemfFeedforward(dataclasses.replace(P, hyst_drive="voltage")), r"model\.hyst_drive = 'voltage'"),
+        (ABSMC.for_stage(P, c1=0.0), r"c1 = 0\.0 must be > 0"),
+        (ABSMC.for_stage(P, c1=-2e3), r"c1 = -2000\.0 must be > 0"),
+        (ABSMC.for_stage(P, lam=0.0), r"lam = 0\.0 must be > 0"),
+        (ABSMC.for_stage(P, lam=-1.0), r"lam = -1\.0 must be > 0"),
+        (ABSMC.for_stage(P, gamma_d=0.0), r"gamma_d = 0\.0 must be > 0"),
+        (ABSMC.for_stage(P, gamma_theta=(1e12, 0.0)), r"gamma_theta\[1\] = 0\.0 must be > 0"),
+        (ABSMC.for_stage(P, gamma_theta=(-1.0, 1e6)), r"gamma_theta\[0\] = -1\.0 must be > 0"),
+        (ABSMC.for_stage(P, phi=0.0), r"phi = 0\.0 must be > 0"),
+        (ABSMC.for_stage(P, ks=-1.0), r"ks = -1\.0 must be >= 0"),
+        (ABSMC.for_stage(P, theta_range=0.5), r"theta_range = 0\.5 must be >= 1"),
+        (ABSMC.for_stage(P, regressor="estimated"), r"regressor = 'estimated' must be 'desired' or 'measured'"),
+        (ABSMC(b=0.0, theta=(1.0, 1.0)), r"b = 0\.0 must be > 0"),
+        (ABSMC(b=1.0, theta=(1.0, 1.0, 1.0)), r"theta must have 2 values"),
+        (
+            SMC(P, observer=VelocityObserver(5000.0)),
+            r"observer_bandwidth = 5000\.0 Hz must be below the Nyquist frequency 5000 Hz",
+        ),
+        (SMC(P, observer=VelocityObserver(7000.0)), r"observer_bandwidth = 7000\.0 Hz must be below the Nyquist"),
+        (
+            ABSMC.for_stage(P, observer=VelocityObserver(5000.0)),
+            r"observer_bandwidth = 5000\.0 Hz must be below the Nyquist",
+        ),
+        (SMC(P, observer=VelocityObserver(0.0)), r"observer_bandwidth = 0\.0 must be > 0"),
+        (SMC(P, observer=VelocityObserver(300.0, delay=-1.0)), r"observer_delay = -1\.0 must be >= 0"),
+        (ILC(OpenLoop(), period=100, forgetting=1.5), r"forgetting = 1\.5 must lie in \(0, 1\]"),
+        (ILC(OpenLoop(), period=100, forgetting=0.0), r"forgetting = 0\.0 must be > 0"),
+        (ILC(OpenLoop(), period=100, lead=100), r"lead = 100 must be below the period 100"),
+        (ILC(OpenLoop(), period=100, lead=250), r"lead = 250 must be below the period 100"),
+        (ILC(OpenLoop(), period=1, lead=0), r"period = 1 must be >= 2"),
+        (ILC(OpenLoop(), period=100, gain=-0.5), r"gain = -0\.5 must be >= 0"),
+        (OpenLoop(u_max=200.0), r"u_max = 200\.0 V is above the amplifier's v_max = 150\.0 V"),
+        (PID(kp=1e6, u_min=-30.0), r"u_min = -30\.0 V is below the amplifier's v_min = -20\.0 V"),
+        (SMC(P, u_min=-20.5), r"u_min = -20\.5 V is below the amplifier's v_min = -20\.0 V"),
+        (SMC(P, u_max=150.5), r"u_max = 150\.5 V is above the amplifier's v_max = 150\.0 V"),
+        (ABSMC.for_stage(P, u_max=1000.0), r"u_max = 1000\.0 V is above the amplifier's v_max = 150\.0 V"),
+        (CemfFeedforward(P, u_max=151.0), r"u_max = 151\.0 V is above the amplifier's v_max = 150\.0 V"),
+        (CemfFeedforward(P, u_min=100.0, u_max=50.0), r"u_min = 100\.0 must be < u_max = 50\.0"),
+    ],
+)
 def test_bad_controller_parameters_are_named(controller, message):
     with pytest.raises(ValueError, match=message):
         closed_loop(STAGE, controller, CONST)
@@ -154,8 +172,11 @@ def test_reference_beyond_the_stroke_is_rejected_for_model_based_control(index, 
     ref = CONST.copy()
     ref[index] = value
     # stroke [-3.06, 24.2] um: 1.432e-7 m/V * (V (1 + 0.075 creep) + 3.3e-4 V^2) at -20 and 150 V
-    with pytest.raises(ValueError, match=rf"reference\[{index}\] = {value:.6g} m is beyond the stage's stroke "
-                                         r"\[-3\.06e-06, 2\.42e-05\] m"):
+    with pytest.raises(
+        ValueError,
+        match=rf"reference\[{index}\] = {value:.6g} m is beyond the stage's stroke "
+        r"\[-3\.06e-06, 2\.42e-05\] m",
+    ):
         closed_loop(STAGE, SMC(P, **SMC_GAINS), ref)
     with pytest.raises(ValueError, match=rf"scenarios\[1\]: reference\[{index}\]"):
         closed_loop_batch(STAGE, [(CemfFeedforward(P), CONST), (ABSMC.for_stage(P), ref)])
@@ -166,10 +187,13 @@ def test_gamma_theta_of_the_wrong_length_is_named():
         closed_loop(STAGE, ABSMC.for_stage(P, gamma_theta=(1e12,)), CONST)
 
 
-@pytest.mark.parametrize("controller", [
-    ABSMC(b=1.0, theta=(5.0, 1.0), theta_bounds=((0.0, 0.0), (1.0, 2.0))),
-    ABSMC(b=1.0, theta=(5.0, 1.0), d0=10.0, d_max=1.0),
-])
+@pytest.mark.parametrize(
+    "controller",
+    [
+        ABSMC(b=1.0, theta=(5.0, 1.0), theta_bounds=((0.0, 0.0), (1.0, 2.0))),
+        ABSMC(b=1.0, theta=(5.0, 1.0), d0=10.0, d_max=1.0),
+    ],
+)
 def test_absmc_bound_errors_read_cleanly(controller):
     with pytest.raises(ValueError) as info:
         closed_loop(STAGE, controller, CONST)
@@ -185,19 +209,22 @@ def test_absmc_bound_errors_read_cleanly(controller):
 _, AGGRESSIVE = ph.triangle(200.0, 11.5e-6, 0.1, FS, offset=11.5e-6)
 
 
-@pytest.mark.parametrize("controller, lo, hi", [
-    (OpenLoop(c1=1e-3), V_MIN, V_MAX),  # measured raw [-58, 219] V
-    (PID(kp=2e6, ki=5e9, kd=50.0), V_MIN, V_MAX),  # raw up to 178 V
-    (PID(kp=2e6, ki=5e9, u_min=0.0, u_max=100.0), 0.0, 100.0),  # raw [-12, 190] V
-    (SMC(P, u_min=10.0, u_max=100.0, **SMC_GAINS), 10.0, 100.0),  # raw [6.3, 116] V
-    (SMC(P, cemf=True, **SMC_GAINS), V_MIN, V_MAX),  # raw [-35, 163] V
-    (SMC(P, switching="super_twisting", k1=50.0, k2=1e4, u_min=-10.0, u_max=120.0), -10.0, 120.0),  # raw [-27, 155]
-    (ABSMC.for_stage(P), V_MIN, V_MAX),  # raw up to 160 V
-    (ABSMC.for_stage(P, u_min=0.0, u_max=120.0), 0.0, 120.0),  # raw [-1.2, 165] V
-    (CemfFeedforward(P), V_MIN, V_MAX),  # raw [-10.7, 171] V
-    (CemfFeedforward(P, u_min=0.0, u_max=90.0), 0.0, 90.0),
-    (ILC(OpenLoop(), period=50, gain=3e6), V_MIN, V_MAX),  # raw up to 170 V
-])
+@pytest.mark.parametrize(
+    "controller, lo, hi",
+    [
+        (OpenLoop(c1=1e-3), V_MIN, V_MAX),  # measured raw [-58, 219] V
+        (PID(kp=2e6, ki=5e9, kd=50.0), V_MIN, V_MAX),  # raw up to 178 V
+        (PID(kp=2e6, ki=5e9, u_min=0.0, u_max=100.0), 0.0, 100.0),  # raw [-12, 190] V
+        (SMC(P, u_min=10.0, u_max=100.0, **SMC_GAINS), 10.0, 100.0),  # raw [6.3, 116] V
+        (SMC(P, cemf=True, **SMC_GAINS), V_MIN, V_MAX),  # raw [-35, 163] V
+        (SMC(P, switching="super_twisting", k1=50.0, k2=1e4, u_min=-10.0, u_max=120.0), -10.0, 120.0),  # raw [-27, 155]
+        (ABSMC.for_stage(P), V_MIN, V_MAX),  # raw up to 160 V
+        (ABSMC.for_stage(P, u_min=0.0, u_max=120.0), 0.0, 120.0),  # raw [-1.2, 165] V
+        (CemfFeedforward(P), V_MIN, V_MAX),  # raw [-10.7, 171] V
+        (CemfFeedforward(P, u_min=0.0, u_max=90.0), 0.0, 90.0),
+        (ILC(OpenLoop(), period=50, gain=3e6), V_MIN, V_MAX),  # raw up to 170 V
+    ],
+)
 def test_voltage_domain_commands_are_the_clamped_law(controller, lo, hi):
     r = closed_loop(STAGE, controller, AGGRESSIVE, rng=1)
     raw = r.terms["u_unsaturated"]
@@ -208,14 +235,18 @@ def test_voltage_domain_commands_are_the_clamped_law(controller, lo, hi):
     assert np.all(np.isfinite(r.position)) and np.all(np.isfinite(raw))
 
 
-@pytest.mark.parametrize("make", [
-    lambda m: InverseFeedforward(m),
-    lambda m: Compensated(PID(kp=0.5, ki=2000.0), m),
-    lambda m: Compensated(ABSMC_LIN, m),
-    lambda m: ILC(InverseFeedforward(m), period=50, gain=0.1),
-], ids=["inverse_feedforward", "compensated_pid", "compensated_absmc", "ilc_inverse"])
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda m: InverseFeedforward(m),
+        lambda m: Compensated(PID(kp=0.5, ki=2000.0), m),
+        lambda m: Compensated(ABSMC_LIN, m),
+        lambda m: ILC(InverseFeedforward(m), period=50, gain=0.1),
+    ],
+    ids=["inverse_feedforward", "compensated_pid", "compensated_absmc", "ilc_inverse"],
+)
 def test_compensated_commands_stay_in_the_amplifier_range(mpi, make):
-    y_lo, y_hi = model_range(mpi)  # measured [-0.96, 21.39] um
+    _y_lo, y_hi = model_range(mpi)  # measured [-0.96, 21.39] um
     r = closed_loop(STAGE, make(mpi), AGGRESSIVE, rng=1)
     raw = r.terms["u_unsaturated"]  # the inner law, in metres
     assert np.max(raw) > y_hi  # the inner law asks for more than the model can give (up to 23 um)
@@ -227,6 +258,7 @@ def test_compensated_commands_stay_in_the_amplifier_range(mpi, make):
 # --------------------------------------------------------------------------------------------
 # CEMF model (seed 1): exact inverse feedforward, and the observer in the SMC (Case 1 / 2)
 # --------------------------------------------------------------------------------------------
+
 
 def test_cemf_feedforward_with_the_true_model_removes_the_hysteresis():
     st = simple_stage()
@@ -297,8 +329,9 @@ def test_smc_terms_follow_the_control_law():
     m = cemf_model_parameters(P)
     e, de = ref - x, vel - v
     np.testing.assert_allclose(s, de + kv * e + kp * xi, rtol=1e-12, atol=1e-15)
-    np.testing.assert_allclose(eq, m["M"] * (acc + kv * de + kp * e - alpha * kp * xi) + m["B"] * v + m["K"] * x + vh,
-                               rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(
+        eq, m["M"] * (acc + kv * de + kp * e - alpha * kp * xi) + m["B"] * v + m["K"] * x + vh, rtol=1e-12, atol=1e-9
+    )
     assert np.array_equal(sw, ks * np.clip(s / phi, -1.0, 1.0))
     assert np.array_equal(raw, eq + sw)
     assert np.array_equal(r.command, np.clip(raw, V_MIN, V_MAX))
@@ -363,6 +396,7 @@ def test_observer_velocity_on_the_quantized_noisy_sensor():
 # inverse feedforward and compensated feedback
 # --------------------------------------------------------------------------------------------
 
+
 def test_inverse_feedforward_linearizes_the_stage(mpi):
     t = times(1.2)
     ref = 10e-6 - 8e-6 * np.cos(2 * np.pi * 10 * t)
@@ -400,6 +434,7 @@ def test_compensated_default_open_loop_is_the_inverse_feedforward(mpi):
 # ABSMC (seed 2)
 # --------------------------------------------------------------------------------------------
 
+
 def sine_80hz():
     t = times(0.3)
     return 10e-6 - 8e-6 * np.cos(2 * np.pi * 80 * t)
@@ -429,8 +464,9 @@ def test_absmc_measured_regressor_loses_the_stiff_stage(mpi):
     # the absmc.rs docstring: phi on the delayed, quantized position is a negative damping
     ref = sine_80hz()
     desired = rms_after(closed_loop(STAGE, Compensated(ABSMC_LIN, mpi), ref, rng=1), 0.1)
-    measured = rms_after(closed_loop(STAGE, Compensated(dataclasses.replace(ABSMC_LIN, regressor="measured"), mpi),
-                                     ref, rng=1), 0.1)
+    measured = rms_after(
+        closed_loop(STAGE, Compensated(dataclasses.replace(ABSMC_LIN, regressor="measured"), mpi), ref, rng=1), 0.1
+    )
     ol = rms_after(closed_loop(STAGE, OpenLoop(), ref, rng=1), 0.1)
     assert desired < 0.25e-6  # measured 0.154 um
     assert measured > ol > 5 * desired  # measured 6.7 um, worse than open loop's 1.27 um
@@ -458,7 +494,7 @@ def test_absmc_adaptation_laws_and_projection(mpi):
         assert np.isclose(th.min(), l, rtol=1e-12) and np.isclose(th.max(), h, rtol=1e-12)
     assert np.all(d >= 0) and np.all(d <= d_max)
     # the error variables
-    x_hat = e1 + ref
+    e1 + ref
     alpha1 = v_ref - c1 * e1
     np.testing.assert_allclose(e2, v - alpha1, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(s, lam * e1 + e2, rtol=1e-9, atol=1e-12)
@@ -466,8 +502,14 @@ def test_absmc_adaptation_laws_and_projection(mpi):
     th0_prev, th1_prev, d_prev = np.r_[nominal[0], th0[:-1]], np.r_[nominal[1], th1[:-1]], np.r_[0.0, d[:-1]]
     phi0, phi1 = -ref, -v_ref
     d_alpha1 = a_ref - c1 * (v - v_ref)
-    law = (-(th0_prev * phi0 + th1_prev * phi1) + d_alpha1 - lam * (e2 - c1 * e1) - e1 - ks * s
-           - d_prev * np.clip(s / phi, -1, 1)) / b
+    law = (
+        -(th0_prev * phi0 + th1_prev * phi1)
+        + d_alpha1
+        - lam * (e2 - c1 * e1)
+        - e1
+        - ks * s
+        - d_prev * np.clip(s / phi, -1, 1)
+    ) / b
     np.testing.assert_allclose(raw, law, rtol=1e-7, atol=1e-12)
     # the adaptation, held while the inner output is saturated against s
     hold = ((raw > y_hi) & (-s > 0)) | ((raw < y_lo) & (-s < 0))
@@ -497,7 +539,7 @@ def sine_50hz(duration=1.0):
 
 def period_rms(result, n=N50):
     e = result.error
-    return np.array([rms(e[k * n:(k + 1) * n]) for k in range(e.size // n)])
+    return np.array([rms(e[k * n : (k + 1) * n]) for k in range(e.size // n)])
 
 
 def test_ilc_learns_the_repeating_error_behind_the_inverse(mpi):
@@ -513,11 +555,14 @@ def test_ilc_learns_the_repeating_error_behind_the_inverse(mpi):
 
 def test_ilc_forms_behind_the_inverse_are_the_same_controller(mpi):
     ref = sine_50hz(0.2)
-    runs = [closed_loop(STAGE, c, ref, rng=2) for c in (
-        ILC(InverseFeedforward(mpi), period=N50, gain=0.1),
-        ILC(Compensated(OpenLoop(gain=1.0), mpi), period=N50, gain=0.1),
-        Compensated(ILC(OpenLoop(gain=1.0), period=N50, gain=0.1), mpi),
-    )]
+    runs = [
+        closed_loop(STAGE, c, ref, rng=2)
+        for c in (
+            ILC(InverseFeedforward(mpi), period=N50, gain=0.1),
+            ILC(Compensated(OpenLoop(gain=1.0), mpi), period=N50, gain=0.1),
+            Compensated(ILC(OpenLoop(gain=1.0), period=N50, gain=0.1), mpi),
+        )
+    ]
     for r in runs[1:]:
         assert np.array_equal(r.command, runs[0].command)
         assert np.array_equal(r.terms["learned"], runs[0].terms["learned"])
@@ -538,6 +583,7 @@ def test_ilc_learning_law():
     assert np.array_equal(u_inner, np.clip(0.0 + (1.0 / P.static_gain) * ref, V_MIN, V_MAX))
     table = np.zeros(n)
     expected_learned = []
+
     def qf(i):
         return q * 0.25 * (table[i - 1] + 2 * table[i] + table[(i + 1) % n])
 
@@ -565,6 +611,7 @@ def test_ilc_with_default_gain_converges_behind_the_inverse(mpi):
 # --------------------------------------------------------------------------------------------
 # determinism, batch
 # --------------------------------------------------------------------------------------------
+
 
 def scenario_list(mpi):
     ref = sine_50hz(0.1)
@@ -609,12 +656,12 @@ def test_batch_equals_single_runs_with_the_seeds_it_draws(mpi):
     # closed_loop_batch draws one seed per scenario from default_rng(seed_from(rng)); a Generator
     # handed to closed_loop gives up its next draw, so one shared Generator replays the batch
     seeds = np.random.default_rng(seed_from(21))
-    for (c, ref), b in zip(sc, batch):
+    for (c, ref), b in zip(sc, batch, strict=False):
         single = closed_loop(STAGE, c, ref, rng=seeds)
         assert_same(b, single)
         assert b.controller == type(c).__name__
     again = closed_loop_batch(STAGE, sc, rng=21)
-    for a, b in zip(batch, again):
+    for a, b in zip(batch, again, strict=False):
         assert_same(a, b)
     other = closed_loop_batch(STAGE, sc, rng=22)
     assert not np.array_equal(other[0].measured, batch[0].measured)

@@ -1,5 +1,6 @@
-"""Data loading (issue 4 item 4; SPEC §8 data, §10 bad input): Record, load_record and the
+"""Data loading (issue 4 item 4; docs/spec.md §8 data, §10 bad input): Record, load_record and the
 real records of ../shared/data."""
+
 import dataclasses
 import os
 import sys
@@ -42,7 +43,7 @@ def signals(n=50, fs=200.0):
 
 def write_csv(path, header, columns, delimiter=",", fmt="{!r}"):
     lines = [] if header is None else [delimiter.join(header)]
-    for row in zip(*columns):
+    for row in zip(*columns, strict=False):
         lines.append(delimiter.join(fmt.format(float(v)) for v in row))
     path.write_text("\n".join(lines) + "\n")
     return path
@@ -85,7 +86,7 @@ def test_tsv_without_header_by_index(tmp_path):
 
 def test_whitespace_separated_with_comments_and_crlf(tmp_path):
     t, u, y = signals(20)
-    body = "".join(f"  {a!r}   {b!r}  {c!r}  \r\n" for a, b, c in zip(t.tolist(), u.tolist(), y.tolist()))
+    body = "".join(f"  {a!r}   {b!r}  {c!r}  \r\n" for a, b, c in zip(t.tolist(), u.tolist(), y.tolist(), strict=False))
     f = tmp_path / "run.txt"
     f.write_bytes(("% exported by a scope\n# time voltage position\n" + body + "\n\n").encode())
     rec = load_record(f, input="voltage", output="position", time="time")  # names from the '#' line
@@ -175,8 +176,11 @@ def test_mat_v5(tmp_path):
     rec = load_record(f, input="s.volts", output="s/microns", fs=200.0)
     np.testing.assert_array_equal(rec.input, u)
     np.testing.assert_array_equal(rec.output, y)
-    with pytest.raises(ValueError, match=r"input = 'v' is not in the file; the numeric MAT variables are \['data', "
-                                         r"'s.microns', 's.volts', 't', 'u', 'y'\]"):
+    with pytest.raises(
+        ValueError,
+        match=r"input = 'v' is not in the file; the numeric MAT variables are \['data', "
+        r"'s.microns', 's.volts', 't', 'u', 'y'\]",
+    ):
         load_record(f, input="v", output="y", fs=1)
     # v4 files also load
     g = tmp_path / "b.mat"
@@ -225,8 +229,11 @@ def test_mat_v73(tmp_path):
     np.testing.assert_array_equal(rec.output, y)
     rec = load_record(f, input="s.volts", output="y", fs=200.0)
     np.testing.assert_array_equal(rec.input, u)
-    with pytest.raises(ValueError, match=r"input = 'v' is not in the file; the numeric MATLAB v7.3 variables are "
-                                         r"\['data', 's.volts', 't', 'u', 'y'\]"):
+    with pytest.raises(
+        ValueError,
+        match=r"input = 'v' is not in the file; the numeric MATLAB v7.3 variables are "
+        r"\['data', 's.volts', 't', 'u', 'y'\]",
+    ):
         load_record(f, input="v", output="y", fs=200.0)
     with pytest.raises(TypeError, match=r"input = 'name' must hold real numbers"):
         load_record(f, input="name", output="y", fs=200.0)
@@ -249,8 +256,11 @@ def test_hdf5_dataset_paths(tmp_path):
     np.testing.assert_array_equal(rec.output, y)
     rec = load_record(f, dataset="matrix", input=1, output=2, fs=200.0)
     np.testing.assert_array_equal(rec.output, y)
-    with pytest.raises(ValueError, match=r"output = 'run1' is not in the file; the numeric HDF5 variables are "
-                                         r"\['matrix', 'run1/position', 'run1/time', 'run1/voltage'\]"):
+    with pytest.raises(
+        ValueError,
+        match=r"output = 'run1' is not in the file; the numeric HDF5 variables are "
+        r"\['matrix', 'run1/position', 'run1/time', 'run1/voltage'\]",
+    ):
         load_record(f, input="run1/voltage", output="run1", fs=1.0)
     with pytest.raises(TypeError, match=r"output = 'bad' must hold real numbers, got dtype complex128"):
         load_record(f, input="run1/voltage", output="bad", fs=1.0)
@@ -305,7 +315,9 @@ def test_non_increasing_time(tmp_path):
     t = t.copy()
     t[4] = t[3]
     f = write_csv(tmp_path / "a.csv", ["t", "u", "y"], [t, u, y])
-    with pytest.raises(ValueError, match=r"time is not strictly increasing: time\[4\] = 0\.03 follows time\[3\] = 0\.03"):
+    with pytest.raises(
+        ValueError, match=r"time is not strictly increasing: time\[4\] = 0\.03 follows time\[3\] = 0\.03"
+    ):
         load_record(f, input="u", output="y", time="t")
 
 
@@ -321,7 +333,10 @@ def test_fs_and_time_disagree(tmp_path):
 def test_rounded_time_stamps_need_a_looser_tolerance(tmp_path):
     t, u, y = signals(300, fs=750.0)
     f = tmp_path / "a.csv"
-    f.write_text("t,u,y\n" + "".join(f"{a:.7f},{b!r},{c!r}\n" for a, b, c in zip(t.tolist(), u.tolist(), y.tolist())))
+    f.write_text(
+        "t,u,y\n"
+        + "".join(f"{a:.7f},{b!r},{c!r}\n" for a, b, c in zip(t.tolist(), u.tolist(), y.tolist(), strict=False))
+    )
     with pytest.raises(ValueError, match="not uniformly sampled"):
         load_record(f, input="u", output="y", time="t")
     rec = load_record(f, input="u", output="y", time="t", time_rtol=1e-3)
@@ -354,8 +369,16 @@ def files(tmp_path):
     out["three"] = text("three.csv", "a,b,c\n0,1,2\n1,2,3\n")
     (tmp_path / "binary.csv").write_bytes(b"PK\x03\x04\x00\x00binary")
     out["binary"] = tmp_path / "binary.csv"
-    np.savez(tmp_path / "a.npz", u=np.arange(10.0), y=np.arange(9.0), m=np.ones((5, 3)), z=np.ones(4) * 1j,
-             s=np.float64(3.0), n=np.array([0, 1, 2, np.nan, 4]), v=np.arange(5.0))
+    np.savez(
+        tmp_path / "a.npz",
+        u=np.arange(10.0),
+        y=np.arange(9.0),
+        m=np.ones((5, 3)),
+        z=np.ones(4) * 1j,
+        s=np.float64(3.0),
+        n=np.array([0, 1, 2, np.nan, 4]),
+        v=np.arange(5.0),
+    )
     out["npz"] = tmp_path / "a.npz"
     (tmp_path / "corrupt.npz").write_bytes(b"PK\x03\x04 this is not a zip archive")
     out["corrupt_npz"] = tmp_path / "corrupt.npz"
@@ -367,55 +390,141 @@ def files(tmp_path):
 
 BAD = [
     # (file key, kwargs, exception, message regex)
-    ("csv", dict(input="v", output="y", fs=1), ValueError, r"good\.csv: input = 'v' is not a column; the columns are \['t', 'u', 'y'\]"),
-    ("csv", dict(input="u", output=3, fs=1), ValueError, r"output = 3 is out of range: the file has 3 columns \(0-based indices 0\.\.2\)"),
+    (
+        "csv",
+        dict(input="v", output="y", fs=1),
+        ValueError,
+        r"good\.csv: input = 'v' is not a column; the columns are \['t', 'u', 'y'\]",
+    ),
+    (
+        "csv",
+        dict(input="u", output=3, fs=1),
+        ValueError,
+        r"output = 3 is out of range: the file has 3 columns \(0-based indices 0\.\.2\)",
+    ),
     ("csv", dict(input=-1, output=2, fs=1), ValueError, r"input = -1: column indices are 0-based and must be >= 0"),
-    ("csv", dict(input=1.0, output=2, fs=1), TypeError, r"input must be a column name \(str\) or a 0-based column index \(int\), got 1\.0"),
+    (
+        "csv",
+        dict(input=1.0, output=2, fs=1),
+        TypeError,
+        r"input must be a column name \(str\) or a 0-based column index \(int\), got 1\.0",
+    ),
     ("csv", dict(input=True, output=2, fs=1), TypeError, r"input must be a column name"),
     ("csv", dict(input="", output=2, fs=1), ValueError, r"input = '': a column name may not be empty"),
-    ("csv", dict(input="u", output="y"), ValueError, r"good\.csv: the sample rate is unknown: pass fs=<Hz> or time=<time column>"),
+    (
+        "csv",
+        dict(input="u", output="y"),
+        ValueError,
+        r"good\.csv: the sample rate is unknown: pass fs=<Hz> or time=<time column>",
+    ),
     ("csv", dict(input="u", output="y", fs=0), ValueError, r"fs = 0\.0 must be > 0"),
     ("csv", dict(input="u", output="y", fs=-200.0), ValueError, r"fs = -200\.0 must be > 0"),
     ("csv", dict(input="u", output="y", fs=np.nan), ValueError, r"fs = nan is not finite"),
     ("csv", dict(input="u", output="y", fs="200"), TypeError, r"fs must be a real number, got '200'"),
     ("csv", dict(input="u", output="y", time="t", time_rtol=0), ValueError, r"time_rtol = 0\.0 must be > 0"),
-    ("csv", dict(input="u", output="y", fs=1, header="yes"), ValueError, r"header = 'yes' must be 'auto', True or False"),
+    (
+        "csv",
+        dict(input="u", output="y", fs=1, header="yes"),
+        ValueError,
+        r"header = 'yes' must be 'auto', True or False",
+    ),
     ("csv", dict(input="u", output="y", fs=1, header=1), TypeError, r"header must be 'auto', True or False, got 1"),
-    ("csv", dict(input="u", output="y", fs=1, delimiter=""), ValueError, r"delimiter = '' must be a non-empty separator"),
+    (
+        "csv",
+        dict(input="u", output="y", fs=1, delimiter=""),
+        ValueError,
+        r"delimiter = '' must be a non-empty separator",
+    ),
     ("csv", dict(input="u", output="y", fs=1, delimiter=44), TypeError, r"delimiter must be a str, got 44"),
     ("csv", dict(input="u", output="y", fs=1, dataset="m"), ValueError, r"dataset = 'm' applies to NPZ/MAT/HDF5 files"),
     ("csv", dict(input="u", output="y", fs=1, dataset=3), TypeError, r"dataset must be a str"),
     ("csv", dict(input="u", output="u", fs=1), ValueError, r"input and output are the same column 'u'"),
     ("csv", dict(input="u", output="y", time="u", fs=1), ValueError, r"input and time are the same column 'u'"),
-    ("csv", dict(input=0, output=1, fs=1, header=False), ValueError,
-     r"line 1 \(sample 0\), input column 'column 0' \(index 0\): 't' is not a number"),
+    (
+        "csv",
+        dict(input=0, output=1, fs=1, header=False),
+        ValueError,
+        r"line 1 \(sample 0\), input column 'column 0' \(index 0\): 't' is not a number",
+    ),
     ("three", dict(fs=1), ValueError, r"input not given and not inferable from the 3 columns \['a', 'b', 'c'\]"),
     ("three", dict(input="a", fs=1), ValueError, r"output not given and not inferable"),
-    ("bad_cell", dict(input="u", output="y", fs=1), ValueError,
-     r"bad_cell\.csv: line 4 \(sample 2\), output column 'y' \(index 2\): 'abc' is not a number"),
-    ("bad_cell", dict(input=1, output=0, fs=1, header=False), ValueError, r"line 1 \(sample 0\), input column 'column 1'"),
-    ("nan", dict(input="u", output="y", fs=1), ValueError, r"nan\.csv: output\[1\] = nan is not finite \(line 3, column 'y'\)"),
-    ("inf", dict(input=0, output=1, fs=1), ValueError, r"output\[1\] = -inf is not finite \(line 2, column 'column 1'\)"),
+    (
+        "bad_cell",
+        dict(input="u", output="y", fs=1),
+        ValueError,
+        r"bad_cell\.csv: line 4 \(sample 2\), output column 'y' \(index 2\): 'abc' is not a number",
+    ),
+    (
+        "bad_cell",
+        dict(input=1, output=0, fs=1, header=False),
+        ValueError,
+        r"line 1 \(sample 0\), input column 'column 1'",
+    ),
+    (
+        "nan",
+        dict(input="u", output="y", fs=1),
+        ValueError,
+        r"nan\.csv: output\[1\] = nan is not finite \(line 3, column 'y'\)",
+    ),
+    (
+        "inf",
+        dict(input=0, output=1, fs=1),
+        ValueError,
+        r"output\[1\] = -inf is not finite \(line 2, column 'column 1'\)",
+    ),
     ("empty", dict(input=0, output=1, fs=1), ValueError, r"empty\.csv: is empty"),
     ("blank", dict(input=0, output=1, fs=1), ValueError, r"blank\.csv: is empty"),
     ("comments", dict(input=0, output=1, fs=1), ValueError, r"has no data lines \(only comments\)"),
     ("header_only", dict(input="u", output="y", fs=1), ValueError, r"header_only\.csv: has no data rows"),
     ("one_row", dict(input="u", output="y", fs=1), ValueError, r"one_row\.csv: input has 1 samples, at least 2 needed"),
     ("ragged", dict(input="u", output="y", fs=1), ValueError, r"line 3 has 2 fields, expected 3 as on the header"),
-    ("xlsx", dict(input=0, output=1, fs=1), ValueError, r"data\.xlsx: unsupported file extension '\.xlsx'; supported: \.csv"),
+    (
+        "xlsx",
+        dict(input=0, output=1, fs=1),
+        ValueError,
+        r"data\.xlsx: unsupported file extension '\.xlsx'; supported: \.csv",
+    ),
     ("binary", dict(input=0, output=1, fs=1), ValueError, r"contains NUL bytes: a binary file, not delimited text"),
     ("dir", dict(input=0, output=1, fs=1), ValueError, r"is a directory, not a data file"),
-    ("npz", dict(input="u", output="y", fs=1), ValueError, r"output \('y'\) has 9 samples, input \('u'\) has 10: lengths must match"),
-    ("npz", dict(input="q", output="y", fs=1), ValueError,
-     r"input = 'q' is not in the file; the numeric NPZ variables are \['m', 'n', 's', 'u', 'v', 'y'\]"),
-    ("npz", dict(input=0, output=1, fs=1), ValueError, r"input = 0 is a column index, which needs dataset = <name of a 2-D matrix>"),
-    ("npz", dict(input="m", output="u", fs=1), ValueError, r"input = 'm' has shape \(5, 3\), not a 1-D signal; for a matrix pass dataset='m'"),
+    (
+        "npz",
+        dict(input="u", output="y", fs=1),
+        ValueError,
+        r"output \('y'\) has 9 samples, input \('u'\) has 10: lengths must match",
+    ),
+    (
+        "npz",
+        dict(input="q", output="y", fs=1),
+        ValueError,
+        r"input = 'q' is not in the file; the numeric NPZ variables are \['m', 'n', 's', 'u', 'v', 'y'\]",
+    ),
+    (
+        "npz",
+        dict(input=0, output=1, fs=1),
+        ValueError,
+        r"input = 0 is a column index, which needs dataset = <name of a 2-D matrix>",
+    ),
+    (
+        "npz",
+        dict(input="m", output="u", fs=1),
+        ValueError,
+        r"input = 'm' has shape \(5, 3\), not a 1-D signal; for a matrix pass dataset='m'",
+    ),
     ("npz", dict(input="z", output="u", fs=1), TypeError, r"input = 'z' must hold real numbers, got dtype complex128"),
     ("npz", dict(input="s", output="u", fs=1), ValueError, r"input = 's' is a scalar"),
     ("npz", dict(input="n", output="v", fs=1), ValueError, r"input\[3\] = nan is not finite \('n'\)"),
-    ("npz", dict(dataset="u", input=0, output=1, fs=1), ValueError, r"dataset = 'u' has shape \(10,\), expected a 2-D matrix"),
-    ("npz", dict(dataset="m", input=0, output=3, fs=1), ValueError,
-     r"output = 3 is out of range: dataset 'm' has shape \(5, 3\), 3 columns \(0-based indices 0\.\.2\)"),
+    (
+        "npz",
+        dict(dataset="u", input=0, output=1, fs=1),
+        ValueError,
+        r"dataset = 'u' has shape \(10,\), expected a 2-D matrix",
+    ),
+    (
+        "npz",
+        dict(dataset="m", input=0, output=3, fs=1),
+        ValueError,
+        r"output = 3 is out of range: dataset 'm' has shape \(5, 3\), 3 columns \(0-based indices 0\.\.2\)",
+    ),
     ("npz", dict(input="u", output="y", fs=1, delimiter=","), ValueError, r"these apply to text files only"),
     ("corrupt_npz", dict(input="u", output="y", fs=1), ValueError, r"corrupt\.npz: not a readable NPZ archive"),
     ("corrupt_mat", dict(input="u", output="y", fs=1), ValueError, r"corrupt\.mat: not a"),
@@ -439,14 +548,18 @@ def test_missing_file_and_bad_path(tmp_path):
 def test_transposed_matrix_hint(tmp_path):
     f = tmp_path / "a.npz"
     np.savez(f, m=np.ones((3, 100)))
-    with pytest.raises(ValueError, match=r"dataset = 'm' has shape \(3, 100\): fewer rows than columns, so it looks transposed"):
+    with pytest.raises(
+        ValueError, match=r"dataset = 'm' has shape \(3, 100\): fewer rows than columns, so it looks transposed"
+    ):
         load_record(f, dataset="m", input=0, output=4, fs=1)
 
 
 def test_mat_v5_errors(tmp_path):
     f = tmp_path / "a.mat"
     scipy.io.savemat(f, {"m": np.ones((4, 2)), "u": np.arange(4.0), "name": "x", "c": np.array([1 + 2j, 3])})
-    with pytest.raises(ValueError, match=r"input = 'name' is not in the file; the numeric MAT variables are \['m', 'u'\]"):
+    with pytest.raises(
+        ValueError, match=r"input = 'name' is not in the file; the numeric MAT variables are \['m', 'u'\]"
+    ):
         load_record(f, input="name", output="u", fs=1)
     with pytest.raises(TypeError, match=r"input = 'c' must hold real numbers, got dtype complex128"):
         load_record(f, input="c", output="u", fs=1)
@@ -459,7 +572,9 @@ def test_mat_v5_errors(tmp_path):
 
 def make_record(n=10, with_time=True):
     k = np.arange(n, dtype=float)
-    return Record(k, 10 * k, fs=10.0, time=k / 10 if with_time else None, source="src", columns={"input": "a", "output": "b"})
+    return Record(
+        k, 10 * k, fs=10.0, time=k / 10 if with_time else None, source="src", columns={"input": "a", "output": "b"}
+    )
 
 
 def test_trim_is_half_open_and_zero_based():
@@ -496,7 +611,11 @@ def test_split():
     train, val = r.split(train=[5, 10], validate=[0, 3])  # any order, gaps allowed
     assert (train.input[0], val.n) == (5.0, 3)
     for kwargs, kind, msg in [
-        (dict(train=(0, 6), validate=(5, 10)), ValueError, r"train = \(0, 6\) and validate = \(5, 10\) overlap \(samples 5 to 5\)"),
+        (
+            dict(train=(0, 6), validate=(5, 10)),
+            ValueError,
+            r"train = \(0, 6\) and validate = \(5, 10\) overlap \(samples 5 to 5\)",
+        ),
         (dict(train=(0, 6)), ValueError, r"give both ranges, or neither"),
         (dict(train=(0, 6, 8), validate=(8, 10)), TypeError, r"train must be a \(start, stop\) pair of sample indices"),
         (dict(train="0:6", validate=(8, 10)), TypeError, r"train must be a \(start, stop\) pair"),
@@ -567,7 +686,9 @@ def test_yan9a_model_record():
     np.testing.assert_array_equal(same.output, rec.output)
     train, val = rec.split()
     assert (train.n, val.n) == (4013, 4014)
-    with pytest.raises(ValueError, match=r"input = 7 is out of range: the file has 7 columns \(0-based indices 0\.\.6\)"):
+    with pytest.raises(
+        ValueError, match=r"input = 7 is out of range: the file has 7 columns \(0-based indices 0\.\.6\)"
+    ):
         load_record(YAN9A_MODEL, input=7, output=4, fs=200)
 
 
@@ -585,10 +706,10 @@ def test_train_multisine_record():
 
     rec = load_record(MULTISINE, fs=750)
     assert rec.n == 40960 and rec.fs == 750.0 and rec.columns == {"input": "u", "output": "y"}
-    u, y, fs = load_train_multisine(MULTISINE)
+    u, y, _fs = load_train_multisine(MULTISINE)
     np.testing.assert_array_equal(rec.input, u)
     np.testing.assert_array_equal(rec.output, y)
-    train, val = rec.split(train=(0, 4 * 8192), validate=(4 * 8192, None))  # last period held out
+    _train, val = rec.split(train=(0, 4 * 8192), validate=(4 * 8192, None))  # last period held out
     assert val.n == 8192
 
 
@@ -596,9 +717,35 @@ def test_train_multisine_record():
 
 FUZZ_SUFFIXES = [".csv", ".tsv", ".txt", ".dat", ".npz", ".npy", ".mat"] + ([".h5"] if h5py is not None else [])
 _t, _u, _y = signals(12, fs=100.0)
-BASE_CSV = "t,u,y\n" + "".join(f"{a!r},{b!r},{c!r}\n" for a, b, c in zip(_t.tolist(), _u.tolist(), _y.tolist()))
-PIECES = ["", ",", "\t", "\n", "\r", " ", ";", "nan", "inf", "1e999", "-", ".", "e", "x", '"', "#", "%", "1", "0",
-          "\x00", "é", "t", "u,y", "\ufeff"]
+BASE_CSV = "t,u,y\n" + "".join(
+    f"{a!r},{b!r},{c!r}\n" for a, b, c in zip(_t.tolist(), _u.tolist(), _y.tolist(), strict=False)
+)
+PIECES = [
+    "",
+    ",",
+    "\t",
+    "\n",
+    "\r",
+    " ",
+    ";",
+    "nan",
+    "inf",
+    "1e999",
+    "-",
+    ".",
+    "e",
+    "x",
+    '"',
+    "#",
+    "%",
+    "1",
+    "0",
+    "\x00",
+    "é",
+    "t",
+    "u,y",
+    "\ufeff",
+]
 LOAD_KWARGS = [
     dict(input="u", output="y", time="t"),
     dict(input=1, output=2, fs=100.0),
@@ -612,15 +759,18 @@ LOAD_KWARGS = [
 def _check_outcome(path, kwargs):
     try:
         rec = load_record(path, **kwargs)
-    except ph.PiezohystError:      # the documented errors only (DataError, ParameterError, ...)
+    except ph.PiezohystError:  # the documented errors only (DataError, ParameterError, ...)
         return None
     assert rec.n >= 2 and rec.output.size == rec.n and rec.fs > 0
     assert np.all(np.isfinite(rec.input)) and np.all(np.isfinite(rec.output))
     return rec
 
 
-@settings(max_examples=int(os.environ.get("PIEZOHYST_FUZZ_EXAMPLES", "100")), deadline=None,
-          suppress_health_check=[HealthCheck.too_slow])
+@settings(
+    max_examples=int(os.environ.get("PIEZOHYST_FUZZ_EXAMPLES", "100")),
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+)
 @given(content=st.binary(max_size=1500), suffix=st.sampled_from(FUZZ_SUFFIXES))
 def test_fuzz_random_bytes_load_or_raise_value_or_type_error(content, suffix):
     with tempfile.TemporaryDirectory() as d:
@@ -629,12 +779,13 @@ def test_fuzz_random_bytes_load_or_raise_value_or_type_error(content, suffix):
         _check_outcome(p, dict(input=0, output=1, fs=100.0))
 
 
-@settings(max_examples=int(os.environ.get("PIEZOHYST_FUZZ_EXAMPLES", "100")), deadline=None,
-          suppress_health_check=[HealthCheck.too_slow])
+@settings(
+    max_examples=int(os.environ.get("PIEZOHYST_FUZZ_EXAMPLES", "100")),
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+)
 @given(
-    edits=st.lists(
-        st.tuples(st.integers(0, len(BASE_CSV)), st.sampled_from(PIECES), st.integers(0, 4)), max_size=6
-    ),
+    edits=st.lists(st.tuples(st.integers(0, len(BASE_CSV)), st.sampled_from(PIECES), st.integers(0, 4)), max_size=6),
     kwargs=st.sampled_from(LOAD_KWARGS),
     encoding=st.sampled_from(["utf-8", "latin-1"]),
 )
@@ -642,7 +793,7 @@ def test_fuzz_mutated_csv_load_or_raise_value_or_type_error(edits, kwargs, encod
     text = BASE_CSV
     for pos, piece, cut in edits:
         pos = min(pos, len(text))
-        text = text[:pos] + piece + text[pos + cut:]
+        text = text[:pos] + piece + text[pos + cut :]
     with tempfile.TemporaryDirectory() as d:
         p = Path(d) / "x.csv"
         p.write_bytes(text.encode(encoding, errors="replace"))

@@ -1,5 +1,6 @@
 """`piezohyst demo`: the report is written, complete, deterministic, never overwritten without
 --force, and renders in a real browser (Chromium headless, where installed)."""
+
 import json
 import os
 import shutil
@@ -29,15 +30,20 @@ def reports(tmp_path_factory):
     ra = run_demo(a, quick=True, seed=3, progress=False, print_fn=lambda *x: None)
     # the same seed in another process on one thread (rayon's pool size changes nothing)
     env = dict(os.environ, RAYON_NUM_THREADS="1")
-    out = subprocess.run([sys.executable, "-m", "piezohyst", "demo", "--out", str(b), "--quick", "--seed", "3", "--json"],
-                         capture_output=True, text=True, env=env, timeout=600)
+    out = subprocess.run(
+        [sys.executable, "-m", "piezohyst", "demo", "--out", str(b), "--quick", "--seed", "3", "--json"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=600,
+    )
     assert out.returncode == 0, out.stderr
     rb = json.loads(out.stdout)
     return a, ra, b, rb
 
 
 def test_same_seed_same_numbers_whatever_the_thread_count(reports):
-    a, ra, b, rb = reports
+    a, _ra, b, _rb = reports
     ja = _strip_times(json.loads((a / "results.json").read_text()))
     jb = _strip_times(json.loads((b / "results.json").read_text()))
     assert ja == jb
@@ -103,10 +109,22 @@ def _chromium():
 
 
 def _browser_check(chrome, page: Path) -> dict:
-    out = subprocess.run([chrome, "--headless", "--no-sandbox", "--disable-gpu", "--virtual-time-budget=10000",
-                          "--dump-dom", page.as_uri()], capture_output=True, text=True, timeout=120).stdout
+    out = subprocess.run(
+        [
+            chrome,
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--virtual-time-budget=10000",
+            "--dump-dom",
+            page.as_uri(),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    ).stdout
     start = out.index('<pre id="check">') + len('<pre id="check">')
-    return json.loads(out[start:out.index("</pre>", start)].replace("&quot;", '"'))
+    return json.loads(out[start : out.index("</pre>", start)].replace("&quot;", '"'))
 
 
 def test_report_renders_in_a_real_browser(reports, tmp_path):
@@ -124,9 +142,20 @@ def test_report_renders_in_a_real_browser(reports, tmp_path):
     page.unlink()
     bad.unlink()
     shot = tmp_path / "shot.png"
-    subprocess.run([chrome, "--headless", "--no-sandbox", "--disable-gpu", "--window-size=1200,4000",
-                    f"--screenshot={shot}", (a / "index.html").as_uri()], capture_output=True, timeout=120)
+    subprocess.run(
+        [
+            chrome,
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--window-size=1200,4000",
+            f"--screenshot={shot}",
+            (a / "index.html").as_uri(),
+        ],
+        capture_output=True,
+        timeout=120,
+    )
     import matplotlib.image as mpimg
 
     img = mpimg.imread(shot)
-    assert img.shape[0] == 4000 and float(np.std(img)) > 0.05   # not a blank page
+    assert img.shape[0] == 4000 and float(np.std(img)) > 0.05  # not a blank page

@@ -1,6 +1,7 @@
 """Controller files and ``piezohyst export-c``: round trips, bad input, the generated C, and
 the exported example compiled with ``cc`` against the C library, whose numbers must equal
 Python's bit for bit."""
+
 from __future__ import annotations
 
 import json
@@ -15,9 +16,17 @@ import pytest
 import piezohyst as ph
 from piezohyst import _core
 from piezohyst.cli import main
-from piezohyst.export_c import (CONTROLLER_PARAMS, LINK_LIBS, ExportedController, controller_from_dict,
-                                controller_to_dict, example_plan, load_controller, row_names,
-                                save_controller)
+from piezohyst.export_c import (
+    CONTROLLER_PARAMS,
+    LINK_LIBS,
+    ExportedController,
+    controller_from_dict,
+    controller_to_dict,
+    example_plan,
+    load_controller,
+    row_names,
+    save_controller,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -100,21 +109,27 @@ def test_exported_controller_checks_the_sample_time(stage):
         c.core(other)
 
 
-@pytest.mark.parametrize("change, match", [
-    (lambda d: d.update(format="nope"), "format"),
-    (lambda d: d.update(schema_version=2), "schema_version"),
-    (lambda d: d.update(kind="lqr"), "kind = 'lqr' is unknown"),
-    (lambda d: d["params"].pop("kp"), "params of 'pid' must be an object with the keys"),
-    (lambda d: d["params"].update(kp="big"), "params.kp = 'big' must be a number"),
-    (lambda d: d["params"].update(kp=float("nan")), "params.kp = nan is not finite"),
-    (lambda d: d["params"].update(kp=-1.0), "not valid: kp = -1 must be >= 0"),
-    (lambda d: d["params"].update(u_min=200.0), "not valid"),
-    (lambda d: d.update(ilc={"period": 0, "gain": 1.0, "forgetting": 1.0, "lead": 0, "delay": 0}), "ilc.period = 0"),
-    (lambda d: d.update(ilc={"period": 10}), "ilc must be null or an object"),
-    (lambda d: d.update(inverse={"family": "xyz"}), "inverse.family = 'xyz' is unknown"),
-    (lambda d: d.update(stage={}), "stage must be an object"),
-    (lambda d: d["stage"].update(sample_time=-1.0), "stage.sample_time = -1.0 must be > 0"),
-])
+@pytest.mark.parametrize(
+    "change, match",
+    [
+        (lambda d: d.update(format="nope"), "format"),
+        (lambda d: d.update(schema_version=2), "schema_version"),
+        (lambda d: d.update(kind="lqr"), "kind = 'lqr' is unknown"),
+        (lambda d: d["params"].pop("kp"), "params of 'pid' must be an object with the keys"),
+        (lambda d: d["params"].update(kp="big"), "params.kp = 'big' must be a number"),
+        (lambda d: d["params"].update(kp=float("nan")), "params.kp = nan is not finite"),
+        (lambda d: d["params"].update(kp=-1.0), "not valid: kp = -1 must be >= 0"),
+        (lambda d: d["params"].update(u_min=200.0), "not valid"),
+        (
+            lambda d: d.update(ilc={"period": 0, "gain": 1.0, "forgetting": 1.0, "lead": 0, "delay": 0}),
+            "ilc.period = 0",
+        ),
+        (lambda d: d.update(ilc={"period": 10}), "ilc must be null or an object"),
+        (lambda d: d.update(inverse={"family": "xyz"}), "inverse.family = 'xyz' is unknown"),
+        (lambda d: d.update(stage={}), "stage must be an object"),
+        (lambda d: d["stage"].update(sample_time=-1.0), "stage.sample_time = -1.0 must be > 0"),
+    ],
+)
 def test_bad_controller_files_are_named(stage, change, match):
     d = controller_to_dict(ph.PID(kp=1e6, ki=1e9), stage)
     change(d)
@@ -175,8 +190,14 @@ def test_export_c_writes_exact_initializers(tmp_path, stage, mpi):
     out = tmp_path / "c"
     assert main(["export-c", str(mpath), str(cpath), "--out", str(out)]) == 0
     names = {p.name for p in out.iterdir()}
-    assert {"piezohyst_model.h", "piezohyst_model.c", "piezohyst_controller.h", "piezohyst_controller.c",
-            "example.c", "piezohyst.h"} <= names
+    assert {
+        "piezohyst_model.h",
+        "piezohyst_model.c",
+        "piezohyst_controller.h",
+        "piezohyst_controller.c",
+        "example.c",
+        "piezohyst.h",
+    } <= names
     assert (out / "piezohyst.h").read_text() == (ROOT / "crates/capi/include/piezohyst.h").read_text()
     row = parse_c_array((out / "piezohyst_model.c").read_text(), "piezohyst_model_params")
     assert np.array_equal(row, mpi.to_row())
@@ -220,7 +241,7 @@ def test_export_c_refuses_to_overwrite_and_bad_input(tmp_path, capsys, stage, mp
     assert code == 2 and "--input-range" in err
     code, _, err = run_cli(capsys, "export-c", str(mpath), "--out", str(tmp_path / "d"), "--steps", "0")
     assert code == 2 and "--steps = 0" in err
-    with pytest.raises(SystemExit) as e:   # usage errors: argparse, one line, exit 2
+    with pytest.raises(SystemExit) as e:  # usage errors: argparse, one line, exit 2
         main(["export-c", str(mpath)])
     assert e.value.code == 2 and "--out" in capsys.readouterr().err
 
@@ -233,7 +254,7 @@ def test_export_c_refuses_to_overwrite_and_bad_input(tmp_path, capsys, stage, mp
 def c_library():
     if shutil.which("cc") is None:
         pytest.skip("no C compiler (cc)")
-    if shutil.which("cargo") is not None:   # a no-op when the library is up to date
+    if shutil.which("cargo") is not None:  # a no-op when the library is up to date
         subprocess.run(["cargo", "build", "--release", "-q", "-p", "piezohyst-capi"], cwd=ROOT, check=True)
     lib = ROOT / "target" / "release" / "libpiezohyst.a"
     if not lib.is_file():
@@ -244,8 +265,22 @@ def c_library():
 def build_example(out: Path, lib: Path, with_controller: bool) -> Path:
     sources = ["example.c", "piezohyst_model.c"] + (["piezohyst_controller.c"] if with_controller else [])
     exe = out / "example"
-    cmd = ["cc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic", "-ffp-contract=off", f"-I{out}",
-           *[str(out / s) for s in sources], str(lib), *LINK_LIBS.split(), "-o", str(exe)]
+    cmd = [
+        "cc",
+        "-std=c99",
+        "-O2",
+        "-Wall",
+        "-Wextra",
+        "-Werror",
+        "-pedantic",
+        "-ffp-contract=off",
+        f"-I{out}",
+        *[str(out / s) for s in sources],
+        str(lib),
+        *LINK_LIBS.split(),
+        "-o",
+        str(exe),
+    ]
     subprocess.run(cmd, check=True, capture_output=True, text=True)
     return exe
 
@@ -261,8 +296,14 @@ def test_exported_model_example_runs(tmp_path, capsys, mpi, c_library):
     assert r.returncode == 0, r.stderr
     assert "max |model(inverse(y)) - y|" in r.stdout
     # the trace is Python's forward and inverse, bit for bit
-    rows = np.array([[float(x) for x in line.split()] for line in
-                     subprocess.run([str(exe), "--trace"], capture_output=True, text=True, check=True).stdout.splitlines()])
+    rows = np.array(
+        [
+            [float(x) for x in line.split()]
+            for line in subprocess.run(
+                [str(exe), "--trace"], capture_output=True, text=True, check=True
+            ).stdout.splitlines()
+        ]
+    )
     plan = example_plan(mpi, None)
     k = np.arange(plan["steps"])
     phase = (k % plan["period"]) / float(plan["period"])
@@ -305,7 +346,9 @@ def test_exported_controller_example_matches_python(tmp_path, stage, mpi, c_libr
         else:
             rate, x = -2.0 * (hi - lo) / float(period), lo + (hi - lo) * (2.0 - 2.0 * phase)
         y = position
-        u = float(_core.controller_steps(spec, np.array([x]), np.array([rate / ts]), np.zeros(1), np.array([y]), state)[0])
+        u = float(
+            _core.controller_steps(spec, np.array([x]), np.array([rate / ts]), np.zeros(1), np.array([y]), state)[0]
+        )
         position = float(_core.simulate(fam, dims, row, np.array([u]), plant)[0])
         expected.append((k, x, y, u))
     assert np.array_equal(rows, np.array(expected)), name

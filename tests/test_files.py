@@ -1,4 +1,5 @@
 """Model files: JSON round trips are bit-identical; nothing is overwritten by accident."""
+
 import json
 
 import numpy as np
@@ -49,10 +50,14 @@ def test_existing_file_is_not_overwritten(tmp_path):
         ("[]", "must be a JSON object"),
         ('{"schema_version": 99, "kind": "pi", "parameters": {}}', "schema_version = 99"),
         ('{"schema_version": 1, "kind": "nope", "parameters": {}}', "kind = 'nope' is unknown"),
-        ('{"schema_version": 1, "kind": "pi", "parameters": {"thresholds": [0.2, 0.1], "weights": [1, 1]}}',
-         r"thresholds\[1\] = 0.1"),
-        ('{"schema_version": 1, "kind": "pi", "parameters": {"thresholds": [0.1], "wrong": [1]}}',
-         "parameters of kind 'pi' are not valid"),
+        (
+            '{"schema_version": 1, "kind": "pi", "parameters": {"thresholds": [0.2, 0.1], "weights": [1, 1]}}',
+            r"thresholds\[1\] = 0.1",
+        ),
+        (
+            '{"schema_version": 1, "kind": "pi", "parameters": {"thresholds": [0.1], "wrong": [1]}}',
+            "parameters of kind 'pi' are not valid",
+        ),
     ],
 )
 def test_bad_model_files_raise_clear_errors(tmp_path, text, message):

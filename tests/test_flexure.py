@@ -1,4 +1,5 @@
-"""Flexure stage calculator (SPEC §3.1): seed 1's numbers, scaling laws and bad input."""
+"""Flexure stage calculator (docs/spec.md §3.1): seed 1's numbers, scaling laws and bad input."""
+
 import dataclasses
 import math
 import re
@@ -20,7 +21,7 @@ def test_seed1_leaf_spring():
     assert sig4(leaf.second_moment) == 8.333e-13  # h d^3 / 12
     assert sig4(leaf.leaf_stiffness) == 3.333e6  # 12 E I / L^3
     assert sig4(leaf.stiffness) == 1.333e7  # four in parallel: seed 1's k_f
-    assert leaf.stiffness == pytest.approx(4 * 7.2e10 * 0.01 * 0.001 ** 3 / 0.006 ** 3, rel=1e-14)
+    assert leaf.stiffness == pytest.approx(4 * 7.2e10 * 0.01 * 0.001**3 / 0.006**3, rel=1e-14)
 
 
 def test_seed1_stage():
@@ -44,7 +45,7 @@ def test_from_leaf_spring_equals_direct_construction():
     a = FlexureStage.from_leaf_spring(leaf, actuator_stiffness=1e7, actuator_mass=0.002, stage_mass=0.05, zeta=0.05)
     b = FlexureStage(1e7, leaf.stiffness, 0.002, 0.05, zeta=0.05)
     assert a == b
-    assert a.keq == pytest.approx(1e7 + 2 * 2e11 * 5e-3 * 0.5e-3 ** 3 / 10e-3 ** 3, rel=1e-14)
+    assert a.keq == pytest.approx(1e7 + 2 * 2e11 * 5e-3 * 0.5e-3**3 / 10e-3**3, rel=1e-14)
 
 
 def test_leaf_spring_scaling_laws():

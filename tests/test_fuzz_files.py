@@ -9,6 +9,7 @@ any JSON value, deleted, or a key added) and byte edits of the text.
 Budget: ``PIEZOHYST_FUZZ_EXAMPLES`` examples per test (default 150 in ``make test``); the
 longer run is documented in ``fuzz/README.md``.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -26,14 +27,17 @@ from hypothesis import strategies as st
 from hypothesis.errors import InvalidArgument
 
 import piezohyst as ph
+from models_zoo import drive, zoo
 from piezohyst.cli import main
 from piezohyst.export_c import load_controller, save_controller
 
-from models_zoo import drive, zoo
-
 EXAMPLES = int(os.environ.get("PIEZOHYST_FUZZ_EXAMPLES", "150"))
-FUZZ = settings(max_examples=EXAMPLES, deadline=None, derandomize=True,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+FUZZ = settings(
+    max_examples=EXAMPLES,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
 
 ZOO = zoo()
 STAGE_TEXT = (Path(ph.__file__).parent / "presets" / "virtual_stage.json").read_text()
@@ -44,11 +48,16 @@ CONTROLLERS = {
     "inverse": ph.InverseFeedforward(ph.mpi_seed2()),
 }
 
-json_scalars = (st.none() | st.booleans() | st.integers(-(10**30), 10**30)
-                | st.floats(allow_nan=True, allow_infinity=True) | st.text(max_size=6))
-json_values = st.recursive(json_scalars, lambda c: st.lists(c, max_size=3) | st.dictionaries(st.text(max_size=6), c,
-                                                                                              max_size=3),
-                           max_leaves=6)
+json_scalars = (
+    st.none()
+    | st.booleans()
+    | st.integers(-(10**30), 10**30)
+    | st.floats(allow_nan=True, allow_infinity=True)
+    | st.text(max_size=6)
+)
+json_values = st.recursive(
+    json_scalars, lambda c: st.lists(c, max_size=3) | st.dictionaries(st.text(max_size=6), c, max_size=3), max_leaves=6
+)
 
 
 def _event(label: str) -> None:
@@ -64,10 +73,10 @@ def _paths(node, prefix=()):
     yield prefix
     if isinstance(node, dict):
         for k, v in node.items():
-            yield from _paths(v, prefix + (k,))
+            yield from _paths(v, (*prefix, k))
     elif isinstance(node, list):
         for i, v in enumerate(node):
-            yield from _paths(v, prefix + (i,))
+            yield from _paths(v, (*prefix, i))
 
 
 def _mutate(doc, data):
@@ -104,10 +113,14 @@ def _byte_mutate(text: str, data) -> bytes:
         if kind == "flip" and pos < len(raw):
             raw[pos] = data.draw(st.integers(0, 255), label="byte")
         elif kind == "cut":
-            del raw[pos:pos + data.draw(st.integers(1, 20), label="n")]
+            del raw[pos : pos + data.draw(st.integers(1, 20), label="n")]
         elif kind == "insert":
-            raw[pos:pos] = data.draw(st.sampled_from([b"{", b"}", b"[", b"]", b",", b":", b'"', b"-", b"1e999", b"NaN",
-                                                      b"\x00", b"\xff", b"null", b"0"]), label="piece")
+            raw[pos:pos] = data.draw(
+                st.sampled_from(
+                    [b"{", b"}", b"[", b"]", b",", b":", b'"', b"-", b"1e999", b"NaN", b"\x00", b"\xff", b"null", b"0"]
+                ),
+                label="piece",
+            )
         else:
             del raw[pos:]
     return bytes(raw)
@@ -126,6 +139,7 @@ def _json_bytes(doc) -> bytes:
 
 # ---------------------------------------------------------------------------------- models
 
+
 def _model_outcome(path, v):
     try:
         model = ph.load_model(path)
@@ -135,7 +149,7 @@ def _model_outcome(path, v):
         return None
     try:
         y = model.simulate(v)
-    except ph.PiezohystError:   # e.g. an input outside a (now narrower) envelope range: a named error
+    except ph.PiezohystError:  # e.g. an input outside a (now narrower) envelope range: a named error
         _event("model: loaded, simulate refused the input")
         return model
     _event("model: loaded and simulated")
@@ -157,8 +171,9 @@ def test_simulate_load_save_is_bit_identical(name, tmp_path):
     loaded = ph.load_model(p2)
     np.testing.assert_array_equal(loaded.state, m2.state)
     tail = drive(300, seed=3)
-    np.testing.assert_array_equal(loaded.simulate(tail, initial_state=loaded.state),
-                                  m2.simulate(tail, initial_state=m2.state))
+    np.testing.assert_array_equal(
+        loaded.simulate(tail, initial_state=loaded.state), m2.simulate(tail, initial_state=m2.state)
+    )
 
 
 @FUZZ
@@ -175,6 +190,7 @@ def test_fuzz_model_files_bytes(name, data):
 
 
 # ---------------------------------------------------------------------------------- stages
+
 
 def _stage_outcome(path):
     try:
@@ -206,6 +222,7 @@ def test_fuzz_stage_files_bytes(data):
 
 
 # ----------------------------------------------------------------------------- controllers
+
 
 def _controller_texts():
     out = {}
@@ -253,25 +270,111 @@ def test_unmutated_files_load():
 
 # ------------------------------------------------------------------------------- the CLI
 
-_VALUES = ["0", "-1", "1", "2.5", "nan", "inf", "-inf", "1e308", "1e-320", "abc", "", "3:", ":5", "5:2", "--", "1:1",
-           "pid", "smc", "absmc", "sine", "triangle", "mpi", "pi", "preisach", "cemf", "css", "de", "fit", "t", "v",
-           "y", "0", "2", "model.json", "data.csv", "missing.csv", "stage.json", "c.json", "out.png", "pi_batch",
-           "res", "no-such-dir"]
+_VALUES = [
+    "0",
+    "-1",
+    "1",
+    "2.5",
+    "nan",
+    "inf",
+    "-inf",
+    "1e308",
+    "1e-320",
+    "abc",
+    "",
+    "3:",
+    ":5",
+    "5:2",
+    "--",
+    "1:1",
+    "pid",
+    "smc",
+    "absmc",
+    "sine",
+    "triangle",
+    "mpi",
+    "pi",
+    "preisach",
+    "cemf",
+    "css",
+    "de",
+    "fit",
+    "t",
+    "v",
+    "y",
+    "0",
+    "2",
+    "model.json",
+    "data.csv",
+    "missing.csv",
+    "stage.json",
+    "c.json",
+    "out.png",
+    "pi_batch",
+    "res",
+    "no-such-dir",
+]
 #: One valid, quick invocation per command; the fuzz mutates them.
 _BASE = {
     "track": ["track", "--controller", "pid", "--duration", "0.05", "--skip", "0.01", "--seed", "1"],
     "simulate": ["simulate", "model.json", "data.csv", "--input", "v", "--fs", "1000", "--out", "sim.csv", "--force"],
-    "identify": ["identify", "data.csv", "--model", "pi", "--input", "v", "--output", "y", "--time", "t",
-                 "--operators", "5", "--out", "fit.json", "--force"],
+    "identify": [
+        "identify",
+        "data.csv",
+        "--model",
+        "pi",
+        "--input",
+        "v",
+        "--output",
+        "y",
+        "--time",
+        "t",
+        "--operators",
+        "5",
+        "--out",
+        "fit.json",
+        "--force",
+    ],
     "export-c": ["export-c", "model.json", "c.json", "--out", "cout", "--force"],
     "stage": ["stage", "info", "--stage", "stage.json", "--json"],
     "bench": ["bench", "--report-only", "--results", "res"],
 }
-_EXTRA_OPTIONS = ["--controller", "--reference", "--freq", "--amp", "--offset", "--duration", "--skip", "--seed",
-                  "--stage", "--model", "--json", "--input", "--output", "--time", "--fs", "--rows", "--lag",
-                  "--score-from", "--out", "--force", "--train", "--validate", "--operators", "--levels",
-                  "--optimizer", "--iterations", "--population", "--creep", "--structure", "--input-range",
-                  "--only", "--skip", "--readme", "--help"]   # (--debug shows tracebacks on purpose)
+_EXTRA_OPTIONS = [
+    "--controller",
+    "--reference",
+    "--freq",
+    "--amp",
+    "--offset",
+    "--duration",
+    "--skip",
+    "--seed",
+    "--stage",
+    "--model",
+    "--json",
+    "--input",
+    "--output",
+    "--time",
+    "--fs",
+    "--rows",
+    "--lag",
+    "--score-from",
+    "--out",
+    "--force",
+    "--train",
+    "--validate",
+    "--operators",
+    "--levels",
+    "--optimizer",
+    "--iterations",
+    "--population",
+    "--creep",
+    "--structure",
+    "--input-range",
+    "--only",
+    "--skip",
+    "--readme",
+    "--help",
+]  # (--debug shows tracebacks on purpose)
 
 
 @pytest.fixture(scope="module")
@@ -299,7 +402,7 @@ def _run_cli(argv, cwd):
         with contextlib.redirect_stdout(out_buf), contextlib.redirect_stderr(err_buf):
             try:
                 code = main(argv)
-            except SystemExit as e:                              # argparse: usage errors and --help
+            except SystemExit as e:  # argparse: usage errors and --help
                 code = e.code
     finally:
         os.chdir(here)
@@ -308,7 +411,7 @@ def _run_cli(argv, cwd):
 
 def test_unmutated_commands_run(cli_dir):
     for command, argv in _BASE.items():
-        code, out, err = _run_cli(list(argv), cli_dir)
+        code, _out, err = _run_cli(list(argv), cli_dir)
         assert code == 0, (argv, err)
 
 
@@ -330,15 +433,15 @@ def test_fuzz_command_line(cli_dir, command, data):
             if data.draw(st.booleans(), label="has value"):
                 argv.append(data.draw(st.sampled_from(_VALUES), label="value"))
     if command == "identify":
-        argv += ["--iterations", "2", "--population", "4"]       # keep optimizer runs short
+        argv += ["--iterations", "2", "--population", "4"]  # keep optimizer runs short
     if command == "bench" and ("--report-only" not in argv or "--results" not in argv):
-        return                                                    # never run the benchmarks or touch bench/results
+        return  # never run the benchmarks or touch bench/results
     if command == "track" and "--duration" not in argv:
         argv += ["--duration", "0.05", "--skip", "0.01"]
-    work = Path(tempfile.mkdtemp())          # a fresh copy: examples must not see each other's outputs
+    work = Path(tempfile.mkdtemp())  # a fresh copy: examples must not see each other's outputs
     shutil.copytree(cli_dir, work, dirs_exist_ok=True)
     try:
-        code, out, err = _run_cli(argv, work)
+        code, _out, err = _run_cli(argv, work)
         stray = list(work.rglob(".*.tmp"))
     finally:
         shutil.rmtree(work, ignore_errors=True)

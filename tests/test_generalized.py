@@ -1,4 +1,5 @@
 """Generalized PI / MPI and rate-dependent PI."""
+
 import numpy as np
 import pytest
 from hypothesis import given
@@ -42,7 +43,7 @@ def test_seed2_reference_parameters():
     assert m.weights.tolist() == [0.2054, 0.1985, 0.0237, 0.0148, 0.0456, 0.0645, 0.0051, 0.0014, 0.0033]
     assert m.polynomial == (0.0, 0.2547, -0.00358, 0.7123)
     # on the loading curve from 0 to 1: P(1) + sum b_i (1 - r_i)
-    expected = 0.2547 - 0.00358 + 0.7123 + sum(b * (1 - r) for b, r in zip(m.weights, m.thresholds))
+    expected = 0.2547 - 0.00358 + 0.7123 + sum(b * (1 - r) for b, r in zip(m.weights, m.thresholds, strict=False))
     assert m.simulate(np.linspace(0, 1, 11))[-1] == pytest.approx(expected, abs=1e-15)
 
 
@@ -89,8 +90,15 @@ def test_analytic_gpi_inverse_refused_with_reason():
 
 
 def rdpi(ts=1e-3, beta=2e-4):
-    return ph.RateDependentPI(np.linspace(0.05, 0.6, 8), np.linspace(0.3, 0.05, 8), ts=ts, p0=0.8, beta=beta,
-                              rate_weights=np.full(8, 1e-4), filter_tau=2e-3)
+    return ph.RateDependentPI(
+        np.linspace(0.05, 0.6, 8),
+        np.linspace(0.3, 0.05, 8),
+        ts=ts,
+        p0=0.8,
+        beta=beta,
+        rate_weights=np.full(8, 1e-4),
+        filter_tau=2e-3,
+    )
 
 
 def loop_width_at_zero(v, y):
@@ -108,8 +116,9 @@ def test_rate_dependent_pi_widens_loops_with_rate():
     for freq in (1.0, 10.0, 50.0):
         t = np.arange(0, 3 / freq, 1e-4)
         v = np.sin(2 * np.pi * freq * t)
-        m_fast = ph.RateDependentPI(m.thresholds, m.weights, ts=1e-4, p0=m.p0, beta=m.beta,
-                                    rate_weights=m.rate_weights, filter_tau=m.filter_tau)
+        m_fast = ph.RateDependentPI(
+            m.thresholds, m.weights, ts=1e-4, p0=m.p0, beta=m.beta, rate_weights=m.rate_weights, filter_tau=m.filter_tau
+        )
         widths.append(loop_width_at_zero(v, m_fast.simulate(v)))
     assert widths[0] < widths[1] < widths[2]
     # without rate terms it is the static PI, bit for bit

@@ -1,5 +1,6 @@
 """Least squares over the linear parameters: exact recovery on simulated data, and a real
 record fitted to the accuracy it supports."""
+
 from pathlib import Path
 
 import numpy as np
@@ -16,13 +17,17 @@ def drive(n=3000, seed=0):
     return np.clip(0.5 + 0.45 * np.sin(np.linspace(0, 25, n)) * np.linspace(1, 0.2, n) + rng.normal(0, 0.01, n), 0, 1)
 
 
-@pytest.mark.parametrize("model", [
-    ph.mpi_seed2(),
-    ph.PI([0.05, 0.15, 0.3], [0.4, 0.2, 0.1], p0=0.7),
-    ph.PI([0.05, 0.15], [0.4, 0.2], p0=0.7, creep=ph.Creep(1e-3, [0.01, 0.1], [0.05, 0.03])),
-    ph.RateDependentPI([0.05, 0.2], [0.4, 0.2], ts=1e-3, p0=0.6, beta=1e-4, rate_weights=[1e-3, -5e-4]),
-    ph.Preisach(5, (0.0, 1.0), np.linspace(0.05, 1.0, 15), offset=0.1, slope=0.3),
-], ids=["mpi", "pi", "pi+creep", "rdpi", "preisach"])
+@pytest.mark.parametrize(
+    "model",
+    [
+        ph.mpi_seed2(),
+        ph.PI([0.05, 0.15, 0.3], [0.4, 0.2, 0.1], p0=0.7),
+        ph.PI([0.05, 0.15], [0.4, 0.2], p0=0.7, creep=ph.Creep(1e-3, [0.01, 0.1], [0.05, 0.03])),
+        ph.RateDependentPI([0.05, 0.2], [0.4, 0.2], ts=1e-3, p0=0.6, beta=1e-4, rate_weights=[1e-3, -5e-4]),
+        ph.Preisach(5, (0.0, 1.0), np.linspace(0.05, 1.0, 15), offset=0.1, slope=0.3),
+    ],
+    ids=["mpi", "pi", "pi+creep", "rdpi", "preisach"],
+)
 def test_regressors_reproduce_the_output_and_least_squares_recovers_the_parameters(model):
     v = drive()
     y = model.simulate(v)
@@ -68,8 +73,8 @@ def test_real_record_one_cycle():
     v, y = rec.input[seg], rec.output[seg]
     pre = ph.identify_preisach(v, y, levels=10)
     mpi = ph.identify_mpi(v, y)
-    assert pre.metrics["rmse_percent"] < 0.3 and pre.metrics["max_error_percent"] < 1.0   # measured 0.25 / 0.93
-    assert mpi.metrics["rmse_percent"] < 1.6                                               # measured 1.45
+    assert pre.metrics["rmse_percent"] < 0.3 and pre.metrics["max_error_percent"] < 1.0  # measured 0.25 / 0.93
+    assert mpi.metrics["rmse_percent"] < 1.6  # measured 1.45
 
 
 @pytest.mark.parametrize("method", ["de", "css"])
@@ -110,10 +115,10 @@ def test_identify_cemf_stage_from_simulated_measurements():
     r = stage.simulate(u)
     va, x = np.r_[0.0, r.voltage[:-1]], r.position
     res = ph.identify_cemf(va, x, fs, optimizer="de", rng=1, max_iterations=100)
-    assert res.train["rmse_percent"] < 0.5                      # measured 0.28 %
+    assert res.train["rmse_percent"] < 0.5  # measured 0.28 %
     p = res.model
     k_true = stage.params.stiffness / stage.params.tem
-    assert abs(p.stiffness / p.tem - k_true) / k_true < 0.1      # K = k/Tem within 10 % (measured 6 %)
+    assert abs(p.stiffness / p.tem - k_true) / k_true < 0.1  # K = k/Tem within 10 % (measured 6 %)
     assert res.history["best_cost"][-1] <= res.history["best_cost"][0]
     with pytest.raises(ValueError, match="position has 3 samples, voltage has 2"):
         ph.identify_cemf([0.0, 1.0], [0.0, 1.0, 2.0], fs)

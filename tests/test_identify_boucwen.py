@@ -1,7 +1,8 @@
-"""Identification of the Bouc–Wen benchmark oscillator (issue 4 item 3, SPEC §3.3, §4): the
+"""Identification of the Bouc–Wen benchmark oscillator (issue 4 item 3, docs/spec.md §3.3, §4): the
 batch RMSE engine against single simulations and across thread counts, recovery of the true
 parameters from noise-free data, the benchmark's training record fitted on periods 2-3 and
 validated on periods 4-5, bad input."""
+
 import json
 import os
 import subprocess
@@ -61,8 +62,14 @@ def record():
 
 def rows_around_truth():
     p = TRUE.params()
-    rows = np.array([p, p * [1.1, 0.5, 0.9, 1.2, 1.0, 1.3, 0.8, 1.0], p * [0.7, 2.0, 1.3, 0.8, 1.0, 0.5, 1.5, 1.0],
-                     [3.0, 20.0, 1e5, 3e4, 1.0, 5000.0, -2000.0, 1.0]])
+    rows = np.array(
+        [
+            p,
+            p * [1.1, 0.5, 0.9, 1.2, 1.0, 1.3, 0.8, 1.0],
+            p * [0.7, 2.0, 1.3, 0.8, 1.0, 0.5, 1.5, 1.0],
+            [3.0, 20.0, 1e5, 3e4, 1.0, 5000.0, -2000.0, 1.0],
+        ]
+    )
     return np.ascontiguousarray(rows)
 
 
@@ -136,8 +143,9 @@ def test_batch_and_identification_independent_of_thread_count():
     results = []
     for threads in ("1", "2"):
         env = dict(os.environ, RAYON_NUM_THREADS=threads)
-        out = subprocess.run([sys.executable, "-c", _THREADS_SCRIPT], input=payload, capture_output=True, text=True,
-                             env=env, timeout=120)
+        out = subprocess.run(
+            [sys.executable, "-c", _THREADS_SCRIPT], input=payload, capture_output=True, text=True, env=env, timeout=120
+        )
         assert out.returncode == 0, out.stderr
         results.append(json.loads(out.stdout))
     assert [r["threads"] for r in results] == [1, 2]
@@ -196,8 +204,8 @@ def test_benchmark_training_record(record):
     u, y, fs = record
     res = identify_boucwen_benchmark(u, y, fs, fit_range=(N, 3 * N), validate=(u, y, (3 * N, 5 * N)), rng=0)
     truth = TRUE.simulate(u, fs=fs)
-    true_fit = rms(truth[N:3 * N] - y[N:3 * N])
-    true_val = rms(truth[3 * N:] - y[3 * N:])
+    true_fit = rms(truth[N : 3 * N] - y[N : 3 * N])
+    true_val = rms(truth[3 * N :] - y[3 * N :])
     assert res.train["rmse"] <= true_fit * 1.0001
     assert res.validation["rmse"] <= true_val * 1.005  # measured 1.0003
     assert res.validation["rmse"] <= 7.6e-6
@@ -212,9 +220,17 @@ def test_fixed_parameter_and_options(short):
     """A number in bounds fixes a parameter (it leaves the search vector); polish=False
     returns the search's best; the validation record is scored."""
     n, u, y = short
-    res = identify_boucwen_benchmark(u, y, fit_range=(n, 2 * n), bounds={"mass": 2.0, "stiffness": (4e4, 6e4)},
-                                     rng=1, max_iterations=4, population_size=10, polish=False,
-                                     validate=(u, y, (n, 2 * n)))
+    res = identify_boucwen_benchmark(
+        u,
+        y,
+        fit_range=(n, 2 * n),
+        bounds={"mass": 2.0, "stiffness": (4e4, 6e4)},
+        rng=1,
+        max_iterations=4,
+        population_size=10,
+        polish=False,
+        validate=(u, y, (n, 2 * n)),
+    )
     assert res.model.mass == 2.0
     assert 4e4 <= res.model.stiffness <= 6e4
     assert res.history["parameters"] == ("damping", "stiffness", "alpha", "beta_gamma", "beta_delta")
@@ -230,27 +246,63 @@ def test_fixed_parameter_and_options(short):
 @pytest.mark.parametrize(
     "call, error, message",
     [
-        (lambda f, y: _core.boucwen_benchmark_batch_rmse(np.zeros((2, 7)), f, H, R, y), ValueError,
-         r"params has shape \(2, 7\), expected \(S, 8\)"),
-        (lambda f, y: _core.boucwen_benchmark_batch_rmse(np.asfortranarray(np.ones((2, 8))), f, H, R, y), ValueError,
-         "params must be a C-contiguous float64 array"),
-        (lambda f, y: _core.boucwen_benchmark_batch_rmse(np.r_[[TRUE.params()], [[2, 10, 5e4, 5e4, 1e3, .8, -1.1, .5]]],
-                                                         f, H, R, y), ValueError, r"params\[1\]: nu = 0.5 must be >= 1"),
-        (lambda f, y: _core.boucwen_benchmark_batch_rmse(TRUE.params()[None], f, H, R, y, 1), ValueError,
-         "target has length 2048 and skip = 1, but the decimated record has 2048 samples"),
-        (lambda f, y: _core.boucwen_benchmark_batch_rmse(TRUE.params()[None], f, H, R, y[:0]), ValueError,
-         "target has length 0"),
-        (lambda f, y: _core.boucwen_benchmark_batch_rmse(TRUE.params()[None], f, H, 0, y), ValueError,
-         "factor = 0 must be >= 1"),
-        (lambda f, y: _core.boucwen_benchmark_batch_rmse(TRUE.params()[None], f, -H, R, y), ValueError, "h = .* must be > 0"),
-        (lambda f, y: _core.boucwen_benchmark_batch_rmse(TRUE.params()[None], np.r_[f[:-1], np.nan], H, R, y), ValueError,
-         r"input\[40959\] = NaN is not finite"),
-        (lambda f, y: _core.boucwen_benchmark_batch_rmse(TRUE.params()[None], f[:0], H, R, y), ValueError,
-         "input has 0 samples"),
-        (lambda f, y: _core.boucwen_benchmark_batch_rmse(TRUE.params()[None], f, H, R, np.r_[y[:-1], np.inf]), ValueError,
-         r"target\[2047\] = inf is not finite"),
-        (lambda f, y: _core.boucwen_benchmark_batch_simulate(TRUE.params()[None], f, H, R, 10, 2040), ValueError,
-         "skip = 10 and count = 2040, but the decimated record has 2048 samples"),
+        (
+            lambda f, y: _core.boucwen_benchmark_batch_rmse(np.zeros((2, 7)), f, H, R, y),
+            ValueError,
+            r"params has shape \(2, 7\), expected \(S, 8\)",
+        ),
+        (
+            lambda f, y: _core.boucwen_benchmark_batch_rmse(np.asfortranarray(np.ones((2, 8))), f, H, R, y),
+            ValueError,
+            "params must be a C-contiguous float64 array",
+        ),
+        (
+            lambda f, y: _core.boucwen_benchmark_batch_rmse(
+                np.r_[[TRUE.params()], [[2, 10, 5e4, 5e4, 1e3, 0.8, -1.1, 0.5]]], f, H, R, y
+            ),
+            ValueError,
+            r"params\[1\]: nu = 0.5 must be >= 1",
+        ),
+        (
+            lambda f, y: _core.boucwen_benchmark_batch_rmse(TRUE.params()[None], f, H, R, y, 1),
+            ValueError,
+            "target has length 2048 and skip = 1, but the decimated record has 2048 samples",
+        ),
+        (
+            lambda f, y: _core.boucwen_benchmark_batch_rmse(TRUE.params()[None], f, H, R, y[:0]),
+            ValueError,
+            "target has length 0",
+        ),
+        (
+            lambda f, y: _core.boucwen_benchmark_batch_rmse(TRUE.params()[None], f, H, 0, y),
+            ValueError,
+            "factor = 0 must be >= 1",
+        ),
+        (
+            lambda f, y: _core.boucwen_benchmark_batch_rmse(TRUE.params()[None], f, -H, R, y),
+            ValueError,
+            "h = .* must be > 0",
+        ),
+        (
+            lambda f, y: _core.boucwen_benchmark_batch_rmse(TRUE.params()[None], np.r_[f[:-1], np.nan], H, R, y),
+            ValueError,
+            r"input\[40959\] = NaN is not finite",
+        ),
+        (
+            lambda f, y: _core.boucwen_benchmark_batch_rmse(TRUE.params()[None], f[:0], H, R, y),
+            ValueError,
+            "input has 0 samples",
+        ),
+        (
+            lambda f, y: _core.boucwen_benchmark_batch_rmse(TRUE.params()[None], f, H, R, np.r_[y[:-1], np.inf]),
+            ValueError,
+            r"target\[2047\] = inf is not finite",
+        ),
+        (
+            lambda f, y: _core.boucwen_benchmark_batch_simulate(TRUE.params()[None], f, H, R, 10, 2040),
+            ValueError,
+            "skip = 10 and count = 2040, but the decimated record has 2048 samples",
+        ),
     ],
 )
 def test_bad_batch_input(short, call, error, message):
@@ -290,10 +342,18 @@ def test_bad_batch_input(short, call, error, message):
 )
 def test_bad_identification_input(short, kwargs, error, message):
     _, u, y = short
-    records = {"short": y[:-1], "constant": np.zeros_like(y), "nan": np.where(np.arange(u.size) == 5, np.nan, u),
-               "const_u": np.ones_like(u)}
-    kwargs = {k: (records["const_u"] if (k, v) == ("u", "constant") else records[v]) if isinstance(v, str) and k in "uy"
-              else v for k, v in kwargs.items()}
+    records = {
+        "short": y[:-1],
+        "constant": np.zeros_like(y),
+        "nan": np.where(np.arange(u.size) == 5, np.nan, u),
+        "const_u": np.ones_like(u),
+    }
+    kwargs = {
+        k: (records["const_u"] if (k, v) == ("u", "constant") else records[v])
+        if isinstance(v, str) and k in "uy"
+        else v
+        for k, v in kwargs.items()
+    }
     if kwargs.get("validate") == "short":
         kwargs["validate"] = (u, y[:-1])
     args = {"u": u, "y": y, "max_iterations": 1, "polish": False}

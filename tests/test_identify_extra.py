@@ -1,6 +1,7 @@
 """identify(): the robust Huber loss (IRLS for the linear families, an MM-style population
 search for the others), dispatch to the CEMF stage and the Bouc–Wen benchmark, and the
 result's plot."""
+
 import numpy as np
 import pytest
 
@@ -36,7 +37,7 @@ def val_rmse(res, u, clean):
 
 def test_huber_cost_hand_computed():
     r = np.array([0.0, 1.0, -1.0, 1.0])
-    assert float(huber_cost(r, delta=10.0)) == pytest.approx(np.sqrt(0.75), rel=1e-15)    # = RMSE below delta
+    assert float(huber_cost(r, delta=10.0)) == pytest.approx(np.sqrt(0.75), rel=1e-15)  # = RMSE below delta
     # rho(0) = 0, rho(3) = 1 * (3 - 1/2) = 2.5 -> sqrt(2 * 2.5 / 2)
     assert float(huber_cost([0.0, 3.0], delta=1.0)) == pytest.approx(np.sqrt(2.5), rel=1e-15)
     # median of [-1, 0, 1, 2, 100] is 1, absolute deviations [2, 1, 0, 1, 99] -> MAD 1
@@ -46,11 +47,11 @@ def test_huber_cost_hand_computed():
 def test_huber_cost_row_wise():
     rng = np.random.default_rng(0)
     R = rng.normal(size=(3, 500))
-    R[1, ::50] += 1e3                         # glitches on row 1 only
-    R[2, 7] = np.nan                          # a failed simulation
+    R[1, ::50] += 1e3  # glitches on row 1 only
+    R[2, 7] = np.nan  # a failed simulation
     c = huber_cost(R)
     assert c.shape == (3,) and np.isinf(c[2])
-    assert 0.9 < c[0] < 1.0                   # unit noise: a little below its RMS
+    assert 0.9 < c[0] < 1.0  # unit noise: a little below its RMS
     # 2 % glitches of 1000 add about 2 * 0.02 * delta * 1000 (delta ~ 1.35) to the square, not
     # 0.02 * 1000**2 as to the RMSE's (141)
     assert 6.5 < c[1] < 8.0 and c[1] < 0.06 * np.sqrt(np.mean(R[1] ** 2))
@@ -65,7 +66,7 @@ def test_huber_cost_row_wise():
 
 def test_linear_huber_fit_resists_glitches():
     v, v_val = drive(), drive(2000, 7)
-    truth = ph.PI(_default_thresholds(v, 6), [0.4, 0.2, 0.15, 0.1, 0.05, 0.02], p0=0.6)   # the default structure
+    truth = ph.PI(_default_thresholds(v, 6), [0.4, 0.2, 0.15, 0.1, 0.05, 0.02], p0=0.6)  # the default structure
     clean_val = truth.simulate(v_val)
     noisy, glitched = noisy_and_glitched(truth.simulate(v), seed=3)
 
@@ -120,7 +121,7 @@ def test_boucwen_huber_fit_resists_glitches():
     # measured: 8.4e-3 (RMSE cost) against 2.8e-4 (Huber)
     assert val_rmse(hub, v_val, clean_val) < 0.1 * val_rmse(ls, v_val, clean_val)
     delta = hub.history["huber_delta"]
-    assert 0 < delta < 0.05 * np.ptp(noisy)              # near the noise, far below the glitches
+    assert 0 < delta < 0.05 * np.ptp(noisy)  # near the noise, far below the glitches
 
     ls0 = ph.identify(v, noisy, "boucwen", **run)
     hub0 = ph.identify(v, noisy, "boucwen", loss="huber", **run)
@@ -147,8 +148,8 @@ def test_stage_positions_are_what_the_batch_rmse_scores():
     va, x, fs, stage = short_stage_record()
     base = ph.Stage(stage.params, ph.Amplifier(-1e9, 1e9), sample_time=1.0 / fs).core_params()
     rows = np.stack([base, base, base])
-    rows[1, 2] *= 1.3                                    # stiffer
-    rows[2, 5] *= 0.5                                    # less CEMF
+    rows[1, 2] *= 1.3  # stiffer
+    rows[2, 5] *= 0.5  # less CEMF
     pos = _stage_positions(rows, 1.0 / fs, 1, 0.05, va)
     rmse = _core.stage_batch_rmse(rows, 1.0 / fs, 1, 0.05, va, x, float("inf"))
     np.testing.assert_allclose(np.sqrt(np.mean((pos - x) ** 2, axis=1)), rmse, rtol=1e-12)
@@ -189,8 +190,9 @@ def benchmark_record(n=512):
 def test_boucwen_benchmark_dispatch():
     u, y = benchmark_record()
     res = ph.identify(u, y, "boucwen-benchmark", rng=0, max_iterations=4, fit_range=(512, 1024), polish=False)
-    direct = identify_boucwen_benchmark(u, y, FS, optimizer="de", rng=0, max_iterations=4, fit_range=(512, 1024),
-                                        polish=False)
+    direct = identify_boucwen_benchmark(
+        u, y, FS, optimizer="de", rng=0, max_iterations=4, fit_range=(512, 1024), polish=False
+    )
     assert isinstance(res.model, BoucWenBenchmark) and repr(res.model) == repr(direct.model)
     assert res.method == direct.method and res.train == direct.train
     assert res.history["best_cost"].size == 4
@@ -243,6 +245,6 @@ def test_plot_carries_the_data():
         (r_line,) = residual.get_lines()
         np.testing.assert_array_equal(r_line.get_ydata(), yp - y)
         assert np.sqrt(np.mean(r_line.get_ydata() ** 2)) == pytest.approx(res.train["rmse"], rel=1e-12)
-        fig.canvas.draw()                              # renders without error on Agg
+        fig.canvas.draw()  # renders without error on Agg
     finally:
         plt.close(fig)

@@ -10,6 +10,7 @@ synthetic records; with noise, the validation error at the noise floor.
   variable-amplitude sine plus a 2 V RMS multisine from 100 Hz to 3 kHz (the resonance is at
   5.1 kHz).
 """
+
 import numpy as np
 
 import piezohyst as ph
@@ -30,12 +31,12 @@ def rel_err(got, true):
 
 
 def test_pi_weights_and_p0_recovered_by_least_squares():
-    v, vv = drive(3000, 0, 10, 110), drive(2000, 1, 10, 110)      # volts, say
-    r = _default_thresholds(v, 6)                                  # identify()'s default structure
+    v, vv = drive(3000, 0, 10, 110), drive(2000, 1, 10, 110)  # volts, say
+    r = _default_thresholds(v, 6)  # identify()'s default structure
     truth = ph.PI(r, [0.30, 0.20, 0.12, 0.08, 0.05, 0.03], p0=0.45)
     res = ph.identify(v, truth.simulate(v), "pi", operators=6, validate=(vv, truth.simulate(vv)))
     np.testing.assert_array_equal(res.model.thresholds, r)
-    assert rel_err(res.model.weights, truth.weights).max() <= 0.01     # measured < 1e-12
+    assert rel_err(res.model.weights, truth.weights).max() <= 0.01  # measured < 1e-12
     assert rel_err(res.model.p0, truth.p0) <= 0.01
     assert rel_err(res.model.weights, truth.weights).max() < 1e-8
     assert res.validation["rmse_percent"] < 1e-8
@@ -45,11 +46,11 @@ def test_mpi_polynomial_and_weights_recovered_by_least_squares():
     v, vv = drive(3000, 2), drive(2000, 3)
     t = ph.SEED2_TABLE1
     r = _default_thresholds(v, 9)
-    poly = (0.05, 0.2547, -0.00358, 0.7123)                          # seed 2's, with an offset
+    poly = (0.05, 0.2547, -0.00358, 0.7123)  # seed 2's, with an offset
     truth = ph.GeneralizedPI(r, t["weights"], poly, input_range=(0, 1))
     res = ph.identify(v, truth.simulate(v), "mpi", validate=(vv, truth.simulate(vv)))
     m = res.model
-    assert rel_err(m.weights, truth.weights).max() <= 0.01            # measured < 1e-9
+    assert rel_err(m.weights, truth.weights).max() <= 0.01  # measured < 1e-9
     assert rel_err(m.polynomial, poly).max() <= 0.01
     assert rel_err(m.weights, truth.weights).max() < 1e-6 and rel_err(m.polynomial, poly).max() < 1e-6
     assert res.validation["rmse_percent"] < 1e-8
@@ -73,14 +74,24 @@ def test_mpi_with_noise_reaches_the_noise_floor():
 #: mechanics and CEMF numbers, no creep, no electrostriction, an ideal amplifier).
 M_KG, K_NM, TEM = 0.0714, 7.333e7, 10.5
 B_NSM = 2 * 0.03 * np.sqrt(K_NM * M_KG)
-CEMF_TRUTH = {"M": M_KG / TEM, "B": B_NSM / TEM, "K": K_NM / TEM, "tem": TEM, "alpha": 1.25e5, "beta": 8000.0,
-              "gamma": 3000.0}
+CEMF_TRUTH = {
+    "M": M_KG / TEM,
+    "B": B_NSM / TEM,
+    "K": K_NM / TEM,
+    "tem": TEM,
+    "alpha": 1.25e5,
+    "beta": 8000.0,
+    "gamma": 3000.0,
+}
 
 
 def cemf_record(fs=1e4, duration=0.2):
-    stage = Stage(StageParameters(M_KG, B_NSM, K_NM, TEM, 1.8e-6, 1.25e5, 8000.0, 3000.0), Amplifier(-20.0, 150.0),
-                  sample_time=1 / fs)
-    n = int(round(duration * fs))
+    stage = Stage(
+        StageParameters(M_KG, B_NSM, K_NM, TEM, 1.8e-6, 1.25e5, 8000.0, 3000.0),
+        Amplifier(-20.0, 150.0),
+        sample_time=1 / fs,
+    )
+    n = round(duration * fs)
     _, slow = ph.variable_amplitude_sine(10, 70, duration, fs, offset=75)
     _, ms = ph.multisine(100, 3000, 2.0, duration, fs, rng=0)
     u = slow[:n] + ms[:n]
@@ -88,14 +99,21 @@ def cemf_record(fs=1e4, duration=0.2):
 
 
 def cemf_values(p):
-    return {"M": p.mass / p.tem, "B": p.damping / p.tem, "K": p.stiffness / p.tem, "tem": p.tem,
-            "alpha": p.hyst_alpha, "beta": p.hyst_beta, "gamma": p.hyst_gamma}
+    return {
+        "M": p.mass / p.tem,
+        "B": p.damping / p.tem,
+        "K": p.stiffness / p.tem,
+        "tem": p.tem,
+        "alpha": p.hyst_alpha,
+        "beta": p.hyst_beta,
+        "gamma": p.hyst_gamma,
+    }
 
 
 def test_cemf_stage_parameters_recovered():
     stage, u, x = cemf_record()
     fs = 1 / stage.sample_time
-    assert -20 <= u.min() and u.max() <= 150                       # inside the amplifier: the command is the voltage
+    assert -20 <= u.min() and u.max() <= 150  # inside the amplifier: the command is the voltage
     res = ph.identify_cemf(u, x, fs, optimizer="de", rng=0, max_iterations=15, polish=True)
     got = cemf_values(res.model)
     errors = {k: float(rel_err(got[k], CEMF_TRUTH[k])) for k in CEMF_TRUTH}

@@ -2,6 +2,7 @@
 structure (threshold spread, envelopes, rate terms, creep time constants), the weights by
 bounded least squares for every candidate. Exact recovery on synthetic records, determinism,
 bad bounds, and the measured piezo record."""
+
 from pathlib import Path
 
 import numpy as np
@@ -33,22 +34,35 @@ def envelope(q2, q3, offset=0.0, scale=1.0):
 
 # the seed-2 Table 1 weights and polynomial on the default thresholds (spread 9/20), with
 # asymmetric non-identity envelopes
-TRUE_STRUCTURE = {"spread": 0.45, "rising_q2": 0.2, "rising_q3": -0.1, "falling_offset": 0.03,
-                  "falling_scale": 1.05, "falling_q2": 0.1, "falling_q3": 0.05}
+TRUE_STRUCTURE = {
+    "spread": 0.45,
+    "rising_q2": 0.2,
+    "rising_q3": -0.1,
+    "falling_offset": 0.03,
+    "falling_scale": 1.05,
+    "falling_q2": 0.1,
+    "falling_q3": 0.05,
+}
 
 
 @pytest.fixture(scope="module")
 def gpi_records():
     t = ph.SEED2_TABLE1
-    truth = ph.GeneralizedPI(np.arange(1, 10) * 0.05, t["weights"], t["polynomial"], envelope(0.2, -0.1),
-                             envelope(0.1, 0.05, 0.03, 1.05), input_range=(-0.1, 1.1))
-    v, vv = drive(2000, 0), 0.05 + 0.9 * drive(2000, 2)          # validation inside the training range
+    truth = ph.GeneralizedPI(
+        np.arange(1, 10) * 0.05,
+        t["weights"],
+        t["polynomial"],
+        envelope(0.2, -0.1),
+        envelope(0.1, 0.05, 0.03, 1.05),
+        input_range=(-0.1, 1.1),
+    )
+    v, vv = drive(2000, 0), 0.05 + 0.9 * drive(2000, 2)  # validation inside the training range
     return truth, v, truth.simulate(v), vv, truth.simulate(vv)
 
 
 @pytest.fixture(scope="module")
 def gpi_fit(gpi_records):
-    truth, v, y, vv, yv = gpi_records
+    _truth, v, y, vv, yv = gpi_records
     return ph.identify(v, y, "mpi", structure="fit", rng=1, max_iterations=30, validate=(vv, yv))
 
 
@@ -96,7 +110,7 @@ def test_vp_tanh_envelopes():
     truth = ph.GeneralizedPI(np.arange(1, 10) * 0.05, t["weights"], t["polynomial"], rising, falling, (-0.1, 1.1))
     y, yv = truth.simulate(v), truth.simulate(vv)
     res = ph.identify(v, y, "gpi", structure="fit", envelope="tanh", rng=0, max_iterations=15, validate=(vv, yv))
-    assert res.validation["rmse_percent"] < 1e-6                     # measured 7e-12 %
+    assert res.validation["rmse_percent"] < 1e-6  # measured 7e-12 %
     assert res.history["structure"]["rising_steepness"] == pytest.approx(0.9, abs=1e-6)
     assert res.history["structure"]["falling_offset"] == pytest.approx(0.05, abs=1e-6)
 
@@ -107,23 +121,34 @@ def test_vp_pi_with_creep_and_rdpi_recover_their_structure():
     v = 0.5 + 0.45 * np.sin(2 * np.pi * 1.3 * t) * np.linspace(1, 0.3, n) + 0.05 * np.sin(2 * np.pi * 17 * t)
     span = np.ptp(v)
     # PI + creep: thresholds over 60 % of the span, lags at 10 ms and 0.3 s
-    truth = ph.PI(np.arange(1, 6) * 0.6 * span / 5, [0.4, 0.2, 0.1, 0.05, 0.02], 0.6,
-                  creep=ph.Creep(1 / fs, [0.01, 0.3], [0.05, 0.08]))
+    truth = ph.PI(
+        np.arange(1, 6) * 0.6 * span / 5,
+        [0.4, 0.2, 0.1, 0.05, 0.02],
+        0.6,
+        creep=ph.Creep(1 / fs, [0.01, 0.3], [0.05, 0.08]),
+    )
     y = truth.simulate(v)
     fixed = ph.identify(v, y, "pi", operators=5, creep=2, fs=fs)
     res = ph.identify(v, y, "pi", operators=5, creep=2, fs=fs, structure="fit", rng=0, max_iterations=20)
-    assert fixed.train["rmse_percent"] > 0.1 and res.train["rmse_percent"] < 1e-6    # measured 0.44 % and 1e-12 %
+    assert fixed.train["rmse_percent"] > 0.1 and res.train["rmse_percent"] < 1e-6  # measured 0.44 % and 1e-12 %
     st = res.history["structure"]
     assert st["spread"] == pytest.approx(0.6, abs=1e-8)
     np.testing.assert_allclose(res.model.creep.taus, [0.01, 0.3], rtol=1e-6)
     np.testing.assert_allclose(res.model.creep.weights, [0.05, 0.08], rtol=1e-6)
     np.testing.assert_allclose(res.model.weights, truth.weights, atol=1e-8)
     # rate-dependent PI: beta and the rate filter
-    truth = ph.RateDependentPI(np.arange(1, 6) * 0.5 * span / 5, [0.4, 0.2, 0.1, 0.05, 0.02], 1 / fs, 0.6,
-                               beta=0.02, rate_weights=[0.01, 0, 0, 0.005, 0], filter_tau=0.005)
+    truth = ph.RateDependentPI(
+        np.arange(1, 6) * 0.5 * span / 5,
+        [0.4, 0.2, 0.1, 0.05, 0.02],
+        1 / fs,
+        0.6,
+        beta=0.02,
+        rate_weights=[0.01, 0, 0, 0.005, 0],
+        filter_tau=0.005,
+    )
     y = truth.simulate(v)
     res = ph.identify(v, y, "rdpi", operators=5, fs=fs, structure="fit", rng=0, max_iterations=20)
-    assert res.train["rmse_percent"] < 1e-6                                           # measured 4e-13 %
+    assert res.train["rmse_percent"] < 1e-6  # measured 4e-13 %
     assert res.model.beta == pytest.approx(0.02, rel=1e-6)
     assert res.model.filter_tau == pytest.approx(0.005, rel=1e-6)
     np.testing.assert_allclose(res.model.rate_weights, truth.rate_weights, atol=1e-8)
@@ -131,8 +156,14 @@ def test_vp_pi_with_creep_and_rdpi_recover_their_structure():
 
 def small_problem():
     v = drive(600, 3)
-    truth = ph.GeneralizedPI([0.1, 0.2, 0.3], [0.5, 0.3, 0.2], (0.1, 0.5, 0.0, 0.2), envelope(0.1, 0.0),
-                             envelope(0.0, 0.0, 0.02, 1.0), input_range=(-0.1, 1.1))
+    truth = ph.GeneralizedPI(
+        [0.1, 0.2, 0.3],
+        [0.5, 0.3, 0.2],
+        (0.1, 0.5, 0.0, 0.2),
+        envelope(0.1, 0.0),
+        envelope(0.0, 0.0, 0.02, 1.0),
+        input_range=(-0.1, 1.1),
+    )
     return v, truth.simulate(v)
 
 
@@ -152,8 +183,17 @@ def test_vp_same_seed_same_result(optimizer):
 def test_vp_callback_fixed_parameters_no_polish_and_huber():
     v, y = small_problem()
     seen = []
-    res = identify_vp(v, y, "mpi", operators=3, rng=0, max_iterations=50, polish=False,
-                      bounds={"spread": 0.3, "falling_scale": (0.9, 1.1)}, callback=lambda r: seen.append(r.nit) or r.nit >= 3)
+    res = identify_vp(
+        v,
+        y,
+        "mpi",
+        operators=3,
+        rng=0,
+        max_iterations=50,
+        polish=False,
+        bounds={"spread": 0.3, "falling_scale": (0.9, 1.1)},
+        callback=lambda r: seen.append(r.nit) or r.nit >= 3,
+    )
     assert seen == [1, 2, 3] and res.method == "vp-de" and "polish" not in res.history
     assert "spread" not in res.history["parameters"] and res.history["structure"]["spread"] == 0.3
     assert res.model.thresholds[-1] == pytest.approx(0.3 * np.ptp(v))
@@ -162,14 +202,21 @@ def test_vp_callback_fixed_parameters_no_polish_and_huber():
     # Huber: the structure known but the falling envelope's offset; 2 % of the samples glitched
     yg = y.copy()
     yg[::50] += 0.5 * np.ptp(y)
-    known = {"spread": 0.3, "rising_q2": 0.1, "rising_q3": 0.0, "falling_scale": 1.0, "falling_q2": 0.0,
-             "falling_q3": 0.0, "falling_offset": (-0.1, 0.1)}
+    known = {
+        "spread": 0.3,
+        "rising_q2": 0.1,
+        "rising_q3": 0.0,
+        "falling_scale": 1.0,
+        "falling_q2": 0.0,
+        "falling_q3": 0.0,
+        "falling_offset": (-0.1, 0.1),
+    }
     kw = dict(operators=3, rng=0, max_iterations=8, bounds=known)
     hub = identify_vp(v, yg, "mpi", loss="huber", **kw)
     sq = identify_vp(v, yg, "mpi", **kw)
     assert hub.method == "vp-de+polish+huber" and sq.method == "vp-de+polish"
     assert hub.history["structure"]["falling_offset"] == pytest.approx(0.02, abs=1e-3)
-    clean = lambda r: np.sqrt(np.mean((r.model.simulate(v) - y) ** 2))             # noqa: E731
+    clean = lambda r: np.sqrt(np.mean((r.model.simulate(v) - y) ** 2))
     assert clean(hub) < 0.1 * clean(sq)
 
 
@@ -180,7 +227,9 @@ def test_vp_bad_input():
         ph.identify(v, y, "mpi", bounds={"spread": (0.8, 0.2)}, **fit)
     with pytest.raises(ValueError, match=r"'rising_q4' is not a parameter of this search; expected names among"):
         ph.identify(v, y, "mpi", bounds={"rising_q4": (0, 1)}, **fit)
-    with pytest.raises(ValueError, match=r"bounds\['spread'\]: -0.1 is outside the parameter's domain \(spread must be > 0"):
+    with pytest.raises(
+        ValueError, match=r"bounds\['spread'\]: -0.1 is outside the parameter's domain \(spread must be > 0"
+    ):
         ph.identify(v, y, "mpi", bounds={"spread": (-0.1, 0.5)}, **fit)
     with pytest.raises(ValueError, match=r"bounds\['falling_scale'\] upper = nan is not finite"):
         ph.identify(v, y, "mpi", bounds={"falling_scale": (0.5, float("nan"))}, **fit)

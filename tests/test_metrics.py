@@ -1,5 +1,6 @@
-"""Tracking and compensation metrics (SPEC §6): hand-computed values, loops whose width is
+"""Tracking and compensation metrics (docs/spec.md §6): hand-computed values, loops whose width is
 known analytically, invariances, and bad input named by argument and value."""
+
 import numpy as np
 import pytest
 
@@ -18,7 +19,7 @@ def triangle_cycles(cycles, n=101):
 
 def test_rmse_and_max_error_hand_computed():
     r, y = [0.0, 1.0, 2.0, 3.0], [0.0, 1.0, 2.0, 5.0]
-    assert rmse(r, y) == 1.0                       # sqrt(2**2 / 4)
+    assert rmse(r, y) == 1.0  # sqrt(2**2 / 4)
     assert max_error(r, y) == 2.0
     # the sign of the error does not matter
     assert rmse(y, r) == 1.0 and max_error(y, r) == 2.0
@@ -30,19 +31,33 @@ def test_rmse_and_max_error_hand_computed():
 
 def test_tracking_metrics_hand_computed():
     m = tracking_metrics([0.0, 1.0, 2.0, 3.0], [0.0, 1.0, 2.0, 5.0])
-    assert set(m) == {"rmse", "max_error", "rmse_percent", "max_error_percent", "normalized_max_error",
-                      "normalized_rms_error", "linearity_error"}
+    assert set(m) == {
+        "rmse",
+        "max_error",
+        "rmse_percent",
+        "max_error_percent",
+        "normalized_max_error",
+        "normalized_rms_error",
+        "linearity_error",
+    }
     # e = [0, 0, 0, 2], reference range 3; LS line of y on x: y = 1.6 x - 0.4, residuals
     # [0.4, -0.2, -0.8, 0.6], output range 5 -> linearity 0.8 / 5 = 16 %
-    expected = {"rmse": 1.0, "max_error": 2.0, "rmse_percent": 100 / 3, "max_error_percent": 200 / 3,
-                "normalized_max_error": 2 / 3, "normalized_rms_error": 1 / 3, "linearity_error": 16.0}
+    expected = {
+        "rmse": 1.0,
+        "max_error": 2.0,
+        "rmse_percent": 100 / 3,
+        "max_error_percent": 200 / 3,
+        "normalized_max_error": 2 / 3,
+        "normalized_rms_error": 1 / 3,
+        "linearity_error": 16.0,
+    }
     for key, value in expected.items():
         assert m[key] == pytest.approx(value, rel=1e-12, abs=1e-12), key
 
 
 def test_tracking_metrics_sine_error_has_the_rms_of_a_sine():
     t = np.arange(4000) / 4000
-    ref = 10 * np.sin(2 * np.pi * 2 * t)           # range 20
+    ref = 10 * np.sin(2 * np.pi * 2 * t)  # range 20
     out = ref + 0.5 * np.sin(2 * np.pi * 7 * t)
     m = tracking_metrics(ref, out)
     assert m["normalized_max_error"] == pytest.approx(0.5 / 20, rel=1e-6)
@@ -61,7 +76,7 @@ def test_tracking_metrics_of_a_constant_output_reports_no_linearity():
 def test_linearity_error_of_any_line_is_zero():
     x = np.linspace(-3.0, 7.0, 501)
     assert linearity_error(x, 2.0 * x + 5.0) == pytest.approx(0.0, abs=1e-12)
-    assert linearity_error(x, -0.5 * x + 1e6) == pytest.approx(0.0, abs=1e-6)   # offset far from zero
+    assert linearity_error(x, -0.5 * x + 1e6) == pytest.approx(0.0, abs=1e-6)  # offset far from zero
 
 
 def test_linearity_error_of_a_known_bump():
@@ -88,7 +103,7 @@ def test_linearity_error_ignores_gain_and_offset():
 
 def test_hysteresis_of_a_parallelogram_loop():
     # ascending y = 2x - 0.15, descending y = 2x + 0.15: width 0.3, output range 2.3
-    up = np.linspace(0.0, 1.0, 37)                 # sample grid not aligned with the levels
+    up = np.linspace(0.0, 1.0, 37)  # sample grid not aligned with the levels
     x = np.r_[up, up[::-1], up]
     y = np.r_[2 * up - 0.15, 2 * up[::-1] + 0.15, 2 * up - 0.15]
     assert hysteresis_percent(x, y) == pytest.approx(100 * 0.3 / 2.3, rel=1e-12)
@@ -100,7 +115,7 @@ def test_hysteresis_of_a_parallelogram_loop():
 def test_hysteresis_of_a_line_is_zero():
     x = triangle_cycles(3)
     assert hysteresis_percent(x, 2.0 * x + 1.0) == pytest.approx(0.0, abs=1e-12)
-    assert hysteresis_percent(np.linspace(0, 1, 50), np.linspace(0, 1, 50) ** 3) == 0.0   # one branch only
+    assert hysteresis_percent(np.linspace(0, 1, 50), np.linspace(0, 1, 50) ** 3) == 0.0  # one branch only
 
 
 def test_hysteresis_of_an_ellipse():
@@ -131,7 +146,7 @@ def test_a_jump_where_the_input_holds_is_not_width():
     x2 = np.r_[x, np.linspace(1, 0, 11)[1:]]
     y2 = np.r_[y, np.linspace(1, 0, 11)[1:] + 5.0]
     assert hysteresis_percent(x2, y2, levels=3) == pytest.approx(100 * 5 / 6, rel=1e-12)
-    assert hysteresis_percent(x2[:-5], y2[:-5], levels=3) == 0.0    # not yet below the hold
+    assert hysteresis_percent(x2[:-5], y2[:-5], levels=3) == 0.0  # not yet below the hold
 
 
 # ----------------------------------------------------------------------------- bad input
@@ -139,8 +154,13 @@ def test_a_jump_where_the_input_holds_is_not_width():
 
 @pytest.mark.parametrize("fun", [rmse, max_error, linearity_error, tracking_metrics, hysteresis_percent])
 def test_bad_records(fun):
-    first = {rmse: "reference", max_error: "reference", tracking_metrics: "reference",
-             linearity_error: "desired", hysteresis_percent: "input"}[fun]
+    first = {
+        rmse: "reference",
+        max_error: "reference",
+        tracking_metrics: "reference",
+        linearity_error: "desired",
+        hysteresis_percent: "input",
+    }[fun]
     good = [0.0, 1.0, 2.0]
     with pytest.raises(ValueError, match=rf"{first}\[1\] = nan is not finite"):
         fun([0.0, np.nan, 2.0], good)

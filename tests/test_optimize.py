@@ -1,6 +1,6 @@
-"""Population optimizers (SPEC §4): CSS, PSO, MPSO, DE; ask/tell, minimize, determinism."""
+"""Population optimizers (docs/spec.md §4): CSS, PSO, MPSO, DE; ask/tell, minimize, determinism."""
+
 import dataclasses
-import io
 
 import numpy as np
 import pytest
@@ -9,7 +9,17 @@ from hypothesis import strategies as st
 
 import piezohyst as ph
 from piezohyst.optimize import (
-    CSS, DE, METHODS, MPSO, PSO, IntermediateResult, OptimizeResult, Optimizer, css_charges, css_forces, minimize,
+    CSS,
+    DE,
+    METHODS,
+    MPSO,
+    PSO,
+    IntermediateResult,
+    Optimizer,
+    OptimizeResult,
+    css_charges,
+    css_forces,
+    minimize,
 )
 
 SHIFT = np.array([0.5, -1.2, 0.8, 1.5, -0.3, 2.0, -2.2, 0.1])
@@ -82,8 +92,17 @@ def test_mpso_inertia_formula():
 def test_mpso_velocity_uses_the_inertia_schedule():
     # with c1 = c2 = c3 = 0 the velocity only decays: V_t = w(t) V_{t-1}
     T = 12
-    opt = MPSO([(-1e6, 1e6)] * 3, population_size=5, rng=1, max_iterations=T, c1=0, c2=0, c3=0,
-               vmax=1e-3, init=np.zeros((5, 3)))
+    opt = MPSO(
+        [(-1e6, 1e6)] * 3,
+        population_size=5,
+        rng=1,
+        max_iterations=T,
+        c1=0,
+        c2=0,
+        c3=0,
+        vmax=1e-3,
+        init=np.zeros((5, 3)),
+    )
     V0 = opt.velocities
     X = [opt.ask()]
     for _ in range(T - 1):
@@ -187,7 +206,7 @@ def test_css_normalized_moves_follow_the_unit_box_force():
 
 def test_css_out_of_bounds_components_come_from_memory_or_uniform():
     opt = CSS([(0, 1)] * 3, population_size=8, rng=0, max_iterations=50, cmcr=1.0, par=0.0)
-    X = opt.ask()
+    opt.ask()
     f = np.arange(8.0)
     opt.tell(f)
     memory = opt.charged_memory[0]
@@ -313,7 +332,9 @@ def test_callback_stop_iteration_stops():
 
 
 def test_tol_stops_on_converged_population():
-    res = minimize(sphere, [(-5, 5)] * 2, method="de", rng=0, population_size=10, max_iterations=1000, tol=1e-3, atol=1e-12)
+    res = minimize(
+        sphere, [(-5, 5)] * 2, method="de", rng=0, population_size=10, max_iterations=1000, tol=1e-3, atol=1e-12
+    )
     assert res.success and res.message.startswith("converged") and res.nit < 1000
 
 
@@ -335,8 +356,15 @@ def test_infinite_costs_are_handled():
 
 def test_all_infinite_costs():
     for method in sorted(METHODS):
-        res = minimize(lambda X: np.full(X.shape[0], np.inf), [(0, 1)] * 2, method=method, rng=0,
-                       population_size=6, max_iterations=5, polish=True)
+        res = minimize(
+            lambda X: np.full(X.shape[0], np.inf),
+            [(0, 1)] * 2,
+            method=method,
+            rng=0,
+            population_size=6,
+            max_iterations=5,
+            polish=True,
+        )
         assert res.success is False and res.message == "no finite cost found"
         assert res.fun == np.inf and res.x.shape == (2,) and res.nit == 5
         assert np.all(res.history["mean_cost"] == np.inf) and np.all(res.history["n_finite"] == 0)
@@ -501,6 +529,7 @@ def test_identify_pi_css_with_polish(pi_record):
         rows[:, PI_FREE] = X
         return ph.batch_rmse(PI_TRUE, rows, v, y, invalid_cost=np.inf)
 
-    res = minimize(cost, [(0.0, 2.0)] + [(0.0, 1.0)] * 5, method="css", rng=0, population_size=40,
-                   max_iterations=200, polish=True)
+    res = minimize(
+        cost, [(0.0, 2.0)] + [(0.0, 1.0)] * 5, method="css", rng=0, population_size=40, max_iterations=200, polish=True
+    )
     assert res.fun < 1e-5 * np.ptp(y)

@@ -1,4 +1,5 @@
 """Discretized Preisach: values, wiping-out, congruency, inverse."""
+
 import numpy as np
 import pytest
 from hypothesis import given
@@ -34,8 +35,15 @@ def test_saturation_and_total_mass():
 
 def test_wiping_out():
     m = model()
-    path_minor = np.concatenate([np.linspace(-1, 0.8, 40), np.linspace(0.8, -0.2, 30), np.linspace(-0.2, 0.5, 20),
-                                 np.linspace(0.5, 0.0, 10), np.linspace(0.0, 0.9, 30)])
+    path_minor = np.concatenate(
+        [
+            np.linspace(-1, 0.8, 40),
+            np.linspace(0.8, -0.2, 30),
+            np.linspace(-0.2, 0.5, 20),
+            np.linspace(0.5, 0.0, 10),
+            np.linspace(0.0, 0.9, 30),
+        ]
+    )
     direct = np.concatenate([np.linspace(-1, 0.8, 40), np.linspace(0.8, 0.9, 5)])
     assert m.simulate(path_minor)[-1] == pytest.approx(m.simulate(direct)[-1], abs=1e-13)
 
@@ -46,8 +54,9 @@ def test_congruency_of_minor_loops():
     m = model(slope=0.0)
     osc = np.concatenate([np.linspace(0.1, 0.4, 30), np.linspace(0.4, 0.1, 30)])
     h1 = np.concatenate([np.linspace(-1, 0.9, 50), np.linspace(0.9, 0.1, 40)])
-    h2 = np.concatenate([np.linspace(-1, 0.6, 50), np.linspace(0.6, -0.5, 40), np.linspace(-0.5, 0.5, 40),
-                         np.linspace(0.5, 0.1, 40)])
+    h2 = np.concatenate(
+        [np.linspace(-1, 0.6, 50), np.linspace(0.6, -0.5, 40), np.linspace(-0.5, 0.5, 40), np.linspace(0.5, 0.1, 40)]
+    )
     y1 = m.simulate(np.concatenate([h1, osc]))[-60:]
     y2 = m.simulate(np.concatenate([h2, osc]))[-60:]
     d = y1 - y2

@@ -2,9 +2,9 @@
 identification never returns NaN parameters, and identification, tuning and the closed loop
 give identical results for the same seed with 1 and 2 threads and across repeated runs.
 (simulate(load(save(model))) is bit-identical: tests/test_fuzz_files.py.)"""
+
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import subprocess
@@ -23,13 +23,20 @@ STAGE = ph.virtual_stage()
 
 
 @PROP
-@given(kind=st.sampled_from(["pid", "smc", "open"]), log_gain=st.floats(-2, 3), lo=st.floats(-30, 10),
-       span=st.floats(5, 200), freq=st.floats(1, 200), amp=st.floats(0.1, 20), seed=st.integers(0, 2**31))
+@given(
+    kind=st.sampled_from(["pid", "smc", "open"]),
+    log_gain=st.floats(-2, 3),
+    lo=st.floats(-30, 10),
+    span=st.floats(5, 200),
+    freq=st.floats(1, 200),
+    amp=st.floats(0.1, 20),
+    seed=st.integers(0, 2**31),
+)
 def test_controller_command_never_leaves_the_amplifier_range(kind, log_gain, lo, span, freq, amp, seed):
     """Any gains (from timid to violently unstable), any amplifier range, any reference the
     stroke allows: the command and the amplifier voltage stay inside [v_min, v_max]."""
     stage = STAGE.with_(amplifier=replace(STAGE.amplifier, v_min=lo, v_max=lo + span))
-    g = 10.0 ** log_gain
+    g = 10.0**log_gain
     if kind == "pid":
         c = ph.PID(kp=1e6 * g, ki=5e9 * g, kd=10.0 * g)
     elif kind == "smc":
@@ -46,7 +53,7 @@ def test_controller_command_never_leaves_the_amplifier_range(kind, log_gain, lo,
         r = ph.closed_loop(stage, c, ref, rng=seed)
     except ph.PiezohystError as e:
         event(f"refused: {type(e).__name__}")
-        return                      # e.g. gains SMC refuses (unstable sliding dynamics): a named error
+        return  # e.g. gains SMC refuses (unstable sliding dynamics): a named error
     event(f"ran {kind}" + (", saturated" if np.mean((r.command <= lo) | (r.command >= lo + span)) > 0.1 else ""))
     assert np.all(np.isfinite(r.command)) and np.all(np.isfinite(r.position))
     assert r.command.min() >= lo and r.command.max() <= lo + span
@@ -57,20 +64,26 @@ def test_controller_command_never_leaves_the_amplifier_range(kind, log_gain, lo,
     first = int(np.argmax(inside)) if inside.any() else r.voltage.size
     assert inside[first:].all()
     assert np.all(r.voltage[:first] >= min(lo, 0.0) - tol) and np.all(r.voltage[:first] <= max(lo + span, 0.0) + tol)
-    assert np.all(np.diff(np.abs(r.voltage[:first + 1] - np.clip(r.voltage[:first + 1], lo, lo + span))) <= tol)
+    assert np.all(np.diff(np.abs(r.voltage[: first + 1] - np.clip(r.voltage[: first + 1], lo, lo + span))) <= tol)
 
 
 @PROP
-@given(model=st.sampled_from(["pi", "mpi", "gpi", "rdpi", "preisach"]), seed=st.integers(0, 2**31),
-       scale=st.sampled_from([1e-9, 1e-3, 1.0, 1e3, 1e9]), offset=st.sampled_from([0.0, -5.0, 1e6]),
-       noise=st.sampled_from([0.0, 0.01, 0.5]), flat=st.booleans(), n=st.integers(20, 600))
+@given(
+    model=st.sampled_from(["pi", "mpi", "gpi", "rdpi", "preisach"]),
+    seed=st.integers(0, 2**31),
+    scale=st.sampled_from([1e-9, 1e-3, 1.0, 1e3, 1e9]),
+    offset=st.sampled_from([0.0, -5.0, 1e6]),
+    noise=st.sampled_from([0.0, 0.01, 0.5]),
+    flat=st.booleans(),
+    n=st.integers(20, 600),
+)
 def test_identification_never_returns_nan_parameters(model, seed, scale, offset, noise, flat, n):
     """Random, noisy, badly scaled, partly constant records: identification returns finite
     parameters whose simulation is finite, or refuses with a PiezohystError."""
     rng = np.random.default_rng(seed)
     v = offset + scale * np.cumsum(rng.normal(size=n))
     if flat:
-        v[n // 3: 2 * n // 3] = v[n // 3]
+        v[n // 3 : 2 * n // 3] = v[n // 3]
     y = np.tanh(v / (scale * 5)) + 0.3 * np.sign(np.gradient(v)) * 0.1 + noise * rng.normal(size=n)
     try:
         res = ph.identify(v, y, model=model, fs=100.0, operators=5, levels=4)

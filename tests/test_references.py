@@ -1,4 +1,5 @@
-"""Reference signals (SPEC §6): exact values, spectra, sweeps, steps and bad input."""
+"""Reference signals (docs/spec.md §6): exact values, spectra, sweeps, steps and bad input."""
+
 import re
 
 import numpy as np
@@ -26,7 +27,7 @@ def test_sine_values_and_time_axis():
 
 
 def test_sine_at_nyquist_allowed():
-    t, x = sine(50.0, 1.0, 0.1, 100.0, phase=0.0)
+    _t, x = sine(50.0, 1.0, 0.1, 100.0, phase=0.0)
     assert np.max(np.abs(x)) < 1e-12
 
 
@@ -52,7 +53,7 @@ def test_triangle_sharp_slope_peaks_period():
 
 def test_triangle_phase_matches_sine():
     for phase in (0.0, 0.7, -2.0, 3.0):
-        t, xt = triangle(F, 1.0, 0.4, FS, phase=phase)
+        _t, xt = triangle(F, 1.0, 0.4, FS, phase=phase)
         _, xs = sine(F, 1.0, 0.4, FS, phase=phase)
         assert np.array_equal(np.sign(np.round(xt, 9)), np.sign(np.round(xs, 9)))
         np.testing.assert_allclose(xt, 2 / np.pi * np.arcsin(np.clip(xs, -1, 1)), atol=1e-9)
@@ -80,7 +81,7 @@ def test_triangle_rounded_is_smooth_and_keeps_period_and_range(rounding):
     np.testing.assert_allclose(np.abs(v[straight]), s, rtol=1e-9)
     # Continuous velocity: the second difference is bounded by the blend's peak
     # acceleration pi s / w, whereas the sharp wave jumps by 2 s / fs at every corner.
-    acc = np.diff(x, 2) * FS ** 2
+    acc = np.diff(x, 2) * FS**2
     assert np.max(np.abs(acc)) <= np.pi * s / w * 1.001
     assert np.max(np.abs(acc)) == pytest.approx(np.pi * s / w, rel=1e-3)
     assert np.max(np.abs(np.diff(v))) < 0.05 * s
@@ -89,8 +90,8 @@ def test_triangle_rounded_is_smooth_and_keeps_period_and_range(rounding):
     # sample-to-sample change stays within the blend's peak jerk pi^2 s / w^2 (a jump of
     # pi s / w at the blend ends would be far larger).
     assert abs(v[N_PERIOD // 2 - 1] + v[N_PERIOD // 2]) < 1e-6 * s
-    assert np.max(np.abs(np.diff(acc))) <= np.pi ** 2 * s / w ** 2 / FS * 1.01
-    assert np.pi ** 2 * s / w ** 2 / FS < 0.35 * np.pi * s / w
+    assert np.max(np.abs(np.diff(acc))) <= np.pi**2 * s / w**2 / FS * 1.01
+    assert np.pi**2 * s / w**2 / FS < 0.35 * np.pi * s / w
 
 
 def test_triangle_rounding_one_is_sine_and_zero_is_sharp():
@@ -150,7 +151,7 @@ def test_multisine_rms_and_flat_band_limited_spectrum():
 
 def test_multisine_band_edges_inclusive_and_resolution_from_period():
     fs = 200.0
-    t, x = multisine(1.0, 3.0, 1.0, 4.0, fs, rng=0)  # resolution 0.25 Hz: 1.0, 1.25, ..., 3.0
+    _t, x = multisine(1.0, 3.0, 1.0, 4.0, fs, rng=0)  # resolution 0.25 Hz: 1.0, 1.25, ..., 3.0
     spec = np.abs(np.fft.rfft(x))
     lines = np.flatnonzero(spec > 1e-9 * spec.max())
     assert lines.tolist() == list(range(4, 13))
@@ -220,7 +221,7 @@ def test_chirp_instantaneous_frequency(method, f0, f1):
 
 
 def test_chirp_offset_amplitude_default_phase():
-    t, x = chirp(10.0, 20.0, 2.0, 0.5, 1000.0, offset=1.0)
+    _t, x = chirp(10.0, 20.0, 2.0, 0.5, 1000.0, offset=1.0)
     assert x[0] == pytest.approx(-1.0)
     assert x.max() <= 3.0 + 1e-12 and x.min() >= -1.0 - 1e-12
     _, same = chirp(10.0, 10.0, 2.0, 0.5, 1000.0, method="logarithmic", offset=1.0)
@@ -242,7 +243,7 @@ def test_staircase_levels_and_dwell():
 
 
 def test_staircase_per_level_dwell():
-    t, x = staircase([3.0, -1.0, 2.0], [0.01, 0.002, 0.0051], 1000.0)
+    _t, x = staircase([3.0, -1.0, 2.0], [0.01, 0.002, 0.0051], 1000.0)
     assert x.tolist() == [3.0] * 10 + [-1.0] * 2 + [2.0] * 5
 
 
@@ -266,23 +267,49 @@ BAD = [
     (triangle, dict(freq=1, amplitude=1, duration=1, fs=100, rounding="0.2"), TypeError, "rounding"),
     (triangle, dict(freq=1, amplitude=1, duration=1, fs=100, offset=float("-inf")), ValueError, "offset = -inf"),
     (triangle, dict(freq=51, amplitude=1, duration=1, fs=100), ValueError, "freq = 51.0"),
-    (variable_amplitude_sine, dict(freq=1, amplitude=1, duration=1, fs=100, final_fraction=1.5),
-     ValueError, "final_fraction = 1.5"),
-    (variable_amplitude_sine, dict(freq=1, amplitude=1, duration=1, fs=100, envelope="cubic"),
-     ValueError, "envelope = 'cubic'"),
+    (
+        variable_amplitude_sine,
+        dict(freq=1, amplitude=1, duration=1, fs=100, final_fraction=1.5),
+        ValueError,
+        "final_fraction = 1.5",
+    ),
+    (
+        variable_amplitude_sine,
+        dict(freq=1, amplitude=1, duration=1, fs=100, envelope="cubic"),
+        ValueError,
+        "envelope = 'cubic'",
+    ),
     (variable_amplitude_sine, dict(freq=1, amplitude=1, duration=1, fs=100, envelope=3), TypeError, "envelope"),
-    (variable_amplitude_sine, dict(freq=1, amplitude=1, duration=1, fs=100, final_fraction=0.0,
-                                   envelope="exponential"), ValueError, "final_fraction = 0.0"),
-    (multisine, dict(f_min=50, f_max=50, amplitude=1, period=1, fs=1000), ValueError, "f_min = 50.0 must be < f_max = 50.0"),
+    (
+        variable_amplitude_sine,
+        dict(freq=1, amplitude=1, duration=1, fs=100, final_fraction=0.0, envelope="exponential"),
+        ValueError,
+        "final_fraction = 0.0",
+    ),
+    (
+        multisine,
+        dict(f_min=50, f_max=50, amplitude=1, period=1, fs=1000),
+        ValueError,
+        "f_min = 50.0 must be < f_max = 50.0",
+    ),
     (multisine, dict(f_min=60, f_max=50, amplitude=1, period=1, fs=1000), ValueError, "f_min = 60.0"),
-    (multisine, dict(f_min=1, f_max=600, amplitude=1, period=1, fs=1000), ValueError, "f_max = 600.0 is above the Nyquist"),
+    (
+        multisine,
+        dict(f_min=1, f_max=600, amplitude=1, period=1, fs=1000),
+        ValueError,
+        "f_max = 600.0 is above the Nyquist",
+    ),
     (multisine, dict(f_min=0, f_max=10, amplitude=1, period=1, fs=1000), ValueError, "f_min = 0.0"),
     (multisine, dict(f_min=10.2, f_max=10.8, amplitude=1, period=1, fs=1000), ValueError, "lengthen period"),
     (multisine, dict(f_min=1, f_max=10, amplitude=1, period=1, fs=1000, rng=1.5), TypeError, "rng"),
     (multisine, dict(f_min=1, f_max=10, amplitude=1, period=1, fs=1000, rng="a"), TypeError, "rng"),
     (multisine, dict(f_min=1, f_max=10, amplitude=1, period=1, fs=1000, rng=True), TypeError, "rng"),
-    (multisine, dict(f_min=1, f_max=10, amplitude=1, period=1, fs=1000, rng=np.random.RandomState(0)),
-     TypeError, "rng"),
+    (
+        multisine,
+        dict(f_min=1, f_max=10, amplitude=1, period=1, fs=1000, rng=np.random.RandomState(0)),
+        TypeError,
+        "rng",
+    ),
     (multisine, dict(f_min=1, f_max=10, amplitude=1, period=1, fs=1000, rng=-3), ValueError, "rng = -3"),
     (multisine, dict(f_min=1, f_max=10, amplitude=1, period=1, fs=1000, periods=0), ValueError, "periods = 0"),
     (multisine, dict(f_min=1, f_max=10, amplitude=1, period=1, fs=1000, periods=1.5), TypeError, "periods"),
@@ -290,8 +317,12 @@ BAD = [
     (multisine, dict(f_min=1, f_max=10, amplitude=1, period=0.001, fs=1000), ValueError, "period * fs"),
     (chirp, dict(f_start=1, f_end=600, amplitude=1, duration=1, fs=1000), ValueError, "f_end = 600.0"),
     (chirp, dict(f_start=0, f_end=10, amplitude=1, duration=1, fs=1000), ValueError, "f_start = 0.0"),
-    (chirp, dict(f_start=1, f_end=10, amplitude=1, duration=1, fs=1000, method="quadratic"),
-     ValueError, "method = 'quadratic'"),
+    (
+        chirp,
+        dict(f_start=1, f_end=10, amplitude=1, duration=1, fs=1000, method="quadratic"),
+        ValueError,
+        "method = 'quadratic'",
+    ),
     (chirp, dict(f_start=1, f_end=float("nan"), amplitude=1, duration=1, fs=1000), ValueError, "f_end = nan"),
     (staircase, dict(levels=[], dwell=1, fs=10), ValueError, "levels is empty"),
     (staircase, dict(levels=[1.0, float("nan")], dwell=1, fs=10), ValueError, "levels[1] = nan"),

@@ -1,6 +1,7 @@
 """Seed 1's SMC cancels the stage stiffness with K̂ x on the measured position; at the end of
 the stroke that positive feedback can ask for more than the amplifier gives and the loop latches
 at the limit. model_terms="desired" (K̂ x_d) cannot latch and tracks as well."""
+
 import numpy as np
 import pytest
 
@@ -20,8 +21,9 @@ def steps():
 def test_measured_model_terms_latch_at_the_stroke_end_and_desired_ones_do_not():
     ref, zero = steps()
     seed1 = ph.closed_loop(STAGE, SMC(STAGE.params, **GAINS), ref, velocity=zero, acceleration=zero, rng=1)
-    fixed = ph.closed_loop(STAGE, SMC(STAGE.params, model_terms="desired", **GAINS), ref, velocity=zero,
-                           acceleration=zero, rng=1)
+    fixed = ph.closed_loop(
+        STAGE, SMC(STAGE.params, model_terms="desired", **GAINS), ref, velocity=zero, acceleration=zero, rng=1
+    )
     # after the step back down to 8 um: seed 1's form is still stuck at the top (-14.8 um
     # measured), the command pinned near 150 V; the desired form is back within 0.1 um
     assert abs(ref[-1] - seed1.position[-1]) > 10e-6
@@ -32,8 +34,10 @@ def test_measured_model_terms_latch_at_the_stroke_end_and_desired_ones_do_not():
 
 def test_desired_model_terms_track_like_the_seed_form():
     _, ref = ph.triangle(5, 5e-6, 1.0, FS, offset=7e-6)
-    rmse = {mt: ph.track(SMC(STAGE.params, model_terms=mt, **GAINS), ref, stage=STAGE, rng=1, skip=0.2).metrics["rmse"]
-            for mt in ("measured", "desired")}
-    assert rmse["desired"] < 1.2 * rmse["measured"]        # measured 0.032 vs 0.034 um
+    rmse = {
+        mt: ph.track(SMC(STAGE.params, model_terms=mt, **GAINS), ref, stage=STAGE, rng=1, skip=0.2).metrics["rmse"]
+        for mt in ("measured", "desired")
+    }
+    assert rmse["desired"] < 1.2 * rmse["measured"]  # measured 0.032 vs 0.034 um
     with pytest.raises(ValueError, match="model_terms = 'both' must be 'measured' or 'desired'"):
         ph.track(SMC(STAGE.params, model_terms="both"), ref, stage=STAGE)

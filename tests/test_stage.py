@@ -1,6 +1,7 @@
-"""The stage plant (SPEC §2.6, §3.1, §3.2, §10; issue 3): integration accuracy against an
+"""The stage plant (docs/spec.md §2.6, §3.1, §3.2, §10; issue 3): integration accuracy against an
 independent solve_ivp reference, the drive amplifier, creep, the numbers the default virtual
 stage must measure, stage files and bad input."""
+
 import dataclasses
 import json
 import math
@@ -39,8 +40,9 @@ def rel_error(x, x_ref):
 
 
 def linear_params(p):
-    return dataclasses.replace(p, hyst_alpha=0.0, hyst_beta=0.0, hyst_gamma=0.0, electrostriction=0.0,
-                               creep_taus=(), creep_weights=())
+    return dataclasses.replace(
+        p, hyst_alpha=0.0, hyst_beta=0.0, hyst_gamma=0.0, electrostriction=0.0, creep_taus=(), creep_weights=()
+    )
 
 
 def voltage_drive_params(p):
@@ -65,6 +67,7 @@ COMMANDS = {"sine": sine_command(), "step": step_command()}
 # --------------------------------------------------------------------------------------------
 # integration accuracy against solve_ivp
 # --------------------------------------------------------------------------------------------
+
 
 def test_reference_itself_is_far_tighter_than_the_target():
     st = finite_bandwidth_stage()
@@ -115,7 +118,7 @@ def test_error_decreases_with_tolerance(name):
     tolerances = [1.0, 1e-1, 1e-2, 1e-3, 1e-4]
     errors = [rel_error(st.simulate(u, substeps=1, tolerance=tol).position, x_ref) for tol in tolerances]
     assert errors[0] > 1e-3  # coarse refinement is visibly wrong ...
-    for coarse, fine in zip(errors, errors[1:]):
+    for coarse, fine in zip(errors, errors[1:], strict=False):
         assert fine < coarse or fine < 1e-7, errors  # ... every tenfold tighter tolerance is better, down to the floor
     assert errors[-1] < 1e-5
 
@@ -157,7 +160,7 @@ def test_tolerance_controls_electrostriction_without_cemf():
     st = st.with_(params=dataclasses.replace(linear_params(p), electrostriction=p.electrostriction))
     u = COMMANDS["sine"]
     x_ref = reference(st, "sine", u)
-    assert rel_error(st.simulate(u, substeps=1, tolerance=math.inf).position, x_ref) > 1e-3   # 4.2e-3
+    assert rel_error(st.simulate(u, substeps=1, tolerance=math.inf).position, x_ref) > 1e-3  # 4.2e-3
     assert rel_error(st.simulate(u, substeps=1, tolerance=1e-4).position, x_ref) <= TARGET
 
 
@@ -192,6 +195,7 @@ def test_simulation_continues_bit_for_bit_from_final_state():
 # --------------------------------------------------------------------------------------------
 # amplifier
 # --------------------------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("bandwidth", [3000.0, 800.0])
 @pytest.mark.parametrize("tolerance", [0.05, 1e-6, math.inf])
@@ -235,8 +239,15 @@ def test_ideal_bandwidth_with_slew_limit_is_a_pure_ramp():
     assert np.all(va[34:] == -20.0)
 
 
-@pytest.mark.parametrize("amplifier", [Amplifier(-20, 150, 3000.0, 1.4e5), Amplifier(-20, 150, 3000.0),
-                                       Amplifier(-20, 150, math.inf, 1e5), Amplifier(-20, 150)])
+@pytest.mark.parametrize(
+    "amplifier",
+    [
+        Amplifier(-20, 150, 3000.0, 1.4e5),
+        Amplifier(-20, 150, 3000.0),
+        Amplifier(-20, 150, math.inf, 1e5),
+        Amplifier(-20, 150),
+    ],
+)
 def test_amplifier_output_stays_within_its_limits(amplifier):
     st = virtual_stage().with_(amplifier=amplifier)
     square = np.where((np.arange(400) // 25) % 2 == 0, 150.0, -20.0)  # full-range square wave
@@ -246,8 +257,9 @@ def test_amplifier_output_stays_within_its_limits(amplifier):
 
 
 # --------------------------------------------------------------------------------------------
-# the default virtual stage: creep, hysteresis, stroke, resonance (SPEC §3.2)
+# the default virtual stage: creep, hysteresis, stroke, resonance (docs/spec.md §3.2)
 # --------------------------------------------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def info():
@@ -256,7 +268,7 @@ def info():
 
 def creep_probe(stage, level=75.0, probes=(0.01, 0.1, 1.0, 10.0, 100.0)):
     ts = 1e-3
-    n = int(round(probes[-1] / ts)) + 1
+    n = round(probes[-1] / ts) + 1
     u = np.full(n, level)
     u[:2] = [0.0, level / 2]
     x = stage.simulate(u, sample_time=ts, substeps=8).position
@@ -275,7 +287,7 @@ def test_creep_keeps_rising_log_linearly_at_the_designed_rate(info):
     assert np.all((per_decade / designed > 0.75) & (per_decade / designed < 1.05)), per_decade / designed
     slope = np.polyfit(np.log10([0.1, 1.0, 10.0, 100.0]), xs[1:], 1)[0]
     percent = 100 * slope / xs[1]
-    assert 1.0 <= percent <= 2.0  # SPEC §3.2: about 1-2 % per time decade
+    assert 1.0 <= percent <= 2.0  # docs/spec.md §3.2: about 1-2 % per time decade
     assert info.creep_percent_per_decade == pytest.approx(percent, rel=0.1)
     # without the creep lags the position is flat after 10 ms
     flat = creep_probe(st.with_(params=dataclasses.replace(p, creep_taus=(), creep_weights=())))
@@ -300,10 +312,10 @@ def loop(stage):
 
 
 def test_hysteresis_loop_width_and_stroke(info):
-    grid, up, down, span = loop(virtual_stage())
+    _grid, up, down, span = loop(virtual_stage())
     width = np.max(down - up) / span
     assert np.all(down >= up)  # the descending branch lies above the ascending one
-    assert 0.10 <= width <= 0.15  # SPEC §3.2: 10-15 % of stroke at 1 Hz full range
+    assert 0.10 <= width <= 0.15  # docs/spec.md §3.2: 10-15 % of stroke at 1 Hz full range
     assert 100 * width == pytest.approx(info.hysteresis_percent, abs=0.5)
     assert 15e-6 <= span <= 25e-6 and 15e-6 <= info.stroke <= 25e-6  # ~20 um at 150 V
     assert info.stroke == pytest.approx(span, rel=0.02)
@@ -318,7 +330,7 @@ def test_resonance_and_natural_frequency(info):
     assert info.natural_frequency == p.natural_frequency
     assert info.damping_ratio == pytest.approx(0.03, rel=1e-12)
     # small-signal, the charge-driven CEMF adds the stiffness Tem^2 alpha / (1 + Cz alpha)
-    k_eff = p.stiffness + p.tem ** 2 * p.hyst_alpha / (1 + p.capacitance * p.hyst_alpha)
+    k_eff = p.stiffness + p.tem**2 * p.hyst_alpha / (1 + p.capacitance * p.hyst_alpha)
     assert info.resonance == pytest.approx(math.sqrt(k_eff / p.mass) / (2 * math.pi), rel=0.02)
 
 
@@ -347,8 +359,12 @@ def test_virtual_stage_table():
 STAGES = {
     "virtual": virtual_stage(),
     "ideal amplifier, voltage drive, no creep": virtual_stage().with_(
-        amplifier=Amplifier(-10, 120), sensor=Sensor(), substeps=3, tolerance=math.inf,
-        params=dataclasses.replace(voltage_drive_params(virtual_stage().params), creep_taus=(), creep_weights=())),
+        amplifier=Amplifier(-10, 120),
+        sensor=Sensor(),
+        substeps=3,
+        tolerance=math.inf,
+        params=dataclasses.replace(voltage_drive_params(virtual_stage().params), creep_taus=(), creep_weights=()),
+    ),
 }
 
 
@@ -405,9 +421,21 @@ def stage_dict():
     return json.loads(json.dumps(virtual_stage().to_dict()))
 
 
-@pytest.mark.parametrize("path", [("mechanics",), ("cemf",), ("mechanics", "mass"), ("mechanics", "stiffness"),
-                                  ("mechanics", "tem"), ("cemf", "alpha"), ("cemf", "beta"), ("cemf", "gamma"),
-                                  ("creep", "weights"), ("creep", "taus")])
+@pytest.mark.parametrize(
+    "path",
+    [
+        ("mechanics",),
+        ("cemf",),
+        ("mechanics", "mass"),
+        ("mechanics", "stiffness"),
+        ("mechanics", "tem"),
+        ("cemf", "alpha"),
+        ("cemf", "beta"),
+        ("cemf", "gamma"),
+        ("creep", "weights"),
+        ("creep", "taus"),
+    ],
+)
 def test_missing_keys_are_named(path):
     d = stage_dict()
     parent = d
@@ -499,11 +527,14 @@ def test_constructors_validate_too():
 # bad commands and simulation arguments
 # --------------------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("index, value", [(7, 150.5), (0, -20.001), (99, 1e6)])
 def test_commands_beyond_the_amplifier_range_are_named(index, value):
     u = np.full(100, 50.0)
     u[index] = value
-    with pytest.raises(ValueError, match=rf"command\[{index}\] = {value} V is outside the amplifier range \[-20\.0, 150\.0\]"):
+    with pytest.raises(
+        ValueError, match=rf"command\[{index}\] = {value} V is outside the amplifier range \[-20\.0, 150\.0\]"
+    ):
         virtual_stage().simulate(u)
 
 
@@ -520,15 +551,18 @@ def test_non_finite_commands_are_named(bad):
         virtual_stage().simulate(u)
 
 
-@pytest.mark.parametrize("kwargs, message", [
-    ({"substeps": 0}, r"substeps = 0 must be >= 1"),
-    ({"sample_time": 0.0}, r"sample_time = 0\.0 must be > 0"),
-    ({"sample_time": -1e-4}, r"sample_time = -0\.0001 must be > 0"),
-    ({"tolerance": 0.0}, r"tolerance = 0(\.0)? must be > 0"),
-    ({"tolerance": -1.0}, r"tolerance = -1(\.0)? must be > 0"),
-    ({"tolerance": float("nan")}, r"tolerance = (nan|NaN)"),
-    ({"initial_state": np.zeros(5)}, r"state"),
-])
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"substeps": 0}, r"substeps = 0 must be >= 1"),
+        ({"sample_time": 0.0}, r"sample_time = 0\.0 must be > 0"),
+        ({"sample_time": -1e-4}, r"sample_time = -0\.0001 must be > 0"),
+        ({"tolerance": 0.0}, r"tolerance = 0(\.0)? must be > 0"),
+        ({"tolerance": -1.0}, r"tolerance = -1(\.0)? must be > 0"),
+        ({"tolerance": float("nan")}, r"tolerance = (nan|NaN)"),
+        ({"initial_state": np.zeros(5)}, r"state"),
+    ],
+)
 def test_bad_simulation_arguments_are_named(kwargs, message):
     with pytest.raises(ValueError, match=message):
         virtual_stage().simulate(np.full(10, 50.0), **kwargs)

@@ -1,4 +1,5 @@
 """The .pyi stub describes the compiled module exactly."""
+
 import ast
 import inspect
 from pathlib import Path

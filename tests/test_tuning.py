@@ -1,6 +1,6 @@
 """track(), tune() and `piezohyst track`: tracking metrics, gain tuning by simulation, the
 command line and the tracking figure."""
-import dataclasses
+
 import json
 
 import matplotlib
@@ -24,7 +24,7 @@ def triangle_5hz(seconds=0.5):
 def test_track_metrics_leave_out_the_start_and_match_a_direct_computation():
     ref = triangle_5hz()
     res = ph.track(ph.PID(kp=2e6, ki=2e9), ref, stage=STAGE, rng=3, skip=0.2)
-    k = int(round(0.2 * FS))
+    k = round(0.2 * FS)
     e = ref[k:] - res.position[k:]
     m = res.metrics
     assert m["rmse"] == pytest.approx(np.sqrt(np.mean(e**2)), rel=1e-12)
@@ -41,20 +41,38 @@ def test_tune_finds_better_gains_than_its_start_and_respects_the_constraints():
     ref = triangle_5hz(0.3)
     start = SMC(model, kp=2e5, kv=5e2, ks=3.0, phi=0.08, cemf=True, observer=VelocityObserver(300.0))
     before = ph.track(start, ref, stage=STAGE, rng=1, skip=0.1).metrics["rmse"]
-    res = ph.tune(start, {"kp": (1e5, 1e7), "kv": (3e2, 5e3), "ks": (2.0, 40.0), "phi": (3e-3, 0.1)}, ref,
-                  stage=STAGE, method="de", rng=2, max_iterations=6, population_size=12, skip=0.1)
+    res = ph.tune(
+        start,
+        {"kp": (1e5, 1e7), "kv": (3e2, 5e3), "ks": (2.0, 40.0), "phi": (3e-3, 0.1)},
+        ref,
+        stage=STAGE,
+        method="de",
+        rng=2,
+        max_iterations=6,
+        population_size=12,
+        skip=0.1,
+    )
     assert set(res.gains) == {"kp", "kv", "ks", "phi"}
     for name, (lo, hi) in {"kp": (1e5, 1e7), "kv": (3e2, 5e3), "ks": (2.0, 40.0), "phi": (3e-3, 0.1)}.items():
         assert lo <= res.gains[name] <= hi
         assert getattr(res.controller, name) == res.gains[name]
     after = ph.track(res.controller, ref, stage=STAGE, rng=1, skip=0.1).metrics["rmse"]
-    assert after < 0.5 * before                       # measured ~0.04 um vs ~0.3 um
+    assert after < 0.5 * before  # measured ~0.04 um vs ~0.3 um
     assert res.rmse == pytest.approx(after, rel=0.3)  # same plant, different noise seed
     assert len(res.history["best_cost"]) == res.history["best_cost"].size
     assert np.all(np.diff(res.history["best_cost"]) <= 0)
     # same seed, same result
-    again = ph.tune(start, {"kp": (1e5, 1e7), "kv": (3e2, 5e3), "ks": (2.0, 40.0), "phi": (3e-3, 0.1)}, ref,
-                    stage=STAGE, method="de", rng=2, max_iterations=6, population_size=12, skip=0.1)
+    again = ph.tune(
+        start,
+        {"kp": (1e5, 1e7), "kv": (3e2, 5e3), "ks": (2.0, 40.0), "phi": (3e-3, 0.1)},
+        ref,
+        stage=STAGE,
+        method="de",
+        rng=2,
+        max_iterations=6,
+        population_size=12,
+        skip=0.1,
+    )
     assert again.gains == res.gains
 
 
@@ -74,8 +92,18 @@ def test_tune_rejects_bad_requests():
 def test_unstable_candidates_cost_inf_not_an_error():
     # kv + alpha <= 0 for part of the box: those candidates are rejected, the others tuned
     c = SMC(STAGE.params, kp=1e6, kv=2e3, ks=20.0, phi=0.01, cemf=True, observer=VelocityObserver(300.0))
-    res = ph.tune(c, {"kv": (-5e3, 5e3)}, triangle_5hz(0.2), stage=STAGE, method="de", rng=1, max_iterations=3,
-                  population_size=8, log_scale=False, skip=0.05)
+    res = ph.tune(
+        c,
+        {"kv": (-5e3, 5e3)},
+        triangle_5hz(0.2),
+        stage=STAGE,
+        method="de",
+        rng=1,
+        max_iterations=3,
+        population_size=8,
+        log_scale=False,
+        skip=0.05,
+    )
     assert res.gains["kv"] > 0
     assert np.isfinite(res.rmse)
 
@@ -92,8 +120,27 @@ def test_plot_shows_tracking_zoom_and_error():
 
 
 def test_cli_track_prints_metrics_and_json(capsys, tmp_path):
-    assert main(["track", "--controller", "smc-cemf", "--reference", "triangle", "--freq", "5", "--amp", "5",
-                 "--offset", "7", "--duration", "0.4", "--json"]) == 0
+    assert (
+        main(
+            [
+                "track",
+                "--controller",
+                "smc-cemf",
+                "--reference",
+                "triangle",
+                "--freq",
+                "5",
+                "--amp",
+                "5",
+                "--offset",
+                "7",
+                "--duration",
+                "0.4",
+                "--json",
+            ]
+        )
+        == 0
+    )
     out = json.loads(capsys.readouterr().out)
     assert out["controller"] == "smc-cemf"
     # Case 2 on the stage's own parameters: far below the 0.75 um of open loop

@@ -1,5 +1,6 @@
 """Type stub of the compiled core (``crates/python``). Checked against the module by
 ``tests/test_stub.py``: every public name here exists there and vice versa."""
+
 import numpy as np
 import numpy.typing as npt
 
@@ -58,7 +59,12 @@ def boucwen_benchmark_decimate(x: Array1, factor: int) -> Array1:
     """MATLAB ``decimate(x, p, 'fir')`` for each prime factor ``p`` of ``factor`` (increasing)."""
 
 def boucwen_benchmark_batch_rmse(
-    params: Array2, input: Array1, h: float, factor: int, target: Array1, skip: int = 0,
+    params: Array2,
+    input: Array1,
+    h: float,
+    factor: int,
+    target: Array1,
+    skip: int = 0,
     invalid_cost: float | None = None,
 ) -> Array1:
     """``(S,)`` RMSE (m) of ``S`` rows ``[mass, damping, stiffness, alpha, beta, gamma, delta, nu]``
@@ -81,8 +87,9 @@ MAX_TERMS: int
 
 #: ``(kind, params, inverse, ilc)``: ``inverse`` is ``None`` or ``(family, dims, row, u_min,
 #: u_max)``, ``ilc`` is ``None`` or ``(period, gain, forgetting, lead, delay)``.
-ControllerSpec = tuple[str, Array1, tuple[str, list[int], Array1, float, float] | None,
-                       tuple[int, float, float, int, int] | None]
+ControllerSpec = tuple[
+    str, Array1, tuple[str, list[int], Array1, float, float] | None, tuple[int, float, float, int, int] | None
+]
 
 def virtual_stage_params() -> Array1:
     """The Rust core's copy of the packaged virtual stage's parameters (flat layout of
@@ -95,25 +102,48 @@ def stage_simulate(
     amplifier voltage, CEMF voltage at each period end)``; ``state`` updated in place."""
 
 def closed_loop(
-    stage_params: Array1, ts: float, substeps: int, tolerance: float, sensor_quantization: float,
-    sensor_noise: float, sensor_delay: int, controller: ControllerSpec,
-    reference: Array1, velocity: Array1, acceleration: Array1, initial_state: Array1, seed: int,
+    stage_params: Array1,
+    ts: float,
+    substeps: int,
+    tolerance: float,
+    sensor_quantization: float,
+    sensor_noise: float,
+    sensor_delay: int,
+    controller: ControllerSpec,
+    reference: Array1,
+    velocity: Array1,
+    acceleration: Array1,
+    initial_state: Array1,
+    seed: int,
 ) -> dict:
     """One closed-loop run: dict of ``command, voltage, position, measured, terms, term_names,
     final_state``."""
 
 def closed_loop_batch(
-    stage_params: Array1, ts: float, substeps: int, tolerance: float, sensor_quantization: float,
-    sensor_noise: float, sensor_delay: int,
-    scenarios: list[tuple[ControllerSpec, Array1, Array1, Array1, int]], initial_state: Array1,
+    stage_params: Array1,
+    ts: float,
+    substeps: int,
+    tolerance: float,
+    sensor_quantization: float,
+    sensor_noise: float,
+    sensor_delay: int,
+    scenarios: list[tuple[ControllerSpec, Array1, Array1, Array1, int]],
+    initial_state: Array1,
 ) -> list[dict]:
     """Many scenarios ``(controller, reference, velocity, acceleration, seed)`` in parallel
     (GIL released, rayon)."""
 
 def closed_loop_batch_tracking(
-    stage_params: Array1, ts: float, substeps: int, tolerance: float, sensor_quantization: float,
-    sensor_noise: float, sensor_delay: int,
-    scenarios: list[tuple[ControllerSpec, Array1, Array1, Array1, int]], initial_state: Array1, skip: int,
+    stage_params: Array1,
+    ts: float,
+    substeps: int,
+    tolerance: float,
+    sensor_quantization: float,
+    sensor_noise: float,
+    sensor_delay: int,
+    scenarios: list[tuple[ControllerSpec, Array1, Array1, Array1, int]],
+    initial_state: Array1,
+    skip: int,
 ) -> Array2:
     """``(S, 3)`` ``[rmse, max_error, saturated_fraction]`` of many scenarios, recording no
     signals (GIL released, rayon)."""
@@ -122,7 +152,11 @@ def controller_initial_state(controller: ControllerSpec, y0: float) -> Array1:
     """The controller's state before its first step, given the first measured position ``y0``."""
 
 def controller_steps(
-    controller: ControllerSpec, reference: Array1, velocity: Array1, acceleration: Array1, measured: Array1,
+    controller: ControllerSpec,
+    reference: Array1,
+    velocity: Array1,
+    acceleration: Array1,
+    measured: Array1,
     state: Array1,
 ) -> Array1:
     """Commands of the controller stepped on given inputs without a plant (as a real-time loop
@@ -130,7 +164,12 @@ def controller_steps(
     ``acceleration`` stand for zeros."""
 
 def stage_batch_rmse(
-    params: Array2, ts: float, substeps: int, tolerance: float, command: Array1, target: Array1,
+    params: Array2,
+    ts: float,
+    substeps: int,
+    tolerance: float,
+    command: Array1,
+    target: Array1,
     invalid_cost: float | None = None,
 ) -> Array1:
     """``(S,)`` RMSE of the open-loop position of ``S`` stage rows against ``target``, from rest

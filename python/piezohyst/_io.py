@@ -6,14 +6,15 @@ into place with ``os.replace``: a reader sees the old file or the new one, never
 one, and an interrupted write (Ctrl-C, a full disk, an exception in a plotting call) leaves
 the old file untouched and no temporary behind.
 """
+
 from __future__ import annotations
 
 import contextlib
 import json
 import os
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from .errors import DataError, OutputExistsError, ParameterError, PiezohystError
 
@@ -24,8 +25,14 @@ def _umask() -> int:
     return mask
 
 
-def write_atomic(path, data: str | bytes | None = None, *, writer: Callable[[str], None] | None = None,
-                 overwrite: bool = True, name: str = "path") -> Path:
+def write_atomic(
+    path,
+    data: str | bytes | None = None,
+    *,
+    writer: Callable[[str], None] | None = None,
+    overwrite: bool = True,
+    name: str = "path",
+) -> Path:
     """Write ``data`` (text is UTF-8 with ``\\n`` line ends) or let ``writer(temp_path)`` write
     the file, then move it to ``path`` atomically.
 

@@ -1,9 +1,11 @@
 """Argument checks shared by the public API: each error names the argument and the value."""
+
 from __future__ import annotations
 
 import numbers
 
 import numpy as np
+
 from .errors import ParameterError, ParameterTypeError
 
 
@@ -15,7 +17,7 @@ def as_record(x, name: str, *, min_length: int = 1, copy: bool = True, finite: b
         raise ParameterTypeError(f"{name} must be a 1-D array of numbers, got {type(x).__name__}")
     try:
         raw = np.asarray(x) if not isinstance(x, np.ndarray) else x
-    except (TypeError, ValueError) as e:      # ragged nesting, objects numpy cannot shape
+    except (TypeError, ValueError) as e:  # ragged nesting, objects numpy cannot shape
         raise ParameterTypeError(f"{name} must be a 1-D array of numbers: {e}") from None
     if raw.dtype.kind in "cbUSO" and raw.dtype.kind != "O":
         raise ParameterTypeError(f"{name} must be real numbers, got dtype {raw.dtype}")
@@ -43,8 +45,9 @@ def as_vector(x, name: str, *, length: int | None = None, allow_empty: bool = Tr
     return a
 
 
-def as_scalar(x, name: str, *, positive: bool = False, nonnegative: bool = False,
-              allow_infinite: bool = False) -> float:
+def as_scalar(
+    x, name: str, *, positive: bool = False, nonnegative: bool = False, allow_infinite: bool = False
+) -> float:
     """A finite real scalar (``allow_infinite``: also +-inf, never NaN)."""
     if isinstance(x, bool) or not isinstance(x, (numbers.Real, np.floating, np.integer)):
         raise ParameterTypeError(f"{name} must be a real number, got {x!r}")

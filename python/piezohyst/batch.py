@@ -16,6 +16,7 @@ Examples
 >>> float(cost[0])
 0.0
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -24,7 +25,7 @@ from . import _core
 from ._validate import as_int, as_record
 from .errors import ParameterError, ParameterTypeError
 
-__all__ = ["batch_simulate", "batch_rmse"]
+__all__ = ["batch_rmse", "batch_simulate"]
 
 
 def _family(model_or_family, dims):

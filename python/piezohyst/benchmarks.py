@@ -15,6 +15,7 @@ Examples
 >>> [b.name for b in BENCHMARKS]
 ['pi_batch', 'closed_loop', 'identify_mpi', 'c_step', 'control', 'demo']
 """
+
 from __future__ import annotations
 
 import datetime as _dt
@@ -24,9 +25,9 @@ import platform
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 from ._io import write_atomic
 from .errors import DataError, ParameterError
@@ -54,8 +55,17 @@ class Benchmark:
 def _row(figure, value, unit, baseline, baseline_value, *, ratio=None, ratio_label="", target=None, passed=None):
     """One table row; ``ratio`` is how many times better than the baseline (None: not a
     speed/accuracy ratio)."""
-    return {"figure": figure, "value": value, "unit": unit, "baseline": baseline, "baseline_value": baseline_value,
-            "ratio": ratio, "ratio_label": ratio_label, "target": target, "pass": passed}
+    return {
+        "figure": figure,
+        "value": value,
+        "unit": unit,
+        "baseline": baseline,
+        "baseline_value": baseline_value,
+        "ratio": ratio,
+        "ratio_label": ratio_label,
+        "target": target,
+        "pass": passed,
+    }
 
 
 def _pi_batch_rows(d):
@@ -65,38 +75,84 @@ def _pi_batch_rows(d):
         sp = w["speedup"]
         label = f"PI batch RMSE, {w['S']} sets × {w['n']} operators × {w['N']} samples, 2 threads"
         t = w.get("targets", {})
-        rows.append(_row(label, p2, "updates/s", "NumPy per-step (vectorized over sets and operators)",
-                         w["numpy_per_step"]["updates_per_s"], ratio=sp["2_thread_vs_numpy_per_step"],
-                         ratio_label="faster", target="≥ 1e9 updates/s and ≥ 100×" if w.get("headline") else None,
-                         passed=(t.get("updates_per_s_2_thread_ge_1e9") and t.get("speedup_2_thread_vs_numpy_per_step_ge_100"))
-                         if w.get("headline") else None))
-        rows.append(_row(label, p2, "updates/s", "NumPy tuned (blocked across time)", w["numpy"]["updates_per_s"],
-                         ratio=sp["2_thread_vs_numpy"], ratio_label="faster",
-                         target="≥ 100×" if w.get("headline") else None,
-                         passed=t.get("speedup_2_thread_vs_numpy_ge_100") if w.get("headline") else None))
+        rows.append(
+            _row(
+                label,
+                p2,
+                "updates/s",
+                "NumPy per-step (vectorized over sets and operators)",
+                w["numpy_per_step"]["updates_per_s"],
+                ratio=sp["2_thread_vs_numpy_per_step"],
+                ratio_label="faster",
+                target="≥ 1e9 updates/s and ≥ 100×" if w.get("headline") else None,
+                passed=(t.get("updates_per_s_2_thread_ge_1e9") and t.get("speedup_2_thread_vs_numpy_per_step_ge_100"))
+                if w.get("headline")
+                else None,
+            )
+        )
+        rows.append(
+            _row(
+                label,
+                p2,
+                "updates/s",
+                "NumPy tuned (blocked across time)",
+                w["numpy"]["updates_per_s"],
+                ratio=sp["2_thread_vs_numpy"],
+                ratio_label="faster",
+                target="≥ 100×" if w.get("headline") else None,
+                passed=t.get("speedup_2_thread_vs_numpy_ge_100") if w.get("headline") else None,
+            )
+        )
     return rows
 
 
 def _closed_loop_rows(d):
     rows = []
     for name, e in d["closed_loop_rtf"].items():
-        rows.append(_row(f"closed-loop real-time factor, 10 kHz PID on the virtual stage, {name}, 1 thread (median; "
-                         f"best {e['rtf_best']:.0f}×)", e["rtf"], "× real time",
-                         "scipy solve_ivp plant + Python PID", e["baseline_rtf"], ratio=e["speedup_vs_baseline"],
-                         ratio_label="faster", target="≥ 1000×", passed=e["rtf"] >= 1000))
+        rows.append(
+            _row(
+                f"closed-loop real-time factor, 10 kHz PID on the virtual stage, {name}, 1 thread (median; "
+                f"best {e['rtf_best']:.0f}×)",
+                e["rtf"],
+                "× real time",
+                "scipy solve_ivp plant + Python PID",
+                e["baseline_rtf"],
+                ratio=e["speedup_vs_baseline"],
+                ratio_label="faster",
+                target="≥ 1000×",
+                passed=e["rtf"] >= 1000,
+            )
+        )
     b = d["batch"]
-    rows.append(_row(f"batch of {b['scenarios']} closed-loop scenarios × {b['seconds_each']:g} s, 2 threads",
-                     b["2_thread"]["median_s"], "s", "the same batch on 1 thread", b["1_thread"]["median_s"],
-                     ratio=b["scaling_2T_over_1T"], ratio_label="scaling", target="≥ 1.8×",
-                     passed=b["scaling_2T_over_1T"] >= 1.8))
+    rows.append(
+        _row(
+            f"batch of {b['scenarios']} closed-loop scenarios × {b['seconds_each']:g} s, 2 threads",
+            b["2_thread"]["median_s"],
+            "s",
+            "the same batch on 1 thread",
+            b["1_thread"]["median_s"],
+            ratio=b["scaling_2T_over_1T"],
+            ratio_label="scaling",
+            target="≥ 1.8×",
+            passed=b["scaling_2T_over_1T"] >= 1.8,
+        )
+    )
     for case, a in d["accuracy"].items():
         run = a["piezohyst"].get("tol=0.01") or next(iter(a["piezohyst"].values()))
         f = run["fastest_solve_ivp_at_least_as_accurate"]
         if f is None:
             continue
-        rows.append(_row(f"stage integration, {case}, tolerance 0.01 (max rel. error {run['max_rel_error']:.1e})",
-                         run["median_s"], "s", f"fastest solve_ivp as accurate ({f['run']})", f["median_s"],
-                         ratio=f["speedup"], ratio_label="faster"))
+        rows.append(
+            _row(
+                f"stage integration, {case}, tolerance 0.01 (max rel. error {run['max_rel_error']:.1e})",
+                run["median_s"],
+                "s",
+                f"fastest solve_ivp as accurate ({f['run']})",
+                f["median_s"],
+                ratio=f["speedup"],
+                ratio_label="faster",
+            )
+        )
     return rows
 
 
@@ -114,12 +170,22 @@ def _identify_mpi_rows(d):
         times = sorted(r["time_to_target_s"] for r in runs if r["reached"])
         if len(times) == len(runs):
             base, ratio = times[len(times) // 2], times[len(times) // 2] / h["a_time_to_target_s"]
-        else:   # the time it was given, a lower bound of its time to the target
+        else:  # the time it was given, a lower bound of its time to the target
             base, ratio = max(r.get("total_s") or 0.0 for r in runs), None
             label += " — did not reach the target in this time"
-        rows.append(_row("MPI identification, 10 000 samples: time to within 1 % of the best RMSE (least squares)",
-                         a["time_to_target_s"] if a else None, "s", label, base, ratio=ratio, ratio_label="faster",
-                         target="≤ 1 s" if kind == "b" else None, passed=h["pass"] if kind == "b" else None))
+        rows.append(
+            _row(
+                "MPI identification, 10 000 samples: time to within 1 % of the best RMSE (least squares)",
+                a["time_to_target_s"] if a else None,
+                "s",
+                label,
+                base,
+                ratio=ratio,
+                ratio_label="faster",
+                target="≤ 1 s" if kind == "b" else None,
+                passed=h["pass"] if kind == "b" else None,
+            )
+        )
     return rows
 
 
@@ -127,17 +193,28 @@ def _c_step_rows(d):
     rows = []
     base = (d.get("rust_api_baseline") or {}).get("results", {})
     # the C cases whose Rust-API counterpart has another name (the rest share theirs)
-    rust_name = {"MPI inverse feedforward (open loop behind the inverse)": "PI-type inverse, 9 operators (MPI feedforward)",
-                 "PI inverse, 9 operators (phs_model_inverse_step)": "PI inverse, 9 operators (inverse_step)",
-                 "MPI inverse, 9 operators (phs_model_inverse_step)": "MPI inverse, 9 operators (inverse_step)"}
+    rust_name = {
+        "MPI inverse feedforward (open loop behind the inverse)": "PI-type inverse, 9 operators (MPI feedforward)",
+        "PI inverse, 9 operators (phs_model_inverse_step)": "PI inverse, 9 operators (inverse_step)",
+        "MPI inverse, 9 operators (phs_model_inverse_step)": "MPI inverse, 9 operators (inverse_step)",
+    }
     target = d.get("target_ns", {})
     for name, s in d["summary"].items():
         b = base.get(rust_name.get(name, name), {}).get("mean")
         t = target.get(name)
-        rows.append(_row(f"one step from C: {name} (worst of {d['steps_per_case']:.0e}: {s['worst_ns'] / 1e3:.0f} µs)",
-                         s["mean_ns"], "ns", "the same step through the Rust API" if b else "—", b,
-                         ratio=(b / s["mean_ns"]) if b else None, ratio_label="C / Rust speed",
-                         target=f"≤ {t:.0f} ns" if t else None, passed=(s["mean_ns"] <= t) if t else None))
+        rows.append(
+            _row(
+                f"one step from C: {name} (worst of {d['steps_per_case']:.0e}: {s['worst_ns'] / 1e3:.0f} µs)",
+                s["mean_ns"],
+                "ns",
+                "the same step through the Rust API" if b else "—",
+                b,
+                ratio=(b / s["mean_ns"]) if b else None,
+                ratio_label="C / Rust speed",
+                target=f"≤ {t:.0f} ns" if t else None,
+                passed=(s["mean_ns"] <= t) if t else None,
+            )
+        )
     return rows
 
 
@@ -146,48 +223,105 @@ def _control_rows(d):
     s1 = d["seed1_table3"]
     key = next(iter(s1["rmse_um"]))
     for ref, r in s1["rmse_um"][key].items():
-        rows.append(_row(f"seed 1 Table 3, {ref}: tracking RMSE, SMC + CEMF ({key})", r["SMC+CEMF"], "µm",
-                         "SMC without the CEMF model (same gains)", r["SMC"], ratio=r["SMC"] / r["SMC+CEMF"],
-                         ratio_label="smaller error"))
+        rows.append(
+            _row(
+                f"seed 1 Table 3, {ref}: tracking RMSE, SMC + CEMF ({key})",
+                r["SMC+CEMF"],
+                "µm",
+                "SMC without the CEMF model (same gains)",
+                r["SMC"],
+                ratio=r["SMC"] / r["SMC+CEMF"],
+                ratio_label="smaller error",
+            )
+        )
     tw = s1["tuning_wall_s"]
     worst = max(tw.values())
-    rows.append(_row("gain tuning wall time (CSS on the identified model, slowest case)", worst, "s",
-                     "—", None, target="≤ 60 s", passed=worst <= 60))
+    rows.append(
+        _row(
+            "gain tuning wall time (CSS on the identified model, slowest case)",
+            worst,
+            "s",
+            "—",
+            None,
+            target="≤ 60 s",
+            passed=worst <= 60,
+        )
+    )
     s2 = d["seed2"]
     for case, r in s2["table3_linearity_percent"].items():
         none, ff = r["none"], r["feedforward"]
-        rows.append(_row(f"seed 2 Table 3, {case}: linearity error with MPI inverse feedforward", ff, "%",
-                         "no compensation", none, ratio=none / ff, ratio_label="smaller error", target="≤ 1 %",
-                         passed=ff <= 1.0))
+        rows.append(
+            _row(
+                f"seed 2 Table 3, {case}: linearity error with MPI inverse feedforward",
+                ff,
+                "%",
+                "no compensation",
+                none,
+                ratio=none / ff,
+                ratio_label="smaller error",
+                target="≤ 1 %",
+                passed=ff <= 1.0,
+            )
+        )
     for ref, r in s2["table4_80hz"].items():
         ab, ff = r["feedforward+ABSMC"]["normalized_rms_error"], r["feedforward"]["normalized_rms_error"]
-        rows.append(_row(f"seed 2 Table 4, 80 Hz {ref} amplitude: normalized RMS error, feedforward + ABSMC", ab, "",
-                         "feedforward alone", ff, ratio=ff / ab, ratio_label="smaller error",
-                         target="below feedforward alone", passed=ab < ff))
+        rows.append(
+            _row(
+                f"seed 2 Table 4, 80 Hz {ref} amplitude: normalized RMS error, feedforward + ABSMC",
+                ab,
+                "",
+                "feedforward alone",
+                ff,
+                ratio=ff / ab,
+                ratio_label="smaller error",
+                target="below feedforward alone",
+                passed=ab < ff,
+            )
+        )
     return rows
 
 
 def _demo_rows(d):
     rows = []
     for mode, r in d["runs"].items():
-        rows.append(_row(f"`piezohyst demo{' --quick' if mode == 'quick' else ''}` wall time", r["wall_s"], "s",
-                         "— (a wall-time target)", None, target=f"≤ {r['target_s']:.0f} s", passed=r["pass"]))
+        rows.append(
+            _row(
+                f"`piezohyst demo{' --quick' if mode == 'quick' else ''}` wall time",
+                r["wall_s"],
+                "s",
+                "— (a wall-time target)",
+                None,
+                target=f"≤ {r['target_s']:.0f} s",
+                passed=r["pass"],
+            )
+        )
     return rows
 
 
 BENCHMARKS: tuple[Benchmark, ...] = (
-    Benchmark("pi_batch", "pi_batch.py", "batch PI evaluation vs NumPy",
-              ("--rounds", "1", "--reps", "2", "--numpy-reps", "1", "--min-time", "0.05", "--max-reps", "3"),
-              _pi_batch_rows),
-    Benchmark("closed_loop", "closed_loop.py", "closed-loop real-time factor, batch scaling, integration accuracy",
-              ("--rounds", "1", "--reps", "2", "--batch-reps", "1", "--min-time", "0.05", "--max-reps", "3"),
-              _closed_loop_rows),
-    Benchmark("identify_mpi", "identify_mpi.py", "MPI identification: least squares vs MPSO vs pyswarms",
-              ("--reps", "2", "--iterations", "60", "--mpso-seeds", "0", "--vp-seeds", "0", "--cap", "5"),
-              _identify_mpi_rows),
+    Benchmark(
+        "pi_batch",
+        "pi_batch.py",
+        "batch PI evaluation vs NumPy",
+        ("--rounds", "1", "--reps", "2", "--numpy-reps", "1", "--min-time", "0.05", "--max-reps", "3"),
+        _pi_batch_rows,
+    ),
+    Benchmark(
+        "closed_loop",
+        "closed_loop.py",
+        "closed-loop real-time factor, batch scaling, integration accuracy",
+        ("--rounds", "1", "--reps", "2", "--batch-reps", "1", "--min-time", "0.05", "--max-reps", "3"),
+        _closed_loop_rows,
+    ),
+    Benchmark(
+        "identify_mpi",
+        "identify_mpi.py",
+        "MPI identification: least squares vs MPSO vs pyswarms",
+        ("--reps", "2", "--iterations", "60", "--mpso-seeds", "0", "--vp-seeds", "0", "--cap", "5"),
+        _identify_mpi_rows,
+    ),
     Benchmark("c_step", "c_step.py", "ns per step from C", ("--rounds", "1"), _c_step_rows),
-    Benchmark("control", "control.py", "seed 1 / seed 2 control tables, tuning time", ("--quick",),
-              _control_rows),
+    Benchmark("control", "control.py", "seed 1 / seed 2 control tables, tuning time", ("--quick",), _control_rows),
     Benchmark("demo", "demo.py", "wall time of piezohyst demo", ("--modes", "quick"), _demo_rows),
 )
 _BY_NAME = {b.name: b for b in BENCHMARKS}
@@ -205,8 +339,10 @@ def find_bench_dir(explicit=None) -> Path:
     for parent in here.parents:
         if (parent / "bench" / "common.py").is_file():
             return parent / "bench"
-    raise ParameterError("the benchmarks live in the source tree's bench/ directory, which is not beside this "
-                         f"installation ({here.parent}); pass --bench-dir")
+    raise ParameterError(
+        "the benchmarks live in the source tree's bench/ directory, which is not beside this "
+        f"installation ({here.parent}); pass --bench-dir"
+    )
 
 
 def select(only=None, skip=None) -> list[Benchmark]:
@@ -238,19 +374,32 @@ def run_suite(benchmarks, bench_dir: Path, results: Path, *, quick=False, print_
             print_fn(f"      done in {wall:.0f} s", flush=True)
         else:
             tail = "\n".join((p.stderr or p.stdout).strip().splitlines()[-15:])
-            status[b.name] = {"status": "failed", "wall_s": wall, "command": cmd[1:], "exit_code": p.returncode,
-                              "stderr_tail": tail}
-            print_fn(f"      FAILED (exit {p.returncode}): {tail.splitlines()[-1] if tail else 'no output'}", flush=True)
+            status[b.name] = {
+                "status": "failed",
+                "wall_s": wall,
+                "command": cmd[1:],
+                "exit_code": p.returncode,
+                "stderr_tail": tail,
+            }
+            print_fn(
+                f"      FAILED (exit {p.returncode}): {tail.splitlines()[-1] if tail else 'no output'}", flush=True
+            )
     return status
 
 
 def summarize(benchmarks, results: Path, run_status: dict | None = None) -> dict:
     """One summary from the JSON files in ``results``: per benchmark its rows, the time
     its JSON was written and the machine it ran on."""
-    out = {"benchmark": "suite", "timestamp_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-           "python": platform.python_version(), "cpu_count": os.cpu_count(),
-           "results_dir": "bench/results" if (results.name == "results" and results.parent.name == "bench") else str(results),
-           "benchmarks": {}}
+    out = {
+        "benchmark": "suite",
+        "timestamp_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "python": platform.python_version(),
+        "cpu_count": os.cpu_count(),
+        "results_dir": "bench/results"
+        if (results.name == "results" and results.parent.name == "bench")
+        else str(results),
+        "benchmarks": {},
+    }
     for b in benchmarks:
         entry = dict((run_status or {}).get(b.name, {}))
         path = b.result_path(results)
@@ -265,16 +414,25 @@ def summarize(benchmarks, results: Path, run_status: dict | None = None) -> dict
             d = json.loads(path.read_text())
             rows = b.rows(d)
         except (ValueError, KeyError, TypeError, IndexError, ZeroDivisionError) as e:
-            raise DataError(f"{path}: not a result of bench/{b.script} this version reads ({type(e).__name__}: {e})") from None
+            raise DataError(
+                f"{path}: not a result of bench/{b.script} this version reads ({type(e).__name__}: {e})"
+            ) from None
         m = d.get("machine")
-        entry.update(status=entry.get("status", "ok"), result_file=path.name, rows=rows,
-                     written_utc=d.get("timestamp_utc", "undated"),
-                     machine=(f"{m.get('cpu_model')}, {m.get('cpu_count')} CPUs" if isinstance(m, dict) else m))
+        entry.update(
+            status=entry.get("status", "ok"),
+            result_file=path.name,
+            rows=rows,
+            written_utc=d.get("timestamp_utc", "undated"),
+            machine=(f"{m.get('cpu_model')}, {m.get('cpu_count')} CPUs" if isinstance(m, dict) else m),
+        )
         out["benchmarks"][b.name] = entry
     rows = [r for e in out["benchmarks"].values() for r in e.get("rows", [])]
     judged = [r for r in rows if r["pass"] is not None]
-    out["targets"] = {"met": sum(bool(r["pass"]) for r in judged), "judged": len(judged),
-                      "missed": [r["figure"] for r in judged if not r["pass"]]}
+    out["targets"] = {
+        "met": sum(bool(r["pass"]) for r in judged),
+        "judged": len(judged),
+        "missed": [r["figure"] for r in judged if not r["pass"]],
+    }
     return out
 
 
@@ -300,8 +458,10 @@ def _times(x) -> str:
 
 def to_markdown(summary: dict) -> str:
     """The summary as one Markdown table plus a provenance line per benchmark."""
-    lines = ["| benchmark | figure | piezohyst | baseline (same run) | baseline | ratio | target |",
-             "|---|---|---|---|---|---|---|"]
+    lines = [
+        "| benchmark | figure | piezohyst | baseline (same run) | baseline | ratio | target |",
+        "|---|---|---|---|---|---|---|",
+    ]
     notes = []
     for name, e in summary["benchmarks"].items():
         if e.get("status") != "ok":
@@ -310,12 +470,18 @@ def to_markdown(summary: dict) -> str:
         for r in e["rows"]:
             ratio = "—" if r["ratio"] is None else f"{_times(r['ratio'])} {r['ratio_label']}".strip()
             target = "—" if r["target"] is None else f"{r['target']}: {'**met**' if r['pass'] else '**missed**'}"
-            lines.append(f"| {name} | {r['figure']} | {_num(r['value'], r['unit'])} | {r['baseline']} | "
-                         f"{_num(r['baseline_value'], r['unit'])} | {ratio} | {target} |")
-        notes.append(f"`{summary['results_dir']}/{e['result_file']}` {e.get('written_utc', '')}, {e.get('machine') or ''}")
+            lines.append(
+                f"| {name} | {r['figure']} | {_num(r['value'], r['unit'])} | {r['baseline']} | "
+                f"{_num(r['baseline_value'], r['unit'])} | {ratio} | {target} |"
+            )
+        notes.append(
+            f"`{summary['results_dir']}/{e['result_file']}` {e.get('written_utc', '')}, {e.get('machine') or ''}"
+        )
     t = summary["targets"]
-    lines += ["", f"Targets met: {t['met']} of {t['judged']}."
-              + (f" Missed: {'; '.join(t['missed'])}." if t["missed"] else "")]
+    lines += [
+        "",
+        f"Targets met: {t['met']} of {t['judged']}." + (f" Missed: {'; '.join(t['missed'])}." if t["missed"] else ""),
+    ]
     lines += ["", "<sub>" + " · ".join(notes) + "</sub>"]
     return "\n".join(lines) + "\n"
 

@@ -1,4 +1,4 @@
-"""The Bouc–Wen hysteretic benchmark system (Noël & Schoukens 2016), SPEC §3.3.
+"""The Bouc–Wen hysteretic benchmark system (Noël & Schoukens 2016), docs/spec.md §3.3.
 
 ::
 
@@ -65,6 +65,7 @@ Examples
 >>> y.shape, bool(2e-4 < np.abs(y[750:]).max() < 1e-3)
 ((1500,), True)
 """
+
 from __future__ import annotations
 
 import time
@@ -74,11 +75,18 @@ import numpy as np
 
 from . import _core
 from ._validate import as_int, as_record, as_scalar, as_vector
-from .identify import IdentificationResult, fit_metrics
 from .errors import DataError, ParameterError, ParameterTypeError
+from .identify import IdentificationResult, fit_metrics
 
-__all__ = ["BoucWenBenchmark", "DEFAULT_BOUNDS", "IDENTIFY_PARAMETERS", "decimate", "identify_boucwen_benchmark",
-           "load_train_multisine", "upsample"]
+__all__ = [
+    "DEFAULT_BOUNDS",
+    "IDENTIFY_PARAMETERS",
+    "BoucWenBenchmark",
+    "decimate",
+    "identify_boucwen_benchmark",
+    "load_train_multisine",
+    "upsample",
+]
 
 #: Sampling rate of the benchmark's records, Hz.
 FS = 750.0
@@ -120,7 +128,9 @@ def upsample(u, factor: int, interpolation: str = "fft") -> np.ndarray:
     u = as_record(u, "u")
     r = as_int(factor, "factor", minimum=1)
     if interpolation not in INTERPOLATIONS:
-        raise ParameterError(f"interpolation = {interpolation!r} is unknown; expected one of {', '.join(INTERPOLATIONS)}")
+        raise ParameterError(
+            f"interpolation = {interpolation!r} is unknown; expected one of {', '.join(INTERPOLATIONS)}"
+        )
     if r == 1:
         return u
     n = u.size
@@ -337,7 +347,9 @@ class BoucWenBenchmark:
         fs = as_scalar(fs, "fs", positive=True)
         r = as_int(upsample, "upsample", minimum=1)
         if interpolation not in INTERPOLATIONS:
-            raise ParameterError(f"interpolation = {interpolation!r} is unknown; expected one of {', '.join(INTERPOLATIONS)}")
+            raise ParameterError(
+                f"interpolation = {interpolation!r} is unknown; expected one of {', '.join(INTERPOLATIONS)}"
+            )
         fine = _upsample(u, r, interpolation)
         y, z = self.integrate(fine, 1.0 / (r * fs), initial_state, return_z=True)
         y = _core.boucwen_benchmark_decimate(y, r)
@@ -383,13 +395,13 @@ IDENTIFY_PARAMETERS = ("mass", "damping", "stiffness", "alpha", "beta_gamma", "b
 
 #: Default search box of :func:`identify_boucwen_benchmark` (a number fixes the parameter).
 DEFAULT_BOUNDS = {
-    "mass": (0.5, 8.0),          # kg
-    "damping": (0.0, 50.0),      # N s/m
-    "stiffness": (1e4, 2e5),     # N/m
-    "alpha": (1e4, 2e5),         # N/m
-    "beta_gamma": (0.0, 2e4),    # 1/m for nu = 1: beta 1e2..1e4 times gamma 0..2
-    "beta_delta": (-3e4, 1e4),   # 1/m for nu = 1: beta 1e2..1e4 times delta -3..1
-    "nu": 1.0,                   # fixed: the benchmark's structure
+    "mass": (0.5, 8.0),  # kg
+    "damping": (0.0, 50.0),  # N s/m
+    "stiffness": (1e4, 2e5),  # N/m
+    "alpha": (1e4, 2e5),  # N/m
+    "beta_gamma": (0.0, 2e4),  # 1/m for nu = 1: beta 1e2..1e4 times gamma 0..2
+    "beta_delta": (-3e4, 1e4),  # 1/m for nu = 1: beta 1e2..1e4 times delta -3..1
+    "nu": 1.0,  # fixed: the benchmark's structure
 }
 
 #: Samples at ``fs`` simulated past the scored range when the record has them, so that the
@@ -404,15 +416,24 @@ def _search_box(bounds):
     box = dict(DEFAULT_BOUNDS)
     if bounds is not None:
         if not hasattr(bounds, "items"):
-            raise ParameterTypeError(f"bounds must be a mapping of parameter names to (lower, upper) pairs or fixed values, "
-                            f"got {type(bounds).__name__}")
+            raise ParameterTypeError(
+                f"bounds must be a mapping of parameter names to (lower, upper) pairs or fixed values, "
+                f"got {type(bounds).__name__}"
+            )
         for name, b in bounds.items():
             if name not in IDENTIFY_PARAMETERS:
-                raise ParameterError(f"bounds: unknown parameter {name!r}; expected names from {list(IDENTIFY_PARAMETERS)}")
+                raise ParameterError(
+                    f"bounds: unknown parameter {name!r}; expected names from {list(IDENTIFY_PARAMETERS)}"
+                )
             box[name] = b
     names, lower, upper, fixed = [], [], [], {}
-    minimum = {"mass": (0.0, False), "damping": (0.0, True), "stiffness": (0.0, True), "alpha": (0.0, True),
-               "nu": (1.0, True)}
+    minimum = {
+        "mass": (0.0, False),
+        "damping": (0.0, True),
+        "stiffness": (0.0, True),
+        "alpha": (0.0, True),
+        "nu": (1.0, True),
+    }
     for name in IDENTIFY_PARAMETERS:
         b = box[name]
         if isinstance(b, (tuple, list, np.ndarray)):
@@ -464,7 +485,7 @@ class _Problem:
     def __init__(self, fine, r, h, y, start, stop, warmup):
         w = min(warmup, start)
         tail = min(_TAIL, y.size - stop)
-        self.input = np.ascontiguousarray(fine[(start - w) * r:(stop + tail) * r])
+        self.input = np.ascontiguousarray(fine[(start - w) * r : (stop + tail) * r])
         self.target = np.ascontiguousarray(y[start:stop])
         self.skip, self.r, self.h = w, r, h
 
@@ -561,10 +582,28 @@ def _scored(model, u, y, fs, r, interpolation, rng_):
     return fit_metrics(out[start:stop], y[start:stop])
 
 
-def identify_boucwen_benchmark(u, y, fs=FS, *, upsample=UPSAMPLE, fit_range=None, warmup=1024, search_samples=2048,
-                               beta=1e3, bounds=None, optimizer="de", rng=None, max_iterations=30,
-                               population_size=None, polish=True, starts=3, validate=None, interpolation="fft",
-                               progress=False, callback=None) -> IdentificationResult:
+def identify_boucwen_benchmark(
+    u,
+    y,
+    fs=FS,
+    *,
+    upsample=UPSAMPLE,
+    fit_range=None,
+    warmup=1024,
+    search_samples=2048,
+    beta=1e3,
+    bounds=None,
+    optimizer="de",
+    rng=None,
+    max_iterations=30,
+    population_size=None,
+    polish=True,
+    starts=3,
+    validate=None,
+    interpolation="fft",
+    progress=False,
+    callback=None,
+) -> IdentificationResult:
     """Identify the benchmark's Bouc–Wen oscillator (mass, damping, stiffness, alpha, beta,
     gamma, delta, nu) from a force record ``u`` (N) and a displacement record ``y`` (m) by
     free-run simulation error, simulated exactly as :meth:`BoucWenBenchmark.simulate` does
@@ -695,7 +734,9 @@ def identify_boucwen_benchmark(u, y, fs=FS, *, upsample=UPSAMPLE, fit_range=None
     fs = as_scalar(fs, "fs", positive=True)
     r = as_int(upsample, "upsample", minimum=1)
     if interpolation not in INTERPOLATIONS:
-        raise ParameterError(f"interpolation = {interpolation!r} is unknown; expected one of {', '.join(INTERPOLATIONS)}")
+        raise ParameterError(
+            f"interpolation = {interpolation!r} is unknown; expected one of {', '.join(INTERPOLATIONS)}"
+        )
     beta = as_scalar(beta, "beta", positive=True)
     names, lower, upper, fixed = _search_box(bounds)
     start, stop = _as_range(fit_range, u.size, "fit_range", minimum=2 * len(names))
@@ -742,11 +783,20 @@ def identify_boucwen_benchmark(u, y, fs=FS, *, upsample=UPSAMPLE, fit_range=None
         seen_f.append(f)
         return f
 
-    res = minimize(cost, list(zip(lower, upper)), method=optimizer, rng=rng, max_iterations=max_iterations,
-                   population_size=population_size, progress=progress, callback=callback)
+    res = minimize(
+        cost,
+        list(zip(lower, upper, strict=False)),
+        method=optimizer,
+        rng=rng,
+        max_iterations=max_iterations,
+        population_size=population_size,
+        progress=progress,
+        callback=callback,
+    )
     if not np.isfinite(res.fun):
-        raise ParameterError("every simulated candidate failed or diverged: check the units of u (N) and y (m), fs and "
-                         "the bounds")
+        raise ParameterError(
+            "every simulated candidate failed or diverged: check the units of u (N) and y (m), fs and the bounds"
+        )
     x = np.asarray(res.x, dtype=np.float64)
     history = dict(res.history)
     history["parameters"] = names
@@ -762,13 +812,19 @@ def identify_boucwen_benchmark(u, y, fs=FS, *, upsample=UPSAMPLE, fit_range=None
             if best is None or fx < best[1]:
                 best = (xs, fx)
         before = float(full_problem.rmse(to_rows(x[None, :]))[0])
-        x1, f1, n, message = _least_squares_polish(full_problem, to_rows, best[0], lower, upper,
-                                                   polish if isinstance(polish, dict) else {})
+        x1, f1, n, message = _least_squares_polish(
+            full_problem, to_rows, best[0], lower, upper, polish if isinstance(polish, dict) else {}
+        )
         nfev += n + 1
         if f1 < before:
             x = x1
-        history["polish"] = {"screened": np.array(screened), "rmse_before": before, "rmse_after": min(f1, before),
-                             "nfev": nfev, "message": message}
+        history["polish"] = {
+            "screened": np.array(screened),
+            "rmse_before": before,
+            "rmse_after": min(f1, before),
+            "nfev": nfev,
+            "message": message,
+        }
         method += "+least_squares"
     model = BoucWenBenchmark(*to_rows(x[None, :])[0])
     train = _scored(model, u, y, fs, r, interpolation, (start, stop))

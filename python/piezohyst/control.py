@@ -9,6 +9,7 @@ the quantized reading).
 
 ``controller.core(stage)`` gives what the core runs: ``(kind, params, inverse, ilc)``.
 """
+
 from __future__ import annotations
 
 import math
@@ -19,8 +20,18 @@ import numpy as np
 from ._validate import as_int, as_scalar
 from .errors import ParameterError, ParameterTypeError
 
-__all__ = ["OpenLoop", "PID", "VelocityObserver", "SMC", "ABSMC", "CemfFeedforward", "Compensated",
-           "InverseFeedforward", "ILC", "cemf_model_parameters"]
+__all__ = [
+    "ABSMC",
+    "ILC",
+    "PID",
+    "SMC",
+    "CemfFeedforward",
+    "Compensated",
+    "InverseFeedforward",
+    "OpenLoop",
+    "VelocityObserver",
+    "cemf_model_parameters",
+]
 
 
 def _limits(u_min, u_max, stage):
@@ -57,8 +68,9 @@ class VelocityObserver:
     def core(self, stage) -> list:
         bw = as_scalar(self.bandwidth, "observer_bandwidth", positive=True)
         if bw >= 0.5 / stage.sample_time:
-            raise ParameterError(f"observer_bandwidth = {bw} Hz must be below the Nyquist frequency "
-                             f"{0.5 / stage.sample_time:g} Hz")
+            raise ParameterError(
+                f"observer_bandwidth = {bw} Hz must be below the Nyquist frequency {0.5 / stage.sample_time:g} Hz"
+            )
         delay = stage.sensor.delay if self.delay is None else as_scalar(self.delay, "observer_delay", nonnegative=True)
         return [bw, stage.sample_time, float(delay)]
 
@@ -91,11 +103,17 @@ class OpenLoop:
     def core(self, stage, *, limits=None):
         if self.gain is not None:
             gain = as_scalar(self.gain, "gain")
-        else:   # behind an inverse the plant is linearized to unit gain
+        else:  # behind an inverse the plant is linearized to unit gain
             gain = 1.0 if limits is not None else 1.0 / stage.params.static_gain
         lo, hi = _domain_limits(self, stage, limits)
-        return "open_loop", np.array([gain, as_scalar(self.offset, "offset"), as_scalar(self.c1, "c1"),
-                                      as_scalar(self.c2, "c2"), lo, hi]), None, None
+        return (
+            "open_loop",
+            np.array(
+                [gain, as_scalar(self.offset, "offset"), as_scalar(self.c1, "c1"), as_scalar(self.c2, "c2"), lo, hi]
+            ),
+            None,
+            None,
+        )
 
 
 @dataclass(frozen=True)
@@ -127,12 +145,18 @@ class PID:
             as_scalar(getattr(self, name), name, nonnegative=True)
         as_scalar(self.tau_d, "tau_d", positive=True)
         if limits is not None and self.ff_gain is None:
-            ff = 1.0   # behind an inverse the plant is linearized to unit gain
+            ff = 1.0  # behind an inverse the plant is linearized to unit gain
         else:
             ff = 1.0 / stage.params.static_gain if self.ff_gain is None else as_scalar(self.ff_gain, "ff_gain")
         lo, hi = _domain_limits(self, stage, limits)
-        return "pid", np.array([self.kp, self.ki, self.kd, self.tau_d, stage.sample_time, ff,
-                                as_scalar(self.offset, "offset"), lo, hi]), None, None
+        return (
+            "pid",
+            np.array(
+                [self.kp, self.ki, self.kd, self.tau_d, stage.sample_time, ff, as_scalar(self.offset, "offset"), lo, hi]
+            ),
+            None,
+            None,
+        )
 
 
 def cemf_model_parameters(params) -> dict:
@@ -141,13 +165,22 @@ def cemf_model_parameters(params) -> dict:
     from .stage import StageParameters
 
     if not isinstance(params, StageParameters):
-        raise ParameterTypeError(f"model must be StageParameters (e.g. identify_cemf(...).model), got {type(params).__name__}")
+        raise ParameterTypeError(
+            f"model must be StageParameters (e.g. identify_cemf(...).model), got {type(params).__name__}"
+        )
     if params.hyst_drive != "charge":
         raise ParameterError(f"model.hyst_drive = {params.hyst_drive!r}: the CEMF observer needs the charge-driven law")
     t = params.tem
-    return {"M": params.mass / t, "B": params.damping / t, "K": params.stiffness / t, "tem": t,
-            "capacitance": params.capacitance, "alpha": params.hyst_alpha, "beta": params.hyst_beta,
-            "gamma": params.hyst_gamma}
+    return {
+        "M": params.mass / t,
+        "B": params.damping / t,
+        "K": params.stiffness / t,
+        "tem": t,
+        "capacitance": params.capacitance,
+        "alpha": params.hyst_alpha,
+        "beta": params.hyst_beta,
+        "gamma": params.hyst_gamma,
+    }
 
 
 def _cemf_row(params) -> list:
@@ -198,7 +231,9 @@ class SMC:
         if not kv + alpha > 0:
             raise ParameterError(f"kv + alpha = {kv + alpha} must be > 0: the sliding dynamics would be unstable")
         if not alpha * kv + kp > 0:
-            raise ParameterError(f"alpha * kv + kp = {alpha * kv + kp} must be > 0: the sliding dynamics would be unstable")
+            raise ParameterError(
+                f"alpha * kv + kp = {alpha * kv + kp} must be > 0: the sliding dynamics would be unstable"
+            )
         if self.switching == "boundary_layer":
             sw = [0.0, as_scalar(self.ks, "ks", nonnegative=True), as_scalar(self.phi, "phi", positive=True)]
         elif self.switching == "super_twisting":
@@ -208,8 +243,19 @@ class SMC:
         if self.model_terms not in ("measured", "desired"):
             raise ParameterError(f"model_terms = {self.model_terms!r} must be 'measured' or 'desired'")
         lo, hi = _domain_limits(self, stage, limits)
-        p = (row[:3] + [kp, kv, alpha] + sw + self.observer.core(stage) + [1.0 if self.cemf else 0.0] + row[3:]
-             + [1.0 if self.model_terms == "desired" else 0.0, lo, hi])
+        p = [
+            *row[:3],
+            kp,
+            kv,
+            alpha,
+            *sw,
+            *self.observer.core(stage),
+            1.0 if self.cemf else 0.0,
+            *row[3:],
+            1.0 if self.model_terms == "desired" else 0.0,
+            lo,
+            hi,
+        ]
         return "smc", np.array(p), None, None
 
 
@@ -251,14 +297,17 @@ class ABSMC:
     uses_reference_derivatives = True
 
     @classmethod
-    def for_stage(cls, model, **kw) -> "ABSMC":
+    def for_stage(cls, model, **kw) -> ABSMC:
         """Voltage-domain ABSMC from identified stage parameters."""
-        c = cemf_model_parameters(model) if model.hyst_drive == "charge" else {
-            "M": model.mass / model.tem, "B": model.damping / model.tem, "K": model.stiffness / model.tem}
+        c = (
+            cemf_model_parameters(model)
+            if model.hyst_drive == "charge"
+            else {"M": model.mass / model.tem, "B": model.damping / model.tem, "K": model.stiffness / model.tem}
+        )
         return cls(b=1.0 / c["M"], theta=(c["K"] / c["M"], c["B"] / c["M"]), **kw)
 
     @classmethod
-    def linearized(cls, natural_frequency, damping_ratio=0.05, **kw) -> "ABSMC":
+    def linearized(cls, natural_frequency, damping_ratio=0.05, **kw) -> ABSMC:
         """Displacement-domain ABSMC for a stage linearized by an inverse model: unit static
         gain, ``natural_frequency`` in Hz."""
         w = 2 * math.pi * as_scalar(natural_frequency, "natural_frequency", positive=True)
@@ -289,8 +338,24 @@ class ABSMC:
         d_max = (hi - lo) * b if self.d_max is None else as_scalar(self.d_max, "d_max", nonnegative=True)
         if self.regressor not in ("desired", "measured"):
             raise ParameterError(f"regressor = {self.regressor!r} must be 'desired' or 'measured'")
-        p = [b, *th, *lo_t, *hi_t, self.c1, self.lam, self.ks, self.phi, *g, self.gamma_d, d0, d_max,
-             1.0 if self.regressor == "desired" else 0.0, *self.observer.core(stage), lo, hi]
+        p = [
+            b,
+            *th,
+            *lo_t,
+            *hi_t,
+            self.c1,
+            self.lam,
+            self.ks,
+            self.phi,
+            *g,
+            self.gamma_d,
+            d0,
+            d_max,
+            1.0 if self.regressor == "desired" else 0.0,
+            *self.observer.core(stage),
+            lo,
+            hi,
+        ]
         return "absmc", np.array(p, dtype=float), None, None
 
 
@@ -308,13 +373,15 @@ class CemfFeedforward:
 
     def core(self, stage, *, limits=None):
         lo, hi = _domain_limits(self, stage, limits)
-        return "cemf_feedforward", np.array(_cemf_row(self.model) + [lo, hi]), None, None
+        return "cemf_feedforward", np.array([*_cemf_row(self.model), lo, hi]), None, None
 
 
 def _model_output_range(model, v_min, v_max) -> tuple:
     """Outputs of a hysteresis model at the amplifier limits, reached along the major loop
     (for wiping-out models these do not depend on the history)."""
-    ramp = np.concatenate([np.linspace(0.0, v_max, 400), np.linspace(v_max, v_min, 800), np.linspace(v_min, v_max, 800)])
+    ramp = np.concatenate(
+        [np.linspace(0.0, v_max, 400), np.linspace(v_max, v_min, 800), np.linspace(v_min, v_max, 800)]
+    )
     y = model.simulate(ramp, initial_state=model.initial_state())
     return float(y[1199]), float(y[-1])
 
@@ -337,7 +404,9 @@ class Compensated:
         from .model import HysteresisModel
 
         if not isinstance(self.model, HysteresisModel):
-            raise ParameterTypeError(f"model must be a hysteresis model (e.g. identify(...).model), got {type(self.model).__name__}")
+            raise ParameterTypeError(
+                f"model must be a hysteresis model (e.g. identify(...).model), got {type(self.model).__name__}"
+            )
         if isinstance(self.inner, (Compensated, InverseFeedforward)):
             raise ParameterTypeError("inner must not itself be compensated")
         v_lo, v_hi = _limits(None, None, stage) if limits is None else limits
@@ -353,7 +422,7 @@ class Compensated:
 class InverseFeedforward:
     """Inverse feedforward: the exact per-sample inverse of ``model`` driven by the
     reference (optionally led by ``c1 x_d' + c2 x_d''`` to invert the stage's linear dynamics,
-    SPEC §5). Any invertible model: PI family, Preisach, Bouc–Wen; for the CEMF model use
+    docs/spec.md §5). Any invertible model: PI family, Preisach, Bouc–Wen; for the CEMF model use
     :class:`CemfFeedforward`."""
 
     model: object

@@ -1,15 +1,16 @@
-"""Creep: a bank of first-order lags with time constants spread over decades (SPEC §2.4).
+"""Creep: a bank of first-order lags with time constants spread over decades (docs/spec.md §2.4).
 
 ``w_j(k) = w_j(k-1) + (1 - exp(-Ts/tau_j)) (v(k) - w_j(k-1))``, output ``sum_j c_j w_j``.
 Use it alone, or pass it as ``creep=`` to any PI-type model (Kuhnen's modified PI).
 """
+
 from __future__ import annotations
 
 import numpy as np
 
 from ._validate import as_scalar, as_vector
-from .model import HysteresisModel, _register
 from .errors import ParameterError, ParameterTypeError
+from .model import HysteresisModel, _register
 
 __all__ = ["Creep"]
 
@@ -52,7 +53,9 @@ class Creep(HysteresisModel):
     @classmethod
     def log_spaced(cls, ts, tau_min, tau_max, terms, weight=0.0):
         """Time constants log-spaced from ``tau_min`` to ``tau_max``, equal weights."""
-        taus = np.geomspace(as_scalar(tau_min, "tau_min", positive=True), as_scalar(tau_max, "tau_max", positive=True), int(terms))
+        taus = np.geomspace(
+            as_scalar(tau_min, "tau_min", positive=True), as_scalar(tau_max, "tau_max", positive=True), int(terms)
+        )
         return cls(ts, taus, np.full(taus.size, float(weight)))
 
     def tail(self) -> np.ndarray:

@@ -17,7 +17,7 @@ knows how to trim itself and split into training and validation parts by sample 
 The sample rate comes from a time column (strictly increasing and uniform; a non-uniform
 time axis is an error, never a silent resample) or is given as ``fs``. Every problem —
 missing file, unknown column, bad cell, NaN, short record, non-uniform time — is an error
-that names the file, the argument and the value (SPEC §10).
+that names the file, the argument and the value (docs/spec.md §10).
 
 Examples
 --------
@@ -32,6 +32,7 @@ Examples
 >>> rec.trim(1, 3).input
 array([1., 2.])
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -45,7 +46,7 @@ import numpy as np
 from ._validate import as_int, as_record, as_scalar
 from .errors import DataError, ParameterError, ParameterTypeError
 
-__all__ = ["Record", "load_record", "load_yan9a_model_record", "TIME_RTOL"]
+__all__ = ["TIME_RTOL", "Record", "load_record", "load_yan9a_model_record"]
 
 #: Default relative tolerance on the time steps of a time column (of the median step).
 TIME_RTOL = 1e-6
@@ -121,7 +122,9 @@ class Record:
         if not isinstance(self.source, str):
             raise ParameterTypeError(f"source must be a str, got {type(self.source).__name__}")
         if not isinstance(self.columns, Mapping):
-            raise ParameterTypeError(f"columns must be a mapping of role -> column name, got {type(self.columns).__name__}")
+            raise ParameterTypeError(
+                f"columns must be a mapping of role -> column name, got {type(self.columns).__name__}"
+            )
         columns = {}
         for k, v in self.columns.items():
             if not isinstance(k, str) or not isinstance(v, str):
@@ -200,9 +203,7 @@ class Record:
             h = self.n // 2
             train, validate = (0, h), (h, self.n)
         elif train is None or validate is None:
-            raise ParameterError(
-                f"train = {train!r}, validate = {validate!r}: give both ranges, or neither (halves)"
-            )
+            raise ParameterError(f"train = {train!r}, validate = {validate!r}: give both ranges, or neither (halves)")
         spans = []
         for name, rng in (("train", train), ("validate", validate)):
             if isinstance(rng, (str, bytes)) or not isinstance(rng, (tuple, list)) or len(rng) != 2:
@@ -548,7 +549,7 @@ def _flatten_mat(d: Mapping, prefix: str, out: dict) -> None:
         name = f"{prefix}{k}"
         if isinstance(v, Mapping):
             _flatten_mat(v, f"{name}.", out)
-        elif isinstance(v, np.ndarray) or isinstance(v, (int, float)) and not isinstance(v, bool):
+        elif isinstance(v, np.ndarray) or (isinstance(v, (int, float)) and not isinstance(v, bool)):
             out[name] = np.asarray(v)
 
 
@@ -565,7 +566,9 @@ def _open_mat(path: Path, dataset):
     try:
         d = loadmat(str(path), simplify_cells=True)
     except Exception as e:
-        raise DataError(f"{path}: not a readable MATLAB v{4 if major == 0 else 5} file ({type(e).__name__}: {e})") from None
+        raise DataError(
+            f"{path}: not a readable MATLAB v{4 if major == 0 else 5} file ({type(e).__name__}: {e})"
+        ) from None
     arrays: dict = {}
     _flatten_mat(d, "", arrays)
 
@@ -769,9 +772,7 @@ def load_record(
         table = _TextTable(p, delimiter, header)
     else:
         if suffix not in SUPPORTED_SUFFIXES:
-            raise DataError(
-                f"{p}: unsupported file extension {p.suffix!r}; supported: {' '.join(SUPPORTED_SUFFIXES)}"
-            )
+            raise DataError(f"{p}: unsupported file extension {p.suffix!r}; supported: {' '.join(SUPPORTED_SUFFIXES)}")
         if delimiter is not None or header != "auto":
             raise ParameterError(
                 f"delimiter = {delimiter!r}, header = {header!r}: these apply to text files only, not {p.suffix!r}"
@@ -815,7 +816,7 @@ def _assemble(table, specs: dict, fs_given, rtol: float) -> Record:
                     f"{src}: {missing[0]} not given and not inferable from the {len(cols)} columns "
                     f"{labels}; pass {missing[0]}= a column name or 0-based index"
                 )
-            for r, c in zip(missing, free):
+            for r, c in zip(missing, free, strict=False):
                 resolved[r] = c
     seen: dict = {}
     for role in _ROLES:

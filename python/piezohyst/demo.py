@@ -12,6 +12,7 @@
 
 Same ``seed`` → same numbers (whatever the thread count).
 """
+
 from __future__ import annotations
 
 import json
@@ -22,10 +23,10 @@ from pathlib import Path
 import numpy as np
 
 from . import experiments as ex
-from .stage import virtual_stage
 from .errors import OutputExistsError, ParameterError
+from .stage import virtual_stage
 
-__all__ = ["run_demo", "REPORT_FILES"]
+__all__ = ["REPORT_FILES", "run_demo"]
 
 #: Files the report writes (figures are listed in results.json).
 REPORT_FILES = ("index.html", "report.md", "results.json")
@@ -74,17 +75,30 @@ def run_demo(out_dir="piezohyst-report", *, force=False, quick=False, seed=0, pr
     info = stage.info() if not quick else None
     steps.done("" if info is None else f"stroke {info.stroke * 1e6:.2f} um, hysteresis {info.hysteresis_percent:.1f} %")
 
-    steps.start("identify: CEMF stage model (CSS + least-squares polish; PSO, MPSO, DE for comparison) and MPI "
-                "model (least squares)")
+    steps.start(
+        "identify: CEMF stage model (CSS + least-squares polish; PSO, MPSO, DE for comparison) and MPI "
+        "model (least squares)"
+    )
     convergence = {}
     cemf = None
     for method in ("css", "pso", "mpso", "de"):
         sub = np.random.default_rng([seed, len(convergence)])
         # the model used is CSS's, polished by least squares; the others are the comparison
-        (model, ident, f_res), dt = ex.timed(ex.identify_stage_cemf, stage, sub, optimizer=method, max_iterations=iters,
-                                             progress=progress, polish=method == "css")
-        convergence[method] = {"best_cost": [float(c) for c in ident.history["best_cost"]], "wall_s": dt,
-                               "rmse_percent": ident.train["rmse_percent"], "polished": method == "css"}
+        (model, ident, f_res), dt = ex.timed(
+            ex.identify_stage_cemf,
+            stage,
+            sub,
+            optimizer=method,
+            max_iterations=iters,
+            progress=progress,
+            polish=method == "css",
+        )
+        convergence[method] = {
+            "best_cost": [float(c) for c in ident.history["best_cost"]],
+            "wall_s": dt,
+            "rmse_percent": ident.train["rmse_percent"],
+            "polished": method == "css",
+        }
         if method == "css":
             cemf = (model, ident, f_res)
     model, ident, f_res = cemf
@@ -98,11 +112,16 @@ def run_demo(out_dir="piezohyst-report", *, force=False, quick=False, seed=0, pr
 
         fs = 1.0 / stage.sample_time
         u, y = ex.measure(stage, ex.excitation(fs), np.random.default_rng([seed, 99]))
-        vp, t_vp = ex.timed(identify, u, y, "mpi", structure="fit", optimizer="mpso", rng=seed, creep=3, fs=fs,
-                            max_iterations=30)
-        mpi_vp = {"method": vp.method, "fit_rmse_percent": vp.train["rmse_percent"],
-                  "fit_max_error_percent": vp.train["max_error_percent"], "wall_s": t_vp,
-                  "table2_mpi_validation": ex.mpi_validation(stage, vp.model, np.random.default_rng([seed, 98]))}
+        vp, t_vp = ex.timed(
+            identify, u, y, "mpi", structure="fit", optimizer="mpso", rng=seed, creep=3, fs=fs, max_iterations=30
+        )
+        mpi_vp = {
+            "method": vp.method,
+            "fit_rmse_percent": vp.train["rmse_percent"],
+            "fit_max_error_percent": vp.train["max_error_percent"],
+            "wall_s": t_vp,
+            "table2_mpi_validation": ex.mpi_validation(stage, vp.model, np.random.default_rng([seed, 98])),
+        }
     steps.done(f"CEMF fit {ident.train['rmse_percent']:.2f} % RMSE; MPI fit {mpi_fit.metrics['rmse_percent']:.2f} %")
 
     steps.start("seed 1: tune the SMC on the identified model; open loop, SMC, SMC + CEMF")
@@ -112,26 +131,46 @@ def run_demo(out_dir="piezohyst-report", *, force=False, quick=False, seed=0, pr
     steps.start("seed 2: inverse-MPI feedforward and adaptive backstepping SMC")
     s2, runs2 = ex.seed2_compensation(stage, mpi_fit.model, keep_runs=True)
     t4 = s2["table4_80hz"]["constant"]
-    steps.done(f"80 Hz normalized max error {t4['none']['normalized_max_error']:.4f} -> "
-               f"{t4['feedforward+ABSMC']['normalized_max_error']:.4f}")
+    steps.done(
+        f"80 Hz normalized max error {t4['none']['normalized_max_error']:.4f} -> "
+        f"{t4['feedforward+ABSMC']['normalized_max_error']:.4f}"
+    )
 
     steps.start(f"write the report to {out_dir}")
     k = model.stiffness / model.tem
     results = {
-        "seed": seed, "quick": quick,
+        "seed": seed,
+        "quick": quick,
         "stage": None if info is None else info.to_dict(),
         "identification": {
-            "cemf": {"optimizer": "css+least_squares", "iterations": iters, "fit_rmse_percent": ident.train["rmse_percent"],
-                     "M": model.mass / model.tem, "B": model.damping / model.tem, "K": k, "tem": model.tem,
-                     "alpha": model.hyst_alpha, "beta": model.hyst_beta, "gamma": model.hyst_gamma,
-                     "resonance_hz": f_res, "wall_s": convergence["css"]["wall_s"]},
+            "cemf": {
+                "optimizer": "css+least_squares",
+                "iterations": iters,
+                "fit_rmse_percent": ident.train["rmse_percent"],
+                "M": model.mass / model.tem,
+                "B": model.damping / model.tem,
+                "K": k,
+                "tem": model.tem,
+                "alpha": model.hyst_alpha,
+                "beta": model.hyst_beta,
+                "gamma": model.hyst_gamma,
+                "resonance_hz": f_res,
+                "wall_s": convergence["css"]["wall_s"],
+            },
             "convergence": convergence,
-            "mpi": {"fit_rmse_percent": mpi_fit.metrics["rmse_percent"],
-                    "fit_max_error_percent": mpi_fit.metrics["max_error_percent"],
-                    "wall_s": t_mpi, "operators": 9, "creep_taus_s": [0.01, 0.1, 1.0]},
-            "table2_mpi_validation": table2, "seed_table2": ex.SEED2_TABLE2, "mpi_mpso_structure": mpi_vp,
+            "mpi": {
+                "fit_rmse_percent": mpi_fit.metrics["rmse_percent"],
+                "fit_max_error_percent": mpi_fit.metrics["max_error_percent"],
+                "wall_s": t_mpi,
+                "operators": 9,
+                "creep_taus_s": [0.01, 0.1, 1.0],
+            },
+            "table2_mpi_validation": table2,
+            "seed_table2": ex.SEED2_TABLE2,
+            "mpi_mpso_structure": mpi_vp,
         },
-        "seed1": s1, "seed2": s2,
+        "seed1": s1,
+        "seed2": s2,
     }
     figures = write_report(out_dir, results, runs1=runs1, runs2=runs2, mpi_fit=mpi_fit, stage=stage)
     results["figures"] = figures

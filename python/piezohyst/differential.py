@@ -1,15 +1,16 @@
-"""Rate-independent differential hysteresis models: Bouc–Wen, generalized Duhem, Dahl (SPEC §2.5).
+"""Rate-independent differential hysteresis models: Bouc–Wen, generalized Duhem, Dahl (docs/spec.md §2.5).
 
 Each is integrated per sample in the driver's increment along a monotone path; closed forms
 remove step-size error (Bouc–Wen n = 1, Duhem with cubic f and g, Dahl for any exponent).
 """
+
 from __future__ import annotations
 
 from ._validate import as_scalar, as_vector
-from .model import HysteresisModel, _register
 from .errors import ParameterError
+from .model import HysteresisModel, _register
 
-__all__ = ["BoucWen", "Duhem", "Dahl"]
+__all__ = ["BoucWen", "Dahl", "Duhem"]
 
 
 @_register
@@ -17,7 +18,7 @@ class BoucWen(HysteresisModel):
     """Bouc–Wen hysteresis driven by ``w``: ``y = d w - h`` with
     ``dh/dt = a dw/dt - beta |dw/dt| |h|^(n-1) h - gamma dw/dt |h|^n``.
 
-    ``n = 1`` uses the exact integrator of SPEC §2.5; other ``n >= 1`` use RK4 sub-steps in
+    ``n = 1`` uses the exact integrator of docs/spec.md §2.5; other ``n >= 1`` use RK4 sub-steps in
     the driver increment. ``d = 0`` gives ``-h``.
 
     Examples

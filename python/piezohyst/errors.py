@@ -34,11 +34,18 @@ Examples
 ...     print(type(e).__name__, isinstance(e, ValueError))
 ParameterError True
 """
+
 from __future__ import annotations
 
 __all__ = [
-    "PiezohystError", "ParameterError", "NotInvertibleError", "UnreachableError", "ParameterTypeError",
-    "DataError", "ComputationError", "OutputExistsError",
+    "ComputationError",
+    "DataError",
+    "NotInvertibleError",
+    "OutputExistsError",
+    "ParameterError",
+    "ParameterTypeError",
+    "PiezohystError",
+    "UnreachableError",
 ]
 
 

@@ -5,6 +5,7 @@ them, and the case studies of seed 1 (SMC with and without the CEMF estimate) an
 measurements (the command and the quantized, noisy sensor reading), never read from the
 stage's parameters.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -18,23 +19,51 @@ from .identify import identify_cemf, identify_mpi
 from .references import sine, triangle, variable_amplitude_sine
 from .tuning import stage_from_model, track, tune
 
-__all__ = ["measure", "excitation", "steady_sine", "loop_lag", "identify_stage_cemf", "identify_stage_mpi",
-           "seed1_case_studies", "seed2_compensation", "mpi_validation", "SEED1_TABLE3", "SEED2_TABLE2",
-           "SEED2_TABLE3", "SEED2_TABLE4"]
+__all__ = [
+    "SEED1_TABLE3",
+    "SEED2_TABLE2",
+    "SEED2_TABLE3",
+    "SEED2_TABLE4",
+    "excitation",
+    "identify_stage_cemf",
+    "identify_stage_mpi",
+    "loop_lag",
+    "measure",
+    "mpi_validation",
+    "seed1_case_studies",
+    "seed2_compensation",
+    "steady_sine",
+]
 
 #: Seed 1, Table 3: RMSE (µm) on the real stage.
 SEED1_TABLE3 = {"triangle 5 Hz": {"SMC": 0.1118, "SMC+CEMF": 0.0715}, "sine 5 Hz": {"SMC": 0.1007, "SMC+CEMF": 0.0539}}
 #: Seed 2, Table 2: MPI fit, max error % / mean square error %.
-SEED2_TABLE2 = {"2 Hz constant": (0.31, 0.21), "5 Hz constant": (0.43, 0.25), "10 Hz constant": (0.49, 0.18),
-                "20 Hz constant": (0.69, 0.35), "50 Hz constant": (1.29, 0.36), "100 Hz constant": (0.92, 0.36),
-                "5 Hz variable": (0.47, 0.21), "10 Hz variable": (0.64, 0.22), "100 Hz variable": (1.64, 0.62)}
+SEED2_TABLE2 = {
+    "2 Hz constant": (0.31, 0.21),
+    "5 Hz constant": (0.43, 0.25),
+    "10 Hz constant": (0.49, 0.18),
+    "20 Hz constant": (0.69, 0.35),
+    "50 Hz constant": (1.29, 0.36),
+    "100 Hz constant": (0.92, 0.36),
+    "5 Hz variable": (0.47, 0.21),
+    "10 Hz variable": (0.64, 0.22),
+    "100 Hz variable": (1.64, 0.62),
+}
 #: Seed 2, Table 3: linearity error %, without -> with inverse feedforward.
-SEED2_TABLE3 = {"10 Hz constant": (5.53, 0.17), "20 Hz constant": (7.44, 0.38), "50 Hz constant": (8.56, 0.53),
-                "100 Hz constant": (13.05, 0.67), "10 Hz variable": (7.37, 0.36), "100 Hz variable": (14.88, 0.74)}
+SEED2_TABLE3 = {
+    "10 Hz constant": (5.53, 0.17),
+    "20 Hz constant": (7.44, 0.38),
+    "50 Hz constant": (8.56, 0.53),
+    "100 Hz constant": (13.05, 0.67),
+    "10 Hz variable": (7.37, 0.36),
+    "100 Hz variable": (14.88, 0.74),
+}
 #: Seed 2, Table 4 (80 Hz): normalized max error / mean square error for none, feedforward,
 #: feedforward + feedback.
-SEED2_TABLE4 = {"constant": ((0.0784, 0.0348), (0.0099, 0.0035), (0.0054, 0.0021)),
-                "variable": ((0.1199, 0.0428), (0.0118, 0.0040), (0.0055, 0.0026))}
+SEED2_TABLE4 = {
+    "constant": ((0.0784, 0.0348), (0.0099, 0.0035), (0.0054, 0.0021)),
+    "variable": ((0.1199, 0.0428), (0.0118, 0.0040), (0.0055, 0.0026)),
+}
 
 
 def measure(stage, command, rng):
@@ -52,7 +81,7 @@ def measure(stage, command, rng):
 def excitation(fs, seconds=2.0, freq=5.0, v_max=150.0, hold=0.4):
     """Full-range sine from 0 V (``hold`` s of major loop), then a decaying envelope (nested
     minor loops) down to 20 %."""
-    t = np.arange(int(round(seconds * fs))) / fs
+    t = np.arange(round(seconds * fs)) / fs
     env = np.clip(1 - 0.8 * (t - hold) / max(seconds - hold, 1e-9), 0.2, 1.0)
     return 0.5 * v_max * (1 - env * np.cos(2 * np.pi * freq * t))
 
@@ -60,7 +89,7 @@ def excitation(fs, seconds=2.0, freq=5.0, v_max=150.0, hold=0.4):
 def steady_sine(freq, amplitude, offset, fs, variable=False, warm=1.0):
     """``warm`` s of constant-amplitude sine from the bottom, then two evaluated periods
     (constant, or under a decaying envelope). Returns ``(reference, first evaluated sample)``."""
-    n_warm = int(round(fs * (warm + 1 / (4 * freq))))
+    n_warm = round(fs * (warm + 1 / (4 * freq)))
     _, w = sine(freq, amplitude, n_warm / fs, fs, offset=offset)
     if variable:
         _, tail = variable_amplitude_sine(freq, amplitude, 2 / freq, fs, offset=offset)
@@ -69,8 +98,9 @@ def steady_sine(freq, amplitude, offset, fs, variable=False, warm=1.0):
     return np.r_[w[:n_warm], tail], n_warm
 
 
-def identify_stage_cemf(stage, rng, *, optimizer="css", max_iterations=100, seconds=0.6, callback=None,
-                        progress=False, polish=True):
+def identify_stage_cemf(
+    stage, rng, *, optimizer="css", max_iterations=100, seconds=0.6, callback=None, progress=False, polish=True
+):
     """Seed 1's CEMF model from a measured 5 Hz record, by a population optimizer (CSS as in
     seed 1) followed by a least-squares polish (``polish=False``: the optimizer's best alone;
     with 100 CSS iterations that is 0.95-1.08 % RMSE over three seeds, polished 0.43 %).
@@ -78,8 +108,17 @@ def identify_stage_cemf(stage, rng, *, optimizer="css", max_iterations=100, seco
     small-signal frequency-response test), ``M = K / (2 pi f_r)^2``, damping ratio 0.03."""
     fs = 1.0 / stage.sample_time
     u, y = measure(stage, excitation(fs, seconds, hold=0.4), rng)
-    ident = identify_cemf(u, y, fs, optimizer=optimizer, rng=rng, max_iterations=max_iterations,
-                          callback=callback, progress=progress, polish=polish)
+    ident = identify_cemf(
+        u,
+        y,
+        fs,
+        optimizer=optimizer,
+        rng=rng,
+        max_iterations=max_iterations,
+        callback=callback,
+        progress=progress,
+        polish=polish,
+    )
     m = ident.model
     f_res = stage._resonance()
     k = m.stiffness / m.tem
@@ -117,16 +156,17 @@ def mpi_validation(stage, model, rng, freqs=(2, 5, 10, 20, 50, 100), variable=(5
     cases = [(f, False) for f in freqs] + [(f, True) for f in variable]
     for f, var in cases:
         seconds = 0.5 + 2.0 / f
-        t = np.arange(int(round(seconds * fs))) / fs
+        t = np.arange(round(seconds * fs)) / fs
         env = np.clip(1 - 0.8 * (t - 0.5) / (2.0 / f), 0.2, 1.0) if var else np.ones_like(t)
         u_all = 75 - 75 * env * np.cos(2 * np.pi * f * t)
         u, y = measure(stage, u_all, rng)
         pred = model.simulate(u)
-        k0 = int(round(0.5 * fs))
+        k0 = round(0.5 * fs)
         e, span = pred[k0:] - y[k0:], float(np.ptp(y[k0:]))
         out[f"{f} Hz {'variable' if var else 'constant'}"] = {
             "max_error_percent": 100 * float(np.max(np.abs(e))) / span,
-            "rms_error_percent": 100 * float(np.sqrt(np.mean(e**2))) / span}
+            "rms_error_percent": 100 * float(np.sqrt(np.mean(e**2))) / span,
+        }
     return out
 
 
@@ -137,9 +177,14 @@ def seed1_case_studies(stage, model, rng, *, tuning_iterations=30, method="css",
     10 Hz and sine 5 Hz (5 µm amplitude around 7 µm); also with gains tuned for Case 1, for
     both cases at once, and at the seed's level."""
     fs = 1.0 / stage.sample_time
-    refs = {name: fn(f, 5e-6, 1.0, fs, offset=7e-6)[1]
-            for name, (fn, f) in {"triangle 5 Hz": (triangle, 5), "triangle 10 Hz": (triangle, 10),
-                                  "sine 5 Hz": (sine, 5)}.items()}
+    refs = {
+        name: fn(f, 5e-6, 1.0, fs, offset=7e-6)[1]
+        for name, (fn, f) in {
+            "triangle 5 Hz": (triangle, 5),
+            "triangle 10 Hz": (triangle, 10),
+            "sine 5 Hz": (sine, 5),
+        }.items()
+    }
     plant = stage_from_model(stage, model)
     # seed 1's robustness rule K_s >= sup|Delta| + eta: without the estimate the disturbance
     # is the whole CEMF voltage, so K_s is set from the identified model's CEMF voltage over a
@@ -150,33 +195,57 @@ def seed1_case_studies(stage, model, rng, *, tuning_iterations=30, method="css",
     box = {"kp": (1e5, 3e7), "kv": (3e2, 1e4), "phi": (1e-3, 0.1)}
     seed = int(rng.integers(0, 2**31))
     cases = {"SMC+CEMF": [{"cemf": True}], "SMC": [{"cemf": False}], "both cases": [{"cemf": False}, {"cemf": True}]}
-    tunings = {case: tune(template, box, [refs["triangle 5 Hz"][:5000]], stage=plant, method=method, rng=seed,
-                          max_iterations=tuning_iterations, population_size=16, skip=0.1, variants=variants)
-               for case, variants in cases.items()}
-    gain_sets = {"tuned for SMC+CEMF": tunings["SMC+CEMF"].controller, "tuned for SMC": tunings["SMC"].controller,
-                 "tuned for both cases": tunings["both cases"].controller,
-                 "seed-level (kp 1e6, kv 2e3, ks 20, phi 0.01)": dataclasses.replace(template, kp=1e6, kv=2e3, ks=20.0,
-                                                                                  phi=0.01)}
+    tunings = {
+        case: tune(
+            template,
+            box,
+            [refs["triangle 5 Hz"][:5000]],
+            stage=plant,
+            method=method,
+            rng=seed,
+            max_iterations=tuning_iterations,
+            population_size=16,
+            skip=0.1,
+            variants=variants,
+        )
+        for case, variants in cases.items()
+    }
+    gain_sets = {
+        "tuned for SMC+CEMF": tunings["SMC+CEMF"].controller,
+        "tuned for SMC": tunings["SMC"].controller,
+        "tuned for both cases": tunings["both cases"].controller,
+        "seed-level (kp 1e6, kv 2e3, ks 20, phi 0.01)": dataclasses.replace(
+            template, kp=1e6, kv=2e3, ks=20.0, phi=0.01
+        ),
+    }
     rows, runs = {}, {}
     noise = int(rng.integers(0, 2**31))
     for set_name, gains_c in gain_sets.items():
         for name, ref in refs.items():
             row = {}
-            for label, c in (("open loop", OpenLoop()), ("SMC", dataclasses.replace(gains_c, cemf=False)),
-                             ("SMC+CEMF", dataclasses.replace(gains_c, cemf=True))):
+            for label, c in (
+                ("open loop", OpenLoop()),
+                ("SMC", dataclasses.replace(gains_c, cemf=False)),
+                ("SMC+CEMF", dataclasses.replace(gains_c, cemf=True)),
+            ):
                 res = track(c, ref, stage=stage, rng=noise, skip=0.2)
                 row[label] = res.metrics["rmse"] * 1e6
                 if keep_runs and set_name == "tuned for SMC+CEMF":
                     runs[(name, label)] = res
             row["CEMF cut %"] = 100 * (1 - row["SMC+CEMF"] / row["SMC"])
             rows.setdefault(set_name, {})[name] = row
-    numbers = {"gains": {k: {n: float(getattr(c, n)) for n in ("kp", "kv", "ks", "phi")} for k, c in gain_sets.items()},
-               "ks_rule": {"max_cemf_voltage_V": float(np.max(np.abs(vh))), "ks_V": ks},
-               "tuning_wall_s": {k: t.wall_time for k, t in tunings.items()},
-               "tuning_nfev": {k: t.nfev for k, t in tunings.items()},
-               "tuning_rmse_on_model_um": {k: t.rmse * 1e6 for k, t in tunings.items()},
-               "tuning_history": {k: [float(x) for x in t.history["best_cost"]] for k, t in tunings.items()},
-               "amplitude_um": 5.0, "offset_um": 7.0, "rmse_um": rows, "seed_rmse_um": SEED1_TABLE3}
+    numbers = {
+        "gains": {k: {n: float(getattr(c, n)) for n in ("kp", "kv", "ks", "phi")} for k, c in gain_sets.items()},
+        "ks_rule": {"max_cemf_voltage_V": float(np.max(np.abs(vh))), "ks_V": ks},
+        "tuning_wall_s": {k: t.wall_time for k, t in tunings.items()},
+        "tuning_nfev": {k: t.nfev for k, t in tunings.items()},
+        "tuning_rmse_on_model_um": {k: t.rmse * 1e6 for k, t in tunings.items()},
+        "tuning_history": {k: [float(x) for x in t.history["best_cost"]] for k, t in tunings.items()},
+        "amplitude_um": 5.0,
+        "offset_um": 7.0,
+        "rmse_um": rows,
+        "seed_rmse_um": SEED1_TABLE3,
+    }
     return (numbers, runs) if keep_runs else numbers
 
 
@@ -200,8 +269,9 @@ def seed2_compensation(stage, model, *, keep_runs=False):
     # the linearized loop as the feedback sees it: unit gain with the measured lag, as a
     # second-order model with 2 zeta / omega_n = lag, zeta = 0.7
     fn = 1.4 / lag / (2 * np.pi)
-    absmc = Compensated(ABSMC.linearized(fn, 0.7, c1=2e3, lam=2e3, ks=5e3, gamma_d=1e4,
-                                         observer=VelocityObserver(1000.0)), model)
+    absmc = Compensated(
+        ABSMC.linearized(fn, 0.7, c1=2e3, lam=2e3, ks=5e3, gamma_d=1e4, observer=VelocityObserver(1000.0)), model
+    )
     table4 = {}
     for variable in (False, True):
         ref, k0 = steady_sine(80, amp, off, fs, variable)
@@ -209,14 +279,23 @@ def seed2_compensation(stage, model, *, keep_runs=False):
         for label, c in (("none", OpenLoop()), ("feedforward", ff), ("feedforward+ABSMC", absmc)):
             res = track(c, ref, stage=stage, rng=1, skip=k0 / fs)
             m = res.metrics
-            row[label] = {"normalized_max_error": m["normalized_max_error"],
-                          "normalized_rms_error": m["normalized_rms_error"]}
+            row[label] = {
+                "normalized_max_error": m["normalized_max_error"],
+                "normalized_rms_error": m["normalized_rms_error"],
+            }
             if keep_runs:
                 runs[("table4", "variable" if variable else "constant", label)] = res
         table4["variable" if variable else "constant"] = row
-    numbers = {"lag_s": lag, "linearized_natural_frequency_hz": fn, "amplitude_um": amp * 1e6, "offset_um": off * 1e6,
-               "table3_linearity_percent": table3, "table4_80hz": table4,
-               "seed_table3": SEED2_TABLE3, "seed_table4": SEED2_TABLE4}
+    numbers = {
+        "lag_s": lag,
+        "linearized_natural_frequency_hz": fn,
+        "amplitude_um": amp * 1e6,
+        "offset_um": off * 1e6,
+        "table3_linearity_percent": table3,
+        "table4_80hz": table4,
+        "seed_table3": SEED2_TABLE3,
+        "seed_table4": SEED2_TABLE4,
+    }
     return (numbers, runs) if keep_runs else numbers
 
 

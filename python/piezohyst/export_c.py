@@ -1,4 +1,4 @@
-"""Export identified models and tuned controllers to C (SPEC §9): the embedded runtime is
+"""Export identified models and tuned controllers to C (docs/spec.md §9): the embedded runtime is
 ``libpiezohyst`` (``crates/capi``, header ``crates/capi/include/piezohyst.h``), which runs
 the same Rust code as Python, so a model or controller exported here gives in C the numbers
 it gives in Python, bit for bit.
@@ -26,6 +26,7 @@ Controller file (``"format": "piezohyst-controller"``, ``schema_version`` 1)::
 ``params`` are exactly ``controller.core(stage)[1]`` in order (names in
 :data:`CONTROLLER_PARAMS`); floats are written so they read back bit for bit.
 """
+
 from __future__ import annotations
 
 import json
@@ -40,9 +41,21 @@ from . import _core
 from ._io import load_json_file, malformed_as, write_atomic
 from .errors import OutputExistsError, ParameterError, ParameterTypeError
 
-__all__ = ["FAMILY_CODES", "CONTROLLER_KINDS", "CONTROLLER_PARAMS", "CONTROLLER_SCHEMA_VERSION",
-           "ExportedController", "controller_to_dict", "controller_from_dict", "save_controller", "load_controller",
-           "row_names", "export_c", "header_path", "library_path"]
+__all__ = [
+    "CONTROLLER_KINDS",
+    "CONTROLLER_PARAMS",
+    "CONTROLLER_SCHEMA_VERSION",
+    "FAMILY_CODES",
+    "ExportedController",
+    "controller_from_dict",
+    "controller_to_dict",
+    "export_c",
+    "header_path",
+    "library_path",
+    "load_controller",
+    "row_names",
+    "save_controller",
+]
 
 #: ``PhsFamily`` codes of the C library.
 FAMILY_CODES = {"pi": 1, "gpi": 2, "rdpi": 3, "creep": 4, "preisach": 5, "boucwen": 6, "duhem": 7, "dahl": 8}
@@ -52,13 +65,65 @@ CONTROLLER_KINDS = {"open_loop": 1, "pid": 2, "smc": 3, "absmc": 4, "cemf_feedfo
 CONTROLLER_PARAMS = {
     "open_loop": ("gain", "offset", "c1", "c2", "u_min", "u_max"),
     "pid": ("kp", "ki", "kd", "tau_d", "ts", "ff_gain", "offset", "u_min", "u_max"),
-    "smc": ("M", "B", "K", "kp", "kv", "alpha", "switching", "ks_or_k1", "phi_or_k2", "observer_bandwidth", "ts",
-            "observer_delay", "cemf", "tem", "capacitance", "hyst_alpha", "hyst_beta", "hyst_gamma", "desired_model_terms",
-            "u_min", "u_max"),
-    "absmc": ("b", "theta0_0", "theta0_1", "theta_min_0", "theta_min_1", "theta_max_0", "theta_max_1", "c1", "lambda",
-              "ks", "phi", "gamma_theta_0", "gamma_theta_1", "gamma_d", "d0", "d_max", "desired_regressor",
-              "observer_bandwidth", "ts", "observer_delay", "u_min", "u_max"),
-    "cemf_feedforward": ("M", "B", "K", "tem", "capacitance", "hyst_alpha", "hyst_beta", "hyst_gamma", "u_min", "u_max"),
+    "smc": (
+        "M",
+        "B",
+        "K",
+        "kp",
+        "kv",
+        "alpha",
+        "switching",
+        "ks_or_k1",
+        "phi_or_k2",
+        "observer_bandwidth",
+        "ts",
+        "observer_delay",
+        "cemf",
+        "tem",
+        "capacitance",
+        "hyst_alpha",
+        "hyst_beta",
+        "hyst_gamma",
+        "desired_model_terms",
+        "u_min",
+        "u_max",
+    ),
+    "absmc": (
+        "b",
+        "theta0_0",
+        "theta0_1",
+        "theta_min_0",
+        "theta_min_1",
+        "theta_max_0",
+        "theta_max_1",
+        "c1",
+        "lambda",
+        "ks",
+        "phi",
+        "gamma_theta_0",
+        "gamma_theta_1",
+        "gamma_d",
+        "d0",
+        "d_max",
+        "desired_regressor",
+        "observer_bandwidth",
+        "ts",
+        "observer_delay",
+        "u_min",
+        "u_max",
+    ),
+    "cemf_feedforward": (
+        "M",
+        "B",
+        "K",
+        "tem",
+        "capacitance",
+        "hyst_alpha",
+        "hyst_beta",
+        "hyst_gamma",
+        "u_min",
+        "u_max",
+    ),
 }
 #: Version of the controller-file layout.
 CONTROLLER_SCHEMA_VERSION = 1
@@ -91,11 +156,21 @@ class ExportedController:
             raise ParameterTypeError("an exported controller cannot be wrapped again (it is already complete)")
         ts = float(stage.sample_time)
         if abs(ts - self.sample_time) > 1e-12 * self.sample_time:
-            raise ParameterError(f"stage.sample_time = {ts} s differs from the controller's sample_time = "
-                             f"{self.sample_time} s it was saved for")
-        inverse = None if self.inverse is None else (self.inverse[0], list(self.inverse[1]),
-                                                     np.array(self.inverse[2], dtype=np.float64),
-                                                     self.inverse[3], self.inverse[4])
+            raise ParameterError(
+                f"stage.sample_time = {ts} s differs from the controller's sample_time = "
+                f"{self.sample_time} s it was saved for"
+            )
+        inverse = (
+            None
+            if self.inverse is None
+            else (
+                self.inverse[0],
+                list(self.inverse[1]),
+                np.array(self.inverse[2], dtype=np.float64),
+                self.inverse[3],
+                self.inverse[4],
+            )
+        )
         return self.kind, self.params.copy(), inverse, self.ilc
 
     def __repr__(self) -> str:
@@ -120,18 +195,29 @@ def _count(x, name, minimum=0) -> int:
 
 def _validated(kind, params, inverse, ilc) -> None:
     """Build the controller once in the core (raises ValueError naming the problem)."""
-    spec = (kind, np.ascontiguousarray(params, dtype=np.float64),
-            None if inverse is None else (inverse[0], list(inverse[1]), np.ascontiguousarray(inverse[2], dtype=np.float64),
-                                          float(inverse[3]), float(inverse[4])),
-            ilc)
+    spec = (
+        kind,
+        np.ascontiguousarray(params, dtype=np.float64),
+        None
+        if inverse is None
+        else (
+            inverse[0],
+            list(inverse[1]),
+            np.ascontiguousarray(inverse[2], dtype=np.float64),
+            float(inverse[3]),
+            float(inverse[4]),
+        ),
+        ilc,
+    )
     _core.controller_initial_state(spec, 0.0)
 
 
 def controller_to_dict(controller, stage) -> dict:
     """The controller file's content for ``controller`` on ``stage`` (see the module doc)."""
     if not (hasattr(controller, "core") and callable(controller.core)):
-        raise ParameterTypeError(f"controller must be a piezohyst controller (OpenLoop, PID, SMC, ...), got "
-                        f"{type(controller).__name__}")
+        raise ParameterTypeError(
+            f"controller must be a piezohyst controller (OpenLoop, PID, SMC, ...), got {type(controller).__name__}"
+        )
     kind, params, inverse, ilc = controller.core(stage)
     names = CONTROLLER_PARAMS[kind]
     values = [float(x) for x in np.asarray(params, dtype=np.float64)]
@@ -143,19 +229,33 @@ def controller_to_dict(controller, stage) -> dict:
         "format": _FORMAT,
         "kind": kind,
         "description": repr(controller),
-        "params": dict(zip(names, values)),
+        "params": dict(zip(names, values, strict=False)),
         "inverse": None,
         "ilc": None,
-        "stage": {"sample_time": float(stage.sample_time), "sensor_delay": int(stage.sensor.delay),
-                  "amplifier_v_min": float(stage.amplifier.v_min), "amplifier_v_max": float(stage.amplifier.v_max)},
+        "stage": {
+            "sample_time": float(stage.sample_time),
+            "sensor_delay": int(stage.sensor.delay),
+            "amplifier_v_min": float(stage.amplifier.v_min),
+            "amplifier_v_max": float(stage.amplifier.v_max),
+        },
     }
     if inverse is not None:
         family, dims, row, lo, hi = inverse
-        d["inverse"] = {"family": family, "dims": [int(x) for x in dims],
-                        "params": [float(x) for x in np.asarray(row, dtype=np.float64)], "u_min": float(lo), "u_max": float(hi)}
+        d["inverse"] = {
+            "family": family,
+            "dims": [int(x) for x in dims],
+            "params": [float(x) for x in np.asarray(row, dtype=np.float64)],
+            "u_min": float(lo),
+            "u_max": float(hi),
+        }
     if ilc is not None:
-        d["ilc"] = {"period": int(ilc[0]), "gain": float(ilc[1]), "forgetting": float(ilc[2]), "lead": int(ilc[3]),
-                    "delay": int(ilc[4])}
+        d["ilc"] = {
+            "period": int(ilc[0]),
+            "gain": float(ilc[1]),
+            "forgetting": float(ilc[2]),
+            "lead": int(ilc[3]),
+            "delay": int(ilc[4]),
+        }
     return d
 
 
@@ -171,8 +271,10 @@ def _controller_from_dict(d) -> ExportedController:
     if d.get("format") != _FORMAT:
         raise ParameterError(f"format = {d.get('format')!r} is not {_FORMAT!r} (is this a model file?)")
     if d.get("schema_version") != CONTROLLER_SCHEMA_VERSION:
-        raise ParameterError(f"schema_version = {d.get('schema_version')!r} is not supported (this version reads "
-                         f"{CONTROLLER_SCHEMA_VERSION})")
+        raise ParameterError(
+            f"schema_version = {d.get('schema_version')!r} is not supported (this version reads "
+            f"{CONTROLLER_SCHEMA_VERSION})"
+        )
     kind = d.get("kind")
     if kind not in CONTROLLER_PARAMS:
         raise ParameterError(f"kind = {kind!r} is unknown; expected one of {', '.join(CONTROLLER_PARAMS)}")
@@ -180,7 +282,9 @@ def _controller_from_dict(d) -> ExportedController:
     names = CONTROLLER_PARAMS[kind]
     if not isinstance(p, dict) or list(p) != list(names):
         got = list(p) if isinstance(p, dict) else p
-        raise ParameterError(f"params of {kind!r} must be an object with the keys {list(names)} in this order, got {got!r}")
+        raise ParameterError(
+            f"params of {kind!r} must be an object with the keys {list(names)} in this order, got {got!r}"
+        )
     params = np.array([_finite(p[n], f"params.{n}") for n in names], dtype=np.float64)
     inverse = None
     inv = d.get("inverse")
@@ -198,15 +302,25 @@ def _controller_from_dict(d) -> ExportedController:
         if not isinstance(row, list):
             raise ParameterError("inverse.params must be a list of numbers")
         row = tuple(_finite(x, f"inverse.params[{i}]") for i, x in enumerate(row))
-        inverse = (family, dims, row, _finite(inv.get("u_min"), "inverse.u_min"), _finite(inv.get("u_max"), "inverse.u_max"))
+        inverse = (
+            family,
+            dims,
+            row,
+            _finite(inv.get("u_min"), "inverse.u_min"),
+            _finite(inv.get("u_max"), "inverse.u_max"),
+        )
     ilc = None
     il = d.get("ilc")
     if il is not None:
         if not isinstance(il, dict) or set(il) != set(_ILC_FIELDS):
             raise ParameterError(f"ilc must be null or an object with the keys {list(_ILC_FIELDS)}")
-        ilc = (_count(il["period"], "ilc.period", 1), _finite(il["gain"], "ilc.gain"),
-               _finite(il["forgetting"], "ilc.forgetting"), _count(il["lead"], "ilc.lead"),
-               _count(il["delay"], "ilc.delay"))
+        ilc = (
+            _count(il["period"], "ilc.period", 1),
+            _finite(il["gain"], "ilc.gain"),
+            _finite(il["forgetting"], "ilc.forgetting"),
+            _count(il["lead"], "ilc.lead"),
+            _count(il["delay"], "ilc.delay"),
+        )
     stage = d.get("stage")
     if not isinstance(stage, dict) or "sample_time" not in stage:
         raise ParameterError("stage must be an object with at least sample_time (s)")
@@ -265,13 +379,24 @@ def row_names(family: str, dims) -> list[str]:
         names = ["p0"] + [f"r[{i}]" for i in range(n)] + [f"w[{i}]" for i in range(n)] + creep(m)
     elif family == "gpi":
         n, _, _, m = dims
-        names = (["range_lo", "range_hi"] + [f"poly[{i}]" for i in range(4)] + [f"rising[{i}]" for i in range(4)]
-                 + [f"falling[{i}]" for i in range(4)] + [f"r[{i}]" for i in range(n)] + [f"b[{i}]" for i in range(n)]
-                 + creep(m))
+        names = (
+            ["range_lo", "range_hi"]
+            + [f"poly[{i}]" for i in range(4)]
+            + [f"rising[{i}]" for i in range(4)]
+            + [f"falling[{i}]" for i in range(4)]
+            + [f"r[{i}]" for i in range(n)]
+            + [f"b[{i}]" for i in range(n)]
+            + creep(m)
+        )
     elif family == "rdpi":
         n, m = dims
-        names = (["ts", "p0", "beta", "filter_tau"] + [f"r[{i}]" for i in range(n)] + [f"w[{i}]" for i in range(n)]
-                 + [f"c[{i}]" for i in range(n)] + creep(m))
+        names = (
+            ["ts", "p0", "beta", "filter_tau"]
+            + [f"r[{i}]" for i in range(n)]
+            + [f"w[{i}]" for i in range(n)]
+            + [f"c[{i}]" for i in range(n)]
+            + creep(m)
+        )
     elif family == "creep":
         names = creep(dims[0], always=True)
     elif family == "preisach":
@@ -320,7 +445,7 @@ def _c_double(x: float) -> str:
 
 def _c_array(name: str, values, names, indent="    ") -> str:
     lines = [f"const double {name}[{len(values)}] = {{"]
-    for i, (v, n) in enumerate(zip(values, names)):
+    for i, (v, n) in enumerate(zip(values, names, strict=False)):
         comma = "," if i + 1 < len(values) else " "
         lines.append(f"{indent}{_c_double(v)}{comma}  /* [{i}] {n} = {float(v)!r} */")
     lines.append("};")
@@ -335,12 +460,12 @@ def _model_files(model, source: str) -> dict:
     fam, dims, row = model.family, list(model.dims), model.to_row()
     n_params, n_state = _core.family_sizes(fam, dims)
     names = row_names(fam, dims)
-    dims4 = (dims + [0, 0, 0, 0])[:4]
+    dims4 = ([*dims, 0, 0, 0, 0])[:4]
     # the scratch size is what phs_model_sizes reports: derived coefficients (Preisach prefix
     # sums, creep lag gains)
     scratch = _scratch_len(fam, dims)
     h = f"""/* Generated by `piezohyst export-c` from {source} -- do not edit.
- * Model: {model.kind} (family {fam}, dims {dims}), input {model.units.get('input') or '?'} -> output {model.units.get('output') or '?'}.
+ * Model: {model.kind} (family {fam}, dims {dims}), input {model.units.get("input") or "?"} -> output {model.units.get("output") or "?"}.
  * The values are exact: hex literals of the doubles piezohyst identified. */
 #ifndef PIEZOHYST_MODEL_H
 #define PIEZOHYST_MODEL_H
@@ -403,7 +528,7 @@ def _controller_files(c: ExportedController, source: str) -> dict:
     ilc = c.ilc
     h = f"""/* Generated by `piezohyst export-c` from {source} -- do not edit.
  * Controller: {kind}{" behind the exact inverse of the exported model" if inv else ""}{" with ILC" if ilc else ""}.
- * {c.description.replace('*/', '* /')[:300]} */
+ * {c.description.replace("*/", "* /")[:300]} */
 #ifndef PIEZOHYST_CONTROLLER_H
 #define PIEZOHYST_CONTROLLER_H
 
@@ -428,16 +553,22 @@ PhsStatus piezohyst_controller_init(PhsController *controller, const PhsModel *i
 """
     body = []
     if inv:
-        body.append(f"    const PhsInverse inverse = {{inverse_model, {_c_double(inv[3])}, {_c_double(inv[4])}}}; "
-                    f"/* voltage limits {inv[3]!r} .. {inv[4]!r} */")
+        body.append(
+            f"    const PhsInverse inverse = {{inverse_model, {_c_double(inv[3])}, {_c_double(inv[4])}}}; "
+            f"/* voltage limits {inv[3]!r} .. {inv[4]!r} */"
+        )
     if ilc:
-        body.append(f"    static const PhsIlcSpec ilc = {{{ilc[0]}, {_c_double(ilc[1])}, {_c_double(ilc[2])}, {ilc[3]}, {ilc[4]}}}; "
-                    f"/* period, gain {ilc[1]!r}, forgetting {ilc[2]!r}, lead, delay */")
+        body.append(
+            f"    static const PhsIlcSpec ilc = {{{ilc[0]}, {_c_double(ilc[1])}, {_c_double(ilc[2])}, {ilc[3]}, {ilc[4]}}}; "
+            f"/* period, gain {ilc[1]!r}, forgetting {ilc[2]!r}, lead, delay */"
+        )
     if not inv:
         body.append("    (void)inverse_model;")
-    body.append(f"    return phs_controller_init(controller, PIEZOHYST_CONTROLLER_KIND, piezohyst_controller_params,\n"
-                f"                               PIEZOHYST_CONTROLLER_N_PARAMS, {'&inverse' if inv else 'NULL'}, "
-                f"{'&ilc' if ilc else 'NULL'});")
+    body.append(
+        f"    return phs_controller_init(controller, PIEZOHYST_CONTROLLER_KIND, piezohyst_controller_params,\n"
+        f"                               PIEZOHYST_CONTROLLER_N_PARAMS, {'&inverse' if inv else 'NULL'}, "
+        f"{'&ilc' if ilc else 'NULL'});"
+    )
     body = "\n".join(body)
     cc = f"""/* Generated by `piezohyst export-c` from {source} -- do not edit. */
 #include "piezohyst_controller.h"
@@ -468,7 +599,7 @@ def demo_input_range(model) -> tuple[float, float]:
         return float(row[0]), float(row[1])
     if fam in ("pi", "rdpi"):
         n = model.dims[0]
-        r = row[1:1 + n] if fam == "pi" else row[4:4 + n]
+        r = row[1 : 1 + n] if fam == "pi" else row[4 : 4 + n]
         if n and r[-1] > 0:
             return 0.0, float(2 * r[-1])
     return -1.0, 1.0
@@ -491,8 +622,13 @@ def example_plan(model, controller: ExportedController | None, input_range=None,
     plan = {"v_lo": lo, "v_hi": hi, "period": period, "steps": n}
     if controller is not None:
         # the reference stays inside the middle 60 % of the outputs over the input range
-        v = np.concatenate([np.linspace(0.0, hi, 200) if lo < 0 < hi else np.linspace(lo, hi, 200),
-                            np.linspace(hi, lo, 400), np.linspace(lo, hi, 400)])
+        v = np.concatenate(
+            [
+                np.linspace(0.0, hi, 200) if lo < 0 < hi else np.linspace(lo, hi, 200),
+                np.linspace(hi, lo, 400),
+                np.linspace(lo, hi, 400),
+            ]
+        )
         y = model.simulate(np.clip(v, lo, hi))
         y_lo, y_hi = float(np.min(y[200:])), float(np.max(y[200:]))
         span = y_hi - y_lo
@@ -506,7 +642,7 @@ def _example_c(model, controller, plan, lib_hint: str) -> str:
     head = f"""/* Generated by `piezohyst export-c` -- a minimal real-time loop on the exported objects.
  *
  * Build (the directory holds piezohyst.h; link the static library of crates/capi):
- *     cc -std=c99 -O2 -ffp-contract=off -I. example.c piezohyst_model.c{' piezohyst_controller.c' if controller else ''} \\
+ *     cc -std=c99 -O2 -ffp-contract=off -I. example.c piezohyst_model.c{" piezohyst_controller.c" if controller else ""} \\
  *        {lib_hint} {LINK_LIBS} -o example
  * Run: ./example            (summary)
  *      ./example --trace    (every sample, for checking against Python)
@@ -531,8 +667,8 @@ static int check(PhsStatus status, const char *what) {
 }
 """
     tri = f"""
-#define STEPS {plan['steps']}
-#define PERIOD {plan['period']}
+#define STEPS {plan["steps"]}
+#define PERIOD {plan["period"]}
 
 /* a triangle between lo and hi, PERIOD samples long; slope out in *rate (per sample) */
 static double triangle(long k, double lo, double hi, double *rate) {{
@@ -547,8 +683,8 @@ static double triangle(long k, double lo, double hi, double *rate) {{
 """
     if controller is None:
         main = f"""
-#define V_LO {_c_double(plan['v_lo'])} /* {plan['v_lo']!r} */
-#define V_HI {_c_double(plan['v_hi'])} /* {plan['v_hi']!r} */
+#define V_LO {_c_double(plan["v_lo"])} /* {plan["v_lo"]!r} */
+#define V_HI {_c_double(plan["v_hi"])} /* {plan["v_hi"]!r} */
 
 static PhsModel model;
 static double forward[PIEZOHYST_MODEL_STATE_LEN > 0 ? PIEZOHYST_MODEL_STATE_LEN : 1];
@@ -587,8 +723,8 @@ int main(int argc, char **argv) {{
     else:
         main = f"""#include "piezohyst_controller.h"
 
-#define X_LO {_c_double(plan['x_lo'])} /* {plan['x_lo']!r} */
-#define X_HI {_c_double(plan['x_hi'])} /* {plan['x_hi']!r} */
+#define X_LO {_c_double(plan["x_lo"])} /* {plan["x_lo"]!r} */
+#define X_HI {_c_double(plan["x_hi"])} /* {plan["x_hi"]!r} */
 #define TS PIEZOHYST_SAMPLE_TIME
 
 static PhsModel model;
@@ -640,8 +776,9 @@ int main(int argc, char **argv) {{
     return head + check + tri + main
 
 
-def export_c(model, out_dir, *, controller=None, force: bool = False, source: str = "Python",
-             input_range=None, steps=None) -> list[Path]:
+def export_c(
+    model, out_dir, *, controller=None, force: bool = False, source: str = "Python", input_range=None, steps=None
+) -> list[Path]:
     """Write the C initializers of ``model`` (and ``controller``, an
     :class:`ExportedController` or a controller file's dict) into ``out_dir`` with
     ``piezohyst.h`` and ``example.c``. Existing files are kept unless ``force``; each file is
@@ -654,14 +791,17 @@ def export_c(model, out_dir, *, controller=None, force: bool = False, source: st
     if isinstance(controller, dict):
         controller = controller_from_dict(controller)
     if controller is not None and not isinstance(controller, ExportedController):
-        raise ParameterTypeError(f"controller must be an ExportedController (load_controller) or its dict, got "
-                        f"{type(controller).__name__}")
+        raise ParameterTypeError(
+            f"controller must be an ExportedController (load_controller) or its dict, got {type(controller).__name__}"
+        )
     if controller is not None and controller.inverse is not None:
         fam, dims, row = controller.inverse[:3]
         if fam != model.family or tuple(dims) != tuple(model.dims) or not np.array_equal(np.array(row), model.to_row()):
-            raise ParameterError(f"the controller acts behind the inverse of a {fam} model with dims {list(dims)} that is "
-                             f"not MODEL (a {model.family} model with dims {list(model.dims)}, or different parameters); "
-                             f"export the model the controller was built on")
+            raise ParameterError(
+                f"the controller acts behind the inverse of a {fam} model with dims {list(dims)} that is "
+                f"not MODEL (a {model.family} model with dims {list(model.dims)}, or different parameters); "
+                f"export the model the controller was built on"
+            )
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ParameterError(f"out = '{out}' exists and is not a directory")

@@ -1,4 +1,4 @@
-"""Piezo flexure stage calculator (SPEC §3.1, seed 1).
+"""Piezo flexure stage calculator (docs/spec.md §3.1, seed 1).
 
 A stage guided by ``n`` identical leaf springs (thin beams clamped at both ends, guided:
 the ends stay parallel) and pushed by a piezo stack. Stage and actuator move together, so
@@ -20,6 +20,7 @@ Examples
 >>> f"{stage.keq:.4g} N/m, {stage.meq:.4g} kg, {stage.f_n:.4g} Hz"
 '7.333e+07 N/m, 0.0714 kg, 5101 Hz'
 """
+
 from __future__ import annotations
 
 import math
@@ -86,12 +87,12 @@ class LeafSpring:
     @property
     def second_moment(self) -> float:
         """Second moment of area of one leaf, ``I = h d^3 / 12`` [m^4]."""
-        return self.width * self.thickness ** 3 / 12.0
+        return self.width * self.thickness**3 / 12.0
 
     @property
     def leaf_stiffness(self) -> float:
         """Stiffness of one leaf, ``12 E I / L^3`` [N/m]."""
-        return 12.0 * self.youngs_modulus * self.second_moment / self.length ** 3
+        return 12.0 * self.youngs_modulus * self.second_moment / self.length**3
 
     @property
     def stiffness(self) -> float:
@@ -99,7 +100,7 @@ class LeafSpring:
         return self.count * self.leaf_stiffness
 
     @classmethod
-    def seed1(cls) -> "LeafSpring":
+    def seed1(cls) -> LeafSpring:
         """Seed 1's flexure: four A7075 leaves (E = 7.2e10 Pa), h = 10 mm, d = 1 mm, L = 6 mm,
         giving ``k_f = 1.333e7 N/m``.
 
@@ -111,7 +112,7 @@ class LeafSpring:
 
 class CemfCoefficients(NamedTuple):
     """Plant coefficients of the CEMF model normalized by the electromechanical transformation
-    ratio: ``M x'' + B x' + K x = Vin - Vh`` (SPEC §2.6).
+    ratio: ``M x'' + B x' + K x = Vin - Vh`` (docs/spec.md §2.6).
 
     Attributes
     ----------
@@ -144,7 +145,7 @@ class FlexureStage:
         Moving mass of the stage ``m_f`` [kg], ``> 0``.
     zeta : float, optional
         Damping ratio, ``>= 0`` (default 0.03; seed 1 calls the damping "almost zero",
-        SPEC §3.1 suggests 0.02-0.05).
+        docs/spec.md §3.1 suggests 0.02-0.05).
 
     Notes
     -----
@@ -187,15 +188,16 @@ class FlexureStage:
             )
 
     @classmethod
-    def from_leaf_spring(cls, leaf: LeafSpring, actuator_stiffness, actuator_mass, stage_mass,
-                         zeta=0.03) -> "FlexureStage":
+    def from_leaf_spring(
+        cls, leaf: LeafSpring, actuator_stiffness, actuator_mass, stage_mass, zeta=0.03
+    ) -> FlexureStage:
         """Stage guided by ``leaf`` (a :class:`LeafSpring`); ``k_f = leaf.stiffness``."""
         if not isinstance(leaf, LeafSpring):
             raise ParameterTypeError(f"leaf must be a LeafSpring, got {leaf!r}")
         return cls(actuator_stiffness, leaf.stiffness, actuator_mass, stage_mass, zeta)
 
     @classmethod
-    def seed1(cls, zeta=0.03) -> "FlexureStage":
+    def seed1(cls, zeta=0.03) -> FlexureStage:
         """Seed 1's stage: :meth:`LeafSpring.seed1` flexure (k_f = 1.333e7 N/m), PSt 150/5x5/20
         stack (k_z = 6e7 N/m), m_z = 0.0044 kg, m_f = 0.067 kg → keq = 7.333e7 N/m,
         meq = 0.0714 kg, f_n ≈ 5.1 kHz.
@@ -204,8 +206,9 @@ class FlexureStage:
         >>> f"{s.flexure_stiffness:.4g} {s.keq:.4g} {s.meq:.4g} {s.f_n:.4g}"
         '1.333e+07 7.333e+07 0.0714 5101'
         """
-        return cls.from_leaf_spring(LeafSpring.seed1(), actuator_stiffness=6e7,
-                                    actuator_mass=0.0044, stage_mass=0.067, zeta=zeta)
+        return cls.from_leaf_spring(
+            LeafSpring.seed1(), actuator_stiffness=6e7, actuator_mass=0.0044, stage_mass=0.067, zeta=zeta
+        )
 
     @property
     def meq(self) -> float:
@@ -233,7 +236,7 @@ class FlexureStage:
         return self.omega_n / (2.0 * math.pi)
 
     def cemf_coefficients(self, tem) -> CemfCoefficients:
-        """CEMF-normalized plant ``M = meq/Tem, B = beq/Tem, K = keq/Tem`` (SPEC §2.6).
+        """CEMF-normalized plant ``M = meq/Tem, B = beq/Tem, K = keq/Tem`` (docs/spec.md §2.6).
 
         Parameters
         ----------

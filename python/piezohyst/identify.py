@@ -1,4 +1,4 @@
-"""Identification by least squares over the linear parameters (SPEC §4).
+"""Identification by least squares over the linear parameters (docs/spec.md §4).
 
 With the structure fixed — thresholds, envelopes, rate terms, creep time constants, the
 Preisach grid — the output of a PI-type or Preisach model is linear in its weights and
@@ -8,6 +8,7 @@ from the Rust core in one pass; the weights come from a bounded least-squares so
 weights). This is the inner, exact step of variable projection; the metaheuristics of
 :mod:`piezohyst.optimize` search the few nonlinear parameters around it.
 """
+
 from __future__ import annotations
 
 import time
@@ -15,17 +16,31 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-
 from . import _core
 from ._validate import as_int, as_record, as_scalar
 from .creep import Creep
+from .errors import ParameterError, ParameterTypeError
 from .pi import PI, GeneralizedPI, RateDependentPI
 from .preisach import Preisach
-from .errors import ParameterError, ParameterTypeError
 
-__all__ = ["CEMF_PARAMETERS", "FitResult", "IdentificationResult", "KINDS", "LOSSES", "STRUCTURES", "default_huber_delta",
-           "fit_linear", "fit_metrics", "huber_cost", "identify", "identify_cemf", "identify_mpi", "identify_pi",
-           "identify_preisach", "minimize_huber"]
+__all__ = [
+    "CEMF_PARAMETERS",
+    "KINDS",
+    "LOSSES",
+    "STRUCTURES",
+    "FitResult",
+    "IdentificationResult",
+    "default_huber_delta",
+    "fit_linear",
+    "fit_metrics",
+    "huber_cost",
+    "identify",
+    "identify_cemf",
+    "identify_mpi",
+    "identify_pi",
+    "identify_preisach",
+    "minimize_huber",
+]
 
 
 @dataclass(frozen=True)
@@ -38,8 +53,10 @@ class FitResult:
 
     def __repr__(self) -> str:
         m = self.metrics
-        return (f"FitResult({type(self.model).__name__}, rmse={m['rmse']:.4g} ({m['rmse_percent']:.3g} % of range), "
-                f"max_error={m['max_error']:.4g} ({m['max_error_percent']:.3g} %), {self.wall_time * 1e3:.1f} ms)")
+        return (
+            f"FitResult({type(self.model).__name__}, rmse={m['rmse']:.4g} ({m['rmse_percent']:.3g} % of range), "
+            f"max_error={m['max_error']:.4g} ({m['max_error_percent']:.3g} %), {self.wall_time * 1e3:.1f} ms)"
+        )
 
 
 def fit_metrics(predicted, measured) -> dict:
@@ -139,21 +156,38 @@ def _layout(model):
         lb = np.r_[0.0, np.zeros(n), np.full(n, -inf), np.zeros(m_creep)]
 
         def build(t):
-            return RateDependentPI(model.thresholds, t[1:1 + n], model.ts, t[0], model.beta, t[1 + n:1 + 2 * n],
-                                   model.filter_tau, creep=with_creep(t[1 + 2 * n:]), units=model.units)
+            return RateDependentPI(
+                model.thresholds,
+                t[1 : 1 + n],
+                model.ts,
+                t[0],
+                model.beta,
+                t[1 + n : 1 + 2 * n],
+                model.filter_tau,
+                creep=with_creep(t[1 + 2 * n :]),
+                units=model.units,
+            )
     elif isinstance(model, GeneralizedPI):
         n = model.thresholds.size
         lb = np.r_[np.full(4, -inf), np.zeros(n), np.zeros(m_creep)]
 
         def build(t):
-            return GeneralizedPI(model.thresholds, t[4:4 + n], t[:4], model.rising, model.falling, model.input_range,
-                                 creep=with_creep(t[4 + n:]), units=model.units)
+            return GeneralizedPI(
+                model.thresholds,
+                t[4 : 4 + n],
+                t[:4],
+                model.rising,
+                model.falling,
+                model.input_range,
+                creep=with_creep(t[4 + n :]),
+                units=model.units,
+            )
     elif isinstance(model, PI):
         n = model.thresholds.size
         lb = np.r_[0.0, np.zeros(n), np.zeros(m_creep)]
 
         def build(t):
-            return PI(model.thresholds, t[1:1 + n], t[0], creep=with_creep(t[1 + n:]), units=model.units)
+            return PI(model.thresholds, t[1 : 1 + n], t[0], creep=with_creep(t[1 + n :]), units=model.units)
     elif isinstance(model, Preisach):
         cells = model.weights.size
         lb = np.r_[-inf, 0.0, np.zeros(cells)]
@@ -161,7 +195,9 @@ def _layout(model):
         def build(t):
             return Preisach(model.levels, model.input_range, t[2:], t[0], t[1], model.memory, units=model.units)
     else:
-        raise ParameterTypeError(f"model must be PI, GeneralizedPI, RateDependentPI or Preisach, got {type(model).__name__}")
+        raise ParameterTypeError(
+            f"model must be PI, GeneralizedPI, RateDependentPI or Preisach, got {type(model).__name__}"
+        )
     return lb, np.full(lb.size, inf), build
 
 
@@ -214,7 +250,7 @@ def fit_linear(model, input, output, *, loss="squared", huber_delta=None) -> Fit
         raise ParameterError(f"output has {y.size} samples, input has {v.size}; they must match")
     lb, ub, build = _layout(model)
     A = _core.regressors(model.family, list(model.dims), model.to_row(), v)
-    scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-300)   # equilibrate the columns
+    scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-300)  # equilibrate the columns
     A = A / scale
     bounds = (lb * scale, ub * scale)
     z = np.clip(lsq_linear(A, y, bounds=bounds, method="bvls", lsmr_tol=None).x, *bounds)
@@ -232,14 +268,14 @@ def _irls_huber(A, y, bounds, z, delta, lsq_linear, max_iterations=100, rtol=1e-
     settled."""
     lower, upper = bounds
     span = float(np.ptp(y)) or 1.0
-    tiny = 1e-15 * span                      # a zero MAD (an exact majority) still weighs
+    tiny = 1e-15 * span  # a zero MAD (an exact majority) still weighs
     fit = A @ z
     for _ in range(max_iterations):
         r = fit - y
         d = max(float(default_huber_delta(r)) if delta is None else delta, tiny)
         w = np.sqrt(np.minimum(1.0, d / np.maximum(np.abs(r), tiny)))
         sol = lsq_linear(A * w[:, None], y * w, bounds=bounds, method="bvls", lsmr_tol=None)
-        z = np.clip(sol.x, lower, upper)     # bvls may overstep a bound by an ulp
+        z = np.clip(sol.x, lower, upper)  # bvls may overstep a bound by an ulp
         new_fit = A @ z
         moved = float(np.sqrt(np.mean((new_fit - fit) ** 2)))
         fit = new_fit
@@ -255,8 +291,9 @@ def _default_thresholds(v, n):
     return np.arange(1, n + 1) * span / (2.0 * (n + 1))
 
 
-def identify_pi(input, output, *, operators=9, thresholds=None, creep=None, loss="squared",
-                huber_delta=None) -> FitResult:
+def identify_pi(
+    input, output, *, operators=9, thresholds=None, creep=None, loss="squared", huber_delta=None
+) -> FitResult:
     """Classical PI with ``operators`` thresholds spread over half the input range (or the
     given ones), weights and linear term by non-negative least squares (``loss``,
     ``huber_delta``: see :func:`fit_linear`)."""
@@ -265,8 +302,18 @@ def identify_pi(input, output, *, operators=9, thresholds=None, creep=None, loss
     return fit_linear(PI(r, np.zeros(len(r)), 1.0, creep=creep), v, output, loss=loss, huber_delta=huber_delta)
 
 
-def identify_mpi(input, output, *, operators=9, thresholds=None, rising=None, falling=None, creep=None,
-                 loss="squared", huber_delta=None) -> FitResult:
+def identify_mpi(
+    input,
+    output,
+    *,
+    operators=9,
+    thresholds=None,
+    rising=None,
+    falling=None,
+    creep=None,
+    loss="squared",
+    huber_delta=None,
+) -> FitResult:
     """Seed 2's MPI (cubic input polynomial + generalized plays) with the envelopes given
     (identity by default); polynomial and weights by bounded least squares (``loss``,
     ``huber_delta``: see :func:`fit_linear`)."""
@@ -278,8 +325,9 @@ def identify_mpi(input, output, *, operators=9, thresholds=None, rising=None, fa
     return fit_linear(model, v, output, loss=loss, huber_delta=huber_delta)
 
 
-def identify_preisach(input, output, *, levels=12, input_range=None, memory=64, loss="squared",
-                      huber_delta=None) -> FitResult:
+def identify_preisach(
+    input, output, *, levels=12, input_range=None, memory=64, loss="squared", huber_delta=None
+) -> FitResult:
     """Discretized Preisach on a ``levels x levels`` grid over the input range; offset, slope
     and cell weights (non-negative) by least squares (``loss``, ``huber_delta``: see
     :func:`fit_linear`)."""
@@ -320,8 +368,13 @@ class IdentificationResult:
 
     def to_dict(self) -> dict:
         """JSON-ready report (the model file's ``fit`` section)."""
-        return {"method": self.method, "wall_time_s": self.wall_time, "train": self.train,
-                "validation": self.validation, "partial": self.partial}
+        return {
+            "method": self.method,
+            "wall_time_s": self.wall_time,
+            "train": self.train,
+            "validation": self.validation,
+            "partial": self.partial,
+        }
 
     def plot(self, input, output):
         """Loop, fit and residual for a record (matplotlib figure)."""
@@ -371,9 +424,27 @@ def _boucwen_bounds(v, y):
     return [(0.0, 4 * gain), (1e-3 / dv, 50.0 / dv), (-50.0 / dv, 50.0 / dv), (1.0, 1.0), (0.0, 4 * gain)]
 
 
-def identify(input, output, model="mpi", *, fs=None, operators=9, levels=12, structure="fixed", creep=0,
-             optimizer="ls", rng=None, max_iterations=None, population_size=None, validate=None, progress=False,
-             callback=None, loss="squared", huber_delta=None, **options):
+def identify(
+    input,
+    output,
+    model="mpi",
+    *,
+    fs=None,
+    operators=9,
+    levels=12,
+    structure="fixed",
+    creep=0,
+    optimizer="ls",
+    rng=None,
+    max_iterations=None,
+    population_size=None,
+    validate=None,
+    progress=False,
+    callback=None,
+    loss="squared",
+    huber_delta=None,
+    **options,
+):
     """Identify a hysteresis model from an input/output record (free-run simulation error).
 
     One entry point for every model kind: the linear families by least squares, the
@@ -465,28 +536,54 @@ def identify(input, output, model="mpi", *, fs=None, operators=9, levels=12, str
         raise ParameterError(f"structure = {structure!r} is unknown; expected one of {list(STRUCTURES)}")
     creep = as_int(creep, "creep")
     if structure == "fit" and model not in _VP_KINDS:
-        raise ParameterError(f"structure = 'fit' applies to model = {' / '.join(repr(k) for k in _VP_KINDS)}; "
-                         f"{model!r} has no fixed structure to fit (use structure = 'fixed')")
+        raise ParameterError(
+            f"structure = 'fit' applies to model = {' / '.join(repr(k) for k in _VP_KINDS)}; "
+            f"{model!r} has no fixed structure to fit (use structure = 'fixed')"
+        )
     if creep and model not in _VP_KINDS:
-        raise ParameterError(f"creep = {creep} applies to model = {' / '.join(repr(k) for k in _VP_KINDS)}, "
-                         f"not to {model!r}")
+        raise ParameterError(
+            f"creep = {creep} applies to model = {' / '.join(repr(k) for k in _VP_KINDS)}, not to {model!r}"
+        )
     if structure == "fit":
         unknown = sorted(set(options) - set(_VP_OPTIONS))
         if unknown:
-            raise ParameterTypeError(f"identify() got unexpected keyword arguments {unknown} for model = {model!r}, "
-                            f"structure = 'fit' (accepted: {list(_VP_OPTIONS)})")
+            raise ParameterTypeError(
+                f"identify() got unexpected keyword arguments {unknown} for model = {model!r}, "
+                f"structure = 'fit' (accepted: {list(_VP_OPTIONS)})"
+            )
         from .varpro import identify_vp
 
-        return identify_vp(input, output, model, fs=fs, operators=operators, creep=creep,
-                           optimizer="de" if optimizer == "ls" else optimizer, rng=rng, max_iterations=max_iterations,
-                           population_size=population_size, validate=validate, progress=progress, callback=callback,
-                           loss=loss, huber_delta=delta, **options)
+        return identify_vp(
+            input,
+            output,
+            model,
+            fs=fs,
+            operators=operators,
+            creep=creep,
+            optimizer="de" if optimizer == "ls" else optimizer,
+            rng=rng,
+            max_iterations=max_iterations,
+            population_size=population_size,
+            validate=validate,
+            progress=progress,
+            callback=callback,
+            loss=loss,
+            huber_delta=delta,
+            **options,
+        )
     if options and model not in ("cemf", "boucwen-benchmark"):
         raise ParameterTypeError(f"identify() got unexpected keyword arguments {sorted(options)} for model = {model!r}")
     if max_iterations is None:
         max_iterations = _DEFAULT_ITERATIONS.get(model, 200)
-    search = dict(optimizer=optimizer, rng=rng, max_iterations=max_iterations, population_size=population_size,
-                  validate=validate, progress=progress, callback=callback)
+    search = dict(
+        optimizer=optimizer,
+        rng=rng,
+        max_iterations=max_iterations,
+        population_size=population_size,
+        validate=validate,
+        progress=progress,
+        callback=callback,
+    )
     if model == "cemf":
         if fs is None:
             raise ParameterError("fs is required for model = 'cemf' (the stage is simulated at the sample time)")
@@ -561,6 +658,7 @@ def _identify_boucwen(v, y, loss, delta, search):
 
         res = minimize_huber(simulate, y, bounds, delta, method=method, **search)
     else:
+
         def cost(rows):
             return _core.batch_rmse(family, [], np.ascontiguousarray(rows), v, y, float("inf"))
 
@@ -606,13 +704,14 @@ def minimize_huber(simulate, target, bounds, delta=None, **search):
     r0 = simulate(x0[None, :])[0] - target
     if res.message == "interrupted" or not np.all(np.isfinite(r0)):
         return replace(res, history={**res.history, "huber_delta": float("nan")})
-    tiny = 1e-15 * (float(np.max(np.abs(target))) or 1.0)     # an exact majority leaves MAD = 0
+    tiny = 1e-15 * (float(np.max(np.abs(target))) or 1.0)  # an exact majority leaves MAD = 0
     delta = max(float(default_huber_delta(r0)), tiny)
     lower, upper = np.array(bounds, dtype=np.float64).T
     x, f, n = _polish(fixed, x0, float(fixed(x0[None, :])[0]), lower, upper, {})
     message = f"{res.message}; Huber threshold {delta:.6g} from the MAD, then L-BFGS-B to {f:.6g}"
-    return replace(res, x=x, fun=f, nfev=res.nfev + n + 1, message=message,
-                   history={**res.history, "huber_delta": delta})
+    return replace(
+        res, x=x, fun=f, nfev=res.nfev + n + 1, message=message, history={**res.history, "huber_delta": delta}
+    )
 
 
 def _identify_benchmark(u, y, fs, loss, search, options):
@@ -639,10 +738,26 @@ def _identify_benchmark(u, y, fs, loss, search, options):
 CEMF_PARAMETERS = ("M", "B", "K", "tem", "alpha", "beta", "gamma")
 
 
-def identify_cemf(voltage, position, fs, *, capacitance=1.8e-6, bounds=None, optimizer="css", rng=None,
-                  max_iterations=150, population_size=None, substeps=1, tolerance=0.05, validate=None,
-                  progress=False, callback=None, loss="squared", huber_delta=None,
-                  polish=False) -> IdentificationResult:
+def identify_cemf(
+    voltage,
+    position,
+    fs,
+    *,
+    capacitance=1.8e-6,
+    bounds=None,
+    optimizer="css",
+    rng=None,
+    max_iterations=150,
+    population_size=None,
+    substeps=1,
+    tolerance=0.05,
+    validate=None,
+    progress=False,
+    callback=None,
+    loss="squared",
+    huber_delta=None,
+    polish=False,
+) -> IdentificationResult:
     """Grey-box identification of the CEMF stage model (seed 1) from the applied voltage and
     the measured displacement: ``M x'' + B x' + K x = Vin - Vh`` (``M = m/Tem``, ...) with
     the CEMF Bouc–Wen law on the stack charge, by a population optimizer over
@@ -685,16 +800,28 @@ def identify_cemf(voltage, position, fs, *, capacitance=1.8e-6, bounds=None, opt
         raise ParameterError("position does not move: nothing to identify")
     if bounds is None:
         k_lo, k_hi = 0.3 / gain, 3.0 / gain
-        w_lo, w_hi = 2 * np.pi * 1e3, 2 * np.pi * 2e4          # resonance between 1 and 20 kHz
-        q = capacitance * float(np.ptp(u))                   # charge scale, C
-        bounds = [(k_lo / w_hi**2, k_hi / w_lo**2), (0.0, 0.4 * np.sqrt(k_hi * k_hi / w_lo**2)), (k_lo, k_hi),
-                  (1.0, 50.0), (0.0, 4.0 / capacitance), (0.0, 30.0 / q), (-30.0 / q, 30.0 / q)]
+        w_lo, w_hi = 2 * np.pi * 1e3, 2 * np.pi * 2e4  # resonance between 1 and 20 kHz
+        q = capacitance * float(np.ptp(u))  # charge scale, C
+        bounds = [
+            (k_lo / w_hi**2, k_hi / w_lo**2),
+            (0.0, 0.4 * np.sqrt(k_hi * k_hi / w_lo**2)),
+            (k_lo, k_hi),
+            (1.0, 50.0),
+            (0.0, 4.0 / capacitance),
+            (0.0, 30.0 / q),
+            (-30.0 / q, 30.0 / q),
+        ]
     bounds = [(float(lo), float(hi)) for lo, hi in bounds]
     if len(bounds) != len(CEMF_PARAMETERS):
         raise ParameterError(f"bounds has {len(bounds)} pairs, expected {len(CEMF_PARAMETERS)} ({CEMF_PARAMETERS})")
     wide = Amplifier(-1e9, 1e9)
-    template = Stage(StageParameters(1.0, 0.0, 1.0, 1.0, capacitance), wide, sample_time=1.0 / fs,
-                     substeps=substeps, tolerance=tolerance).core_params()
+    template = Stage(
+        StageParameters(1.0, 0.0, 1.0, 1.0, capacitance),
+        wide,
+        sample_time=1.0 / fs,
+        substeps=substeps,
+        tolerance=tolerance,
+    ).core_params()
 
     def rows(theta):
         theta = np.atleast_2d(theta)
@@ -721,8 +848,14 @@ def identify_cemf(voltage, position, fs, *, capacitance=1.8e-6, bounds=None, opt
         return out
 
     method = "css" if optimizer == "ls" else optimizer
-    search = dict(method=method, rng=rng, max_iterations=max_iterations, population_size=population_size,
-                  progress=progress, callback=callback)
+    search = dict(
+        method=method,
+        rng=rng,
+        max_iterations=max_iterations,
+        population_size=population_size,
+        progress=progress,
+        callback=callback,
+    )
     if not isinstance(polish, bool):
         raise ParameterTypeError(f"polish must be True or False, got {polish!r}")
     if loss == "squared":
@@ -745,8 +878,16 @@ def identify_cemf(voltage, position, fs, *, capacitance=1.8e-6, bounds=None, opt
         val = fit_metrics(stage.simulate(vu).position, vx)
     if loss == "huber":
         method += "+huber"
-    return IdentificationResult(params, train, val, method, time.perf_counter() - t0, history,
-                                simulator=lambda u_: stage.simulate(u_).position, partial=res.interrupted)
+    return IdentificationResult(
+        params,
+        train,
+        val,
+        method,
+        time.perf_counter() - t0,
+        history,
+        simulator=lambda u_: stage.simulate(u_).position,
+        partial=res.interrupted,
+    )
 
 
 def _polish_simulation(simulate, target, x0, bounds, max_nfev=None):
@@ -773,8 +914,18 @@ def _polish_simulation(simulate, target, x0, bounds, max_nfev=None):
     width = upper - lower
     start = np.clip(x0, lower + 1e-9 * width, upper - 1e-9 * width)
     before = rmse(x0)
-    sol = least_squares(fun, start, bounds=(lower, upper), method="trf", x_scale="jac", diff_step=1e-6,
-                        xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=max_nfev or 100 * (x0.size + 1))
+    sol = least_squares(
+        fun,
+        start,
+        bounds=(lower, upper),
+        method="trf",
+        x_scale="jac",
+        diff_step=1e-6,
+        xtol=1e-12,
+        ftol=1e-12,
+        gtol=1e-12,
+        max_nfev=max_nfev or 100 * (x0.size + 1),
+    )
     x1 = np.clip(sol.x, lower, upper)
     after = rmse(x1)
     info = {"rmse_before": before, "rmse_after": min(before, after), "nfev": calls, "message": str(sol.message)}
@@ -785,7 +936,7 @@ def _stage_positions(rows, ts, substeps, tolerance, u):
     """``(S, N)`` open-loop positions of stage rows from rest, as ``stage_batch_rmse`` scores
     them; a NaN row where the core refuses the row or the run fails."""
     out = np.full((rows.shape[0], u.size), np.nan)
-    for i, row in enumerate(rows):       # a loop over the population, each run in Rust
+    for i, row in enumerate(rows):  # a loop over the population, each run in Rust
         try:
             out[i] = _core.stage_simulate(row, ts, substeps, tolerance, u, np.zeros(_core.STAGE_STATE_LEN))[0]
         except (ValueError, RuntimeError):

@@ -1,4 +1,4 @@
-"""Tracking and compensation metrics (SPEC §6).
+"""Tracking and compensation metrics (docs/spec.md §6).
 
 Plain functions over 1-D records: the error ``e = output - reference`` as RMSE and maximum,
 both also relative to the reference's range; the linearity error of an output against the
@@ -24,6 +24,7 @@ Examples
 >>> round(m["max_error_percent"], 6), round(m["normalized_max_error"], 6)
 (10.0, 0.1)
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -47,7 +48,9 @@ def _span(x, name):
     """The range of ``x``; a metric that divides by it is undefined when it is zero."""
     span = float(np.ptp(x))
     if not span > 0:
-        raise ParameterError(f"{name} has zero range (every sample = {float(x[0])}); the metric is relative to its range")
+        raise ParameterError(
+            f"{name} has zero range (every sample = {float(x[0])}); the metric is relative to its range"
+        )
     return span
 
 
@@ -98,7 +101,7 @@ def max_error(reference, output) -> float:
 def linearity_error(desired, output) -> float:
     """Linearity error, percent: ``100 max|y - (a x_d + b)| / (max y - min y)``, with
     ``(a, b)`` the least-squares line of the output ``y`` against the desired ``x_d``
-    (SPEC §6; seed 2, Table 3).
+    (docs/spec.md §6; seed 2, Table 3).
 
     The line absorbs any gain and offset, so a compensated actuator that tracks with the wrong
     gain still scores 0; what remains is the curvature and the loop width.
@@ -146,7 +149,7 @@ def _envelopes(x, y, levels):
     stop = np.where(rising, np.searchsorted(levels, x1, side="left"), np.searchsorted(levels, x0, side="right"))
     first = np.where(last & ~rising, np.searchsorted(levels, x1, side="left"), first)
     stop = np.where(last & rising, np.searchsorted(levels, x1, side="right"), stop)
-    count = np.where(x0 != x1, np.maximum(stop - first, 0), 0)   # a held input crosses no level
+    count = np.where(x0 != x1, np.maximum(stop - first, 0), 0)  # a held input crosses no level
     # every (interval, level) pair the path crosses, without a Python loop over intervals
     which = np.repeat(np.arange(count.size), count)
     level = first[which] + np.arange(which.size) - np.repeat(np.cumsum(count) - count, count)
@@ -164,7 +167,7 @@ def _envelopes(x, y, levels):
 
 def hysteresis_percent(input, output, *, levels=200) -> float:
     """Hysteresis, percent: the widest vertical extent of the loop over the input, relative to
-    the output range (SPEC §6).
+    the output range (docs/spec.md §6).
 
     Definition: the record is read as the path through the points ``(input[k], output[k])``,
     straight between samples. At each of ``levels`` input values evenly spaced from
@@ -252,7 +255,12 @@ def tracking_metrics(reference, output) -> dict:
     e_rms, e_max = rmse(r, y), max_error(r, y)
     # a constant output is a (failed) run worth reporting, not an input error
     lin = linearity_error(r, y) if np.ptp(y) > 0 else float("nan")
-    return {"rmse": e_rms, "max_error": e_max,
-            "rmse_percent": 100.0 * e_rms / span, "max_error_percent": 100.0 * e_max / span,
-            "normalized_max_error": e_max / span, "normalized_rms_error": e_rms / span,
-            "linearity_error": lin}
+    return {
+        "rmse": e_rms,
+        "max_error": e_max,
+        "rmse_percent": 100.0 * e_rms / span,
+        "max_error_percent": 100.0 * e_max / span,
+        "normalized_max_error": e_max / span,
+        "normalized_rms_error": e_rms / span,
+        "linearity_error": lin,
+    }

@@ -5,6 +5,7 @@ A model is a parameter set (immutable once built) plus an internal state used by
 state: it runs a whole record from a given (default: relaxed) initial state. All loops over
 samples run in the Rust core.
 """
+
 from __future__ import annotations
 
 import json
@@ -13,11 +14,11 @@ from pathlib import Path
 import numpy as np
 
 from . import _core
-from ._validate import as_record, as_scalar
 from ._io import load_json_file, malformed_as, write_atomic
-from .errors import OutputExistsError, ParameterError, ParameterTypeError
+from ._validate import as_record, as_scalar
+from .errors import ParameterError, ParameterTypeError
 
-__all__ = ["HysteresisModel", "Inverse", "SCHEMA_VERSION", "model_from_dict", "load_model"]
+__all__ = ["SCHEMA_VERSION", "HysteresisModel", "Inverse", "load_model", "model_from_dict"]
 
 #: Version of the model-file layout written by :meth:`HysteresisModel.save`.
 SCHEMA_VERSION = 1
@@ -111,8 +112,8 @@ class HysteresisModel:
         self._state = st
         return float(y[0])
 
-    def inverse(self) -> "Inverse":
-        """The exact per-sample inverse of this model (SPEC §2.1)."""
+    def inverse(self) -> Inverse:
+        """The exact per-sample inverse of this model (docs/spec.md §2.1)."""
         return Inverse(self)
 
     # -- files ----------------------------------------------------------------------
@@ -142,11 +143,7 @@ class HysteresisModel:
         return cls(**p, units=units)
 
     def __eq__(self, other):
-        return (
-            type(self) is type(other)
-            and self.dims == other.dims
-            and np.array_equal(self._row, other._row)
-        )
+        return type(self) is type(other) and self.dims == other.dims and np.array_equal(self._row, other._row)
 
     __hash__ = None
 
@@ -206,7 +203,7 @@ def load_model(path) -> HysteresisModel:
 
 
 class Inverse:
-    """Exact per-sample inverse of a model (SPEC §2.1).
+    """Exact per-sample inverse of a model (docs/spec.md §2.1).
 
     At each sample the forward model's state is frozen, the input that produces the desired
     output is found by bracketing and safeguarded Newton, and the forward state is advanced

@@ -1,4 +1,4 @@
-"""Population optimizers for identification and tuning (SPEC §4): CSS, PSO, MPSO and DE.
+"""Population optimizers for identification and tuning (docs/spec.md §4): CSS, PSO, MPSO and DE.
 
 Every optimizer is a public stepping object with an *ask/tell* interface: :meth:`Optimizer.ask`
 returns the whole population as an ``(S, D)`` array, the caller evaluates it in one batch
@@ -37,6 +37,7 @@ The same loop by hand, with the stepping object:
 >>> bool(opt.best_cost < 1e-8)
 True
 """
+
 from __future__ import annotations
 
 import numbers
@@ -52,8 +53,8 @@ from .errors import ComputationError, ParameterError, ParameterTypeError
 __all__ = [
     "CSS",
     "DE",
-    "MPSO",
     "METHODS",
+    "MPSO",
     "PSO",
     "IntermediateResult",
     "OptimizeResult",
@@ -82,7 +83,9 @@ def _as_bounds(bounds) -> tuple[np.ndarray, np.ndarray]:
         except (TypeError, ValueError) as e:
             raise ParameterTypeError(f"bounds must be a sequence of (lower, upper) pairs of numbers: {e}") from None
         if b.ndim != 2 or b.shape[1] != 2 or b.shape[0] < 1:
-            raise ParameterError(f"bounds must have shape (D, 2) with D >= 1 (one (lower, upper) pair per parameter), got shape {b.shape}")
+            raise ParameterError(
+                f"bounds must have shape (D, 2) with D >= 1 (one (lower, upper) pair per parameter), got shape {b.shape}"
+            )
         lo, hi = b[:, 0].copy(), b[:, 1].copy()
     if lo.size < 1:
         raise ParameterError("bounds is empty: at least one parameter is needed")
@@ -260,7 +263,9 @@ class Optimizer:
             bad = np.argwhere(~np.isfinite(init_array) | (init_array < self._lower) | (init_array > self._upper))
             if bad.size:
                 i, d = bad[0]
-                raise ParameterError(f"init[{i}, {d}] = {init_array[i, d]} is outside bounds[{d}] = ({self._lower[d]}, {self._upper[d]})")
+                raise ParameterError(
+                    f"init[{i}, {d}] = {init_array[i, d]} is outside bounds[{d}] = ({self._lower[d]}, {self._upper[d]})"
+                )
             X0 = init_array
         elif init == "lhs":
             # one stratum per candidate in every dimension, strata shuffled independently
@@ -345,7 +350,9 @@ class Optimizer:
         ``RuntimeError`` once ``max_iterations`` populations have been evaluated.
         """
         if self.done:
-            raise ComputationError(f"{self.name}: max_iterations = {self.max_iterations} populations have been evaluated; nothing more to ask")
+            raise ComputationError(
+                f"{self.name}: max_iterations = {self.max_iterations} populations have been evaluated; nothing more to ask"
+            )
         if self._t_start is None:
             self._t_start = time.perf_counter()
         self._asked = True
@@ -412,7 +419,10 @@ class Optimizer:
     def intermediate_result(self) -> IntermediateResult:
         """The object handed to callbacks."""
         return IntermediateResult(
-            x=self.best_x, fun=self.best_cost, nit=self._iteration, nfev=self._nfev,
+            x=self.best_x,
+            fun=self.best_cost,
+            nit=self._iteration,
+            nfev=self._nfev,
             mean_cost=self._h_mean[-1] if self._h_mean else np.inf,
         )
 
@@ -486,7 +496,7 @@ def css_charges(costs) -> np.ndarray:
 
 
 def css_forces(positions, costs, *, a: float, eps: float, rand) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Charges, attraction matrix and resultant forces of one CSS step (SPEC §4).
+    """Charges, attraction matrix and resultant forces of one CSS step (docs/spec.md §4).
 
     With ``X_best`` the position of the best (finite) cost of the population:
 
@@ -556,7 +566,7 @@ def css_forces(positions, costs, *, a: float, eps: float, rand) -> tuple[np.ndar
 
 
 class CSS(Optimizer):
-    """Charged System Search (Kaveh & Talatahari 2010), as in SPEC §4 — seed 1's optimizer.
+    """Charged System Search (Kaveh & Talatahari 2010), as in docs/spec.md §4 — seed 1's optimizer.
 
     Each candidate (charged particle, CP) ``X_j`` with cost ``f_j`` carries the charge
     ``q_j = (f_j - f_worst)/(f_best - f_worst)`` (best and worst of the current population);
@@ -602,7 +612,7 @@ class CSS(Optimizer):
     bandwidth : float
         Pitch-adjust bandwidth as a fraction of each parameter's range, default 0.01.
     normalize : bool
-        Compute separations, forces and velocities in the unit box (default). The SPEC's
+        Compute separations, forces and velocities in the unit box (default). The spec's
         ``a = 0.1 * max range`` compares the unit-less ``r_ij`` with a length in parameter
         units; with parameters of different units (the CEMF model spans 1e-3..1e5) that
         keeps the population from contracting. ``False`` is the literal form.
@@ -623,8 +633,20 @@ class CSS(Optimizer):
 
     name = "css"
 
-    def __init__(self, bounds, population_size=None, rng=None, max_iterations=200, *,
-                 cmcr=0.95, par=0.1, bandwidth=0.01, eps=None, init="lhs", normalize=True):
+    def __init__(
+        self,
+        bounds,
+        population_size=None,
+        rng=None,
+        max_iterations=200,
+        *,
+        cmcr=0.95,
+        par=0.1,
+        bandwidth=0.01,
+        eps=None,
+        init="lhs",
+        normalize=True,
+    ):
         super().__init__(bounds, population_size, rng, max_iterations, init=init)
         self.cmcr = _as_fraction(cmcr, "cmcr")
         self.par = _as_fraction(par, "par")
@@ -739,8 +761,19 @@ class PSO(Optimizer):
 
     name = "pso"
 
-    def __init__(self, bounds, population_size=None, rng=None, max_iterations=200, *,
-                 w=0.7298, c1=1.49618, c2=1.49618, vmax=0.2, init="lhs"):
+    def __init__(
+        self,
+        bounds,
+        population_size=None,
+        rng=None,
+        max_iterations=200,
+        *,
+        w=0.7298,
+        c1=1.49618,
+        c2=1.49618,
+        vmax=0.2,
+        init="lhs",
+    ):
         super().__init__(bounds, population_size, rng, max_iterations, init=init)
         self.w = as_scalar(w, "w", nonnegative=True)
         self.c1 = as_scalar(c1, "c1", nonnegative=True)
@@ -779,8 +812,12 @@ class PSO(Optimizer):
         rng = self._rng
         r1 = rng.random((S, D))
         r2 = rng.random((S, D))
-        V = (self.inertia(self._iteration - 1) * self._V
-             + self.c1 * r1 * (self._P - X) + self.c2 * r2 * (G - X) + self._random_particle_term(X))
+        V = (
+            self.inertia(self._iteration - 1) * self._V
+            + self.c1 * r1 * (self._P - X)
+            + self.c2 * r2 * (G - X)
+            + self._random_particle_term(X)
+        )
         V = np.clip(V, -self._vlim, self._vlim)
         Xn = X + V
         low, high = Xn < self._lower, Xn > self._upper
@@ -792,7 +829,7 @@ class PSO(Optimizer):
 
 
 class MPSO(PSO):
-    """Modified PSO of seed 2 (SPEC §4, **[R]**): a random-particle term and a nonlinearly
+    """Modified PSO of seed 2 (docs/spec.md §4, **[R]**): a random-particle term and a nonlinearly
     decreasing inertia::
 
         V = w(t) V + c1 r1 (P_i - X) + c2 r2 (G - X) + c3 r3 (P_k - X)
@@ -823,8 +860,21 @@ class MPSO(PSO):
 
     name = "mpso"
 
-    def __init__(self, bounds, population_size=None, rng=None, max_iterations=200, *,
-                 w_max=0.9, w_min=0.4, c1=1.5, c2=1.5, c3=0.5, vmax=0.2, init="lhs"):
+    def __init__(
+        self,
+        bounds,
+        population_size=None,
+        rng=None,
+        max_iterations=200,
+        *,
+        w_max=0.9,
+        w_min=0.4,
+        c1=1.5,
+        c2=1.5,
+        c3=0.5,
+        vmax=0.2,
+        init="lhs",
+    ):
         super().__init__(bounds, population_size, rng, max_iterations, w=w_max, c1=c1, c2=c2, vmax=vmax, init=init)
         self.w_max = as_scalar(w_max, "w_max", nonnegative=True)
         self.w_min = as_scalar(w_min, "w_min", nonnegative=True)
@@ -883,8 +933,7 @@ class DE(Optimizer):
 
     name = "de"
 
-    def __init__(self, bounds, population_size=None, rng=None, max_iterations=200, *,
-                 F=0.7, CR=0.9, init="lhs"):
+    def __init__(self, bounds, population_size=None, rng=None, max_iterations=200, *, F=0.7, CR=0.9, init="lhs"):
         super().__init__(bounds, population_size, rng, max_iterations, init=init)
         if isinstance(F, (tuple, list, np.ndarray)):
             if len(F) != 2:
@@ -1009,13 +1058,13 @@ def _polish(fun_batch, x0, f0, lower, upper, options):
         xm = np.maximum(x - h, lower)
         rows = np.empty((2 * D + 1, D))
         rows[0] = x
-        rows[1:D + 1] = x
-        rows[D + 1:] = x
+        rows[1 : D + 1] = x
+        rows[D + 1 :] = x
         rows[1 + np.arange(D), np.arange(D)] = xp
         rows[D + 1 + np.arange(D), np.arange(D)] = xm
         f = _evaluate(fun_batch, rows)
         nfev += rows.shape[0]
-        fx, fp, fm = f[0], f[1:D + 1], f[D + 1:]
+        fx, fp, fm = f[0], f[1 : D + 1], f[D + 1 :]
         g = np.zeros(D)
         for d in np.flatnonzero(free):
             pts = [(xp[d], fp[d]), (x[d], fx), (xm[d], fm[d])]
@@ -1029,7 +1078,7 @@ def _polish(fun_batch, x0, f0, lower, upper, options):
 
     opts = {"maxiter": 200}
     opts.update(options)
-    res = sp_minimize(fg, x0, jac=True, method="L-BFGS-B", bounds=list(zip(lower, upper)), options=opts)
+    res = sp_minimize(fg, x0, jac=True, method="L-BFGS-B", bounds=list(zip(lower, upper, strict=False)), options=opts)
     x1 = np.clip(res.x, lower, upper)
     f1 = _evaluate(fun_batch, x1[None, :])[0]
     nfev += 1
@@ -1038,8 +1087,21 @@ def _polish(fun_batch, x0, f0, lower, upper, options):
     return x0, f0, nfev
 
 
-def minimize(fun_batch, bounds, method="css", *, population_size=None, max_iterations=200, rng=None,
-             callback=None, progress=False, polish=False, tol=None, atol=0.0, **options) -> OptimizeResult:
+def minimize(
+    fun_batch,
+    bounds,
+    method="css",
+    *,
+    population_size=None,
+    max_iterations=200,
+    rng=None,
+    callback=None,
+    progress=False,
+    polish=False,
+    tol=None,
+    atol=0.0,
+    **options,
+) -> OptimizeResult:
     """Minimize a batch objective over a box with a population method.
 
     Parameters
@@ -1146,10 +1208,15 @@ def minimize(fun_batch, bounds, method="css", *, population_size=None, max_itera
     res = opt.result(message=message, success=success)
     if polish is not False and polish is not None and message != "interrupted" and np.isfinite(res.fun):
         try:
-            x, f, n = _polish(fun_batch, res.x, res.fun, opt._lower, opt._upper, polish if isinstance(polish, dict) else {})
+            x, f, n = _polish(
+                fun_batch, res.x, res.fun, opt._lower, opt._upper, polish if isinstance(polish, dict) else {}
+            )
         except KeyboardInterrupt:
             x, f, n = res.x, res.fun, 0
-        note = (f"; L-BFGS-B polish improved fun from {res.fun:.6g} to {f:.6g}" if f < res.fun
-                else "; L-BFGS-B polish did not improve")
+        note = (
+            f"; L-BFGS-B polish improved fun from {res.fun:.6g} to {f:.6g}"
+            if f < res.fun
+            else "; L-BFGS-B polish did not improve"
+        )
         res = replace(res, x=_readonly(x), fun=f, nfev=res.nfev + n, message=res.message + note)
     return replace(res, wall_time=float(time.perf_counter() - t0))

@@ -1,10 +1,11 @@
 """Play operators and the Prandtl–Ishlinskii family: PI, generalized PI / MPI, rate-dependent PI.
 
-See SPEC §2.1–§2.3. The classical play is
+See docs/spec.md §2.1–§2.3. The classical play is
 ``z_r(k) = max(v(k) - r, min(v(k) + r, z_r(k-1)))``; the PI output is
 ``y = p0 v + sum_i w_i z_{r_i}``. The generalized play uses envelopes ``g_l`` (rising) and
 ``g_r`` (falling); the MPI of seed 2 adds a polynomial of the input.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -14,18 +15,18 @@ import numpy as np
 from . import _core
 from ._validate import as_interval, as_record, as_scalar, as_vector
 from .creep import creep_from, creep_parts
-from .model import HysteresisModel, _register
 from .errors import ParameterError, ParameterTypeError
+from .model import HysteresisModel, _register
 
 __all__ = [
-    "Envelope",
     "PI",
-    "PlayOperator",
+    "SEED2_TABLE1",
+    "Envelope",
     "GeneralizedPI",
     "GeneralizedPlay",
+    "PlayOperator",
     "RateDependentPI",
     "mpi_seed2",
-    "SEED2_TABLE1",
 ]
 
 
@@ -91,8 +92,8 @@ class PI(HysteresisModel):
         s = as_record(np.atleast_1d(s), "s", min_length=0)
         return self.p0 * s + np.maximum(s[:, None] - self.thresholds[None, :], 0.0) @ self.weights
 
-    def analytic_inverse(self) -> "PI":
-        """The inverse PI model (SPEC §2.1): driving it with ``y_d`` gives ``v``.
+    def analytic_inverse(self) -> PI:
+        """The inverse PI model (docs/spec.md §2.1): driving it with ``y_d`` gives ``v``.
 
         Raises ``ValueError`` if a partial sum ``p0 + w_1 + ... + w_i`` is not positive.
         Creep is not part of the analytic inverse; use :meth:`inverse` then.
@@ -140,7 +141,7 @@ def _interval_from_json(x):
     """A model file's input_range: ``null`` ends are infinite."""
     if isinstance(x, (list, tuple)) and len(x) == 2:
         return (-np.inf if x[0] is None else x[0], np.inf if x[1] is None else x[1])
-    return x        # as_interval names what is wrong with it
+    return x  # as_interval names what is wrong with it
 
 
 @dataclass(frozen=True)
@@ -182,7 +183,9 @@ class Envelope:
 
     def inverse(self, y) -> np.ndarray:
         """``g^{-1}(y)``; raises ``ValueError`` outside the envelope's range."""
-        return _core.envelope_inverse(self.code, list(self.coefficients), as_record(np.atleast_1d(y), "y", min_length=0))
+        return _core.envelope_inverse(
+            self.code, list(self.coefficients), as_record(np.atleast_1d(y), "y", min_length=0)
+        )
 
     def to_dict(self) -> dict:
         return {"kind": self.kind, "coefficients": list(self.coefficients)}
@@ -200,7 +203,7 @@ class Envelope:
 
 @_register
 class GeneralizedPI(HysteresisModel):
-    """Generalized (asymmetric) PI and the seed-2 modified PI (MPI), SPEC §2.2.
+    """Generalized (asymmetric) PI and the seed-2 modified PI (MPI), docs/spec.md §2.2.
 
     ``z_r(k) = max(g_l(v) - r, min(g_r(v) + r, z_r(k-1)))``,
     ``y = P(v) + sum_i b_i z_{r_i}``, ``P(v) = c0 + c1 v + c2 v^2 + c3 v^3``.
@@ -230,8 +233,18 @@ class GeneralizedPI(HysteresisModel):
     kind = "gpi"
     family = "gpi"
 
-    def __init__(self, thresholds, weights, polynomial=(0.0, 0.0, 0.0, 0.0), rising=None, falling=None,
-                 input_range=(-np.inf, np.inf), *, creep=None, units=None):
+    def __init__(
+        self,
+        thresholds,
+        weights,
+        polynomial=(0.0, 0.0, 0.0, 0.0),
+        rising=None,
+        falling=None,
+        input_range=(-np.inf, np.inf),
+        *,
+        creep=None,
+        units=None,
+    ):
         self.thresholds, self.weights = _pi_vectors(thresholds, weights)
         self.polynomial = tuple(float(x) for x in as_vector(polynomial, "polynomial", length=4))
         self.rising = Envelope.from_any(rising, "rising")
@@ -240,8 +253,17 @@ class GeneralizedPI(HysteresisModel):
         self.input_range = (lo, hi)
         self.creep = creep
         m, tail = creep_parts(creep)
-        row = np.concatenate([[lo, hi], self.polynomial, self.rising.coefficients, self.falling.coefficients,
-                              self.thresholds, self.weights, tail])
+        row = np.concatenate(
+            [
+                [lo, hi],
+                self.polynomial,
+                self.rising.coefficients,
+                self.falling.coefficients,
+                self.thresholds,
+                self.weights,
+                tail,
+            ]
+        )
         super().__init__([self.thresholds.size, self.rising.code, self.falling.code, m], row, units=units)
 
     @property
@@ -264,13 +286,15 @@ class GeneralizedPI(HysteresisModel):
         p["creep"] = creep_from(p.get("creep"))
         return cls(**p, units=units)
 
-    def analytic_inverse(self) -> "EnvelopeInverse":
+    def analytic_inverse(self) -> EnvelopeInverse:
         """``v = g^{-1}(PI^{-1}[y])`` for equal envelopes, ``P = 0`` and a zero first
         threshold with positive weight (which plays the role of ``p0``)."""
         if self.rising != self.falling:
             raise ParameterError("rising and falling envelopes differ: no analytic inverse; use inverse()")
         if any(self.polynomial):
-            raise ParameterError(f"polynomial = {list(self.polynomial)} is not zero: no analytic inverse; use inverse()")
+            raise ParameterError(
+                f"polynomial = {list(self.polynomial)} is not zero: no analytic inverse; use inverse()"
+            )
         if self.creep is not None:
             raise ParameterError("creep is set: no analytic inverse; use inverse()")
         if self.thresholds.size == 0 or self.thresholds[0] != 0.0:
@@ -297,14 +321,25 @@ class GeneralizedPlay(GeneralizedPI):
     kind = "generalized_play"
 
     def __init__(self, threshold, rising=None, falling=None, input_range=(-np.inf, np.inf), *, units=None):
-        super().__init__([as_scalar(threshold, "threshold", nonnegative=True)], [1.0], (0, 0, 0, 0), rising, falling,
-                         input_range, units=units)
+        super().__init__(
+            [as_scalar(threshold, "threshold", nonnegative=True)],
+            [1.0],
+            (0, 0, 0, 0),
+            rising,
+            falling,
+            input_range,
+            units=units,
+        )
 
     @property
     def parameters(self) -> dict:
         d = super().parameters
-        return {"threshold": d["thresholds"][0], "rising": d["rising"], "falling": d["falling"],
-                "input_range": d["input_range"]}
+        return {
+            "threshold": d["thresholds"][0],
+            "rising": d["rising"],
+            "falling": d["falling"],
+            "input_range": d["input_range"],
+        }
 
     @classmethod
     def _from_parameters(cls, p, units):
@@ -331,13 +366,20 @@ def mpi_seed2(rising=None, falling=None) -> GeneralizedPI:
     ``P(v) = 0.2547 v - 0.00358 v^2 + 0.7123 v^3``; identity envelopes unless given.
     """
     t = SEED2_TABLE1
-    return GeneralizedPI(t["thresholds"], t["weights"], t["polynomial"], rising, falling, input_range=(0.0, 1.0),
-                         units={"input": "normalized", "output": "normalized"})
+    return GeneralizedPI(
+        t["thresholds"],
+        t["weights"],
+        t["polynomial"],
+        rising,
+        falling,
+        input_range=(0.0, 1.0),
+        units={"input": "normalized", "output": "normalized"},
+    )
 
 
 @_register
 class RateDependentPI(HysteresisModel):
-    """Rate-dependent PI (SPEC §2.3): dynamic thresholds and rate-dependent weights.
+    """Rate-dependent PI (docs/spec.md §2.3): dynamic thresholds and rate-dependent weights.
 
     ``r_i(k) = r_i + beta |dv/dt|``, ``w_i(k) = w_i + c_i |dv/dt|``, with ``|dv/dt|`` the
     backward difference ``|v(k) - v(k-1)| / ts``, low-passed with time constant
@@ -363,8 +405,9 @@ class RateDependentPI(HysteresisModel):
     kind = "rdpi"
     family = "rdpi"
 
-    def __init__(self, thresholds, weights, ts, p0=1.0, beta=0.0, rate_weights=None, filter_tau=0.0, *,
-                 creep=None, units=None):
+    def __init__(
+        self, thresholds, weights, ts, p0=1.0, beta=0.0, rate_weights=None, filter_tau=0.0, *, creep=None, units=None
+    ):
         self.thresholds, self.weights = _pi_vectors(thresholds, weights)
         self.ts = as_scalar(ts, "ts", positive=True)
         self.p0 = as_scalar(p0, "p0")
@@ -374,14 +417,22 @@ class RateDependentPI(HysteresisModel):
         self.filter_tau = as_scalar(filter_tau, "filter_tau", nonnegative=True)
         self.creep = creep
         m, tail = creep_parts(creep)
-        row = np.concatenate([[self.ts, self.p0, self.beta, self.filter_tau], self.thresholds, self.weights,
-                              self.rate_weights, tail])
+        row = np.concatenate(
+            [[self.ts, self.p0, self.beta, self.filter_tau], self.thresholds, self.weights, self.rate_weights, tail]
+        )
         super().__init__([n, m], row, units=units)
 
     @property
     def parameters(self) -> dict:
-        d = {"thresholds": self.thresholds.tolist(), "weights": self.weights.tolist(), "ts": self.ts, "p0": self.p0,
-             "beta": self.beta, "rate_weights": self.rate_weights.tolist(), "filter_tau": self.filter_tau}
+        d = {
+            "thresholds": self.thresholds.tolist(),
+            "weights": self.weights.tolist(),
+            "ts": self.ts,
+            "p0": self.p0,
+            "beta": self.beta,
+            "rate_weights": self.rate_weights.tolist(),
+            "filter_tau": self.filter_tau,
+        }
         return _with_creep(d, self.creep)
 
     @classmethod

@@ -1,4 +1,4 @@
-"""Discretized Preisach model (SPEC §2.7).
+"""Discretized Preisach model (docs/spec.md §2.7).
 
 The half-plane ``lo <= beta <= alpha <= hi`` is cut into an ``L x L`` triangular grid of
 cells; cell ``(i, j)`` (alpha row ``i``, beta column ``j <= i``) holds the total weight of
@@ -6,13 +6,14 @@ its relays, spread uniformly. Output ``y = offset + slope v + mass of the relays
 up``, computed exactly from the memory of dominant input extrema, so it is continuous in
 ``v`` and the per-sample inverse is exact. It starts from negative saturation.
 """
+
 from __future__ import annotations
 
 import numpy as np
 
 from ._validate import as_int, as_interval, as_scalar, as_vector
-from .model import HysteresisModel, _register
 from .errors import ParameterError, ParameterTypeError
+from .model import HysteresisModel, _register
 
 __all__ = ["Preisach"]
 
@@ -62,7 +63,9 @@ class Preisach(HysteresisModel):
             raise ParameterTypeError(f"weights must be numbers (a vector or a triangular matrix): {e}") from None
         if isinstance(w, np.ndarray) and w.ndim == 2:
             if w.shape != (self.levels, self.levels):
-                raise ParameterError(f"weights has shape {w.shape}, expected ({self.levels}, {self.levels}) or ({cells},)")
+                raise ParameterError(
+                    f"weights has shape {w.shape}, expected ({self.levels}, {self.levels}) or ({cells},)"
+                )
             w = w[np.tril_indices(self.levels)]
         self.weights = as_vector(w, "weights", length=cells)
         self.offset = as_scalar(offset, "offset")
@@ -79,5 +82,11 @@ class Preisach(HysteresisModel):
 
     @property
     def parameters(self) -> dict:
-        return {"levels": self.levels, "input_range": list(self.input_range), "weights": self.weights.tolist(),
-                "offset": self.offset, "slope": self.slope, "memory": self.memory}
+        return {
+            "levels": self.levels,
+            "input_range": list(self.input_range),
+            "weights": self.weights.tolist(),
+            "offset": self.offset,
+            "slope": self.slope,
+            "memory": self.memory,
+        }

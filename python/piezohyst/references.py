@@ -1,4 +1,4 @@
-"""Reference signals (SPEC §6).
+"""Reference signals (docs/spec.md §6).
 
 Every generator returns ``(t, x)``: two 1-D float64 arrays of equal length, with
 ``t = arange(n) / fs`` (so ``t[0] == 0`` and the spacing is exactly ``1 / fs``) and ``x``
@@ -29,6 +29,7 @@ Examples
 >>> x.tolist()
 [-2.0, -1.0, 0.0, 1.0, 2.0, 1.0, 0.0, -1.0]
 """
+
 from __future__ import annotations
 
 import numbers
@@ -57,7 +58,7 @@ def _n_samples(duration, fs, name="duration"):
         raise ParameterError(f"{name} * fs = {duration} * {fs} = {n} gives fewer than 2 samples")
     if n > MAX_SAMPLES:
         raise ParameterError(f"{name} * fs = {duration} * {fs} = {n:.4g} samples is more than {MAX_SAMPLES:.4g}")
-    return int(round(n)), fs
+    return round(n), fs
 
 
 def _time(duration, fs):
@@ -213,8 +214,7 @@ def triangle(freq, amplitude, duration, fs, offset=0.0, phase=-np.pi / 2, roundi
     return t, c + a * g
 
 
-def variable_amplitude_sine(freq, amplitude, duration, fs, offset=0.0, final_fraction=0.2,
-                            envelope="linear"):
+def variable_amplitude_sine(freq, amplitude, duration, fs, offset=0.0, final_fraction=0.2, envelope="linear"):
     """Sine under a decaying envelope: nested minor loops, as in seed 2's experiments.
 
     ``x = offset + amplitude * e(t) * sin(2 pi freq t)`` with ``e(0) = 1`` and
@@ -266,7 +266,7 @@ def variable_amplitude_sine(freq, amplitude, duration, fs, offset=0.0, final_fra
         frac = t / t[-1]
         if ff == 0.0:
             raise ParameterError("final_fraction = 0.0 must be > 0 for envelope='exponential'")
-        env = ff ** frac
+        env = ff**frac
     return t, c + a * env * np.sin(2 * np.pi * f * t)
 
 
@@ -351,7 +351,7 @@ def multisine(f_min, f_max, amplitude, period, fs, *, periods=1, scale="rms", of
     spectrum[k] = np.exp(1j * phases)
     one = np.fft.irfft(spectrum, n=n) * (n / 2)  # sum_k cos(2 pi k f0 t + phi_k)
     if kind == "rms":
-        norm = np.sqrt(np.mean(one ** 2))
+        norm = np.sqrt(np.mean(one**2))
     else:
         norm = np.max(np.abs(one))
     one *= a / norm
@@ -408,7 +408,7 @@ def chirp(f_start, f_end, amplitude, duration, fs, *, method="linear", offset=0.
     p = as_scalar(phase, "phase")
     T = t[-1]
     if kind == "linear" or f1 == f2:
-        phi = 2 * np.pi * (f1 * t + (f2 - f1) * t ** 2 / (2 * T))
+        phi = 2 * np.pi * (f1 * t + (f2 - f1) * t**2 / (2 * T))
     else:
         ratio = np.log(f2 / f1)
         phi = 2 * np.pi * f1 * T * np.expm1(ratio * t / T) / ratio

@@ -2,6 +2,7 @@
 sub-steps, sensor with noise, quantization and delay. The loop runs in the Rust core
 (``crates/core/src/closed_loop.rs``); a batch of scenarios runs in parallel.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -12,8 +13,8 @@ import numpy as np
 from . import _core
 from ._validate import as_record
 from .control import is_controller
-from .metrics import tracking_metrics
 from .errors import ParameterError, ParameterTypeError
+from .metrics import tracking_metrics
 
 __all__ = ["ClosedLoopResult", "closed_loop", "closed_loop_batch", "seed_from"]
 
@@ -85,8 +86,14 @@ class ClosedLoopResult:
             import pandas as pd
         except ImportError:
             raise ImportError("to_pandas() needs pandas, which is not installed") from None
-        cols = {"reference": self.reference, "command": self.command, "voltage": self.voltage,
-                "position": self.position, "measured": self.measured, "error": self.error}
+        cols = {
+            "reference": self.reference,
+            "command": self.command,
+            "voltage": self.voltage,
+            "position": self.position,
+            "measured": self.measured,
+            "error": self.error,
+        }
         cols.update({f"term_{k}": v for k, v in self.terms.items()})
         return pd.DataFrame(cols, index=pd.Index(self.time, name="time"))
 
@@ -146,19 +153,24 @@ def _check_reference(stage, x):
     lo, hi = min(reach), max(reach)
     if lowest < lo or highest > hi:
         k = int(np.flatnonzero((x < lo) | (x > hi))[0])
-        raise ParameterError(f"reference[{k}] = {x[k]:.6g} m is beyond the stage's stroke "
-                         f"[{lo:.3g}, {hi:.3g}] m for amplifier range [{a.v_min}, {a.v_max}] V")
+        raise ParameterError(
+            f"reference[{k}] = {x[k]:.6g} m is beyond the stage's stroke "
+            f"[{lo:.3g}, {hi:.3g}] m for amplifier range [{a.v_min}, {a.v_max}] V"
+        )
 
 
 def _prepare(stage, controller, reference, velocity, acceleration):
     if not is_controller(controller):
-        raise ParameterTypeError(f"controller must be a piezohyst controller (OpenLoop, PID, ...), got {type(controller).__name__}")
+        raise ParameterTypeError(
+            f"controller must be a piezohyst controller (OpenLoop, PID, ...), got {type(controller).__name__}"
+        )
     # no copy here: the core returns the result's own copy of the reference; NaN/inf are
     # found by _check_reference's min/max (one pass less than as_record's own check)
     x = as_record(reference, "reference", min_length=2, copy=False, finite=False)
     _check_reference(stage, x)
-    v, a = _derivatives(x, stage.sample_time, velocity, acceleration,
-                        getattr(controller, "uses_reference_derivatives", True))
+    v, a = _derivatives(
+        x, stage.sample_time, velocity, acceleration, getattr(controller, "uses_reference_derivatives", True)
+    )
     if v.size not in (0, x.size) or a.size not in (0, x.size):
         raise ParameterError(f"velocity/acceleration must have the reference's length {x.size}")
     return x, v, a, controller.core(stage)
@@ -168,14 +180,21 @@ def _result(stage, x, d, controller) -> ClosedLoopResult:
     names = list(d["term_names"])
     terms = {n: d["terms"][:, i] for i, n in enumerate(names)}
     return ClosedLoopResult(
-        sample_time=stage.sample_time, reference=d["reference"], command=d["command"], voltage=d["voltage"],
-        position=d["position"], measured=d["measured"], terms=terms, final_state=np.asarray(d["final_state"]),
+        sample_time=stage.sample_time,
+        reference=d["reference"],
+        command=d["command"],
+        voltage=d["voltage"],
+        position=d["position"],
+        measured=d["measured"],
+        terms=terms,
+        final_state=np.asarray(d["final_state"]),
         controller=type(controller).__name__,
     )
 
 
-def closed_loop(stage, controller, reference, *, velocity=None, acceleration=None, rng=None,
-                initial_state=None) -> ClosedLoopResult:
+def closed_loop(
+    stage, controller, reference, *, velocity=None, acceleration=None, rng=None, initial_state=None
+) -> ClosedLoopResult:
     """Run ``controller`` on ``stage`` tracking ``reference`` (m, one value per sample).
 
     Parameters
@@ -206,8 +225,21 @@ def closed_loop(stage, controller, reference, *, velocity=None, acceleration=Non
     x, v, a, spec = _prepare(stage, controller, reference, velocity, acceleration)
     init = stage.rest_state() if initial_state is None else as_record(initial_state, "initial_state")
     s = stage.sensor
-    d = _core.closed_loop(stage.core_params(), stage.sample_time, stage.substeps, stage.tolerance, s.quantization, s.noise_std,
-                          s.delay, spec, x, v, a, init, seed_from(rng))
+    d = _core.closed_loop(
+        stage.core_params(),
+        stage.sample_time,
+        stage.substeps,
+        stage.tolerance,
+        s.quantization,
+        s.noise_std,
+        s.delay,
+        spec,
+        x,
+        v,
+        a,
+        init,
+        seed_from(rng),
+    )
     return _result(stage, x, d, controller)
 
 
@@ -232,6 +264,15 @@ def closed_loop_batch(stage, scenarios, *, rng=None, initial_state=None) -> list
         prepared.append((x, controller))
         core.append((spec, x, v, a, int(seeds_rng.integers(0, 2**63 - 1))))
     s = stage.sensor
-    out = _core.closed_loop_batch(stage.core_params(), stage.sample_time, stage.substeps, stage.tolerance, s.quantization,
-                                  s.noise_std, s.delay, core, init)
-    return [_result(stage, x, d, c) for (x, c), d in zip(prepared, out)]
+    out = _core.closed_loop_batch(
+        stage.core_params(),
+        stage.sample_time,
+        stage.substeps,
+        stage.tolerance,
+        s.quantization,
+        s.noise_std,
+        s.delay,
+        core,
+        init,
+    )
+    return [_result(stage, x, d, c) for (x, c), d in zip(prepared, out, strict=False)]

@@ -1,5 +1,5 @@
 """Piezo-driven stages: parameters, the default virtual stage, open-loop simulation and the
-measurements ``piezohyst stage info`` prints (SPEC §2.6, §3.1, §3.2).
+measurements ``piezohyst stage info`` prints (docs/spec.md §2.6, §3.1, §3.2).
 
 The physics (integrated in the Rust core, ``crates/core/src/stage.rs``)::
 
@@ -12,22 +12,22 @@ The physics (integrated in the Rust core, ``crates/core/src/stage.rs``)::
 The default virtual stage is ``presets/virtual_stage.json`` inside the package; every number
 in it can be overridden from a file of the same layout (:meth:`Stage.from_file`).
 """
+
 from __future__ import annotations
 
 import json
 import math
 from dataclasses import dataclass, field, replace
 from importlib import resources
-from pathlib import Path
 
 import numpy as np
 
 from . import _core
-from ._validate import as_int, as_record, as_scalar, as_vector
 from ._io import load_json_file, malformed_as
+from ._validate import as_int, as_record, as_scalar, as_vector
 from .errors import ParameterError, ParameterTypeError
 
-__all__ = ["Amplifier", "Sensor", "StageParameters", "Stage", "StageResponse", "StageInfo", "virtual_stage"]
+__all__ = ["Amplifier", "Sensor", "Stage", "StageInfo", "StageParameters", "StageResponse", "virtual_stage"]
 
 MAX_CREEP = 8
 
@@ -198,7 +198,7 @@ class Stage:
 
     # -- files --------------------------------------------------------------------------
     @classmethod
-    def from_dict(cls, d: dict) -> "Stage":
+    def from_dict(cls, d: dict) -> Stage:
         """Build from the stage-file layout (see ``presets/virtual_stage.json``)."""
         if not isinstance(d, dict):
             raise ParameterError(f"a stage description must be a JSON object, got {type(d).__name__}")
@@ -212,42 +212,76 @@ class Stage:
                 b = 2 * zeta * math.sqrt(abs(k) * abs(m))
             creep = d.get("creep", {"taus": [], "weights": []})
             params = StageParameters(
-                mass=m, damping=b, stiffness=k, tem=mech["tem"],
-                capacitance=cemf.get("capacitance", 1.8e-6), hyst_alpha=cemf["alpha"], hyst_beta=cemf["beta"],
-                hyst_gamma=cemf["gamma"], hyst_drive=cemf.get("drive", "charge"),
+                mass=m,
+                damping=b,
+                stiffness=k,
+                tem=mech["tem"],
+                capacitance=cemf.get("capacitance", 1.8e-6),
+                hyst_alpha=cemf["alpha"],
+                hyst_beta=cemf["beta"],
+                hyst_gamma=cemf["gamma"],
+                hyst_drive=cemf.get("drive", "charge"),
                 electrostriction=d.get("electrostriction", 0.0),
-                creep_taus=tuple(creep["taus"]), creep_weights=tuple(creep["weights"]),
+                creep_taus=tuple(creep["taus"]),
+                creep_weights=tuple(creep["weights"]),
             )
             a = d.get("amplifier", {})
-            amp = Amplifier(a.get("min", -20.0), a.get("max", 150.0), _inf(a.get("bandwidth")), _inf(a.get("slew_rate")))
+            amp = Amplifier(
+                a.get("min", -20.0), a.get("max", 150.0), _inf(a.get("bandwidth")), _inf(a.get("slew_rate"))
+            )
             s = d.get("sensor", {})
             sensor = Sensor(s.get("quantization", 0.0), s.get("noise_std", 0.0), s.get("delay", 0))
             loop = d.get("loop", {})
-            return cls(params, amp, sensor, loop.get("sample_time", 1e-4), loop.get("substeps", 1),
-                       _inf(loop.get("tolerance", 0.05)), d.get("name", ""))
+            return cls(
+                params,
+                amp,
+                sensor,
+                loop.get("sample_time", 1e-4),
+                loop.get("substeps", 1),
+                _inf(loop.get("tolerance", 0.05)),
+                d.get("name", ""),
+            )
 
     @classmethod
-    def from_file(cls, path) -> "Stage":
+    def from_file(cls, path) -> Stage:
         """Read a stage file (JSON, the layout of the packaged virtual stage)."""
         return load_json_file(path, "stage file", cls.from_dict)
 
     def to_dict(self) -> dict:
         p = self.params
         return {
-            "schema_version": 1, "kind": "stage", "name": self.name,
+            "schema_version": 1,
+            "kind": "stage",
+            "name": self.name,
             "mechanics": {"mass": p.mass, "stiffness": p.stiffness, "damping": p.damping, "tem": p.tem},
-            "cemf": {"drive": p.hyst_drive, "capacitance": p.capacitance, "alpha": p.hyst_alpha, "beta": p.hyst_beta,
-                     "gamma": p.hyst_gamma},
+            "cemf": {
+                "drive": p.hyst_drive,
+                "capacitance": p.capacitance,
+                "alpha": p.hyst_alpha,
+                "beta": p.hyst_beta,
+                "gamma": p.hyst_gamma,
+            },
             "electrostriction": p.electrostriction,
             "creep": {"taus": list(p.creep_taus), "weights": list(p.creep_weights)},
-            "amplifier": {"min": self.amplifier.v_min, "max": self.amplifier.v_max,
-                          "bandwidth": _json_inf(self.amplifier.bandwidth), "slew_rate": _json_inf(self.amplifier.slew_rate)},
-            "sensor": {"quantization": self.sensor.quantization, "noise_std": self.sensor.noise_std,
-                       "delay": self.sensor.delay},
-            "loop": {"sample_time": self.sample_time, "substeps": self.substeps, "tolerance": _json_inf(self.tolerance)},
+            "amplifier": {
+                "min": self.amplifier.v_min,
+                "max": self.amplifier.v_max,
+                "bandwidth": _json_inf(self.amplifier.bandwidth),
+                "slew_rate": _json_inf(self.amplifier.slew_rate),
+            },
+            "sensor": {
+                "quantization": self.sensor.quantization,
+                "noise_std": self.sensor.noise_std,
+                "delay": self.sensor.delay,
+            },
+            "loop": {
+                "sample_time": self.sample_time,
+                "substeps": self.substeps,
+                "tolerance": _json_inf(self.tolerance),
+            },
         }
 
-    def with_(self, **changes) -> "Stage":
+    def with_(self, **changes) -> Stage:
         """A copy with some fields replaced (``params``, ``amplifier``, ``sensor``, ...)."""
         return replace(self, **changes)
 
@@ -257,9 +291,23 @@ class Stage:
         p, a = self.params, self.amplifier
         taus = list(p.creep_taus) + [1.0] * (MAX_CREEP - len(p.creep_taus))
         weights = list(p.creep_weights) + [0.0] * (MAX_CREEP - len(p.creep_weights))
-        head = [p.mass, p.damping, p.stiffness, p.tem, p.capacitance, p.hyst_alpha, p.hyst_beta, p.hyst_gamma,
-                0.0 if p.hyst_drive == "charge" else 1.0, p.electrostriction, a.v_min, a.v_max, a.bandwidth,
-                a.slew_rate, float(len(p.creep_taus))]
+        head = [
+            p.mass,
+            p.damping,
+            p.stiffness,
+            p.tem,
+            p.capacitance,
+            p.hyst_alpha,
+            p.hyst_beta,
+            p.hyst_gamma,
+            0.0 if p.hyst_drive == "charge" else 1.0,
+            p.electrostriction,
+            a.v_min,
+            a.v_max,
+            a.bandwidth,
+            a.slew_rate,
+            float(len(p.creep_taus)),
+        ]
         return np.array(head + taus + weights, dtype=np.float64)
 
     @staticmethod
@@ -268,7 +316,9 @@ class Stage:
         return np.zeros(_core.STAGE_STATE_LEN)
 
     # -- simulation -----------------------------------------------------------------------
-    def simulate(self, command, *, initial_state=None, sample_time=None, substeps=None, tolerance=None) -> StageResponse:
+    def simulate(
+        self, command, *, initial_state=None, sample_time=None, substeps=None, tolerance=None
+    ) -> StageResponse:
         """Open-loop response to a voltage command held over each sample.
 
         ``position[k]`` is the position at ``t_k = k Ts`` (before command ``k`` acts);
@@ -310,8 +360,15 @@ class Stage:
         # creep: step to half range, held 100 s; slope of x against log10(t) over 0.1..100 s
         creep = self._creep_per_decade(0.5 * v_max)
         p = self.params
-        return StageInfo(stroke, 100 * hyst, resonance, creep, p.natural_frequency, p.damping_ratio,
-                         {"full_range_V": [0.0, v_max], "amplifier_V": [self.amplifier.v_min, v_max]})
+        return StageInfo(
+            stroke,
+            100 * hyst,
+            resonance,
+            creep,
+            p.natural_frequency,
+            p.damping_ratio,
+            {"full_range_V": [0.0, v_max], "amplifier_V": [self.amplifier.v_min, v_max]},
+        )
 
     def _resonance(self) -> float:
         fs = 100_000.0
@@ -326,8 +383,8 @@ class Stage:
         u = 75.0 + np.tile(ms, 2)
         r = ideal.simulate(u, sample_time=1 / fs, substeps=1)
         # position is sampled before the command acts: shift by one sample
-        x = r.position[n + 1:] if r.position.size > n + 1 else r.position[n:]
-        v_in = u[n:n + x.size]
+        x = r.position[n + 1 :] if r.position.size > n + 1 else r.position[n:]
+        v_in = u[n : n + x.size]
         X, V = np.fft.rfft(x - x.mean()), np.fft.rfft(v_in - v_in.mean())
         f = np.fft.rfftfreq(x.size, 1 / fs)
         band = (f > 500) & (f < 40_000)
@@ -337,9 +394,9 @@ class Stage:
     def _creep_per_decade(self, level: float) -> float:
         ts = 1e-3
         t_end = 100.0
-        n = int(round(t_end / ts)) + 1
+        n = round(t_end / ts) + 1
         u = np.full(n, level)
-        ramp = int(round(0.002 / ts))
+        ramp = round(0.002 / ts)
         u[:ramp] = np.linspace(0, level, ramp)
         x = self.simulate(u, sample_time=ts, substeps=8).position
         t = np.arange(n) * ts

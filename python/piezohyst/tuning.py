@@ -1,4 +1,4 @@
-"""Tracking and gain tuning by simulation (SPEC §5, seed 1: the SMC gains are tuned with CSS
+"""Tracking and gain tuning by simulation (docs/spec.md §5, seed 1: the SMC gains are tuned with CSS
 on the identified model).
 
 :func:`track` runs one controller on a stage and returns the signals with the tracking
@@ -7,6 +7,7 @@ metrics; :func:`tune` searches controller gains with any population optimizer of
 recorded), the objective being the closed-loop tracking RMSE on the plant given — the
 *identified* model, not the hardware.
 """
+
 from __future__ import annotations
 
 import math
@@ -18,13 +19,15 @@ import numpy as np
 from . import _core
 from ._validate import as_record, as_scalar
 from .control import is_controller
-from .simulation import ClosedLoopResult, _prepare, closed_loop, seed_from
 from .errors import ComputationError, ParameterError, ParameterTypeError
+from .simulation import ClosedLoopResult, _prepare, closed_loop, seed_from
 
-__all__ = ["track", "tune", "TuningResult", "stage_from_model"]
+__all__ = ["TuningResult", "stage_from_model", "track", "tune"]
 
 
-def track(controller, reference, *, stage=None, velocity=None, acceleration=None, rng=None, skip=0.0) -> ClosedLoopResult:
+def track(
+    controller, reference, *, stage=None, velocity=None, acceleration=None, rng=None, skip=0.0
+) -> ClosedLoopResult:
     """Track ``reference`` (m per controller sample) with ``controller`` on ``stage`` (default:
     the virtual stage). The result's ``metrics`` (RMSE, max error, % of range, linearity
     error, seed-2-style normalized errors) leave out the first ``skip`` seconds.
@@ -43,7 +46,7 @@ def track(controller, reference, *, stage=None, velocity=None, acceleration=None
     stage = virtual_stage() if stage is None else stage
     res = closed_loop(stage, controller, reference, velocity=velocity, acceleration=acceleration, rng=rng)
     skip = as_scalar(skip, "skip", nonnegative=True)
-    first = int(round(skip / stage.sample_time))
+    first = round(skip / stage.sample_time)
     if first >= res.reference.size - 1:
         raise ParameterError(f"skip = {skip} s leaves fewer than 2 of the reference's {res.reference.size} samples")
     object.__setattr__(res, "skip_samples", first)
@@ -75,9 +78,23 @@ class TuningResult:
     partial: bool = False
 
 
-def tune(controller, gains, references, *, stage=None, method="css", max_iterations=40, population_size=None,
-         rng=None, skip=0.1, saturation_limit=0.01, log_scale=True, variants=None, progress=False,
-         callback=None) -> TuningResult:
+def tune(
+    controller,
+    gains,
+    references,
+    *,
+    stage=None,
+    method="css",
+    max_iterations=40,
+    population_size=None,
+    rng=None,
+    skip=0.1,
+    saturation_limit=0.01,
+    log_scale=True,
+    variants=None,
+    progress=False,
+    callback=None,
+) -> TuningResult:
     """Tune ``gains`` of ``controller`` for the closed-loop tracking RMSE on ``stage``.
 
     Parameters
@@ -128,7 +145,7 @@ def tune(controller, gains, references, *, stage=None, method="css", max_iterati
         box.append((math.log10(lo), math.log10(hi)) if log_scale else (lo, hi))
     refs = [references] if np.ndim(references) == 1 else list(references)
     refs = [as_record(r, f"references[{j}]", min_length=2) for j, r in enumerate(refs)]
-    first = int(round(as_scalar(skip, "skip", nonnegative=True) / stage.sample_time))
+    first = round(as_scalar(skip, "skip", nonnegative=True) / stage.sample_time)
     seeds = np.random.default_rng(seed_from(rng)).integers(0, 2**63 - 1, size=len(refs))
     s = stage.sensor
 
@@ -139,16 +156,19 @@ def tune(controller, gains, references, *, stage=None, method="css", max_iterati
                 raise ParameterError(f"variants: {type(controller).__name__} has no field {n!r}")
 
     def candidate(theta):
-        values = 10.0 ** theta if log_scale else theta
-        return replace(controller, **{n: float(v) for n, v in zip(names, values)})
+        values = 10.0**theta if log_scale else theta
+        return replace(controller, **{n: float(v) for n, v in zip(names, values, strict=False)})
 
     def cost(X):
         scen, valid = [], []
         for row in X:
             try:
                 c = candidate(np.asarray(row))
-                specs = [(_prepare(stage, replace(c, **var), r, None, None), seed)
-                         for var in variants for r, seed in zip(refs, seeds)]
+                specs = [
+                    (_prepare(stage, replace(c, **var), r, None, None), seed)
+                    for var in variants
+                    for r, seed in zip(refs, seeds, strict=False)
+                ]
             except (ValueError, TypeError):
                 valid.append(False)
                 continue
@@ -156,20 +176,44 @@ def tune(controller, gains, references, *, stage=None, method="css", max_iterati
             scen.extend((spec, x, v, a, int(seed)) for (x, v, a, spec), seed in specs)
         out = np.full(len(X), np.inf)
         if scen:
-            m = _core.closed_loop_batch_tracking(stage.core_params(), stage.sample_time, stage.substeps,
-                                                 stage.tolerance, s.quantization, s.noise_std, s.delay, scen,
-                                                 stage.rest_state(), first)
+            m = _core.closed_loop_batch_tracking(
+                stage.core_params(),
+                stage.sample_time,
+                stage.substeps,
+                stage.tolerance,
+                s.quantization,
+                s.noise_std,
+                s.delay,
+                scen,
+                stage.rest_state(),
+                first,
+            )
             m = m.reshape(-1, len(variants) * len(refs), 3)
             rmse = m[:, :, 0].mean(axis=1)
             rmse[(m[:, :, 2] > saturation_limit).any(axis=1)] = np.inf
             out[np.flatnonzero(valid)] = rmse
         return out
 
-    res = minimize(cost, box, method=method, max_iterations=max_iterations, population_size=population_size,
-                   rng=rng, progress=progress, callback=callback)
+    res = minimize(
+        cost,
+        box,
+        method=method,
+        max_iterations=max_iterations,
+        population_size=population_size,
+        rng=rng,
+        progress=progress,
+        callback=callback,
+    )
     if res.x is None or not np.isfinite(res.fun):
         raise ComputationError("tuning found no stable candidate within the gain bounds")
     best = candidate(res.x)
-    values = 10.0 ** res.x if log_scale else res.x
-    return TuningResult(best, {n: float(v) for n, v in zip(names, values)}, float(res.fun), res.history,
-                        time.perf_counter() - t0, int(res.nfev), partial=res.interrupted)
+    values = 10.0**res.x if log_scale else res.x
+    return TuningResult(
+        best,
+        {n: float(v) for n, v in zip(names, values, strict=False)},
+        float(res.fun),
+        res.history,
+        time.perf_counter() - t0,
+        int(res.nfev),
+        partial=res.interrupted,
+    )

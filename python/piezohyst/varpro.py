@@ -1,4 +1,4 @@
-"""Variable projection for the PI family (SPEC §4): a population optimizer over the few
+"""Variable projection for the PI family (docs/spec.md §4): a population optimizer over the few
 nonlinear structure parameters, an exact bounded least-squares solve over the linear ones.
 
 For a fixed structure (thresholds, envelopes, rate terms, creep time constants) the output
@@ -48,6 +48,7 @@ them. The best candidate of the population search is polished by SciPy's ``least
 with finite-difference Jacobians: Gauss–Newton on the projected functional, the classical
 variable-projection step (Golub & Pereyra), which converges fast on zero-residual records.
 """
+
 from __future__ import annotations
 
 import math
@@ -58,8 +59,8 @@ import numpy as np
 from . import _core
 from ._validate import as_int, as_record, as_scalar
 from .creep import Creep
-from .pi import PI, Envelope, GeneralizedPI, RateDependentPI
 from .errors import ParameterError, ParameterTypeError
+from .pi import PI, Envelope, GeneralizedPI, RateDependentPI
 
 __all__ = ["ENVELOPES", "VP_KINDS", "identify_vp", "vp_parameters"]
 
@@ -78,11 +79,19 @@ DEFAULT_ITERATIONS = 60
 # (name, default lower, default upper, hard domain (lo, hi, lo_open)) per parameter group
 _SPREAD = [("spread", 0.1, 1.0, (0.0, math.inf, True))]
 _POLY_RISING = [("rising_q2", -0.5, 0.5, None), ("rising_q3", -0.5, 0.5, None)]
-_POLY_FALLING = [("falling_offset", -0.3, 0.3, None), ("falling_scale", 0.7, 1.3, (0.0, math.inf, True)),
-                 ("falling_q2", -0.5, 0.5, None), ("falling_q3", -0.5, 0.5, None)]
+_POLY_FALLING = [
+    ("falling_offset", -0.3, 0.3, None),
+    ("falling_scale", 0.7, 1.3, (0.0, math.inf, True)),
+    ("falling_q2", -0.5, 0.5, None),
+    ("falling_q3", -0.5, 0.5, None),
+]
 _TANH_RISING = [("rising_steepness", 0.05, 3.0, (0.0, math.inf, True)), ("rising_center", -1.5, 1.5, None)]
-_TANH_FALLING = [("falling_offset", -0.3, 0.3, None), ("falling_scale", 0.7, 1.3, (0.0, math.inf, True)),
-                 ("falling_steepness", 0.05, 3.0, (0.0, math.inf, True)), ("falling_center", -1.5, 1.5, None)]
+_TANH_FALLING = [
+    ("falling_offset", -0.3, 0.3, None),
+    ("falling_scale", 0.7, 1.3, (0.0, math.inf, True)),
+    ("falling_steepness", 0.05, 3.0, (0.0, math.inf, True)),
+    ("falling_center", -1.5, 1.5, None),
+]
 
 
 def _tanh_shape_coefficients(a, b, offset, scale, c, h):
@@ -101,10 +110,12 @@ def _poly_shape_coefficients(q2, q3, offset, scale, c, h):
     q3 (u^3 - u)))`` with ``u = (v - c) / h``, expanded in ``v``."""
     e0, e1, e2, e3 = offset - scale * q2, scale * (1.0 - q3), scale * q2, scale * q3
     al, be = 1.0 / h, -c / h
-    return (c + h * (e0 + e1 * be + e2 * be**2 + e3 * be**3),
-            h * (e1 * al + 2 * e2 * al * be + 3 * e3 * al * be**2),
-            h * (e2 * al**2 + 3 * e3 * al**2 * be),
-            h * e3 * al**3)
+    return (
+        c + h * (e0 + e1 * be + e2 * be**2 + e3 * be**3),
+        h * (e1 * al + 2 * e2 * al * be + 3 * e3 * al * be**2),
+        h * (e2 * al**2 + 3 * e3 * al**2 * be),
+        h * e3 * al**3,
+    )
 
 
 def vp_parameters(model="mpi", *, envelope="polynomial", creep=0) -> tuple:
@@ -124,8 +135,9 @@ def vp_parameters(model="mpi", *, envelope="polynomial", creep=0) -> tuple:
 def _groups(model, envelope, creep, scales):
     """The parameter table ``[(name, lower, upper, domain)]`` with data-scaled defaults."""
     if model not in VP_KINDS:
-        raise ParameterError(f"model = {model!r} has no structure to fit by variable projection; expected one of "
-                         f"{list(VP_KINDS)}")
+        raise ParameterError(
+            f"model = {model!r} has no structure to fit by variable projection; expected one of {list(VP_KINDS)}"
+        )
     if envelope not in ENVELOPES:
         raise ParameterError(f"envelope = {envelope!r} is unknown; expected one of {list(ENVELOPES)}")
     table = list(_SPREAD)
@@ -153,11 +165,14 @@ def _search_box(table, bounds):
     fixed = {}
     if bounds is not None:
         if not isinstance(bounds, dict):
-            raise ParameterTypeError(f"bounds must be a dict {{name: (lower, upper) or value}}, got {type(bounds).__name__}")
+            raise ParameterTypeError(
+                f"bounds must be a dict {{name: (lower, upper) or value}}, got {type(bounds).__name__}"
+            )
         unknown = sorted(set(bounds) - set(names), key=str)
         if unknown:
-            raise ParameterError(f"bounds: {unknown[0]!r} is not a parameter of this search; expected names among "
-                             f"{names}")
+            raise ParameterError(
+                f"bounds: {unknown[0]!r} is not a parameter of this search; expected names among {names}"
+            )
         for name, b in bounds.items():
             if isinstance(b, (tuple, list, np.ndarray)):
                 if len(b) != 2:
@@ -180,12 +195,15 @@ def _search_box(table, bounds):
         for x in vals:
             if x < dlo or (open_lo and x == dlo) or x > dhi:
                 rel = ">" if open_lo else ">="
-                raise ParameterError(f"bounds[{name!r}]: {x} is outside the parameter's domain ({name} must be "
-                                 f"{rel} {dlo})")
+                raise ParameterError(
+                    f"bounds[{name!r}]: {x} is outside the parameter's domain ({name} must be {rel} {dlo})"
+                )
     free = [n for n in names if n not in fixed]
     if not free:
-        raise ParameterError("bounds fixes every parameter; nothing to search (use identify(..., structure='fixed') "
-                         "or leave a parameter free)")
+        raise ParameterError(
+            "bounds fixes every parameter; nothing to search (use identify(..., structure='fixed') "
+            "or leave a parameter free)"
+        )
     return free, np.array([lower[n] for n in free]), np.array([upper[n] for n in free]), fixed
 
 
@@ -207,9 +225,12 @@ class _Problem:
             duration = v.size * self.ts
             rate = np.abs(np.diff(v)) / self.ts
             rmax = float(rate.max()) if rate.size else 0.0
-            scales = {"beta_max": 0.5 * self.span / rmax if rmax > 0 else 1.0,
-                      "tau_max": min(50.0 * self.ts, 0.1 * duration),
-                      "log_tau_min": math.log10(2.0 * self.ts), "log_tau_max": math.log10(duration)}
+            scales = {
+                "beta_max": 0.5 * self.span / rmax if rmax > 0 else 1.0,
+                "tau_max": min(50.0 * self.ts, 0.1 * duration),
+                "log_tau_min": math.log10(2.0 * self.ts),
+                "log_tau_max": math.log10(duration),
+            }
         self.table = _groups(model, envelope, creep, scales)
         self.names = [t[0] for t in self.table]
 
@@ -229,13 +250,18 @@ class _Problem:
         c, h = self.c, self.h
         if self.envelope == "polynomial":
             rising = Envelope.polynomial(*_poly_shape_coefficients(p["rising_q2"], p["rising_q3"], 0.0, 1.0, c, h))
-            falling = Envelope.polynomial(*_poly_shape_coefficients(p["falling_q2"], p["falling_q3"],
-                                                                    p["falling_offset"], p["falling_scale"], c, h))
+            falling = Envelope.polynomial(
+                *_poly_shape_coefficients(
+                    p["falling_q2"], p["falling_q3"], p["falling_offset"], p["falling_scale"], c, h
+                )
+            )
         elif self.envelope == "tanh":
-            rising = Envelope.tanh(*_tanh_shape_coefficients(p["rising_steepness"], p["rising_center"], 0.0, 1.0,
-                                                             c, h))
-            falling = Envelope.tanh(*_tanh_shape_coefficients(p["falling_steepness"], p["falling_center"],
-                                                              p["falling_offset"], p["falling_scale"], c, h))
+            rising = Envelope.tanh(*_tanh_shape_coefficients(p["rising_steepness"], p["rising_center"], 0.0, 1.0, c, h))
+            falling = Envelope.tanh(
+                *_tanh_shape_coefficients(
+                    p["falling_steepness"], p["falling_center"], p["falling_offset"], p["falling_scale"], c, h
+                )
+            )
         else:
             rising = falling = None
         return GeneralizedPI(r, zeros, (0.0, 0.0, 0.0, 0.0), rising, falling, self.input_range, creep=creep)
@@ -337,10 +363,29 @@ def _mixed_nnls(R, d, free):
     return z
 
 
-def identify_vp(input, output, model="mpi", *, fs=None, operators=9, envelope="polynomial", creep=0, bounds=None,
-                optimizer="de", rng=None, max_iterations=None, population_size=None, polish=True, starts=3,
-                validate=None, progress=False, callback=None, loss="squared", huber_delta=None):
-    """Identify a PI-family model with its structure by variable projection (SPEC §4).
+def identify_vp(
+    input,
+    output,
+    model="mpi",
+    *,
+    fs=None,
+    operators=9,
+    envelope="polynomial",
+    creep=0,
+    bounds=None,
+    optimizer="de",
+    rng=None,
+    max_iterations=None,
+    population_size=None,
+    polish=True,
+    starts=3,
+    validate=None,
+    progress=False,
+    callback=None,
+    loss="squared",
+    huber_delta=None,
+):
+    """Identify a PI-family model with its structure by variable projection (docs/spec.md §4).
 
     A population optimizer (:func:`piezohyst.optimize.minimize`) searches the nonlinear
     structure parameters (see the module documentation and :func:`vp_parameters`: the
@@ -425,8 +470,9 @@ def identify_vp(input, output, model="mpi", *, fs=None, operators=9, envelope="p
     if fs is None and creep:
         raise ParameterError("fs is required with creep (the lags need the sample time)")
     if model not in VP_KINDS:
-        raise ParameterError(f"model = {model!r} has no structure to fit by variable projection; expected one of "
-                         f"{list(VP_KINDS)}")
+        raise ParameterError(
+            f"model = {model!r} has no structure to fit by variable projection; expected one of {list(VP_KINDS)}"
+        )
     if envelope not in ENVELOPES:
         raise ParameterError(f"envelope = {envelope!r} is unknown; expected one of {list(ENVELOPES)}")
     if model not in ("gpi", "mpi") and envelope == "tanh":
@@ -435,8 +481,10 @@ def identify_vp(input, output, model="mpi", *, fs=None, operators=9, envelope="p
     names, lower, upper, fixed = _search_box(problem.table, bounds)
     unknowns = (4 if model in ("gpi", "mpi") else 1) + n * (2 if model == "rdpi" else 1) + creep
     if v.size < unknowns + len(names):
-        raise ParameterError(f"the record has {v.size} samples, fewer than the {unknowns + len(names)} parameters "
-                         f"({unknowns} linear, {len(names)} structure)")
+        raise ParameterError(
+            f"the record has {v.size} samples, fewer than the {unknowns + len(names)} parameters "
+            f"({unknowns} linear, {len(names)} structure)"
+        )
     if isinstance(optimizer, str) and optimizer == "ls":
         optimizer = "de"
     if not isinstance(polish, bool):
@@ -447,23 +495,33 @@ def identify_vp(input, output, model="mpi", *, fs=None, operators=9, envelope="p
 
     def full(x):
         p = dict(fixed)
-        p.update(zip(names, (float(t) for t in x)))
+        p.update(zip(names, (float(t) for t in x), strict=False))
         return p
 
     seen_x, seen_f = [], []
 
-    def cost_batch(X):        # the population: a loop over candidates, each one Rust pass + a small solve
+    def cost_batch(X):  # the population: a loop over candidates, each one Rust pass + a small solve
         X = np.atleast_2d(X)
         f = np.array([problem.cost(full(x)) for x in X])
         seen_x.append(np.array(X, dtype=np.float64))
         seen_f.append(f)
         return f
 
-    res = minimize(cost_batch, list(zip(lower, upper)), method=optimizer, rng=rng, max_iterations=max_iterations,
-                   population_size=population_size, progress=progress, callback=callback)
+    res = minimize(
+        cost_batch,
+        list(zip(lower, upper, strict=False)),
+        method=optimizer,
+        rng=rng,
+        max_iterations=max_iterations,
+        population_size=population_size,
+        progress=progress,
+        callback=callback,
+    )
     if not np.isfinite(res.fun):
-        raise ParameterError("every candidate structure was invalid (envelopes not increasing or crossing on the input "
-                         "range): check the bounds")
+        raise ParameterError(
+            "every candidate structure was invalid (envelopes not increasing or crossing on the input "
+            "range): check the bounds"
+        )
     x = np.array(res.x, dtype=np.float64)
     history = dict(res.history)
     history["parameters"] = tuple(names)
@@ -493,8 +551,13 @@ def identify_vp(input, output, model="mpi", *, fs=None, operators=9, envelope="p
             message, extra = "L-BFGS-B on the Huber cost", {}
         if f1 < before:
             x = x1
-        history["polish"] = {"cost_before": before, "cost_after": min(f1, before), "nfev": nfev,
-                             "message": message, **extra}
+        history["polish"] = {
+            "cost_before": before,
+            "cost_after": min(f1, before),
+            "nfev": nfev,
+            "message": message,
+            **extra,
+        }
         method += "+polish"
     structure = full(x)
     history["structure"] = structure
@@ -505,7 +568,9 @@ def identify_vp(input, output, model="mpi", *, fs=None, operators=9, envelope="p
         vv = as_record(validate[0], "validate input")
         vy = as_record(validate[1], "validate output")
         if vy.size != vv.size:
-            raise ParameterError(f"validate output has {vy.size} samples, validate input has {vv.size}; they must match")
+            raise ParameterError(
+                f"validate output has {vy.size} samples, validate input has {vv.size}; they must match"
+            )
         val = fit_metrics(fitted.simulate(vv), vy)
     if loss == "huber":
         method += "+huber"
@@ -560,7 +625,16 @@ def _gauss_newton(problem, full, x0, lower, upper, max_nfev=None):
     # keep x0 strictly feasible for trf
     span = upper - lower
     x0 = np.clip(x0, lower + 1e-9 * span, upper - 1e-9 * span)
-    sol = least_squares(fun, x0, bounds=(lower, upper), method="trf", x_scale=np.where(span > 0, span, 1.0),
-                        diff_step=1e-7, xtol=1e-12, ftol=1e-12, gtol=1e-12,
-                        max_nfev=50 * (x0.size + 1) if max_nfev is None else max_nfev)
+    sol = least_squares(
+        fun,
+        x0,
+        bounds=(lower, upper),
+        method="trf",
+        x_scale=np.where(span > 0, span, 1.0),
+        diff_step=1e-7,
+        xtol=1e-12,
+        ftol=1e-12,
+        gtol=1e-12,
+        max_nfev=50 * (x0.size + 1) if max_nfev is None else max_nfev,
+    )
     return np.clip(sol.x, lower, upper), n_calls, str(sol.message)

@@ -1,5 +1,5 @@
 /* Bad input through the C API returns the documented status code and a message naming
- * the argument (SPEC §10): NULL pointers, NaN parameters, unordered thresholds,
+ * the argument (docs/spec.md §10): NULL pointers, NaN parameters, unordered thresholds,
  * non-invertible weights, wrong lengths, unknown codes, unstable gains, reversed bounds,
  * uninitialized structs. Also: copies of initialized structs work, a failed init leaves a
  * struct that cannot be stepped, non-finite inputs leave the state untouched.

@@ -22,6 +22,7 @@ File format (whitespace-separated tokens; floats as C99 hex literals, ``float.he
 
 Usage: ``python tests/c/gen_vectors.py OUT.txt``.
 """
+
 from __future__ import annotations
 
 import os
@@ -30,12 +31,12 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # tests/ for models_zoo
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/ for models_zoo
 
-import piezohyst as ph  # noqa: E402
-from piezohyst import _core  # noqa: E402
-from piezohyst.export_c import CONTROLLER_KINDS, FAMILY_CODES  # noqa: E402
-from models_zoo import drive, zoo  # noqa: E402
+import piezohyst as ph
+from models_zoo import drive, zoo
+from piezohyst import _core
+from piezohyst.export_c import CONTROLLER_KINDS, FAMILY_CODES
 
 SAMPLES = 2000
 STEPS = 3000
@@ -69,7 +70,9 @@ def controllers(stage, mpi):
         "smc_cemf": ph.SMC(p, cemf=True, alpha=200.0),
         "smc_cemf_desired_terms": ph.SMC(p, cemf=True, model_terms="desired"),
         "absmc": ph.ABSMC.for_stage(p),
-        "absmc_mpi_inverse": ph.Compensated(ph.ABSMC.linearized(2000.0, 0.7, c1=2e3, lam=2e3, ks=5e3, gamma_d=1e4), mpi),
+        "absmc_mpi_inverse": ph.Compensated(
+            ph.ABSMC.linearized(2000.0, 0.7, c1=2e3, lam=2e3, ks=5e3, gamma_d=1e4), mpi
+        ),
         "cemf_feedforward": ph.CemfFeedforward(p),
         "mpi_inverse_feedforward": ph.InverseFeedforward(mpi, c1=stage.sample_time),
         "pid_ilc": ph.ILC(ph.PID(kp=2e6, ki=2e9), period=1000, gain=2e5),
@@ -86,8 +89,9 @@ def controller_case(name, c, stage, ref, vel, acc, seed) -> list[str]:
     st = _core.controller_initial_state(spec, y0)
     u = _core.controller_steps(spec, ref, vel, acc, res.measured, st)
     if not np.array_equal(u, res.command):
-        raise AssertionError(f"{name}: the controller stepped alone differs from the closed loop "
-                             f"(max {np.max(np.abs(u - res.command))})")
+        raise AssertionError(
+            f"{name}: the controller stepped alone differs from the closed loop (max {np.max(np.abs(u - res.command))})"
+        )
     toks = ["controller", name, "kind", str(CONTROLLER_KINDS[kind]), str(len(params)), *map(hx, params)]
     if inverse is None:
         toks += ["inverse", "none"]
@@ -97,7 +101,7 @@ def controller_case(name, c, stage, ref, vel, acc, seed) -> list[str]:
     toks += ["ilc", "none"] if ilc is None else ["ilc", str(ilc[0]), hx(ilc[1]), hx(ilc[2]), str(ilc[3]), str(ilc[4])]
     toks += ["y0", hx(y0), "samples", str(len(u))]
     lines = [" ".join(toks)]
-    lines += [" ".join(map(hx, row)) for row in zip(ref, vel, acc, res.measured, u)]
+    lines += [" ".join(map(hx, row)) for row in zip(ref, vel, acc, res.measured, u, strict=False)]
     return lines
 
 
@@ -114,7 +118,7 @@ def generate() -> tuple[list[str], dict]:
         y = m.simulate(vin)
         head = model_tokens(m.family, m.dims, m.to_row())
         out.append(" ".join(["forward", name, *head, "samples", str(len(y))]))
-        out += [f"{hx(a)} {hx(b)}" for a, b in zip(vin, y)]
+        out += [f"{hx(a)} {hx(b)}" for a, b in zip(vin, y, strict=False)]
         counts["forward"] += 1
         # the inverse of the model's own outputs, and of a perturbed copy (other guesses)
         desired = y + 1e-3 * (np.max(y) - np.min(y)) * np.sin(np.arange(y.size) * 0.05)
@@ -124,7 +128,7 @@ def generate() -> tuple[list[str], dict]:
             counts["skipped_inverse"].append(name)
             continue
         out.append(" ".join(["inverse", name, *head, "samples", str(len(desired))]))
-        out += [f"{hx(a)} {hx(b)}" for a, b in zip(desired, vinv)]
+        out += [f"{hx(a)} {hx(b)}" for a, b in zip(desired, vinv, strict=False)]
         counts["inverse"] += 1
     ts = stage.sample_time
     _, ref = ph.sine(10, 5e-6, STEPS * ts, 1 / ts, offset=8e-6)
@@ -148,8 +152,10 @@ def main(argv) -> int:
     tmp.write_text("\n".join(lines) + "\n")
     os.replace(tmp, path)
     skipped = counts["skipped_inverse"]
-    print(f"gen_vectors: {counts['forward']} forward, {counts['inverse']} inverse, {counts['controller']} controller "
-          f"cases -> {path}" + (f" (no inverse for {', '.join(skipped)}: outputs not reachable)" if skipped else ""))
+    print(
+        f"gen_vectors: {counts['forward']} forward, {counts['inverse']} inverse, {counts['controller']} controller "
+        f"cases -> {path}" + (f" (no inverse for {', '.join(skipped)}: outputs not reachable)" if skipped else "")
+    )
     return 0
 
 

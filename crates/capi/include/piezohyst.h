@@ -333,7 +333,7 @@ PhsStatus phs_model_step(const struct PhsModel *model,
                          double v,
                          double *y_out);
 
-// Exact per-sample inverse (SPEC §2.1): find the input `v` with `model(v) = y_desired`
+// Exact per-sample inverse (docs/spec.md §2.1): find the input `v` with `model(v) = y_desired`
 // from the current state, advance the state with it, write it to `*v_out`. `guess` seeds
 // the solver: pass the previous input (0 after a reset). `PHS_ERR_UNREACHABLE` (state
 // untouched) when no input gives `y_desired`.

@@ -1,4 +1,4 @@
-//! C ABI of the piezohyst core (issue 7, SPEC §9): the hysteresis models of
+//! C ABI of the piezohyst core (issue 7, docs/spec.md §9): the hysteresis models of
 //! `piezohyst_core::spec`, their exact per-sample inverse, and the controllers of the Python
 //! binding (open loop, PID, SMC, ABSMC, CEMF feedforward; optionally behind an inverse
 //! hysteresis model and/or with ILC), for real-time loops in C.
@@ -528,7 +528,13 @@ unsafe fn array<'a>(p: *const f64, n: usize, name: &'static str) -> Result<&'a [
 ///
 /// # Safety
 /// A non-null `p` points to `n` writable values, not aliased elsewhere during `'a`.
-unsafe fn buffer<'a>(p: *mut f64, n: usize, want: usize, name: &'static str, len_name: &'static str) -> Result<&'a mut [f64], Why> {
+unsafe fn buffer<'a>(
+    p: *mut f64,
+    n: usize,
+    want: usize,
+    name: &'static str,
+    len_name: &'static str,
+) -> Result<&'a mut [f64], Why> {
     if n != want {
         return Err(Why::Length(len_name, n, want));
     }
@@ -647,7 +653,12 @@ fn overlap(a: &[f64], b: &[f64]) -> bool {
 ///
 /// # Safety
 /// As `phs_model_init`.
-unsafe fn model_init(dst: &mut PhsModel, spec: *const PhsModelSpec, scratch: *mut f64, n_scratch: usize) -> Result<(), Why> {
+unsafe fn model_init(
+    dst: &mut PhsModel,
+    spec: *const PhsModelSpec,
+    scratch: *mut f64,
+    n_scratch: usize,
+) -> Result<(), Why> {
     dst.magic = 0;
     // SAFETY: a non-null spec points to a PhsModelSpec (API contract)
     let spec = unsafe { spec.as_ref() }.ok_or(Why::Null("spec"))?;
@@ -658,7 +669,8 @@ unsafe fn model_init(dst: &mut PhsModel, spec: *const PhsModelSpec, scratch: *mu
         return Err(Why::Length("spec->n_params", row.len(), family.param_len()));
     }
     // SAFETY: API contract: scratch holds n_scratch writable values, used only by this model
-    let scratch: &'static mut [f64] = unsafe { buffer(scratch, n_scratch, family.scratch_len(), "scratch", "n_scratch")? };
+    let scratch: &'static mut [f64] =
+        unsafe { buffer(scratch, n_scratch, family.scratch_len(), "scratch", "n_scratch")? };
     if overlap(row, scratch) {
         return Err(Why::Overlap("spec->params", "scratch"));
     }
@@ -674,7 +686,7 @@ unsafe fn model_init(dst: &mut PhsModel, spec: *const PhsModelSpec, scratch: *mu
     Ok(())
 }
 
-/// Whether the exact inverse exists. For the classical PI (SPEC §2.1) the slope while the
+/// Whether the exact inverse exists. For the classical PI (docs/spec.md §2.1) the slope while the
 /// plays `1..=i` move is the partial weight sum `S_i = p0 + w_1 + ... + w_i`: a negative
 /// `S_i` makes the model decrease there, so no inverse exists. (`S_i = 0` is a flat piece:
 /// the per-sample inverse still reproduces every output the model produced, as in Python;
@@ -716,12 +728,18 @@ unsafe fn model_ref<'a>(p: *const PhsModel, name: &'static str) -> Result<(&'a M
 /// # Safety
 /// `spec` points to a `PhsModelSpec`; each non-null output points to a writable `size_t`.
 #[no_mangle]
-pub unsafe extern "C" fn phs_model_sizes(spec: *const PhsModelSpec, n_params: *mut usize, n_state: *mut usize, n_scratch: *mut usize) -> PhsStatus {
+pub unsafe extern "C" fn phs_model_sizes(
+    spec: *const PhsModelSpec,
+    n_params: *mut usize,
+    n_state: *mut usize,
+    n_scratch: *mut usize,
+) -> PhsStatus {
     guard("phs_model_sizes", || {
         // SAFETY: API contract
         let spec = unsafe { spec.as_ref() }.ok_or(Why::Null("spec"))?;
         let family = family_of(spec)?;
-        for (p, v) in [(n_params, family.param_len()), (n_state, family.state_len()), (n_scratch, family.scratch_len())] {
+        for (p, v) in [(n_params, family.param_len()), (n_state, family.state_len()), (n_scratch, family.scratch_len())]
+        {
             if let Some(p) = unsafe { p.as_mut() } {
                 *p = v;
             }
@@ -740,7 +758,12 @@ pub unsafe extern "C" fn phs_model_sizes(spec: *const PhsModelSpec, n_params: *m
 /// `model` points to a writable `PhsModel`; `spec` to a `PhsModelSpec` whose `params`
 /// holds `n_params` values; `scratch` to `n_scratch` writable values.
 #[no_mangle]
-pub unsafe extern "C" fn phs_model_init(model: *mut PhsModel, spec: *const PhsModelSpec, scratch: *mut f64, n_scratch: usize) -> PhsStatus {
+pub unsafe extern "C" fn phs_model_init(
+    model: *mut PhsModel,
+    spec: *const PhsModelSpec,
+    scratch: *mut f64,
+    n_scratch: usize,
+) -> PhsStatus {
     guard("phs_model_init", || {
         let dst = out(model, "model")?;
         // SAFETY: forwarded API contract
@@ -754,9 +777,21 @@ pub unsafe extern "C" fn phs_model_init(model: *mut PhsModel, spec: *const PhsMo
 /// # Safety
 /// As `phs_model_init`.
 #[no_mangle]
-pub unsafe extern "C" fn phs_model_validate(spec: *const PhsModelSpec, scratch: *mut f64, n_scratch: usize) -> PhsStatus {
+pub unsafe extern "C" fn phs_model_validate(
+    spec: *const PhsModelSpec,
+    scratch: *mut f64,
+    n_scratch: usize,
+) -> PhsStatus {
     guard("phs_model_validate", || {
-        let mut tmp = PhsModel { magic: 0, family: 0, flags: 0, n_params: 0, state_len: 0, scratch_len: 0, built: [0; PHS_MODEL_WORDS] };
+        let mut tmp = PhsModel {
+            magic: 0,
+            family: 0,
+            flags: 0,
+            n_params: 0,
+            state_len: 0,
+            scratch_len: 0,
+            built: [0; PHS_MODEL_WORDS],
+        };
         // SAFETY: forwarded API contract
         unsafe { model_init(&mut tmp, spec, scratch, n_scratch) }
     })
@@ -801,7 +836,13 @@ pub unsafe extern "C" fn phs_model_reset(model: *const PhsModel, state: *mut f64
 /// `model` points to a `PhsModel`; `state` to `n_state` writable values that do not
 /// overlap the model's parameter row or scratch; `y_out` to a writable double.
 #[no_mangle]
-pub unsafe extern "C" fn phs_model_step(model: *const PhsModel, state: *mut f64, n_state: usize, v: f64, y_out: *mut f64) -> PhsStatus {
+pub unsafe extern "C" fn phs_model_step(
+    model: *const PhsModel,
+    state: *mut f64,
+    n_state: usize,
+    v: f64,
+    y_out: *mut f64,
+) -> PhsStatus {
     guard("phs_model_step", || {
         // SAFETY: API contract
         let (m, len, _) = unsafe { model_ref(model, "model")? };
@@ -818,7 +859,7 @@ pub unsafe extern "C" fn phs_model_step(model: *const PhsModel, state: *mut f64,
     })
 }
 
-/// Exact per-sample inverse (SPEC §2.1): find the input `v` with `model(v) = y_desired`
+/// Exact per-sample inverse (docs/spec.md §2.1): find the input `v` with `model(v) = y_desired`
 /// from the current state, advance the state with it, write it to `*v_out`. `guess` seeds
 /// the solver: pass the previous input (0 after a reset). `PHS_ERR_UNREACHABLE` (state
 /// untouched) when no input gives `y_desired`.
@@ -890,9 +931,16 @@ fn law(kind: u32, p: &[f64]) -> Result<Law, Why> {
             } else if p[6] == 1.0 {
                 Switching::SuperTwisting { k1: p[7], k2: p[8] }
             } else {
-                return Err(Why::Model(ModelError::OutOfRange("switching (0 boundary layer, 1 super-twisting)", usize::MAX, p[6], 0.0, 1.0)));
+                return Err(Why::Model(ModelError::OutOfRange(
+                    "switching (0 boundary layer, 1 super-twisting)",
+                    usize::MAX,
+                    p[6],
+                    0.0,
+                    1.0,
+                )));
             };
-            let model = if p[12] != 0.0 { Some(cemf(&[p[0], p[1], p[2], p[13], p[14], p[15], p[16], p[17]])?) } else { None };
+            let model =
+                if p[12] != 0.0 { Some(cemf(&[p[0], p[1], p[2], p[13], p[14], p[15], p[16], p[17]])?) } else { None };
             let mut smc = Smc::new((p[0], p[1], p[2]), p[3], p[4], p[5], switching, model, observer(9)?, limits)?;
             smc.desired_model_terms = p[18] != 0.0;
             Law::Smc(smc)
@@ -931,7 +979,9 @@ unsafe fn controller_init(
     // SAFETY: API contract
     let ilc = match unsafe { ilc.as_ref() } {
         None => None,
-        Some(s) => Some(Ilc::new(b, s.period, s.gain, s.forgetting, s.lead, s.delay).map_err(|e| Why::Context("ilc", e))?),
+        Some(s) => {
+            Some(Ilc::new(b, s.period, s.gain, s.forgetting, s.lead, s.delay).map_err(|e| Why::Context("ilc", e))?)
+        }
     };
     // SAFETY: API contract
     let built = match unsafe { inverse.as_ref() } {
@@ -1053,7 +1103,12 @@ pub unsafe extern "C" fn phs_controller_state_len(controller: *const PhsControll
 /// # Safety
 /// `controller` points to a `PhsController`; `state` to `n_state` writable values.
 #[no_mangle]
-pub unsafe extern "C" fn phs_controller_reset(controller: *const PhsController, state: *mut f64, n_state: usize, y0: f64) -> PhsStatus {
+pub unsafe extern "C" fn phs_controller_reset(
+    controller: *const PhsController,
+    state: *mut f64,
+    n_state: usize,
+    y0: f64,
+) -> PhsStatus {
     guard("phs_controller_reset", || {
         // SAFETY: API contract
         let (c, len) = unsafe { controller_ref(controller)? };

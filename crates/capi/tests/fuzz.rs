@@ -67,7 +67,11 @@ fn model_input() -> impl Strategy<Value = ModelInput> {
             ModelInput { family, n_dims, dims, row, declared, null_params, scratch_delta, null_scratch }
         });
     // a valid model with some values replaced by random ones: reaches the deep checks
-    let mutated = (0usize..10, proptest::collection::vec((any::<prop::sample::Index>(), value()), 1..4), prop_oneof![Just(0i64), -1i64..2])
+    let mutated = (
+        0usize..10,
+        proptest::collection::vec((any::<prop::sample::Index>(), value()), 1..4),
+        prop_oneof![Just(0i64), -1i64..2],
+    )
         .prop_map(|(which, changes, scratch_delta)| {
             let case = &models()[which];
             let mut row = case.row.clone();
@@ -108,7 +112,16 @@ fn model_input() -> impl Strategy<Value = ModelInput> {
             unsafe { phs_model_sizes(&s, &mut n, ptr::null_mut(), ptr::null_mut()) };
             let row: Vec<f64> = pool.iter().cycle().take(n).copied().collect();
             let declared = row.len();
-            ModelInput { family, n_dims: n_dims as u32, dims: d, row, declared, null_params: false, scratch_delta: 0, null_scratch: false }
+            ModelInput {
+                family,
+                n_dims: n_dims as u32,
+                dims: d,
+                row,
+                declared,
+                null_params: false,
+                scratch_delta: 0,
+                null_scratch: false,
+            }
         });
     prop_oneof![random, mutated, sized]
 }
@@ -351,7 +364,10 @@ fn null_pointers_everywhere() {
     unsafe {
         assert_eq!(phs_model_init(ptr::null_mut(), &s, ptr::null_mut(), 0), PHS_ERR_NULL_POINTER);
         assert_eq!(phs_model_init(&mut m, ptr::null(), ptr::null_mut(), 0), PHS_ERR_NULL_POINTER);
-        assert_eq!(phs_model_sizes(ptr::null(), ptr::null_mut(), ptr::null_mut(), ptr::null_mut()), PHS_ERR_NULL_POINTER);
+        assert_eq!(
+            phs_model_sizes(ptr::null(), ptr::null_mut(), ptr::null_mut(), ptr::null_mut()),
+            PHS_ERR_NULL_POINTER
+        );
         assert_eq!(phs_model_step(ptr::null(), st.as_mut_ptr(), 3, 0.0, &mut y), PHS_ERR_NULL_POINTER);
         assert_eq!(init_model(&mut m, &s, &mut []), PHS_OK);
         assert_eq!(phs_model_step(&m, ptr::null_mut(), 3, 0.0, &mut y), PHS_ERR_NULL_POINTER);
@@ -360,12 +376,18 @@ fn null_pointers_everywhere() {
         assert_eq!(phs_model_state_len(&m, ptr::null_mut()), PHS_ERR_NULL_POINTER);
         let mut c = empty_controller();
         assert_eq!(phs_controller_init(&mut c, 2, ptr::null(), 9, ptr::null(), ptr::null()), PHS_ERR_NULL_POINTER);
-        assert_eq!(phs_controller_init(ptr::null_mut(), 2, ptr::null(), 9, ptr::null(), ptr::null()), PHS_ERR_NULL_POINTER);
+        assert_eq!(
+            phs_controller_init(ptr::null_mut(), 2, ptr::null(), 9, ptr::null(), ptr::null()),
+            PHS_ERR_NULL_POINTER
+        );
         let inv = PhsInverse { model: ptr::null(), u_min: 0.0, u_max: 1.0 };
         let p = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0];
         assert_eq!(phs_controller_init(&mut c, 1, p.as_ptr(), 6, &inv, ptr::null()), PHS_ERR_NULL_POINTER);
         assert_eq!(phs_controller_param_count(3, ptr::null_mut()), PHS_ERR_NULL_POINTER);
-        assert_eq!(phs_controller_step(ptr::null(), st.as_mut_ptr(), 0, 0.0, 0.0, 0.0, 0.0, &mut y), PHS_ERR_NULL_POINTER);
+        assert_eq!(
+            phs_controller_step(ptr::null(), st.as_mut_ptr(), 0, 0.0, 0.0, 0.0, 0.0, &mut y),
+            PHS_ERR_NULL_POINTER
+        );
         let msg = std::ffi::CStr::from_ptr(phs_last_error_message()).to_str().unwrap();
         assert_eq!(msg, "phs_controller_step: controller is NULL");
     }

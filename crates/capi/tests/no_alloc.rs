@@ -67,7 +67,8 @@ fn models_never_allocate() {
         let mut state = vec![0.0; n_state];
         let amp = if case.name == "mpi9" { 70.0 } else { 0.9 };
         let offset = if case.name == "mpi9" { 75.0 } else { 0.0 };
-        let v: Vec<f64> = (0..STEPS).map(|k| offset + amp * (k as f64 * 0.003).sin() * (k as f64 * 0.0007).cos()).collect();
+        let v: Vec<f64> =
+            (0..STEPS).map(|k| offset + amp * (k as f64 * 0.003).sin() * (k as f64 * 0.0007).cos()).collect();
         let mut y = vec![0.0; STEPS];
         let mut v_back = vec![0.0; STEPS];
         let init = allocations(|| {
@@ -76,7 +77,12 @@ fn models_never_allocate() {
         });
         let step = allocations(|| {
             for k in 0..STEPS {
-                assert_eq!(unsafe { phs_model_step(&m, state.as_mut_ptr(), n_state, v[k], &mut y[k]) }, PHS_OK, "{}", case.name);
+                assert_eq!(
+                    unsafe { phs_model_step(&m, state.as_mut_ptr(), n_state, v[k], &mut y[k]) },
+                    PHS_OK,
+                    "{}",
+                    case.name
+                );
             }
         });
         let mut unreachable = 0;
@@ -95,10 +101,22 @@ fn models_never_allocate() {
         bad[0] = f64::NAN;
         let errors = allocations(|| {
             let mut out = 0.0;
-            assert_eq!(unsafe { phs_model_step(&m, state.as_mut_ptr(), n_state, f64::NAN, &mut out) }, PHS_ERR_NOT_FINITE);
-            assert_eq!(unsafe { phs_model_step(&m, state.as_mut_ptr(), n_state + 1, 0.0, &mut out) }, PHS_ERR_BAD_LENGTH);
-            assert_eq!(unsafe { phs_model_step(&m, state.as_mut_ptr(), n_state, 0.0, ptr::null_mut()) }, PHS_ERR_NULL_POINTER);
-            assert_eq!(unsafe { phs_model_step(&empty_model(), state.as_mut_ptr(), n_state, 0.0, &mut out) }, PHS_ERR_NOT_INITIALIZED);
+            assert_eq!(
+                unsafe { phs_model_step(&m, state.as_mut_ptr(), n_state, f64::NAN, &mut out) },
+                PHS_ERR_NOT_FINITE
+            );
+            assert_eq!(
+                unsafe { phs_model_step(&m, state.as_mut_ptr(), n_state + 1, 0.0, &mut out) },
+                PHS_ERR_BAD_LENGTH
+            );
+            assert_eq!(
+                unsafe { phs_model_step(&m, state.as_mut_ptr(), n_state, 0.0, ptr::null_mut()) },
+                PHS_ERR_NULL_POINTER
+            );
+            assert_eq!(
+                unsafe { phs_model_step(&empty_model(), state.as_mut_ptr(), n_state, 0.0, &mut out) },
+                PHS_ERR_NOT_INITIALIZED
+            );
             let bs = spec(case.family, &case.dims, &bad);
             let mut m2 = empty_model();
             assert_eq!(init_model(&mut m2, &bs, &mut scratch), PHS_ERR_NOT_FINITE, "{}", case.name);
@@ -110,7 +128,8 @@ fn models_never_allocate() {
         );
         assert_eq!((init, step, inverse, errors), (0, 0, 0, 0), "{}", case.name);
         // the inverse is exact where it is reachable
-        if case.invertible && unreachable == 0 && case.name != "boucwen" && case.name != "duhem" && case.name != "dahl" {
+        if case.invertible && unreachable == 0 && case.name != "boucwen" && case.name != "duhem" && case.name != "dahl"
+        {
             unsafe { phs_model_reset(&m, state.as_mut_ptr(), n_state) };
             for k in 0..STEPS {
                 let mut yk = 0.0;
@@ -135,13 +154,22 @@ fn controllers_never_allocate() {
         let ilc_ptr = case.ilc.as_ref().map_or(ptr::null(), |s| s as *const PhsIlcSpec);
         let mut c = empty_controller();
         // the state buffer is the caller's: ask its size first (before counting)
-        assert_eq!(unsafe { phs_controller_init(&mut c, case.kind, case.params.as_ptr(), case.params.len(), inv_ptr, ilc_ptr) }, PHS_OK, "{}", case.name);
+        assert_eq!(
+            unsafe {
+                phs_controller_init(&mut c, case.kind, case.params.as_ptr(), case.params.len(), inv_ptr, ilc_ptr)
+            },
+            PHS_OK,
+            "{}",
+            case.name
+        );
         let mut state = vec![0.0; c.state_len];
         let n = state.len();
         let mut c = empty_controller();
         let init = allocations(|| {
             assert_eq!(
-                unsafe { phs_controller_init(&mut c, case.kind, case.params.as_ptr(), case.params.len(), inv_ptr, ilc_ptr) },
+                unsafe {
+                    phs_controller_init(&mut c, case.kind, case.params.as_ptr(), case.params.len(), inv_ptr, ilc_ptr)
+                },
                 PHS_OK,
                 "{}",
                 case.name
@@ -155,7 +183,12 @@ fn controllers_never_allocate() {
         let step = allocations(|| {
             for &(x, v, a, y) in &inputs {
                 let mut u = 0.0;
-                assert_eq!(unsafe { phs_controller_step(&c, state.as_mut_ptr(), n, x, v, a, y, &mut u) }, PHS_OK, "{}", case.name);
+                assert_eq!(
+                    unsafe { phs_controller_step(&c, state.as_mut_ptr(), n, x, v, a, y, &mut u) },
+                    PHS_OK,
+                    "{}",
+                    case.name
+                );
                 lo = lo.min(u);
                 hi = hi.max(u);
             }
@@ -164,11 +197,17 @@ fn controllers_never_allocate() {
         bad[0] = f64::INFINITY;
         let errors = allocations(|| {
             let mut u = 0.0;
-            assert_eq!(unsafe { phs_controller_step(&c, state.as_mut_ptr(), n, 0.0, 0.0, 0.0, f64::NAN, &mut u) }, PHS_ERR_NOT_FINITE);
-            assert_eq!(unsafe { phs_controller_step(&c, state.as_mut_ptr(), n + 1, 0.0, 0.0, 0.0, 0.0, &mut u) }, PHS_ERR_BAD_LENGTH);
+            assert_eq!(
+                unsafe { phs_controller_step(&c, state.as_mut_ptr(), n, 0.0, 0.0, 0.0, f64::NAN, &mut u) },
+                PHS_ERR_NOT_FINITE
+            );
+            assert_eq!(
+                unsafe { phs_controller_step(&c, state.as_mut_ptr(), n + 1, 0.0, 0.0, 0.0, 0.0, &mut u) },
+                PHS_ERR_BAD_LENGTH
+            );
             let mut c2 = empty_controller();
             assert_eq!(
-                unsafe { phs_controller_init(&mut c2, case.kind, bad.as_ptr(), bad.len(), inv_ptr, ilc_ptr) },
+                unsafe { phs_controller_init(&mut c2, case.kind, bad.as_ptr(), bad.len(), inv_ptr, ilc_ptr,) },
                 PHS_ERR_NOT_FINITE
             );
         });

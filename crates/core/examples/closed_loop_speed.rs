@@ -11,12 +11,14 @@ fn main() {
     let p = StageParams::virtual_stage();
     let ts = 1e-4;
     let n = 100_000; // 10 s
-    let r: Vec<f64> = (0..n).map(|k| 5e-6 * (1.0 - (2.0 * std::f64::consts::PI * 10.0 * k as f64 * ts).cos())).collect();
+    let r: Vec<f64> =
+        (0..n).map(|k| 5e-6 * (1.0 - (2.0 * std::f64::consts::PI * 10.0 * k as f64 * ts).cos())).collect();
     let z = vec![0.0; n];
     for (substeps, tol) in [(1, f64::INFINITY), (1, 0.05), (1, 0.01), (2, f64::INFINITY)] {
         let stage = Stage::new(p, ts, substeps, tol).unwrap();
         let sensor = Sensor::new(1e-7, if std::env::var("NONOISE").is_ok() { 0.0 } else { 1e-8 }, 1).unwrap();
-        let pid = Pid::new(1e6, 5e9, 0.0, 1e-4, ts, 1.0 / (10.5 / 7.333e7), 0.0, Limits::new(-20.0, 150.0).unwrap()).unwrap();
+        let pid =
+            Pid::new(1e6, 5e9, 0.0, 1e-4, ts, 1.0 / (10.5 / 7.333e7), 0.0, Limits::new(-20.0, 150.0).unwrap()).unwrap();
         let (mut c, mut va, mut x, mut y) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
         let mut terms = vec![0.0; n * 5];
         let mut best = f64::INFINITY;
@@ -26,12 +28,26 @@ fn main() {
             let mut cst = [0.0; 3];
             piezohyst_core::control::Controller::reset(&pid, &mut cst, 0.0);
             let t0 = Instant::now();
-            run(&stage, &mut st, &sensor, &mut sst, &pid, &mut cst, &r, &z, &z, Record {
-                command: &mut c, voltage: &mut va, position: &mut x, measured: &mut y, terms: &mut terms,
-            });
+            run(
+                &stage,
+                &mut st,
+                &sensor,
+                &mut sst,
+                &pid,
+                &mut cst,
+                &r,
+                &z,
+                &z,
+                Record { command: &mut c, voltage: &mut va, position: &mut x, measured: &mut y, terms: &mut terms },
+            );
             best = best.min(t0.elapsed().as_secs_f64());
         }
         let rmse = (r.iter().zip(&x).map(|(a, b)| (a - b) * (a - b)).sum::<f64>() / n as f64).sqrt();
-        println!("substeps {substeps} tolerance {tol}: {:.0} ns/step, real-time factor {:.0}x, rmse {:.3e}", best / n as f64 * 1e9, n as f64 * ts / best, rmse);
+        println!(
+            "substeps {substeps} tolerance {tol}: {:.0} ns/step, real-time factor {:.0}x, rmse {:.3e}",
+            best / n as f64 * 1e9,
+            n as f64 * ts / best,
+            rmse
+        );
     }
 }

@@ -2,12 +2,12 @@
 //! measurement, as it runs in a real-time loop. Mean over 10^6 steps (best of 5 runs) and
 //! the worst single step. Prints JSON (`bench/results/controller_step.json` is this output):
 //! `cargo run --release -p piezohyst-core --example controller_step`.
+use piezohyst_core::absmc::Absmc;
 use piezohyst_core::cemf::CemfModel;
 use piezohyst_core::compensated::Compensated;
-use piezohyst_core::absmc::Absmc;
 use piezohyst_core::control::{Controller, Limits, OpenLoop, Reference, VelocityObserver};
-use piezohyst_core::smc::{Smc, Switching};
 use piezohyst_core::inverse::inverse_step;
+use piezohyst_core::smc::{Smc, Switching};
 use piezohyst_core::spec::Family;
 use piezohyst_core::Invertible;
 use std::time::Instant;
@@ -73,7 +73,11 @@ fn main() {
             Reference { x: 9e-6 + 8e-6 * (w * t).sin(), v: 8e-6 * w * (w * t).cos(), a: -8e-6 * w * w * (w * t).sin() }
         })
         .collect();
-    let ys: Vec<f64> = refs.iter().enumerate().map(|(k, r)| ((r.x + 2e-8 * ((k as f64) * 0.37).sin()) / 1e-7).round() * 1e-7).collect();
+    let ys: Vec<f64> = refs
+        .iter()
+        .enumerate()
+        .map(|(k, r)| ((r.x + 2e-8 * ((k as f64) * 0.37).sin()) / 1e-7).round() * 1e-7)
+        .collect();
     // seed 2's MPI structure: 9 generalized plays, cubic polynomial, identity envelopes
     let family = Family::parse("gpi", &[9, 0, 0, 0]).unwrap();
     let mut row = vec![0.0; family.param_len()];
@@ -99,16 +103,55 @@ fn main() {
     let observer = VelocityObserver::new(1000.0, ts, 1.0).unwrap();
     let cemf = CemfModel::new(0.0068, 13.0, 6.98e6, 10.5, 1.8e-6, 1.25e5, 8000.0, 3000.0).unwrap();
     let smc = |with: bool| {
-        Smc::new((0.0068, 13.0, 6.98e6), 1e6, 2e3, 0.0, Switching::BoundaryLayer { gain: 20.0, width: 0.01 }, if with { Some(cemf) } else { None }, observer, limits).unwrap()
+        Smc::new(
+            (0.0068, 13.0, 6.98e6),
+            1e6,
+            2e3,
+            0.0,
+            Switching::BoundaryLayer { gain: 20.0, width: 0.01 },
+            if with { Some(cemf) } else { None },
+            observer,
+            limits,
+        )
+        .unwrap()
     };
     let disp = Limits::new(-2e-6, 22e-6).unwrap();
     let w2 = (2.0 * std::f64::consts::PI * 2000.0f64).powi(2);
-    let absmc = Absmc::new(w2, [w2, 1.4 * w2.sqrt()], [w2 / 3.0, 0.0], [3.0 * w2, 3.0 * w2.sqrt()], (2e3, 2e3, 5e3, 1e-3), [1e6, 1e3], (1e4, 0.0, 1e5), true, observer, disp).unwrap();
-    let smc_disp = Smc::new((1.0 / w2, 1.4 / w2.sqrt(), 1.0), 1e6, 2e3, 0.0, Switching::BoundaryLayer { gain: 1e-6, width: 0.01 }, None, observer, disp).unwrap();
+    let absmc = Absmc::new(
+        w2,
+        [w2, 1.4 * w2.sqrt()],
+        [w2 / 3.0, 0.0],
+        [3.0 * w2, 3.0 * w2.sqrt()],
+        (2e3, 2e3, 5e3, 1e-3),
+        [1e6, 1e3],
+        (1e4, 0.0, 1e5),
+        true,
+        observer,
+        disp,
+    )
+    .unwrap();
+    let smc_disp = Smc::new(
+        (1.0 / w2, 1.4 / w2.sqrt(), 1.0),
+        1e6,
+        2e3,
+        0.0,
+        Switching::BoundaryLayer { gain: 1e-6, width: 0.01 },
+        None,
+        observer,
+        disp,
+    )
+    .unwrap();
     let rows = [
         ("PI inverse, 9 operators (inverse_step)", time_inverse(&pi, &refs)),
         ("MPI inverse, 9 operators (inverse_step)", time_inverse(&mpi, &refs)),
-        ("PI-type inverse, 9 operators (MPI feedforward)", time(&Compensated { inner: OpenLoop::new(1.0, 0.0, 0.0, 0.0, disp).unwrap(), model: mpi, limits }, &refs, &ys)),
+        (
+            "PI-type inverse, 9 operators (MPI feedforward)",
+            time(
+                &Compensated { inner: OpenLoop::new(1.0, 0.0, 0.0, 0.0, disp).unwrap(), model: mpi, limits },
+                &refs,
+                &ys,
+            ),
+        ),
         ("SMC", time(&smc(false), &refs, &ys)),
         ("SMC + CEMF observer", time(&smc(true), &refs, &ys)),
         ("MPI inverse (9 operators) + SMC", time(&Compensated { inner: smc_disp, model: mpi, limits }, &refs, &ys)),

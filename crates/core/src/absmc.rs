@@ -1,4 +1,4 @@
-//! Adaptive backstepping sliding-mode control — seed 2 (SPEC §5), for a plant
+//! Adaptive backstepping sliding-mode control — seed 2 (docs/spec.md §5), for a plant
 //! `x'' = theta^T phi + b u + d` with `phi = [-x, -x']` (`theta = [a0, a1]`: stiffness and
 //! damping per unit input gain), unknown `theta` and a bounded lumped disturbance `d`.
 //!
@@ -98,7 +98,23 @@ impl Absmc {
         if d0 > d_max {
             return Err(ModelError::OutOfRange("d0", usize::MAX, d0, 0.0, d_max));
         }
-        Ok(Absmc { b, theta0, theta_min, theta_max, c1, lambda, ks, phi, gamma_theta, gamma_d, d0, d_max, desired_regressor, observer, limits })
+        Ok(Absmc {
+            b,
+            theta0,
+            theta_min,
+            theta_max,
+            c1,
+            lambda,
+            ks,
+            phi,
+            gamma_theta,
+            gamma_d,
+            d0,
+            d_max,
+            desired_regressor,
+            observer,
+            limits,
+        })
     }
 }
 
@@ -125,7 +141,10 @@ impl Controller for Absmc {
         let d_alpha1 = r.a - self.c1 * (v - r.v);
         let phi = if self.desired_regressor { [-r.x, -r.v] } else { [-x, -v] };
         let (th, d) = ([state[TH], state[TH + 1]], state[D]);
-        let raw = (-(th[0] * phi[0] + th[1] * phi[1]) + d_alpha1 - self.lambda * (e2 - self.c1 * e1) - e1 - self.ks * s
+        let raw = (-(th[0] * phi[0] + th[1] * phi[1]) + d_alpha1
+            - self.lambda * (e2 - self.c1 * e1)
+            - e1
+            - self.ks * s
             - d * clamp(s / self.phi, -1.0, 1.0))
             / self.b;
         // the laws push u against s: hold them while u is saturated in that direction

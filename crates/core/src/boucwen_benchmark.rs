@@ -1,4 +1,4 @@
-//! The Bouc–Wen hysteretic benchmark system (Noël & Schoukens 2016), SPEC §3.3.
+//! The Bouc–Wen hysteretic benchmark system (Noël & Schoukens 2016), docs/spec.md §3.3.
 //!
 //! ```text
 //! mL y'' + cL y' + kL y + z = u
@@ -79,7 +79,7 @@ impl BoucWenBenchmark {
     /// Number of parameters of [`BoucWenBenchmark::from_slice`].
     pub const PARAM_LEN: usize = 8;
 
-    /// The benchmark's true parameters (SPEC §3.3).
+    /// The benchmark's true parameters (docs/spec.md §3.3).
     pub const NOEL_SCHOUKENS: Self = BoucWenBenchmark {
         mass: 2.0,
         damping: 10.0,
@@ -121,12 +121,7 @@ impl BoucWenBenchmark {
         if !(mass > 0.0) {
             return Err(ModelError::NotPositive("mass", usize::MAX, mass));
         }
-        for (name, v) in [
-            ("damping", damping),
-            ("stiffness", stiffness),
-            ("alpha", alpha),
-            ("beta", beta),
-        ] {
+        for (name, v) in [("damping", damping), ("stiffness", stiffness), ("alpha", alpha), ("beta", beta)] {
             if v < 0.0 {
                 return Err(ModelError::Negative(name, usize::MAX, v));
             }
@@ -134,16 +129,7 @@ impl BoucWenBenchmark {
         if !(nu >= 1.0) {
             return Err(ModelError::NotPositive("nu (must be >= 1)", usize::MAX, nu));
         }
-        Ok(BoucWenBenchmark {
-            mass,
-            damping,
-            stiffness,
-            alpha,
-            beta,
-            gamma,
-            delta,
-            nu,
-        })
+        Ok(BoucWenBenchmark { mass, damping, stiffness, alpha, beta, gamma, delta, nu })
     }
 
     /// Build from `[mass, damping, stiffness, alpha, beta, gamma, delta, nu]`.
@@ -156,16 +142,7 @@ impl BoucWenBenchmark {
 
     /// The parameters as `[mass, damping, stiffness, alpha, beta, gamma, delta, nu]`.
     pub fn to_array(&self) -> [f64; 8] {
-        [
-            self.mass,
-            self.damping,
-            self.stiffness,
-            self.alpha,
-            self.beta,
-            self.gamma,
-            self.delta,
-            self.nu,
-        ]
+        [self.mass, self.damping, self.stiffness, self.alpha, self.beta, self.gamma, self.delta, self.nu]
     }
 
     /// `|z|^(nu-1)`, exactly 1 for `nu = 1` (also at `z = 0`).
@@ -238,12 +215,7 @@ impl State {
 
     /// From `[y, y', y'', z]`.
     pub fn from_array(s: [f64; 4]) -> Self {
-        State {
-            y: s[0],
-            v: s[1],
-            a: s[2],
-            z: s[3],
-        }
+        State { y: s[0], v: s[1], a: s[2], z: s[3] }
     }
 }
 
@@ -321,8 +293,7 @@ impl Newmark {
             }
         }
         if !ok {
-            let (zb, okb) =
-                bracket_solve(|x| eval(x).0, if z.is_finite() { z } else { s.z }, scale);
+            let (zb, okb) = bracket_solve(|x| eval(x).0, if z.is_finite() { z } else { s.z }, scale);
             z = zb;
             ok = okb;
         }
@@ -485,11 +456,7 @@ pub fn fir1_taps(r: usize) -> [f64; FIR_TAPS] {
     // computed on one half and mirrored, so the filter is exactly symmetric (zero phase)
     for n in 0..=FIR_HALF {
         let m = n as f64 - 0.5 * order;
-        let ideal = if m == 0.0 {
-            wn
-        } else {
-            libm::sin(PI * wn * m) / (PI * m)
-        };
+        let ideal = if m == 0.0 { wn } else { libm::sin(PI * wn * m) / (PI * m) };
         let w = 0.54 - 0.46 * libm::cos(2.0 * PI * n as f64 / order);
         b[n] = ideal * w;
         b[FIR_TAPS - 1 - n] = b[n];
@@ -594,12 +561,7 @@ pub fn cascade_work_len(n: usize, factor: usize) -> usize {
 /// generator's decimation; 20 = 2·2·5), into `out` of length
 /// [`decimated_len`]`(x.len(), factor)`. `x` is overwritten (the stages alternate between
 /// `x` and `work`, of length at least [`cascade_work_len`]); `factor = 1` copies.
-pub fn decimate_cascade(
-    x: &mut [f64],
-    factor: usize,
-    work: &mut [f64],
-    out: &mut [f64],
-) -> Result<(), ModelError> {
+pub fn decimate_cascade(x: &mut [f64], factor: usize, work: &mut [f64], out: &mut [f64]) -> Result<(), ModelError> {
     if factor == 0 {
         return Err(ModelError::Structure("factor", 0));
     }
@@ -717,11 +679,7 @@ pub fn record_rmse(
 ) -> Result<f64, ModelError> {
     let n_out = decimated_len(u_fine.len(), factor.max(1));
     if target.is_empty() || skip + target.len() > n_out {
-        return Err(ModelError::Length(
-            "target",
-            n_out.saturating_sub(skip),
-            target.len(),
-        ));
+        return Err(ModelError::Length("target", n_out.saturating_sub(skip), target.len()));
     }
     if simulate_record(stepper, u_fine, factor, fine, work, out)?.is_err() {
         return Ok(f64::INFINITY);
@@ -790,30 +748,15 @@ mod tests {
         let mut s = State::at(&cfg, 0.0, 0.0, 0.0, u[0]);
         let mut y = [0.0; 4000];
         let mut z = [0.0; 3999];
-        assert_eq!(
-            integrate(&nm, &mut s, &u[1..], &mut y[1..], &mut z).unwrap(),
-            None
-        );
+        assert_eq!(integrate(&nm, &mut s, &u[1..], &mut y[1..], &mut z).unwrap(), None);
         let mut work = [0.0; 2000];
         let mut expect = [0.0; 200];
         decimate_cascade(&mut y, 20, &mut work, &mut expect).unwrap();
         let mut fine = [0.0; 4000];
         let mut out = [0.0; 200];
-        simulate_record(&nm, &u, 20, &mut fine, &mut work, &mut out)
-            .unwrap()
-            .unwrap();
+        simulate_record(&nm, &u, 20, &mut fine, &mut work, &mut out).unwrap().unwrap();
         assert_eq!(out, expect);
-        let r = record_rmse(
-            &nm,
-            &u,
-            20,
-            &expect[50..],
-            50,
-            &mut fine,
-            &mut work,
-            &mut out,
-        )
-        .unwrap();
+        let r = record_rmse(&nm, &u, 20, &expect[50..], 50, &mut fine, &mut work, &mut out).unwrap();
         assert_eq!(r, 0.0);
         let mut shifted = [0.0; 150];
         for (t, e) in shifted.iter_mut().zip(&expect[50..]) {

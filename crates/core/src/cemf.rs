@@ -1,4 +1,4 @@
-//! The identified CEMF stage model of seed 1 as a controller component (SPEC §2.6, §5):
+//! The identified CEMF stage model of seed 1 as a controller component (docs/spec.md §2.6, §5):
 //! the observer that estimates the hysteresis voltage `V̂h` from the applied voltage and
 //! the measured displacement, and the exact inverse feedforward.
 //!
@@ -38,7 +38,16 @@ impl CemfModel {
     /// Validate: positive `M`, `K`, `Tem`, `Cz`; `B >= 0`; finite Bouc–Wen parameters with
     /// `beta + gamma >= 0`, `beta - gamma >= 0` (`Vh` stays bounded).
     #[allow(clippy::too_many_arguments)]
-    pub fn new(m: f64, b: f64, k: f64, tem: f64, cz: f64, alpha: f64, beta: f64, gamma: f64) -> Result<Self, ModelError> {
+    pub fn new(
+        m: f64,
+        b: f64,
+        k: f64,
+        tem: f64,
+        cz: f64,
+        alpha: f64,
+        beta: f64,
+        gamma: f64,
+    ) -> Result<Self, ModelError> {
         positive("M", m)?;
         positive("K", k)?;
         positive("tem", tem)?;

@@ -1,5 +1,5 @@
 //! The closed-loop engine: controller at its sample time, amplifier and stage with
-//! sub-steps, sensor with noise, quantization and delay (SPEC §3.2, issue 3).
+//! sub-steps, sensor with noise, quantization and delay (docs/spec.md §3.2, issue 3).
 //!
 //! Per sample `k` (time `k Ts`): the sensor samples the true position `x_k` and hands the
 //! controller the reading it took `delay` samples ago; the controller returns a command;
@@ -96,7 +96,18 @@ pub fn run<C: Controller + ?Sized>(
         .unwrap_or(0)
         .min(rec.terms.len() / width.max(1));
     let mut sink = RecordTerms { rec: &mut rec, width, len };
-    run_recorder(stage, stage_state, sensor, sensor_state, controller, controller_state, reference, velocity, acceleration, &mut sink);
+    run_recorder(
+        stage,
+        stage_state,
+        sensor,
+        sensor_state,
+        controller,
+        controller_state,
+        reference,
+        velocity,
+        acceleration,
+        &mut sink,
+    );
 }
 
 /// [`run`] handing each sample to `recorder`; returns the number of samples run (the
@@ -178,7 +189,14 @@ fn run_n<C: Controller + ?Sized, R: Recorder, const NC: usize, const T: bool>(
         vcr = stage.advance_from::<NC, T>(stage_state, out.u, vcr);
         recorder.record(
             k,
-            &Sample { reference: xr, command: out.u, voltage: stage_state.va, position: x, measured: y, terms: &out.terms },
+            &Sample {
+                reference: xr,
+                command: out.u,
+                voltage: stage_state.va,
+                position: x,
+                measured: y,
+                terms: &out.terms,
+            },
         );
     }
 }
@@ -218,7 +236,8 @@ pub fn run_tracking<C: Controller + ?Sized>(
         if k >= skip {
             let e = reference[k] - x;
             t.sse += e * e;
-            t.max_error = if crate::math::abs(e) > t.max_error || e.is_nan() { crate::math::abs(e) } else { t.max_error };
+            t.max_error =
+                if crate::math::abs(e) > t.max_error || e.is_nan() { crate::math::abs(e) } else { t.max_error };
             t.samples += 1;
         }
         let y = sensor.read(sensor_state, x);
@@ -245,9 +264,9 @@ mod tests {
     extern crate std;
     use super::*;
     use crate::control::{Limits, Pid};
+    use crate::stage::{HysteresisDrive, StageParams};
     use std::vec;
     use std::vec::Vec;
-    use crate::stage::{HysteresisDrive, StageParams};
 
     fn params(creep_terms: usize, drive: HysteresisDrive) -> StageParams {
         let mut taus = [1.0; MAX_CREEP];
@@ -306,12 +325,14 @@ mod tests {
                 let sensor = Sensor::new(sensor.0, sensor.1, sensor.2).unwrap();
                 let mut init = StageState::ZERO;
                 init.creep[..creep_terms].iter_mut().enumerate().for_each(|(j, w)| *w = 10.0 + j as f64);
-                let (mut c, mut va, mut x, mut y, mut terms) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; 5 * n]);
+                let (mut c, mut va, mut x, mut y, mut terms) =
+                    (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; 5 * n]);
                 let mut st = init;
                 let mut sst = sensor.state(st.x, 9);
                 let mut cst = [0.0; 3];
                 pid.reset(&mut cst, st.x);
-                let rec = Record { command: &mut c, voltage: &mut va, position: &mut x, measured: &mut y, terms: &mut terms };
+                let rec =
+                    Record { command: &mut c, voltage: &mut va, position: &mut x, measured: &mut y, terms: &mut terms };
                 run(&stage, &mut st, &sensor, &mut sst, &pid, &mut cst, &r, &[], &[], rec);
 
                 let mut hand = init;

@@ -1,7 +1,7 @@
-//! A controller behind an inverse hysteresis model (SPEC §5: inverse feedforward, and
+//! A controller behind an inverse hysteresis model (docs/spec.md §5: inverse feedforward, and
 //! feedback "in the linearized domain"). The inner controller outputs a desired actuator
 //! displacement `w`; the exact per-sample inverse of the identified model finds the voltage
-//! `u` with `model(u) = w` (SPEC §2.1), saturated to the amplifier, and the model state is
+//! `u` with `model(u) = w` (docs/spec.md §2.1), saturated to the amplifier, and the model state is
 //! advanced with the voltage actually applied, so the inverse never drifts from it.
 //!
 //! The inner controller's limits are in displacement: give it the model's outputs at the

@@ -155,7 +155,13 @@ impl VelocityObserver {
         positive("ts", ts)?;
         nonnegative("observer_delay", delay)?;
         if bandwidth >= 0.5 / ts {
-            return Err(ModelError::OutOfRange("observer_bandwidth (below Nyquist)", usize::MAX, bandwidth, 0.0, 0.5 / ts));
+            return Err(ModelError::OutOfRange(
+                "observer_bandwidth (below Nyquist)",
+                usize::MAX,
+                bandwidth,
+                0.0,
+                0.5 / ts,
+            ));
         }
         let p = exp(-2.0 * core::f64::consts::PI * bandwidth * ts);
         Ok(VelocityObserver { bandwidth, ts, delay, gain_x: 1.0 - p * p, gain_v: (1.0 - p) * (1.0 - p) / ts })
@@ -263,7 +269,16 @@ pub struct Pid {
 impl Pid {
     /// Validate and build.
     #[allow(clippy::too_many_arguments)]
-    pub fn new(kp: f64, ki: f64, kd: f64, tau_d: f64, ts: f64, ff_gain: f64, offset: f64, limits: Limits) -> Result<Self, ModelError> {
+    pub fn new(
+        kp: f64,
+        ki: f64,
+        kd: f64,
+        tau_d: f64,
+        ts: f64,
+        ff_gain: f64,
+        offset: f64,
+        limits: Limits,
+    ) -> Result<Self, ModelError> {
         for (n, x) in [("kp", kp), ("ki", ki), ("kd", kd)] {
             nonnegative(n, x)?;
         }

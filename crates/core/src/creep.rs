@@ -1,4 +1,4 @@
-//! Creep operators (SPEC §2.4): a bank of first-order lags with time constants spread over
+//! Creep operators (docs/spec.md §2.4): a bank of first-order lags with time constants spread over
 //! decades, approximating the logarithmic drift of a piezo after a step.
 //!
 //! ```text

@@ -1,4 +1,4 @@
-//! Rate-independent differential hysteresis models driven by a signal `w` (SPEC §2.5):
+//! Rate-independent differential hysteresis models driven by a signal `w` (docs/spec.md §2.5):
 //! Bouc–Wen, generalized Duhem (Coleman–Hodgdon) and Dahl.
 //!
 //! Rate independence means only the path of `w` matters, so each sample is integrated in
@@ -112,7 +112,7 @@ impl BoucWen {
     }
 }
 
-/// Exact n = 1 Bouc–Wen increment (SPEC §2.5): on a monotone piece with fixed `sign(h)`,
+/// Exact n = 1 Bouc–Wen increment (docs/spec.md §2.5): on a monotone piece with fixed `sign(h)`,
 /// `dh/dw = a - c h`, `c = beta*s + gamma*sign(h)`, so
 /// `h(w + dw) = h + (a - c h) dw phi1(c dw)`; the step is split where `h` crosses 0.
 #[inline]

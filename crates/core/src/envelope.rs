@@ -1,4 +1,4 @@
-//! Envelope functions of the generalized play operator (SPEC §2.2).
+//! Envelope functions of the generalized play operator (docs/spec.md §2.2).
 use crate::error::ModelError;
 use crate::math::{abs, atanh, tanh};
 

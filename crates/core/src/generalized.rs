@@ -1,5 +1,5 @@
 //! Generalized (asymmetric) play operator, the generalized PI model (GPI) and the seed-2
-//! modified PI model (MPI) — SPEC §2.2.
+//! modified PI model (MPI) — docs/spec.md §2.2.
 //!
 //! ```text
 //! z_r(k) = max(g_l(v(k)) - r, min(g_r(v(k)) + r, z_r(k-1)))    g_l rising, g_r falling
@@ -78,10 +78,7 @@ impl<'a> GeneralizedPi<'a> {
     #[inline(always)]
     fn direct(&self, v: f64) -> (f64, f64) {
         let c = self.poly;
-        (
-            c[0] + v * (c[1] + v * (c[2] + v * c[3])),
-            c[1] + v * (2.0 * c[2] + v * 3.0 * c[3]),
-        )
+        (c[0] + v * (c[1] + v * (c[2] + v * c[3])), c[1] + v * (2.0 * c[2] + v * 3.0 * c[3]))
     }
 
     /// With equal envelopes `g`, `P = 0` and a zero first threshold of positive weight, the
@@ -98,9 +95,7 @@ impl<'a> GeneralizedPi<'a> {
         }
         match self.thresholds.first() {
             Some(&r0) if r0 == 0.0 => Ok(self.weights[0]),
-            _ => Err(ModelError::NoAnalyticInverse(
-                "the first threshold must be 0 (its weight is the linear term)",
-            )),
+            _ => Err(ModelError::NoAnalyticInverse("the first threshold must be 0 (its weight is the linear term)")),
         }
     }
 }

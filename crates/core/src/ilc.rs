@@ -1,4 +1,4 @@
-//! Iterative learning control for periodic references (beyond the seeds, SPEC §5): a
+//! Iterative learning control for periodic references (beyond the seeds, docs/spec.md §5): a
 //! correction learned from the error of previous periods is added to any controller's
 //! output. Scanning stages repeat the same trajectory, so the error that repeats (the
 //! unmodelled hysteresis and dynamics) is learned away period by period.
@@ -41,7 +41,14 @@ pub const MAX_PERIOD: usize = 1_000_000;
 
 impl<C: Controller> Ilc<C> {
     /// Validate and build.
-    pub fn new(inner: C, period: usize, gain: f64, forgetting: f64, lead: usize, delay: usize) -> Result<Self, ModelError> {
+    pub fn new(
+        inner: C,
+        period: usize,
+        gain: f64,
+        forgetting: f64,
+        lead: usize,
+        delay: usize,
+    ) -> Result<Self, ModelError> {
         check_positive_count("period", period, MAX_PERIOD)?;
         nonnegative("gain", gain)?;
         check_scalar("forgetting", forgetting)?;

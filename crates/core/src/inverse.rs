@@ -1,4 +1,4 @@
-//! The exact per-sample inverse (SPEC §2.1).
+//! The exact per-sample inverse (docs/spec.md §2.1).
 //!
 //! At sample k, with the forward states frozen at k-1, the map `v -> y(k)` is continuous and
 //! increasing. We bracket the desired output, then refine with Newton steps on the active
@@ -129,8 +129,7 @@ pub fn inverse_step<M: Invertible + ?Sized>(
     k: usize,
 ) -> Result<f64, ModelError> {
     let st: &[f64] = state;
-    let v = solve_increasing(|v| model.trial(st, v), y_desired, guess)
-        .ok_or(ModelError::Unreachable(k, y_desired))?;
+    let v = solve_increasing(|v| model.trial(st, v), y_desired, guess).ok_or(ModelError::Unreachable(k, y_desired))?;
     model.step(state, v);
     Ok(v)
 }

@@ -9,16 +9,16 @@
 //! (usually metres or µm) only need to be consistent with the parameters.
 //!
 //! The state starts *relaxed at zero input*: all-zero for the play-type models, so the first
-//! sample `v0` gives `z_r = max(v0 - r, min(v0 + r, 0))` as in SPEC §2.1.
+//! sample `v0` gives `z_r = max(v0 - r, min(v0 + r, 0))` as in docs/spec.md §2.1.
 #![cfg_attr(not(feature = "std"), no_std)]
 
 pub mod absmc;
 pub mod batch;
+pub mod boucwen_benchmark;
 pub mod cemf;
 pub mod closed_loop;
 pub mod compensated;
 pub mod control;
-pub mod boucwen_benchmark;
 pub mod creep;
 pub mod differential;
 pub mod envelope;
@@ -30,13 +30,13 @@ pub mod linalg;
 mod math;
 pub mod pi;
 pub mod preisach;
-pub mod sensor;
-pub mod smc;
 pub mod rate;
 pub mod rng;
-mod ziggurat_tables;
+pub mod sensor;
+pub mod smc;
 pub mod spec;
 pub mod stage;
+mod ziggurat_tables;
 
 pub use error::ModelError;
 
@@ -53,7 +53,7 @@ pub trait Hysteresis {
 }
 
 /// A model whose output at one sample is a continuous, increasing function of that
-/// sample's input, so it can be inverted sample by sample (SPEC §2.1).
+/// sample's input, so it can be inverted sample by sample (docs/spec.md §2.1).
 pub trait Invertible: Hysteresis {
     /// Output and its slope `dy/dv` if `v` were applied now; `state` is untouched.
     /// The output must be bit-identical to what [`Hysteresis::step`] would return.

@@ -1,4 +1,4 @@
-//! Classical play operator and the Prandtl–Ishlinskii (PI) model (SPEC §2.1).
+//! Classical play operator and the Prandtl–Ishlinskii (PI) model (docs/spec.md §2.1).
 //!
 //! ```text
 //! z_r(k) = max(v(k) - r, min(v(k) + r, z_r(k-1)))
@@ -63,14 +63,10 @@ impl<'a> Pi<'a> {
         Ok(())
     }
 
-    /// Parameters of the analytic inverse PI model (SPEC §2.1): returns `p0'` and fills
+    /// Parameters of the analytic inverse PI model (docs/spec.md §2.1): returns `p0'` and fills
     /// `inv_thresholds` (`r'_i = phi(r_i)`) and `inv_weights` (`p'_i = -w_i/(S_i S_{i-1})`).
     /// Driving the returned PI with the desired output `y_d` gives the input `v`.
-    pub fn analytic_inverse(
-        &self,
-        inv_thresholds: &mut [f64],
-        inv_weights: &mut [f64],
-    ) -> Result<f64, ModelError> {
+    pub fn analytic_inverse(&self, inv_thresholds: &mut [f64], inv_weights: &mut [f64]) -> Result<f64, ModelError> {
         let n = self.thresholds.len();
         if inv_thresholds.len() != n {
             return Err(ModelError::Length("inv_thresholds", n, inv_thresholds.len()));

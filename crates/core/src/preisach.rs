@@ -1,4 +1,4 @@
-//! Discretized Preisach model (SPEC §2.7).
+//! Discretized Preisach model (docs/spec.md §2.7).
 //!
 //! The Preisach half-plane `lo <= beta <= alpha <= hi` is cut into an `L x L` triangular
 //! grid of cells; cell `(i, j)` (alpha in row i, beta in column j, `j <= i`) holds the total
@@ -243,11 +243,7 @@ impl<'a> Preisach<'a> {
             let all_down = !rising && len == 0 && v_prev <= self.lo;
             // v_prev is wiped at once (with the last stored extremum as its partner) when v
             // already passes that extremum; it then needs no slot, and nothing is forgotten
-            let wiped_at_once = if rising {
-                len >= 1 && ext[len - 1] <= v
-            } else {
-                len >= 2 && ext[len - 1] >= v
-            };
+            let wiped_at_once = if rising { len >= 1 && ext[len - 1] <= v } else { len >= 2 && ext[len - 1] >= v };
             if wiped_at_once {
                 len -= 1;
             } else if !all_down {

@@ -1,4 +1,4 @@
-//! Rate-dependent PI model (SPEC §2.3).
+//! Rate-dependent PI model (docs/spec.md §2.3).
 //!
 //! ```text
 //! rate(k) = rate(k-1) + a (|v(k) - v(k-1)| / Ts - rate(k-1)),  a = 1 - exp(-Ts/tau_f)

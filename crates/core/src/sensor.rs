@@ -1,4 +1,4 @@
-//! Position sensor: white noise, quantization and a delay of whole samples (SPEC §3.2).
+//! Position sensor: white noise, quantization and a delay of whole samples (docs/spec.md §3.2).
 use crate::error::{check_scalar, ModelError};
 use crate::rng::Rng;
 

@@ -1,4 +1,4 @@
-//! Extended sliding-mode control with a dynamic compensator — seed 1 (SPEC §5), with the
+//! Extended sliding-mode control with a dynamic compensator — seed 1 (docs/spec.md §5), with the
 //! CEMF observer estimate `V̂h` (Case 2) or without it (Case 1), and a super-twisting
 //! (chattering-free) switching law as an alternative to the boundary layer.
 //!
@@ -106,7 +106,11 @@ impl Smc {
             return Err(ModelError::NotPositive("kv + alpha (sliding dynamics unstable)", usize::MAX, kv + alpha));
         }
         if !(alpha * kv + kp > 0.0) {
-            return Err(ModelError::NotPositive("alpha * kv + kp (sliding dynamics unstable)", usize::MAX, alpha * kv + kp));
+            return Err(ModelError::NotPositive(
+                "alpha * kv + kp (sliding dynamics unstable)",
+                usize::MAX,
+                alpha * kv + kp,
+            ));
         }
         match switching {
             Switching::BoundaryLayer { gain, width } => {
@@ -120,8 +124,23 @@ impl Smc {
         }
         let ts = observer.ts;
         // xi' = -alpha xi + e with e held over a period
-        let (xi_decay, xi_gain) = if alpha * ts > 1e-12 { (exp(-alpha * ts), (1.0 - exp(-alpha * ts)) / alpha) } else { (1.0, ts) };
-        Ok(Smc { m, b, k, kp, kv, alpha, switching, cemf, desired_model_terms: false, observer, limits, xi_decay, xi_gain })
+        let (xi_decay, xi_gain) =
+            if alpha * ts > 1e-12 { (exp(-alpha * ts), (1.0 - exp(-alpha * ts)) / alpha) } else { (1.0, ts) };
+        Ok(Smc {
+            m,
+            b,
+            k,
+            kp,
+            kv,
+            alpha,
+            switching,
+            cemf,
+            desired_model_terms: false,
+            observer,
+            limits,
+            xi_decay,
+            xi_gain,
+        })
     }
 }
 
@@ -147,7 +166,10 @@ impl Controller for Smc {
         let xi = state[XI];
         let s = de + self.kv * e + self.kp * xi;
         let (xm, vm) = if self.desired_model_terms { (r.x, r.v) } else { (x, v) };
-        let equivalent = self.m * (r.a + self.kv * de + self.kp * e - self.alpha * self.kp * xi) + self.b * vm + self.k * xm + state[VH];
+        let equivalent = self.m * (r.a + self.kv * de + self.kp * e - self.alpha * self.kp * xi)
+            + self.b * vm
+            + self.k * xm
+            + state[VH];
         let switching = match self.switching {
             Switching::BoundaryLayer { gain, width } => gain * clamp(s / width, -1.0, 1.0),
             Switching::SuperTwisting { k1, .. } => k1 * sqrt(abs(s)) * sign(s) + state[NU],

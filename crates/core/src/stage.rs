@@ -1,5 +1,5 @@
 //! Piezo-driven flexure stage with counter-electromotive-force (CEMF) hysteresis, creep,
-//! electrostriction and a drive amplifier (SPEC §2.6, §3.1, §3.2). SI units throughout:
+//! electrostriction and a drive amplifier (docs/spec.md §2.6, §3.1, §3.2). SI units throughout:
 //! m, s, V, N, F (farad), C (coulomb).
 //!
 //! ```text
@@ -27,7 +27,6 @@ use crate::differential::bouc_wen_1_exact;
 use crate::error::{check_scalar, ModelError};
 use crate::linalg::{expm, Mat};
 use crate::math::{abs, exp, F2};
-
 
 /// Most creep lags a stage can have.
 pub const MAX_CREEP: usize = 8;
@@ -371,12 +370,9 @@ impl StageParams {
 
     /// Check every parameter is physical.
     pub fn validate(&self) -> Result<(), ModelError> {
-        for (name, x) in [
-            ("mass", self.mass),
-            ("stiffness", self.stiffness),
-            ("tem", self.tem),
-            ("capacitance", self.capacitance),
-        ] {
+        for (name, x) in
+            [("mass", self.mass), ("stiffness", self.stiffness), ("tem", self.tem), ("capacitance", self.capacitance)]
+        {
             check_scalar(name, x)?;
             positive(name, x)?;
         }
@@ -595,9 +591,8 @@ impl Stage {
         let q67 = q[6] + q[7] * t;
         let qt = (q01 + t2 * q23) + t4 * (q45 + t2 * q67);
         let vh1 = F2::splat(at.vh0) + qv * at.a_cb * (F2::splat(1.0) - tb * qt);
-        let ok = at.series_ok
-            & t.abs().le_bits(F2::splat(SERIES_T_MAX))
-            & (vh1 * F2::splat(at.sh)).gt_bits(F2::splat(0.0));
+        let ok =
+            at.series_ok & t.abs().le_bits(F2::splat(SERIES_T_MAX)) & (vh1 * F2::splat(at.sh)).gt_bits(F2::splat(0.0));
         let [rising, falling] = vh1.get();
         if q_ext < 0.0 {
             (falling, ok & 2 != 0)
@@ -896,7 +891,10 @@ impl StageParams {
         };
         let terms = p[14];
         if !(terms >= 0.0 && terms <= MAX_CREEP as f64 && terms == libm::floor(terms)) {
-            return Err(ModelError::Structure("creep_terms", if terms.is_finite() && terms >= 0.0 { terms as usize } else { usize::MAX }));
+            return Err(ModelError::Structure(
+                "creep_terms",
+                if terms.is_finite() && terms >= 0.0 { terms as usize } else { usize::MAX },
+            ));
         }
         let mut taus = [1.0; MAX_CREEP];
         let mut weights = [0.0; MAX_CREEP];
@@ -1003,7 +1001,8 @@ mod tests {
                         let general = st.cemf_general::<true>(&at, q_ext);
                         // the general solve feeds its rounded end back into the loop: allow
                         // two ulps of vh1 beyond it
-                        worst_general = worst_general.max((abs((general - vh0) - reference) - 2.0 * ulp).max(0.0) / abs(reference));
+                        worst_general =
+                            worst_general.max((abs((general - vh0) - reference) - 2.0 * ulp).max(0.0) / abs(reference));
                         n += 1;
                     }
                 }

@@ -11,12 +11,7 @@ type Lanes = Vec<(f64, Vec<f64>, Vec<f64>)>;
 
 fn lanes_strategy(l: usize, n: usize) -> impl Strategy<Value = Lanes> {
     prop::collection::vec(
-        (
-            -1.0..2.0f64,
-            0.0..0.3f64,
-            prop::collection::vec(0.01..0.5f64, n),
-            prop::collection::vec(-1.0..1.0f64, n),
-        )
+        (-1.0..2.0f64, 0.0..0.3f64, prop::collection::vec(0.01..0.5f64, n), prop::collection::vec(-1.0..1.0f64, n))
             .prop_map(|(p0, r0, inc, w)| (p0, thresholds_from(r0, &inc), w)),
         l,
     )

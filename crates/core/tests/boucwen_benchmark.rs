@@ -1,4 +1,4 @@
-//! Bouc–Wen benchmark core (SPEC §3.3): exact discrete invariants of the Newmark +
+//! Bouc–Wen benchmark core (docs/spec.md §3.3): exact discrete invariants of the Newmark +
 //! trapezoidal step, convergence order, the MATLAB-style FIR decimation, validation.
 use piezohyst_core::boucwen_benchmark::{
     decimate_fir, decimated_len, fir1_taps, integrate, prime_factors, BoucWenBenchmark, Newmark, State, FIR_TAPS,
@@ -27,10 +27,7 @@ fn validation_names_parameter_and_value() {
     let e = BoucWenBenchmark::new(2.0, 10.0, 5e4, 5e4, 1e3, f64::NAN, -1.1, 1.0).unwrap_err();
     assert!(e.to_string().starts_with("gamma = NaN"), "{e}");
     assert!(BoucWenBenchmark::new(2.0, 10.0, 5e4, 5e4, 1e3, 0.8, -1.1, 0.5).is_err());
-    assert_eq!(
-        BoucWenBenchmark::from_slice(&[1.0; 3]),
-        Err(ModelError::Length("params", 8, 3))
-    );
+    assert_eq!(BoucWenBenchmark::from_slice(&[1.0; 3]), Err(ModelError::Length("params", 8, 3)));
     assert!(Newmark::new(BoucWenBenchmark::default(), 0.0).is_err());
     assert!(Newmark::new(BoucWenBenchmark::default(), f64::INFINITY).is_err());
 }
@@ -90,9 +87,7 @@ fn hysteretic_steps_converge() {
     let p = BoucWenBenchmark::default();
     let nm = Newmark::new(p, H).unwrap();
     let n = 30_000;
-    let u: Vec<f64> = (1..=n)
-        .map(|k| 150.0 * (2.0 * core::f64::consts::PI * 20.0 * k as f64 * H).sin())
-        .collect();
+    let u: Vec<f64> = (1..=n).map(|k| 150.0 * (2.0 * core::f64::consts::PI * 20.0 * k as f64 * H).sin()).collect();
     let (mut y, mut z) = (vec![0.0; n], vec![0.0; n]);
     let mut s = State::at(&p, 0.0, 0.0, 0.0, 0.0);
     assert_eq!(integrate(&nm, &mut s, &u, &mut y, &mut z), Ok(None));
@@ -121,11 +116,7 @@ fn fir1_taps_are_symmetric_hamming_lowpass() {
         }
         // gain at the cutoff 1/r of Nyquist is about -6 dB
         let wc = core::f64::consts::PI / r as f64;
-        let g: f64 = b
-            .iter()
-            .enumerate()
-            .map(|(j, bj)| bj * (wc * (j as f64 - 15.0)).cos())
-            .sum();
+        let g: f64 = b.iter().enumerate().map(|(j, bj)| bj * (wc * (j as f64 - 15.0)).cos()).sum();
         assert!((g - 0.5).abs() < 0.02, "{r}: {g}");
     }
     // MATLAB fir1(30, 0.5): the centre tap and the zeros of the half-band filter

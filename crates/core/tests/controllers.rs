@@ -82,13 +82,23 @@ fn observer() -> VelocityObserver {
 
 fn smc_boundary_layer(cemf: Option<CemfModel>, alpha: f64) -> Smc {
     let c = cemf_of(&ideal_stage_params());
-    Smc::new((c.m, c.b, c.k), 1e6, 2e3, alpha, Switching::BoundaryLayer { gain: 5.0, width: 1e-3 }, cemf, observer(), volts())
-        .unwrap()
+    Smc::new(
+        (c.m, c.b, c.k),
+        1e6,
+        2e3,
+        alpha,
+        Switching::BoundaryLayer { gain: 5.0, width: 1e-3 },
+        cemf,
+        observer(),
+        volts(),
+    )
+    .unwrap()
 }
 
 fn smc_super_twisting() -> Smc {
     let c = cemf_of(&ideal_stage_params());
-    Smc::new((c.m, c.b, c.k), 1e6, 2e3, 0.0, Switching::SuperTwisting { k1: 50.0, k2: 1e4 }, None, observer(), volts()).unwrap()
+    Smc::new((c.m, c.b, c.k), 1e6, 2e3, 0.0, Switching::SuperTwisting { k1: 50.0, k2: 1e4 }, None, observer(), volts())
+        .unwrap()
 }
 
 fn absmc(desired_regressor: bool) -> Absmc {
@@ -183,7 +193,18 @@ fn construction_errors_name_the_parameter() {
     // ABSMC
     let th = [c.k / c.m, c.b / c.m];
     let ab = |theta0: [f64; 2], gains: (f64, f64, f64, f64), gamma_d: f64| {
-        Absmc::new(1.0 / c.m, theta0, [th[0] / 3.0, th[1] / 3.0], [th[0] * 3.0, th[1] * 3.0], gains, [1e12, 1e6], (gamma_d, 0.0, 1e6), true, observer(), volts())
+        Absmc::new(
+            1.0 / c.m,
+            theta0,
+            [th[0] / 3.0, th[1] / 3.0],
+            [th[0] * 3.0, th[1] * 3.0],
+            gains,
+            [1e12, 1e6],
+            (gamma_d, 0.0, 1e6),
+            true,
+            observer(),
+            volts(),
+        )
     };
     assert!(ab(th, (2e3, 2e3, 1e3, 1e-3), 1e6).is_ok());
     for c1 in [0.0, -5.0] {
@@ -201,7 +222,19 @@ fn construction_errors_name_the_parameter() {
         let e = msg(err);
         assert_eq!(e, format!("theta0[{i}] = {} must lie within [{lo}, {hi}]", theta0[i]));
     }
-    let e = msg(Absmc::new(1.0 / c.m, th, [th[0] / 3.0, th[1] / 3.0], [th[0] * 3.0, th[1] * 3.0], (2e3, 2e3, 1e3, 1e-3), [1e12, 1e6], (1e6, 2.0, 1.0), true, observer(), volts()).unwrap_err());
+    let e = msg(Absmc::new(
+        1.0 / c.m,
+        th,
+        [th[0] / 3.0, th[1] / 3.0],
+        [th[0] * 3.0, th[1] * 3.0],
+        (2e3, 2e3, 1e3, 1e-3),
+        [1e12, 1e6],
+        (1e6, 2.0, 1.0),
+        true,
+        observer(),
+        volts(),
+    )
+    .unwrap_err());
     assert_eq!(e, "d0 = 2 must lie within [0, 1]");
     // on the bounds is fine
     assert!(ab([th[0] * 3.0, th[1] / 3.0], (2e3, 2e3, 1e3, 1e-3), 1e6).is_ok());
@@ -395,7 +428,12 @@ fn references() -> impl Strategy<Value = Vec<Reference>> {
 
 /// Drive `c` with the references and readings; every output inside the limits, finite;
 /// every state slot finite at the end (and after every step).
-fn check_bounded<C: Controller>(name: &str, c: &C, refs: &[Reference], readings: &[Reading]) -> Result<(), TestCaseError> {
+fn check_bounded<C: Controller>(
+    name: &str,
+    c: &C,
+    refs: &[Reference],
+    readings: &[Reading],
+) -> Result<(), TestCaseError> {
     let lim = c.limits();
     let mut s = vec![f64::NAN; c.state_len()];
     let y0 = 1e-6;
@@ -409,7 +447,13 @@ fn check_bounded<C: Controller>(name: &str, c: &C, refs: &[Reference], readings:
         };
         last = y;
         let out = c.step(&mut s, r, y);
-        prop_assert!(out.u.is_finite() && lim.min <= out.u && out.u <= lim.max, "{name}: step {k}: u = {} outside [{}, {}]", out.u, lim.min, lim.max);
+        prop_assert!(
+            out.u.is_finite() && lim.min <= out.u && out.u <= lim.max,
+            "{name}: step {k}: u = {} outside [{}, {}]",
+            out.u,
+            lim.min,
+            lim.max
+        );
         prop_assert!(s.iter().all(|x| x.is_finite()), "{name}: step {k}: state {s:?}");
     }
     Ok(())
@@ -465,7 +509,10 @@ fn pid_integrator_does_not_wind_up() {
     }
     assert_eq!(out.u, U_MAX);
     let i_held = out.terms[1];
-    eprintln!("anti-windup: integral held at {i_held} V (limit - P = {}), unclamped integrator {naive_i:.0} V", U_MAX - 10.0);
+    eprintln!(
+        "anti-windup: integral held at {i_held} V (limit - P = {}), unclamped integrator {naive_i:.0} V",
+        U_MAX - 10.0
+    );
     // the integrator stopped at the last value that kept the output inside: I <= max - P
     assert!(i_held <= U_MAX - kp * 1e-5 + 1e-9 && i_held > U_MAX - kp * 1e-5 - ki * TS * 1e-5 - 1e-9, "{i_held}");
     assert!((naive_i - 1e5).abs() < 1e-3);
@@ -632,7 +679,10 @@ fn stage_voltage_step_satisfies_the_cemf_loop() {
         let dq = model.tem * dx + model.cz * ((to - from) - (st.vh - vh0));
         let residual = (model.hysteresis(vh0, dq) - st.vh).abs();
         let exact = model.observe(vh0, dx, to - from);
-        report.push((format!("{from} -> {to} V: stage Vh {:.9}, exact {exact:.9}, loop residual {residual:.2e} V", st.vh), residual));
+        report.push((
+            format!("{from} -> {to} V: stage Vh {:.9}, exact {exact:.9}, loop residual {residual:.2e} V", st.vh),
+            residual,
+        ));
     }
     eprintln!("{}", report.iter().map(|r| r.0.as_str()).collect::<Vec<_>>().join("\n"));
     for (line, residual) in &report {
@@ -793,7 +843,8 @@ fn soak(steps: usize, seed: u64) -> [f64; 8] {
         let t = k as f64 * TS;
         let f = 1.0 + 40.0 * ((k / 200_000) % 7) as f64; // 1..241 Hz in blocks of 20 s
         let w = 2.0 * PI * f;
-        let r = Reference { x: 8e-6 * (1.0 - (w * t).cos()), v: 8e-6 * w * (w * t).sin(), a: 8e-6 * w * w * (w * t).cos() };
+        let r =
+            Reference { x: 8e-6 * (1.0 - (w * t).cos()), v: 8e-6 * w * (w * t).sin(), a: 8e-6 * w * w * (w * t).cos() };
         if hold > 0 {
             hold -= 1;
         } else {
@@ -819,7 +870,11 @@ fn soak(steps: usize, seed: u64) -> [f64; 8] {
             assert!(x.is_finite(), "step {k}: state {s:?}");
             *m = m.max(x.abs());
         }
-        assert!(s[4].abs() <= vh_bound * (1.0 + 1e-12), "step {k}: Vh_hat = {} beyond alpha/(beta+gamma) = {vh_bound}", s[4]);
+        assert!(
+            s[4].abs() <= vh_bound * (1.0 + 1e-12),
+            "step {k}: Vh_hat = {} beyond alpha/(beta+gamma) = {vh_bound}",
+            s[4]
+        );
     }
     // observer: BIBO bounds from the l1 gains (reported position adds delay Ts v)
     let delay_ts = smc.observer.delay * TS;

@@ -1,4 +1,4 @@
-//! Differential hysteresis models (SPEC §2.5) against fine-step RK4 integrations of their
+//! Differential hysteresis models (docs/spec.md §2.5) against fine-step RK4 integrations of their
 //! time-domain ODEs with the driver linearly interpolated between samples; analytic bounds;
 //! the n = 1 zero-crossing split; Dahl a = 1 = Bouc–Wen n = 1, gamma = 0.
 mod common;
@@ -206,7 +206,9 @@ fn bouc_wen_benchmark_bounded_for_bounded_input() {
 /// outputs h, Bouc–Wen with d = 0 outputs -h.
 #[test]
 fn dahl_a1_equals_bouc_wen() {
-    for (sigma, h_c, amp, seed) in [(2.0, 0.5, 1.0, 1u64), (10.0, 0.05, 0.3, 2), (0.7, 3.0, 20.0, 3), (1.0, 1.0, 5.0, 4)] {
+    for (sigma, h_c, amp, seed) in
+        [(2.0, 0.5, 1.0, 1u64), (10.0, 0.05, 0.3, 2), (0.7, 3.0, 20.0, 3), (1.0, 1.0, 5.0, 4)]
+    {
         let dahl = Dahl::new(sigma, h_c, 1.0).unwrap();
         let bw = BoucWen::new(sigma, sigma / h_c, 0.0, 1.0, 0.0).unwrap();
         let mut w = random_input(2000, amp, 0x5bd1_e995 ^ seed);
@@ -375,4 +377,3 @@ proptest! {
         prop_assert!(max_diff(&y, &y_ref) <= 1e-10 * scale, "err {:e}", max_diff(&y, &y_ref) / scale);
     }
 }
-

@@ -1,4 +1,4 @@
-//! Generalized play operator, envelopes and the GPI/MPI model (SPEC §2.2) against the
+//! Generalized play operator, envelopes and the GPI/MPI model (docs/spec.md §2.2) against the
 //! defining formulas written out independently.
 mod common;
 
@@ -22,8 +22,10 @@ fn envelope_strategy() -> impl Strategy<Value = Envelope> {
     prop_oneof![
         Just(Envelope::Identity),
         // c3 > 0 and c2^2 < 3 c1 c3: increasing everywhere
-        (-0.5..0.5f64, 0.5..1.5f64, -0.3..0.3f64, 0.1..0.5f64).prop_map(|(c0, c1, c2, c3)| Envelope::Polynomial([c0, c1, c2, c3])),
-        (0.5..2.0f64, 0.3..2.0f64, -0.5..0.5f64, -0.3..0.3f64).prop_map(|(a0, a1, a2, a3)| Envelope::Tanh([a0, a1, a2, a3])),
+        (-0.5..0.5f64, 0.5..1.5f64, -0.3..0.3f64, 0.1..0.5f64)
+            .prop_map(|(c0, c1, c2, c3)| Envelope::Polynomial([c0, c1, c2, c3])),
+        (0.5..2.0f64, 0.3..2.0f64, -0.5..0.5f64, -0.3..0.3f64)
+            .prop_map(|(a0, a1, a2, a3)| Envelope::Tanh([a0, a1, a2, a3])),
     ]
 }
 
@@ -98,7 +100,7 @@ proptest! {
     }
 }
 
-/// The seed-2 MPI reference set (SPEC §2.2) on a known input: the loading branch from the
+/// The seed-2 MPI reference set (docs/spec.md §2.2) on a known input: the loading branch from the
 /// relaxed state is P(v) + sum b_i max(v - r_i, 0).
 #[test]
 fn mpi_seed2_loading_branch() {

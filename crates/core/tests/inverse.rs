@@ -1,4 +1,4 @@
-//! Exact per-sample inverse (SPEC §2.1) for every invertible model, and the analytic PI
+//! Exact per-sample inverse (docs/spec.md §2.1) for every invertible model, and the analytic PI
 //! inverse against it: inverse∘forward = identity, state consistency, trial = step.
 mod common;
 
@@ -17,7 +17,7 @@ use proptest::test_runner::TestCaseError;
 /// Tolerance on `max|y - y_d|` required of the inverse.
 const TOL: f64 = 1e-9;
 
-/// Seed-2 (MPI) reference parameters, SPEC §2.2.
+/// Seed-2 (MPI) reference parameters, docs/spec.md §2.2.
 const MPI_R: [f64; 9] = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9];
 const MPI_B: [f64; 9] = [0.2054, 0.1985, 0.0237, 0.0148, 0.0456, 0.0645, 0.0051, 0.0014, 0.0033];
 const MPI_POLY: [f64; 4] = [0.0, 0.2547, -0.00358, 0.7123];
@@ -42,7 +42,12 @@ fn check_inverse<M: Invertible + ?Sized>(m: &M, yd: &[f64], what: &str) -> Resul
 
 /// `trial` must return exactly what `step` returns, and leave the state alone; its slope,
 /// when reported, must agree with a one-sided finite difference on at least one side.
-fn check_trial<M: Invertible + ?Sized>(m: &M, history: &[f64], probes: &[f64], what: &str) -> Result<(), TestCaseError> {
+fn check_trial<M: Invertible + ?Sized>(
+    m: &M,
+    history: &[f64],
+    probes: &[f64],
+    what: &str,
+) -> Result<(), TestCaseError> {
     let mut st = vec![0.0; m.state_len()];
     m.reset(&mut st);
     for &x in history {
@@ -63,7 +68,12 @@ fn check_trial<M: Invertible + ?Sized>(m: &M, history: &[f64], probes: &[f64], w
             let tol = 1e-5 * (1.0 + d.abs());
             prop_assert!(
                 (d - right).abs() <= tol || (d - left).abs() <= tol,
-                "{}: slope {} vs finite differences left {} right {} at v={}", what, d, left, right, v
+                "{}: slope {} vs finite differences left {} right {} at v={}",
+                what,
+                d,
+                left,
+                right,
+                v
             );
         }
     }
@@ -163,7 +173,7 @@ proptest! {
     }
 
     /// GPI with equal polynomial envelopes, P = 0 and a zero first threshold: the per-sample
-    /// inverse equals the analytic route v = g^{-1}(PI^{-1}[y_d]) (SPEC §2.2).
+    /// inverse equals the analytic route v = g^{-1}(PI^{-1}[y_d]) (docs/spec.md §2.2).
     #[test]
     fn inverse_gpi_equal_envelopes_matches_analytic(
         b in prop::collection::vec(0.05..0.5f64, 2..8),
@@ -284,7 +294,9 @@ fn analytic_inverse_rejections() {
     let m = Pi::new(1.0, &[0.5, 1.0, 2.0], &[-0.5, 0.2, -0.9]).unwrap();
     let (mut ri, mut wi) = ([0.0; 3], [0.0; 3]);
     match m.analytic_inverse(&mut ri, &mut wi) {
-        Err(ModelError::NotInvertible(3, s)) => assert!((s - (1.0 - 0.5 + 0.2 - 0.9)).abs() < 1e-15),
+        Err(ModelError::NotInvertible(3, s)) => {
+            assert!((s - (1.0 - 0.5 + 0.2 - 0.9)).abs() < 1e-15)
+        }
         other => panic!("expected NotInvertible(3, ..), got {other:?}"),
     }
     let mut short = [0.0; 2];
@@ -310,7 +322,13 @@ fn unreachable_target_is_an_error_not_a_hang() {
 #[test]
 fn solve_increasing_on_kinked_and_flat_slopes() {
     // piecewise linear with slopes 0.01 and 100; NaN slope forces bisection
-    let f = |v: f64| if v < 1.0 { (0.01 * v, 0.01) } else { (0.01 + 100.0 * (v - 1.0), 100.0) };
+    let f = |v: f64| {
+        if v < 1.0 {
+            (0.01 * v, 0.01)
+        } else {
+            (0.01 + 100.0 * (v - 1.0), 100.0)
+        }
+    };
     for &t in &[-3.0, 0.0, 0.005, 0.01, 0.02, 50.0, 1e6] {
         let v = solve_increasing(f, t, 0.3).unwrap();
         assert!((f(v).0 - t).abs() <= 1e-12 * (1.0 + t.abs()), "t={t} v={v}");
@@ -388,7 +406,15 @@ fn inverse_takes_three_evaluations_per_sample_on_a_scan() {
             let y = 9e-6 + 8e-6 * (2.0 * std::f64::consts::PI * 80.0 * k as f64 * 1e-4).sin();
             evals.set(0);
             let s: &[f64] = &st;
-            v = solve_increasing(|x| { evals.set(evals.get() + 1); m.trial(s, x) }, y, v).unwrap();
+            v = solve_increasing(
+                |x| {
+                    evals.set(evals.get() + 1);
+                    m.trial(s, x)
+                },
+                y,
+                v,
+            )
+            .unwrap();
             let out = m.step(&mut st, v);
             worst = worst.max(((out - y) / y).abs());
             total += evals.get();

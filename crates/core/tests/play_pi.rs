@@ -1,4 +1,4 @@
-//! Play operator and classical Prandtl–Ishlinskii model (SPEC §2.1): band, Lipschitz bound,
+//! Play operator and classical Prandtl–Ishlinskii model (docs/spec.md §2.1): band, Lipschitz bound,
 //! first-sample convention, rate independence, loading curve, odd symmetry, wiping-out.
 mod common;
 
@@ -17,12 +17,7 @@ struct PiParams {
 
 fn pi_params(max_n: usize) -> impl Strategy<Value = PiParams> {
     (1..=max_n).prop_flat_map(|n| {
-        (
-            -1.0..2.0f64,
-            0.0..0.3f64,
-            prop::collection::vec(0.01..0.5f64, n),
-            prop::collection::vec(-1.0..1.0f64, n),
-        )
+        (-1.0..2.0f64, 0.0..0.3f64, prop::collection::vec(0.01..0.5f64, n), prop::collection::vec(-1.0..1.0f64, n))
             .prop_map(|(p0, r0, inc, w)| PiParams { p0, r: thresholds_from(r0, &inc), w })
     })
 }

@@ -1,4 +1,4 @@
-//! Discretized Preisach model (SPEC §2.7) against an independent brute-force relay
+//! Discretized Preisach model (docs/spec.md §2.7) against an independent brute-force relay
 //! simulation, an independent Everett integral, wiping-out, congruency of minor loops,
 //! saturation and the bounded-memory fallback.
 mod common;
@@ -48,10 +48,10 @@ fn params(max_levels: usize) -> impl Strategy<Value = P> {
 /// Brute-force relays on a grid `K` times finer than the cells, with inputs restricted to
 /// grid points: then every sub-cell switches as one, and the output is exact.
 struct Relays {
-    g: usize,        // grid size L*K
+    g: usize, // grid size L*K
     lo: f64,
     delta: f64,
-    up: Vec<bool>,   // sub-cell (p, q), q <= p, row-major like cell_index
+    up: Vec<bool>, // sub-cell (p, q), q <= p, row-major like cell_index
     mass: Vec<f64>,
 }
 
@@ -306,7 +306,10 @@ fn construction_errors() {
     let w = vec![0.1; cell_count(3)];
     let mut pre = vec![0.0; w.len()];
     row_prefix(3, &w, &mut pre);
-    assert_eq!(Preisach::new(1.0, 1.0, 3, &w, &pre, 0.0, 0.1, 8).err(), Some(ModelError::NotIncreasing("input_range", 1, 1.0)));
+    assert_eq!(
+        Preisach::new(1.0, 1.0, 3, &w, &pre, 0.0, 0.1, 8).err(),
+        Some(ModelError::NotIncreasing("input_range", 1, 1.0))
+    );
     assert_eq!(Preisach::new(-1.0, 1.0, 0, &w, &pre, 0.0, 0.1, 8).err(), Some(ModelError::Structure("levels", 0)));
     assert_eq!(Preisach::new(-1.0, 1.0, 3, &w, &pre, 0.0, 0.1, 1).err(), Some(ModelError::Structure("memory", 1)));
     assert_eq!(
@@ -317,10 +320,18 @@ fn construction_errors() {
     assert_eq!(Preisach::new(-1.0, 1.0, 3, &w, &pre[..5], 0.0, 0.1, 8).err(), Some(ModelError::Length("prefix", 6, 5)));
     let mut wn = w.clone();
     wn[4] = -0.01;
-    assert_eq!(Preisach::new(-1.0, 1.0, 3, &wn, &pre, 0.0, 0.1, 8).err(), Some(ModelError::Negative("weights", 4, -0.01)));
-    assert_eq!(Preisach::new(-1.0, 1.0, 3, &w, &pre, 0.0, -0.1, 8).err(), Some(ModelError::Negative("slope", usize::MAX, -0.1)));
+    assert_eq!(
+        Preisach::new(-1.0, 1.0, 3, &wn, &pre, 0.0, 0.1, 8).err(),
+        Some(ModelError::Negative("weights", 4, -0.01))
+    );
+    assert_eq!(
+        Preisach::new(-1.0, 1.0, 3, &w, &pre, 0.0, -0.1, 8).err(),
+        Some(ModelError::Negative("slope", usize::MAX, -0.1))
+    );
     wn[4] = f64::NAN;
-    assert!(matches!(Preisach::new(-1.0, 1.0, 3, &wn, &pre, 0.0, 0.1, 8), Err(ModelError::NotFinite("weights", 4, x)) if x.is_nan()));
+    assert!(
+        matches!(Preisach::new(-1.0, 1.0, 3, &wn, &pre, 0.0, 0.1, 8), Err(ModelError::NotFinite("weights", 4, x)) if x.is_nan())
+    );
 }
 
 /// Regression: with the stack full, a reversal whose new extremum is wiped out by the same

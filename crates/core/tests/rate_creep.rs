@@ -1,4 +1,4 @@
-//! Rate-dependent PI (SPEC §2.3) and creep (SPEC §2.4) against independent implementations
+//! Rate-dependent PI (docs/spec.md §2.3) and creep (docs/spec.md §2.4) against independent implementations
 //! of their defining formulas.
 mod common;
 
@@ -9,7 +9,7 @@ use piezohyst_core::rate::RateDependentPi;
 use piezohyst_core::{Hysteresis, ModelError};
 use proptest::prelude::*;
 
-/// SPEC §2.3, written out: rate(k) = rate(k-1) + a (|v(k) - v(k-1)|/Ts - rate(k-1)), rate = 0
+/// docs/spec.md §2.3, written out: rate(k) = rate(k-1) + a (|v(k) - v(k-1)|/Ts - rate(k-1)), rate = 0
 /// at the first sample; r_i(k) = r_i + beta rate(k); w_i(k) = w_i + c_i rate(k).
 fn rdpi_reference(ts: f64, p0: f64, beta: f64, a: f64, r: &[f64], w: &[f64], c: &[f64], v: &[f64]) -> Vec<f64> {
     let mut z = vec![0.0; r.len()];
@@ -137,7 +137,7 @@ fn rate_dependent_pi_widens_with_rate() {
     };
     let slow = at_half_down(1000); // 1 V/s
     let fast = at_half_down(10); // 100 V/s: thresholds grow by beta*100 = 0.02
-    // by hand: slow 0.5 + 0.5*0.6 + 0.1*0.7 + 0.1*0.4 = 0.91, fast 0.5 + 0.5*0.62 + 0.1*0.68 + 0.1*0.38
+                                 // by hand: slow 0.5 + 0.5*0.6 + 0.1*0.7 + 0.1*0.4 = 0.91, fast 0.5 + 0.5*0.62 + 0.1*0.68 + 0.1*0.38
     assert!((fast - 0.916).abs() < 1e-12, "{fast}");
     assert!(fast > slow + 1e-3, "faster input should lag more: slow {slow}, fast {fast}");
     // and the slow one is close to the rate-independent PI

@@ -1,4 +1,4 @@
-//! Rate independence (SPEC §2.1, §2.2, §2.5, §2.7): repeating samples or time-stretching
+//! Rate independence (docs/spec.md §2.1, §2.2, §2.5, §2.7): repeating samples or time-stretching
 //! the input (monotone linear interpolation between samples) leaves the outputs at the
 //! original samples unchanged. Bit-identical for repeated samples everywhere and for
 //! stretching of the play-type models (GPI, Preisach); ~1e-12 relative for the closed-form

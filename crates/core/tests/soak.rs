@@ -32,7 +32,11 @@ fn hundred_million_operator_updates_keep_the_play_invariants() {
     let total = 10_000_000usize; // x 10 operators = 1e8 operator updates
     for k in 0..total {
         // random walk with occasional jumps across the whole range
-        let v = if k % 1000 == 0 { 6.0 * uniform(&mut rng) - 3.0 } else { (v_prev + 0.2 * (uniform(&mut rng) - 0.5)).clamp(-3.0, 3.0) };
+        let v = if k % 1000 == 0 {
+            6.0 * uniform(&mut rng) - 3.0
+        } else {
+            (v_prev + 0.2 * (uniform(&mut rng) - 0.5)).clamp(-3.0, 3.0)
+        };
         let before = state;
         let y = pi.step(&mut state, v);
         for i in 0..10 {
@@ -76,7 +80,17 @@ fn soak_closed_loop(desired: bool, steps: usize) -> f64 {
     let limits = Limits::new(-20.0, 150.0).unwrap();
     let cemf = CemfModel::new(0.0068, 13.0, 6.98e6, 10.5, 1.8e-6, 1.25e5, 8000.0, 3000.0).unwrap();
     let observer = VelocityObserver::new(300.0, 1e-4, 1.0).unwrap();
-    let mut smc = Smc::new((0.0068, 13.0, 6.98e6), 1e6, 2e3, 0.0, Switching::BoundaryLayer { gain: 13.0, width: 0.015 }, Some(cemf), observer, limits).unwrap();
+    let mut smc = Smc::new(
+        (0.0068, 13.0, 6.98e6),
+        1e6,
+        2e3,
+        0.0,
+        Switching::BoundaryLayer { gain: 13.0, width: 0.015 },
+        Some(cemf),
+        observer,
+        limits,
+    )
+    .unwrap();
     smc.desired_model_terms = desired;
     let mut cst = vec![0.0; smc.state_len()];
     smc.reset(&mut cst, 0.0);

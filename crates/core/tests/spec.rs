@@ -107,7 +107,8 @@ fn gpi_row(range: (f64, f64), poly: [f64; 4], rising: [f64; 4], falling: [f64; 4
 fn gpi_round_trip() {
     let (poly, rising, falling) = ([0.0, 0.25, -0.004, 0.7], [-0.02, 0.9, 0.05, 0.3], [1.5, 1.0, 0.0, 0.05]);
     let row = gpi_row((-1.0, 1.0), poly, rising, falling, &R3, &W3);
-    let direct = GeneralizedPi::new(poly, &R3, &W3, Envelope::Polynomial(rising), Envelope::Tanh(falling), (-1.0, 1.0)).unwrap();
+    let direct =
+        GeneralizedPi::new(poly, &R3, &W3, Envelope::Polynomial(rising), Envelope::Tanh(falling), (-1.0, 1.0)).unwrap();
     check_family("gpi", &[3, 1, 2, 0], &row, &direct, true);
     // identity envelopes ignore their coefficient slots
     let row = gpi_row((-2.0, 2.0), poly, [5.0, -7.0, 1.0, 2.0], [0.0; 4], &R3, &W3);
@@ -115,7 +116,9 @@ fn gpi_round_trip() {
     check_family("gpi", &[3, 0, 0, 0], &row, &direct, true);
     // infinite input range is allowed
     let row = gpi_row((f64::NEG_INFINITY, f64::INFINITY), poly, [0.0; 4], [0.0; 4], &R3, &W3);
-    let direct = GeneralizedPi::new(poly, &R3, &W3, Envelope::Identity, Envelope::Identity, (f64::NEG_INFINITY, f64::INFINITY)).unwrap();
+    let direct =
+        GeneralizedPi::new(poly, &R3, &W3, Envelope::Identity, Envelope::Identity, (f64::NEG_INFINITY, f64::INFINITY))
+            .unwrap();
     check_family("gpi", &[3, 0, 0, 0], &row, &direct, true);
 }
 
@@ -189,7 +192,10 @@ fn parse_errors() {
     assert_eq!(Family::parse("preisach", &[0, 8]), Err(ModelError::Structure("levels", 0)));
     assert_eq!(Family::parse("preisach", &[1001, 8]), Err(ModelError::Structure("levels", 1001)));
     assert_eq!(Family::parse("pi", &[MAX_OPERATORS + 1, 0]), Err(ModelError::Structure("n", MAX_OPERATORS + 1)));
-    assert_eq!(Family::parse("rdpi", &[2, MAX_OPERATORS + 1]), Err(ModelError::Structure("creep_terms", MAX_OPERATORS + 1)));
+    assert_eq!(
+        Family::parse("rdpi", &[2, MAX_OPERATORS + 1]),
+        Err(ModelError::Structure("creep_terms", MAX_OPERATORS + 1))
+    );
 }
 
 #[test]
@@ -226,9 +232,17 @@ fn nan_parameters_are_named() {
     row.extend_from_slice(&[1e-3, 0.1, f64::NAN]);
     let e = build_err("pi", &[3, 1], &row);
     assert!(matches!(e, ModelError::NotFinite("creep_weights", 0, x) if x.is_nan()), "{e:?}");
-    let e = build_err("gpi", &[3, 1, 1, 0], &gpi_row((-1.0, 1.0), [0.0, f64::NAN, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], &R3, &W3));
+    let e = build_err(
+        "gpi",
+        &[3, 1, 1, 0],
+        &gpi_row((-1.0, 1.0), [0.0, f64::NAN, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], &R3, &W3),
+    );
     assert!(matches!(e, ModelError::NotFinite("polynomial", 1, x) if x.is_nan()), "{e:?}");
-    let e = build_err("gpi", &[3, 1, 1, 0], &gpi_row((-1.0, 1.0), [0.0; 4], [0.0, 1.0, f64::NAN, 0.0], [0.0, 1.0, 0.0, 0.0], &R3, &W3));
+    let e = build_err(
+        "gpi",
+        &[3, 1, 1, 0],
+        &gpi_row((-1.0, 1.0), [0.0; 4], [0.0, 1.0, f64::NAN, 0.0], [0.0, 1.0, 0.0, 0.0], &R3, &W3),
+    );
     assert!(matches!(e, ModelError::NotFinite("rising", 2, x) if x.is_nan()), "{e:?}");
     let e = build_err("gpi", &[3, 0, 0, 0], &gpi_row((f64::NAN, 1.0), [0.0; 4], [0.0; 4], [0.0; 4], &R3, &W3));
     assert!(matches!(e, ModelError::NotFinite("input_range", 0, x) if x.is_nan()), "{e:?}");
@@ -248,9 +262,18 @@ fn nan_parameters_are_named() {
 
 #[test]
 fn thresholds_must_be_ordered_and_nonnegative() {
-    assert_eq!(build_err("pi", &[3, 0], &pi_row(1.0, &[0.1, 0.5, 0.3], &W3)), ModelError::NotIncreasing("thresholds", 2, 0.3));
-    assert_eq!(build_err("pi", &[3, 0], &pi_row(1.0, &[0.1, 0.1, 0.3], &W3)), ModelError::NotIncreasing("thresholds", 1, 0.1));
-    assert_eq!(build_err("pi", &[3, 0], &pi_row(1.0, &[-0.1, 0.1, 0.3], &W3)), ModelError::Negative("thresholds", 0, -0.1));
+    assert_eq!(
+        build_err("pi", &[3, 0], &pi_row(1.0, &[0.1, 0.5, 0.3], &W3)),
+        ModelError::NotIncreasing("thresholds", 2, 0.3)
+    );
+    assert_eq!(
+        build_err("pi", &[3, 0], &pi_row(1.0, &[0.1, 0.1, 0.3], &W3)),
+        ModelError::NotIncreasing("thresholds", 1, 0.1)
+    );
+    assert_eq!(
+        build_err("pi", &[3, 0], &pi_row(1.0, &[-0.1, 0.1, 0.3], &W3)),
+        ModelError::Negative("thresholds", 0, -0.1)
+    );
     assert_eq!(
         build_err("gpi", &[3, 0, 0, 0], &gpi_row((-1.0, 1.0), [0.0; 4], [0.0; 4], [0.0; 4], &[0.0, 0.4, 0.2], &W3)),
         ModelError::NotIncreasing("thresholds", 2, 0.2)
@@ -274,7 +297,9 @@ fn non_invertible_weights_name_the_partial_sum() {
     let m = fam.build(&row, &mut scratch).unwrap(); // a forward model may be non-invertible
     let Base::Pi(pi) = m.base else { panic!("not a PI") };
     match pi.check_invertible() {
-        Err(ModelError::NotInvertible(3, s)) => assert!((s - (1.0 - 0.4 + 0.3 - 1.0)).abs() < 1e-15, "{s}"),
+        Err(ModelError::NotInvertible(3, s)) => {
+            assert!((s - (1.0 - 0.4 + 0.3 - 1.0)).abs() < 1e-15, "{s}")
+        }
         other => panic!("expected NotInvertible(3, ..), got {other:?}"),
     }
     let (mut ri, mut wi) = ([0.0; 4], [0.0; 4]);
@@ -319,7 +344,8 @@ fn envelope_errors() {
         ModelError::EnvelopeNotMonotone("rising", 0.0, -0.3)
     );
     // a cubic with c3 < 0 cannot be increasing on an infinite range
-    let inf = gpi_row((f64::NEG_INFINITY, f64::INFINITY), [0.0; 4], [0.0, 1.0, 0.0, -0.1], [0.0, 1.0, 0.0, 0.0], &r, &b);
+    let inf =
+        gpi_row((f64::NEG_INFINITY, f64::INFINITY), [0.0; 4], [0.0, 1.0, 0.0, -0.1], [0.0, 1.0, 0.0, 0.0], &r, &b);
     assert!(matches!(build_err("gpi", &[2, 1, 1, 0], &inf), ModelError::EnvelopeNotMonotone("rising", _, _)));
     // tanh with a0*a1 <= 0
     assert!(matches!(
@@ -337,9 +363,18 @@ fn envelope_errors() {
 #[test]
 fn other_range_errors() {
     // rdpi
-    assert_eq!(build_err("rdpi", &[1, 0], &[0.0, 1.0, 0.0, 0.0, 0.1, 0.5, 0.0]), ModelError::NotPositive("ts", MAXI, 0.0));
-    assert_eq!(build_err("rdpi", &[1, 0], &[1e-3, 1.0, -1.0, 0.0, 0.1, 0.5, 0.0]), ModelError::Negative("beta", MAXI, -1.0));
-    assert_eq!(build_err("rdpi", &[1, 0], &[1e-3, 1.0, 0.0, -1.0, 0.1, 0.5, 0.0]), ModelError::Negative("filter_tau", MAXI, -1.0));
+    assert_eq!(
+        build_err("rdpi", &[1, 0], &[0.0, 1.0, 0.0, 0.0, 0.1, 0.5, 0.0]),
+        ModelError::NotPositive("ts", MAXI, 0.0)
+    );
+    assert_eq!(
+        build_err("rdpi", &[1, 0], &[1e-3, 1.0, -1.0, 0.0, 0.1, 0.5, 0.0]),
+        ModelError::Negative("beta", MAXI, -1.0)
+    );
+    assert_eq!(
+        build_err("rdpi", &[1, 0], &[1e-3, 1.0, 0.0, -1.0, 0.1, 0.5, 0.0]),
+        ModelError::Negative("filter_tau", MAXI, -1.0)
+    );
     // creep
     assert_eq!(build_err("creep", &[2], &[1e-3, 0.1, 0.0, 1.0, 1.0]), ModelError::NotPositive("taus", 1, 0.0));
     assert_eq!(build_err("creep", &[1], &[-1e-3, 0.1, 1.0]), ModelError::NotPositive("ts", MAXI, -1e-3));
@@ -352,10 +387,16 @@ fn other_range_errors() {
     row[5] = 0.2;
     assert_eq!(build_err("preisach", &[2, 1], &row), ModelError::Structure("memory", 1));
     // differential
-    assert_eq!(build_err("boucwen", &[], &[1.0, 0.5, 0.2, 0.5, 0.0]), ModelError::NotPositive("n (must be >= 1)", MAXI, 0.5));
+    assert_eq!(
+        build_err("boucwen", &[], &[1.0, 0.5, 0.2, 0.5, 0.0]),
+        ModelError::NotPositive("n (must be >= 1)", MAXI, 0.5)
+    );
     assert_eq!(build_err("dahl", &[], &[1.0, 0.0, 1.0]), ModelError::NotPositive("h_c", MAXI, 0.0));
     assert_eq!(build_err("dahl", &[], &[-1.0, 1.0, 1.0]), ModelError::NotPositive("sigma", MAXI, -1.0));
-    assert_eq!(build_err("duhem", &[], &[-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]), ModelError::Negative("alpha", MAXI, -1.0));
+    assert_eq!(
+        build_err("duhem", &[], &[-1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]),
+        ModelError::Negative("alpha", MAXI, -1.0)
+    );
 }
 
 #[test]

@@ -1,19 +1,18 @@
-//! Bindings of the Bouc–Wen benchmark system (SPEC §3.3): the implicit Newmark +
+//! Bindings of the Bouc–Wen benchmark system (docs/spec.md §3.3): the implicit Newmark +
 //! trapezoidal integration at the internal rate, MATLAB-style FIR decimation, and the batch
 //! entry points of identification (many parameter rows on one high-rate input: the record
 //! simulated and decimated as one simulation does, rayon across rows). All release the GIL;
 //! the Python layer (`piezohyst.boucwen_benchmark`) upsamples the input.
+use crate::util::ParameterError;
 use numpy::ndarray::Array2;
 use numpy::{
-    IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1,
-    PyUntypedArrayMethods,
+    IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1, PyUntypedArrayMethods,
 };
 use piezohyst_core::boucwen_benchmark::{
-    cascade_work_len, decimate_cascade, decimated_len, integrate, record_rmse, simulate_record,
-    BoucWenBenchmark, Newmark, State,
+    cascade_work_len, decimate_cascade, decimated_len, integrate, record_rmse, simulate_record, BoucWenBenchmark,
+    Newmark, State,
 };
 use piezohyst_core::ModelError;
-use crate::util::ParameterError;
 use pyo3::prelude::*;
 use rayon::prelude::*;
 
@@ -25,16 +24,12 @@ fn err(e: ModelError) -> PyErr {
 }
 
 fn slice<'a>(a: &'a PyReadonlyArray1<'_, f64>, name: &str) -> PyResult<&'a [f64]> {
-    a.as_slice()
-        .map_err(|_| ParameterError::new_err(format!("{name} must be a contiguous float64 array")))
+    a.as_slice().map_err(|_| ParameterError::new_err(format!("{name} must be a contiguous float64 array")))
 }
 
 fn check_finite(name: &str, xs: &[f64]) -> PyResult<()> {
     match xs.iter().position(|x| !x.is_finite()) {
-        Some(k) => Err(ParameterError::new_err(format!(
-            "{name}[{k}] = {} is not finite",
-            xs[k]
-        ))),
+        Some(k) => Err(ParameterError::new_err(format!("{name}[{k}] = {} is not finite", xs[k]))),
         None => Ok(()),
     }
 }
@@ -56,22 +51,15 @@ fn boucwen_benchmark_integrate<'py>(
     let stepper = Newmark::new(cfg, h).map_err(err)?;
     let u = slice(&input, "input")?;
     check_finite("input", u)?;
-    let st = state
-        .as_slice_mut()
-        .map_err(|_| ParameterError::new_err("state must be a contiguous float64 array"))?;
+    let st = state.as_slice_mut().map_err(|_| ParameterError::new_err("state must be a contiguous float64 array"))?;
     if st.len() != 4 {
-        return Err(ParameterError::new_err(format!(
-            "state has length {}, expected 4 ([y, dy, ddy, z])",
-            st.len()
-        )));
+        return Err(ParameterError::new_err(format!("state has length {}, expected 4 ([y, dy, ddy, z])", st.len())));
     }
     check_finite("state", st)?;
     let mut s = State::from_array([st[0], st[1], st[2], st[3]]);
     let mut y = vec![0.0; u.len()];
     let mut z = vec![0.0; u.len()];
-    let failed = py
-        .detach(|| integrate(&stepper, &mut s, u, &mut y, &mut z))
-        .map_err(err)?;
+    let failed = py.detach(|| integrate(&stepper, &mut s, u, &mut y, &mut z)).map_err(err)?;
     st.copy_from_slice(&s.to_array());
     if let Some(k) = failed {
         return Err(ParameterError::new_err(format!(
@@ -79,11 +67,7 @@ fn boucwen_benchmark_integrate<'py>(
             y[k], z[k]
         )));
     }
-    if let Some(k) = y
-        .iter()
-        .zip(&z)
-        .position(|(a, b)| !a.is_finite() || !b.is_finite())
-    {
+    if let Some(k) = y.iter().zip(&z).position(|(a, b)| !a.is_finite() || !b.is_finite()) {
         return Err(ParameterError::new_err(format!(
             "the simulation diverged at internal step {k} (y = {}, z = {}); the parameters or the step h = {h} do not keep it bounded for this input",
             y[k], z[k]
@@ -158,23 +142,15 @@ fn batch_args<'a>(
     for (j, row) in p.chunks_exact(width).enumerate() {
         let nu = row[width - 1];
         if raise_invalid && nu.is_finite() && nu < 1.0 {
-            return Err(ParameterError::new_err(format!(
-                "params[{j}]: nu = {nu} must be >= 1"
-            )));
+            return Err(ParameterError::new_err(format!("params[{j}]: nu = {nu} must be >= 1")));
         }
         match BoucWenBenchmark::from_slice(row).and_then(|cfg| Newmark::new(cfg, h)) {
             Ok(s) => steppers.push(Some(s)),
-            Err(e) if raise_invalid => {
-                return Err(ParameterError::new_err(format!("params[{j}]: {e}")))
-            }
+            Err(e) if raise_invalid => return Err(ParameterError::new_err(format!("params[{j}]: {e}"))),
             Err(_) => steppers.push(None),
         }
     }
-    Ok(Batch {
-        steppers,
-        input: u,
-        n_out: decimated_len(u.len(), factor),
-    })
+    Ok(Batch { steppers, input: u, n_out: decimated_len(u.len(), factor) })
 }
 
 /// `(S,)` RMSE (m) of `S` parameter rows `[mass, damping, stiffness, alpha, beta, gamma,
@@ -257,19 +233,17 @@ fn boucwen_benchmark_batch_simulate<'py>(
     let mut out = vec![0.0; s * count];
     let wl = cascade_work_len(u.len(), factor);
     let res: Result<(), ModelError> = py.detach(|| {
-        out.par_chunks_mut(count.max(1))
-            .zip(b.steppers.par_iter())
-            .try_for_each_init(
-                || (vec![0.0; u.len()], vec![0.0; wl], vec![0.0; n_out]),
-                |(fine, work, dec), (row, st)| {
-                    let st = st.as_ref().expect("invalid rows raised above");
-                    match simulate_record(st, u, factor, fine, work, dec)? {
-                        Ok(()) => row.copy_from_slice(&dec[skip..skip + count]),
-                        Err(_) => row.fill(f64::NAN),
-                    }
-                    Ok(())
-                },
-            )
+        out.par_chunks_mut(count.max(1)).zip(b.steppers.par_iter()).try_for_each_init(
+            || (vec![0.0; u.len()], vec![0.0; wl], vec![0.0; n_out]),
+            |(fine, work, dec), (row, st)| {
+                let st = st.as_ref().expect("invalid rows raised above");
+                match simulate_record(st, u, factor, fine, work, dec)? {
+                    Ok(()) => row.copy_from_slice(&dec[skip..skip + count]),
+                    Err(_) => row.fill(f64::NAN),
+                }
+                Ok(())
+            },
+        )
     });
     res.map_err(err)?;
     let arr = Array2::from_shape_vec((s, count), out).expect("shape matches length");

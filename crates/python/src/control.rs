@@ -12,7 +12,8 @@ use piezohyst_core::spec::Family;
 use piezohyst_core::ModelError;
 
 /// Parameter count per kind (layouts documented in `python/piezohyst/control.py`).
-pub const KINDS: [(&str, usize); 5] = [("open_loop", 6), ("pid", 9), ("smc", 21), ("absmc", 22), ("cemf_feedforward", 10)];
+pub const KINDS: [(&str, usize); 5] =
+    [("open_loop", 6), ("pid", 9), ("smc", 21), ("absmc", 22), ("cemf_feedforward", 10)];
 
 /// An owned controller description.
 #[derive(Debug, Clone)]
@@ -74,10 +75,29 @@ fn base(kind: &str, p: &[f64]) -> Result<Base, String> {
                 let switching = match p[6] {
                     x if x == 0.0 => Switching::BoundaryLayer { gain: p[7], width: p[8] },
                     x if x == 1.0 => Switching::SuperTwisting { k1: p[7], k2: p[8] },
-                    x => return Err(ModelError::NotFinite("switching (0 boundary layer, 1 super-twisting)", usize::MAX, x)),
+                    x => {
+                        return Err(ModelError::NotFinite(
+                            "switching (0 boundary layer, 1 super-twisting)",
+                            usize::MAX,
+                            x,
+                        ))
+                    }
                 };
-                let model = if p[12] != 0.0 { Some(cemf(&[p[0], p[1], p[2], p[13], p[14], p[15], p[16], p[17]])?) } else { None };
-                let mut smc = Smc::new((p[0], p[1], p[2]), p[3], p[4], p[5], switching, model, observer(p[9], p[10], p[11])?, limits)?;
+                let model = if p[12] != 0.0 {
+                    Some(cemf(&[p[0], p[1], p[2], p[13], p[14], p[15], p[16], p[17]])?)
+                } else {
+                    None
+                };
+                let mut smc = Smc::new(
+                    (p[0], p[1], p[2]),
+                    p[3],
+                    p[4],
+                    p[5],
+                    switching,
+                    model,
+                    observer(p[9], p[10], p[11])?,
+                    limits,
+                )?;
                 smc.desired_model_terms = p[18] != 0.0;
                 Base::Smc(smc)
             }
@@ -109,7 +129,9 @@ pub fn with_controller<R>(spec: &ControllerSpec, f: impl FnOnce(&(dyn Controller
     fn learn<'c>(spec: &ControllerSpec, c: &'c (dyn Controller + Sync)) -> Learning<'c> {
         match spec.ilc {
             None => Ok(None),
-            Some((n, gain, q, lead, delay)) => Ilc::new(c, n, gain, q, lead, delay).map(Some).map_err(|e| format!("ilc: {e}")),
+            Some((n, gain, q, lead, delay)) => {
+                Ilc::new(c, n, gain, q, lead, delay).map(Some).map_err(|e| format!("ilc: {e}"))
+            }
         }
     }
     match &spec.inverse {

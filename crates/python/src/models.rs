@@ -1,19 +1,20 @@
 //! Hysteresis models: every model is addressed by its family name, dims and one flat
 //! parameter row (see `piezohyst_core::spec`). Batch entry points release the GIL and
 //! spread parameter sets over rayon's threads.
+use crate::util::ParameterError;
 use numpy::ndarray::Array2;
-use numpy::{IntoPyArray, PyUntypedArrayMethods, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1};
+use numpy::{
+    IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1, PyUntypedArrayMethods,
+};
 use piezohyst_core::batch::{pi_lanes, pi_lanes_fixed};
 use piezohyst_core::inverse::{inverse_simulate, solve_increasing};
 use piezohyst_core::pi::Pi;
 use piezohyst_core::spec::{Family, Model};
 use piezohyst_core::{Hysteresis, ModelError};
-use crate::util::ParameterError;
 use pyo3::prelude::*;
 
 use crate::util::{check_finite, err, slice};
 use rayon::prelude::*;
-
 
 pub(crate) fn family(name: &str, dims: Vec<usize>) -> PyResult<Family> {
     Family::parse(name, &dims).map_err(|e| match e {
@@ -23,8 +24,6 @@ pub(crate) fn family(name: &str, dims: Vec<usize>) -> PyResult<Family> {
         e => err(e),
     })
 }
-
-
 
 fn check_output(ys: &[f64]) -> PyResult<()> {
     match ys.iter().position(|y| !y.is_finite()) {
@@ -47,9 +46,7 @@ fn with_model<R>(
 }
 
 fn state_slice<'a>(fam: Family, st: &'a mut PyReadwriteArray1<'_, f64>) -> PyResult<&'a mut [f64]> {
-    let s = st
-        .as_slice_mut()
-        .map_err(|_| ParameterError::new_err("state must be a contiguous float64 array"))?;
+    let s = st.as_slice_mut().map_err(|_| ParameterError::new_err("state must be a contiguous float64 array"))?;
     if s.len() != fam.state_len() {
         return Err(ParameterError::new_err(format!(
             "state has length {}, expected {} for this model",
@@ -142,12 +139,11 @@ fn inverse<'py>(
     }
     let st = state_slice(fam, &mut state)?;
     let mut v = vec![0.0; yd.len()];
-    py.detach(|| with_model(fam, p, |m| inverse_simulate(m, st, yd, &mut v, guess)))
-        .map_err(err)?;
+    py.detach(|| with_model(fam, p, |m| inverse_simulate(m, st, yd, &mut v, guess))).map_err(err)?;
     Ok(v.into_pyarray(py))
 }
 
-/// Analytic inverse PI parameters `(p0', thresholds', weights')` (SPEC §2.1).
+/// Analytic inverse PI parameters `(p0', thresholds', weights')` (docs/spec.md §2.1).
 #[pyfunction]
 fn pi_analytic_inverse<'py>(
     py: Python<'py>,
@@ -344,7 +340,13 @@ fn pi_group_any<const L: usize>(n: usize, rows: &[&[f64]], v: &[f64], out: &mut 
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-unsafe fn pi_group_avx512<const L: usize>(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
+unsafe fn pi_group_avx512<const L: usize>(
+    n: usize,
+    rows: &[&[f64]],
+    v: &[f64],
+    out: &mut [f64],
+    target: Option<&[f64]>,
+) {
     pi_group_any::<L>(n, rows, v, out, target)
 }
 
@@ -461,9 +463,7 @@ fn batch_inputs<'a>(
     if !params.is_c_contiguous() {
         return Err(ParameterError::new_err("params must be a C-contiguous float64 array"));
     }
-    let p = params
-        .as_slice()
-        .map_err(|_| ParameterError::new_err("params must be a C-contiguous float64 array"))?;
+    let p = params.as_slice().map_err(|_| ParameterError::new_err("params must be a C-contiguous float64 array"))?;
     let v = slice(input, "input")?;
     check_finite("input", v)?;
     if v.is_empty() {

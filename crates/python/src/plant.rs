@@ -3,22 +3,21 @@
 //! flat array. Batch runs release the GIL and put one scenario per rayon task.
 use std::mem::MaybeUninit;
 
+use crate::util::ParameterError;
 use numpy::ndarray::Array2;
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1, PyUntypedArrayMethods};
+use numpy::{
+    IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1, PyUntypedArrayMethods,
+};
 use piezohyst_core::closed_loop::{run_recorder, run_tracking, Recorder, Sample};
 use piezohyst_core::control::{Controller, Limits, Pid, MAX_TERMS};
 use piezohyst_core::sensor::Sensor;
 use piezohyst_core::stage::{Stage, StageParams, StageState};
-use crate::util::ParameterError;
 use pyo3::prelude::*;
 
 use crate::control::{with_controller, ControllerSpec};
 use crate::util::{check_finite, err, slice};
 use pyo3::types::PyDict;
 use rayon::prelude::*;
-
-
-
 
 fn stage(params: &[f64], ts: f64, substeps: usize, tolerance: f64) -> PyResult<Stage> {
     let p = StageParams::from_slice(params).map_err(err)?;
@@ -83,7 +82,8 @@ pub(crate) fn controller_spec(arg: &ControllerArg<'_>) -> PyResult<ControllerSpe
             Some((family, row, [*lo, *hi]))
         }
     };
-    let spec = ControllerSpec { kind: kind.clone(), params: slice(params, "controller_params")?.to_vec(), inverse, ilc: *ilc };
+    let spec =
+        ControllerSpec { kind: kind.clone(), params: slice(params, "controller_params")?.to_vec(), inverse, ilc: *ilc };
     with_controller(&spec, |_| ()).map_err(ParameterError::new_err)?;
     Ok(spec)
 }
@@ -151,7 +151,13 @@ impl Recorder for Out<'_> {
 }
 
 #[inline(always)]
-fn record_run<C: Controller + ?Sized>(stage: &Stage, sensor: &Sensor, c: &C, sc: &Scenario<'_>, init: StageState) -> Signals {
+fn record_run<C: Controller + ?Sized>(
+    stage: &Stage,
+    sensor: &Sensor,
+    c: &C,
+    sc: &Scenario<'_>,
+    init: StageState,
+) -> Signals {
     let n = sc.reference.len();
     let width = c.term_names().len().min(MAX_TERMS);
     let mut reference = Vec::with_capacity(n);
@@ -173,7 +179,18 @@ fn record_run<C: Controller + ?Sized>(stage: &Stage, sensor: &Sensor, c: &C, sc:
         terms: &mut terms.spare_capacity_mut()[..n * width + MAX_TERMS],
         width,
     };
-    let done = run_recorder(stage, &mut st, sensor, &mut sst, c, &mut cst, sc.reference, sc.velocity, sc.acceleration, &mut out);
+    let done = run_recorder(
+        stage,
+        &mut st,
+        sensor,
+        &mut sst,
+        c,
+        &mut cst,
+        sc.reference,
+        sc.velocity,
+        sc.acceleration,
+        &mut out,
+    );
     // SAFETY: run_recorder handed samples 0..done to `out` in order, which wrote element k
     // of every signal and terms[k * width .. k * width + MAX_TERMS] for each: the first
     // `done` (resp. `done * width`) elements are initialized.
@@ -191,7 +208,17 @@ fn record_run<C: Controller + ?Sized>(stage: &Stage, sensor: &Sensor, c: &C, sc:
         Some(x) if !x.is_finite() => position.iter().position(|x| !x.is_finite()),
         _ => None,
     };
-    Signals { reference, command, voltage, position, measured, terms, final_state: st, term_names: c.term_names(), diverged_at }
+    Signals {
+        reference,
+        command,
+        voltage,
+        position,
+        measured,
+        terms,
+        final_state: st,
+        term_names: c.term_names(),
+        diverged_at,
+    }
 }
 
 /// [`record_run`] compiled for AVX2: the same scalar IEEE operations in the three-operand
@@ -199,7 +226,13 @@ fn record_run<C: Controller + ?Sized>(stage: &Stage, sensor: &Sensor, c: &C, sc:
 /// so the results are the same to the bit on either path.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn record_run_avx2<C: Controller + ?Sized>(stage: &Stage, sensor: &Sensor, c: &C, sc: &Scenario<'_>, init: StageState) -> Signals {
+unsafe fn record_run_avx2<C: Controller + ?Sized>(
+    stage: &Stage,
+    sensor: &Sensor,
+    c: &C,
+    sc: &Scenario<'_>,
+    init: StageState,
+) -> Signals {
     record_run(stage, sensor, c, sc, init)
 }
 
@@ -211,7 +244,13 @@ fn use_avx2() -> bool {
     *USE.get_or_init(|| std::is_x86_feature_detected!("avx2") && std::env::var_os("PIEZOHYST_NO_AVX2").is_none())
 }
 
-fn record_run_dispatch<C: Controller + ?Sized>(stage: &Stage, sensor: &Sensor, c: &C, sc: &Scenario<'_>, init: StageState) -> Signals {
+fn record_run_dispatch<C: Controller + ?Sized>(
+    stage: &Stage,
+    sensor: &Sensor,
+    c: &C,
+    sc: &Scenario<'_>,
+    init: StageState,
+) -> Signals {
     #[cfg(target_arch = "x86_64")]
     {
         if use_avx2() {
@@ -237,7 +276,8 @@ fn run_scenario(stage: &Stage, sensor: &Sensor, sc: &Scenario<'_>, init: StageSt
     if let Some(pid) = plain_pid(&sc.controller) {
         return record_run_dispatch(stage, sensor, &pid, sc, init);
     }
-    with_controller(&sc.controller, |c| record_run_dispatch(stage, sensor, c, sc, init)).expect("validated before the run")
+    with_controller(&sc.controller, |c| record_run_dispatch(stage, sensor, c, sc, init))
+        .expect("validated before the run")
 }
 
 fn signals_dict<'py>(py: Python<'py>, sig: Signals) -> PyResult<Bound<'py, PyDict>> {
@@ -404,7 +444,10 @@ fn closed_loop_batch_tracking<'py>(
         let c = controller_spec(cp).map_err(prefix)?;
         let (r, v, a) = scenario_arrays(r, v, a).map_err(prefix)?;
         if skip >= r.len() {
-            return Err(ParameterError::new_err(format!("skip = {skip} leaves nothing of scenarios[{j}]'s {} samples", r.len())));
+            return Err(ParameterError::new_err(format!(
+                "skip = {skip} leaves nothing of scenarios[{j}]'s {} samples",
+                r.len()
+            )));
         }
         list.push(Scenario { reference: r, velocity: v, acceleration: a, seed: *seed, controller: c });
     }
@@ -416,7 +459,18 @@ fn closed_loop_batch_tracking<'py>(
                     let mut sst = se.state(ss.x, sc.seed);
                     let mut cst = vec![0.0; c.state_len()];
                     c.reset(&mut cst, ss.x);
-                    let t = run_tracking(&st, &mut ss, &se, &mut sst, c, &mut cst, sc.reference, sc.velocity, sc.acceleration, skip);
+                    let t = run_tracking(
+                        &st,
+                        &mut ss,
+                        &se,
+                        &mut sst,
+                        c,
+                        &mut cst,
+                        sc.reference,
+                        sc.velocity,
+                        sc.acceleration,
+                        skip,
+                    );
                     let n = t.samples.max(1) as f64;
                     [(t.sse / n).sqrt(), t.max_error, t.saturated as f64 / sc.reference.len() as f64]
                 })
@@ -457,9 +511,7 @@ fn stage_batch_rmse<'py>(
     if !params.is_c_contiguous() {
         return Err(ParameterError::new_err("params must be a C-contiguous float64 array"));
     }
-    let p = params
-        .as_slice()
-        .map_err(|_| ParameterError::new_err("params must be a C-contiguous float64 array"))?;
+    let p = params.as_slice().map_err(|_| ParameterError::new_err("params must be a C-contiguous float64 array"))?;
     let u = slice(&command, "command")?;
     let t = slice(&target, "target")?;
     check_finite("command", u)?;

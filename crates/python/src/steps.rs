@@ -1,8 +1,8 @@
 //! A controller stepped on given inputs, without a plant: what a real-time loop (or the C
 //! ABI, `crates/capi`) does with the same controller, so Python can produce the reference
 //! outputs the C test replays (`make test-c`).
-use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1, PyReadwriteArray1};
 use crate::util::ParameterError;
+use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1, PyReadwriteArray1};
 use pyo3::prelude::*;
 
 use crate::control::with_controller;
@@ -12,14 +12,21 @@ use crate::util::{check_finite, slice};
 fn state_of<'a>(state: &'a mut PyReadwriteArray1<'_, f64>, want: usize) -> PyResult<&'a mut [f64]> {
     let s = state.as_slice_mut().map_err(|_| ParameterError::new_err("state must be a contiguous float64 array"))?;
     if s.len() != want {
-        return Err(ParameterError::new_err(format!("state has length {}, expected {want} for this controller", s.len())));
+        return Err(ParameterError::new_err(format!(
+            "state has length {}, expected {want} for this controller",
+            s.len()
+        )));
     }
     Ok(s)
 }
 
 /// The controller's state before its first step, given the first measurement `y0`.
 #[pyfunction]
-fn controller_initial_state<'py>(py: Python<'py>, controller: ControllerArg<'py>, y0: f64) -> PyResult<Bound<'py, PyArray1<f64>>> {
+fn controller_initial_state<'py>(
+    py: Python<'py>,
+    controller: ControllerArg<'py>,
+    y0: f64,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
     if !y0.is_finite() {
         return Err(ParameterError::new_err(format!("y0 = {y0} is not finite")));
     }
@@ -47,7 +54,12 @@ fn controller_steps<'py>(
     mut state: PyReadwriteArray1<'py, f64>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
     let spec = controller_spec(&controller)?;
-    let (r, v, a, y) = (slice(&reference, "reference")?, slice(&velocity, "velocity")?, slice(&acceleration, "acceleration")?, slice(&measured, "measured")?);
+    let (r, v, a, y) = (
+        slice(&reference, "reference")?,
+        slice(&velocity, "velocity")?,
+        slice(&acceleration, "acceleration")?,
+        slice(&measured, "measured")?,
+    );
     for (name, x) in [("reference", r), ("velocity", v), ("acceleration", a), ("measured", y)] {
         check_finite(name, x)?;
     }

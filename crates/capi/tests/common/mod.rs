@@ -39,12 +39,25 @@ pub fn models() -> Vec<ModelCase> {
     let pre_w: Vec<f64> = (0..10).map(|i| 0.05 * (i + 1) as f64).collect();
     vec![
         ModelCase { name: "pi", family: 1, dims: vec![3, 0], row: cat(&[&[0.9], &R, &W]), invertible: true },
-        ModelCase { name: "pi+creep", family: 1, dims: vec![3, 2], row: cat(&[&[0.9], &R, &W, creep]), invertible: true },
+        ModelCase {
+            name: "pi+creep",
+            family: 1,
+            dims: vec![3, 2],
+            row: cat(&[&[0.9], &R, &W, creep]),
+            invertible: true,
+        },
         ModelCase {
             name: "gpi",
             family: 2,
             dims: vec![3, 1, 2, 0],
-            row: cat(&[&[-1.0, 1.0], &[0.0, 0.25, -0.004, 0.7], &[-0.02, 0.9, 0.05, 0.3], &[1.5, 1.0, 0.0, 0.05], &R, &W]),
+            row: cat(&[
+                &[-1.0, 1.0],
+                &[0.0, 0.25, -0.004, 0.7],
+                &[-0.02, 0.9, 0.05, 0.3],
+                &[1.5, 1.0, 0.0, 0.05],
+                &R,
+                &W,
+            ]),
             invertible: true,
         },
         ModelCase { name: "mpi9", family: 2, dims: vec![9, 0, 0, 0], row: mpi9_row(), invertible: true },
@@ -56,7 +69,13 @@ pub fn models() -> Vec<ModelCase> {
             invertible: true,
         },
         ModelCase { name: "creep", family: 4, dims: vec![2], row: creep.to_vec(), invertible: true },
-        ModelCase { name: "preisach", family: 5, dims: vec![4, 16], row: cat(&[&[-1.5, 1.5, 0.2, 0.3], &pre_w]), invertible: true },
+        ModelCase {
+            name: "preisach",
+            family: 5,
+            dims: vec![4, 16],
+            row: cat(&[&[-1.5, 1.5, 0.2, 0.3], &pre_w]),
+            invertible: true,
+        },
         ModelCase { name: "boucwen", family: 6, dims: vec![], row: vec![0.3, 0.03, 0.01, 1.0, 0.1], invertible: true },
         ModelCase {
             name: "duhem",
@@ -114,19 +133,56 @@ pub fn cemf_row() -> [f64; 8] {
 pub fn smc_params(cemf: bool, super_twisting: bool) -> Vec<f64> {
     let c = cemf_row();
     let sw: [f64; 3] = if super_twisting { [1.0, 500.0, 2e5] } else { [0.0, 20.0, 0.01] };
-    cat(&[&c[..3], &[1e6, 2e3, 0.0], &sw, &[1000.0, TS, 1.0], &[if cemf { 1.0 } else { 0.0 }], &c[3..], &[0.0, -20.0, 150.0]])
+    cat(&[
+        &c[..3],
+        &[1e6, 2e3, 0.0],
+        &sw,
+        &[1000.0, TS, 1.0],
+        &[if cemf { 1.0 } else { 0.0 }],
+        &c[3..],
+        &[0.0, -20.0, 150.0],
+    ])
 }
 
 pub fn absmc_linearized_params() -> Vec<f64> {
     let w2 = (2.0 * std::f64::consts::PI * 2000.0f64).powi(2);
     let w = w2.sqrt();
-    vec![w2, w2, 1.4 * w, w2 / 3.0, 0.0, 3.0 * w2, 3.0 * w, 2e3, 2e3, 5e3, 1e-3, 1e6, 1e3, 1e4, 0.0, 1e5, 1.0, 1000.0, TS, 1.0, -2e-6, 22e-6]
+    vec![
+        w2,
+        w2,
+        1.4 * w,
+        w2 / 3.0,
+        0.0,
+        3.0 * w2,
+        3.0 * w,
+        2e3,
+        2e3,
+        5e3,
+        1e-3,
+        1e6,
+        1e3,
+        1e4,
+        0.0,
+        1e5,
+        1.0,
+        1000.0,
+        TS,
+        1.0,
+        -2e-6,
+        22e-6,
+    ]
 }
 
 pub fn controllers() -> Vec<ControllerCase> {
     let ilc = PhsIlcSpec { period: 100, gain: 0.3, forgetting: 0.99, lead: 3, delay: 1 };
     vec![
-        ControllerCase { name: "open_loop", kind: 1, params: vec![7e6, 0.0, 1e-4, 1e-8, -20.0, 150.0], inverse: false, ilc: None },
+        ControllerCase {
+            name: "open_loop",
+            kind: 1,
+            params: vec![7e6, 0.0, 1e-4, 1e-8, -20.0, 150.0],
+            inverse: false,
+            ilc: None,
+        },
         ControllerCase {
             name: "pid",
             kind: 2,
@@ -136,9 +192,21 @@ pub fn controllers() -> Vec<ControllerCase> {
         },
         ControllerCase { name: "smc", kind: 3, params: smc_params(false, false), inverse: false, ilc: None },
         ControllerCase { name: "smc+cemf", kind: 3, params: smc_params(true, false), inverse: false, ilc: None },
-        ControllerCase { name: "smc super-twisting", kind: 3, params: smc_params(false, true), inverse: false, ilc: None },
+        ControllerCase {
+            name: "smc super-twisting",
+            kind: 3,
+            params: smc_params(false, true),
+            inverse: false,
+            ilc: None,
+        },
         ControllerCase { name: "absmc+mpi", kind: 4, params: absmc_linearized_params(), inverse: true, ilc: None },
-        ControllerCase { name: "cemf_feedforward", kind: 5, params: cat(&[&cemf_row(), &[-20.0, 150.0]]), inverse: false, ilc: None },
+        ControllerCase {
+            name: "cemf_feedforward",
+            kind: 5,
+            params: cat(&[&cemf_row(), &[-20.0, 150.0]]),
+            inverse: false,
+            ilc: None,
+        },
         ControllerCase {
             name: "inverse feedforward (mpi)",
             kind: 1,
@@ -153,7 +221,13 @@ pub fn controllers() -> Vec<ControllerCase> {
             inverse: false,
             ilc: Some(ilc),
         },
-        ControllerCase { name: "absmc+mpi+ilc", kind: 4, params: absmc_linearized_params(), inverse: true, ilc: Some(ilc) },
+        ControllerCase {
+            name: "absmc+mpi+ilc",
+            kind: 4,
+            params: absmc_linearized_params(),
+            inverse: true,
+            ilc: Some(ilc),
+        },
     ]
 }
 
