@@ -88,21 +88,23 @@ typedef int32_t PhsStatus;
 #endif // __cplusplus
 
 // Model families (`PhsModelSpec.family`) and their dims and parameter rows (the
-// `piezohyst_core::spec` layouts; `HysteresisModel.to_row()` in Python):
+// `piezohyst_core::layout` table; `HysteresisModel.to_row()` in Python):
 //
-// | family | dims | row |
-// |---|---|---|
-// | PI | n, creep_terms | p0, r[n], w[n] + creep |
-// | GPI (GPI/MPI) | n, rising_kind, falling_kind, creep_terms | range_lo, range_hi, poly[4], rising[4], falling[4], r[n], b[n] + creep |
-// | RDPI | n, creep_terms | ts, p0, beta, filter_tau, r[n], w[n], c[n] + creep |
-// | CREEP | terms | ts, tau[m], c[m] |
-// | PREISACH | levels, memory | lo, hi, offset, slope, w[levels(levels+1)/2] |
-// | BOUCWEN | (none) | a, beta, gamma, n, d |
-// | DUHEM | (none) | alpha, f[4], g[4] |
-// | DAHL | (none) | sigma, h_c, a |
+// <!-- layout:families -->
+// | family | code | dims | row |
+// |---|---|---|---|
+// | PI | 1 | n, creep_terms | p0, r[n], w[n], creep_ts (if creep_terms > 0), creep_tau[creep_terms], creep_c[creep_terms] |
+// | GPI | 2 | n, rising_kind, falling_kind, creep_terms | range_lo, range_hi, poly[4], rising[4], falling[4], r[n], b[n], creep_ts (if creep_terms > 0), creep_tau[creep_terms], creep_c[creep_terms] |
+// | RDPI | 3 | n, creep_terms | ts, p0, beta, filter_tau, r[n], w[n], c[n], creep_ts (if creep_terms > 0), creep_tau[creep_terms], creep_c[creep_terms] |
+// | CREEP | 4 | terms | creep_ts, creep_tau[terms], creep_c[terms] |
+// | PREISACH | 5 | levels, memory | lo, hi, offset, slope, w[levels(levels+1)/2] |
+// | BOUCWEN | 6 | (none) | a, beta, gamma, n, d |
+// | DUHEM | 7 | (none) | alpha, f[4], g[4] |
+// | DAHL | 8 | (none) | sigma, h_c, a |
+// <!-- /layout:families -->
 //
-// The creep tail is `ts, tau[m], c[m]` (absent when creep_terms = 0); envelope kinds are
-// 0 identity, 1 polynomial, 2 tanh.
+// A `creep_*` tail is absent when `creep_terms = 0`; envelope kinds are 0 identity,
+// 1 polynomial, 2 tanh.
 enum PhsFamily
 #if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
   : uint32_t
@@ -133,22 +135,22 @@ typedef uint32_t PhsFamily;
 #endif // __STDC_VERSION__ >= 202311L
 #endif // __cplusplus
 
-// Controller kinds and their parameter arrays (those of `controller.core(stage)` in
-// `python/piezohyst/control.py`; the last two values are always the output limits
-// `u_min, u_max`, in volts, or in metres behind an inverse model):
+// Controller kinds and their parameter arrays (the `piezohyst_core::layout` table; those
+// of `controller.core(stage)` in Python). The last two values are always the output
+// limits `u_min, u_max`, in volts, or in metres behind an inverse model:
 //
-// * OPEN_LOOP (6): gain, offset, c1, c2, u_min, u_max —
-//   `u = offset + gain (x_d + c1 x_d' + c2 x_d'')`.
-// * PID (9): kp, ki, kd, tau_d, ts, ff_gain, offset, u_min, u_max.
-// * SMC (21): M, B, K, kp, kv, alpha, switching (0 boundary layer, 1 super-twisting),
-//   ks or k1, phi or k2, observer_bandwidth, ts, observer_delay, cemf (0 or 1), tem,
-//   capacitance, hyst_alpha, hyst_beta, hyst_gamma, desired_model_terms (0 measured,
-//   1 on the reference), u_min, u_max.
-// * ABSMC (22): b, theta0[2], theta_min[2], theta_max[2], c1, lambda, ks, phi,
-//   gamma_theta[2], gamma_d, d0, d_max, desired_regressor (0 or 1), observer_bandwidth,
-//   ts, observer_delay, u_min, u_max.
-// * CEMF_FEEDFORWARD (10): M, B, K, tem, capacitance, hyst_alpha, hyst_beta, hyst_gamma,
-//   u_min, u_max.
+// <!-- layout:controllers -->
+// * OPEN_LOOP = 1 (6): gain, offset, c1, c2, u_min, u_max.
+//   u = offset + gain (x_d + c1 x_d' + c2 x_d'').
+// * PID = 2 (9): kp, ki, kd, tau_d, ts, ff_gain, offset, u_min, u_max.
+//   PID with feedforward, filtered derivative and anti-windup.
+// * SMC = 3 (21): M, B, K, kp, kv, alpha, switching, ks_or_k1, phi_or_k2, observer_bandwidth, ts, observer_delay, cemf, tem, capacitance, hyst_alpha, hyst_beta, hyst_gamma, desired_model_terms, u_min, u_max.
+//   switching: 0 boundary layer (ks, phi), 1 super-twisting (k1, k2); cemf: 0 or 1; desired_model_terms: 0 measured, 1 on the reference.
+// * ABSMC = 4 (22): b, theta0_0, theta0_1, theta_min_0, theta_min_1, theta_max_0, theta_max_1, c1, lambda, ks, phi, gamma_theta_0, gamma_theta_1, gamma_d, d0, d_max, desired_regressor, observer_bandwidth, ts, observer_delay, u_min, u_max.
+//   desired_regressor: 0 or 1.
+// * CEMF_FEEDFORWARD = 5 (10): M, B, K, tem, capacitance, hyst_alpha, hyst_beta, hyst_gamma, u_min, u_max.
+//   exact inverse feedforward of the CEMF stage model.
+// <!-- /layout:controllers -->
 enum PhsControllerKind
 #if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
   : uint32_t

@@ -41,13 +41,11 @@ use core::fmt::{self, Write as _};
 use core::mem::{align_of, size_of};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
-use piezohyst_core::absmc::Absmc;
-use piezohyst_core::cemf::{CemfFeedforward, CemfModel};
 use piezohyst_core::compensated::Compensated;
-use piezohyst_core::control::{Controller, Limits, OpenLoop, Output, Pid, Reference, VelocityObserver};
+use piezohyst_core::control::{Controller, Limits, Reference};
 use piezohyst_core::ilc::Ilc;
 use piezohyst_core::inverse::inverse_step;
-use piezohyst_core::smc::{Smc, Switching};
+use piezohyst_core::layout::{ControllerLayout, FamilyLayout, Law, CONTROLLERS, FAMILIES};
 use piezohyst_core::spec::{Base, Family, Model};
 use piezohyst_core::{Hysteresis, ModelError};
 
@@ -96,21 +94,23 @@ pub const PHS_STATUS_COUNT: i32 = 12;
 // codes and sizes
 
 /// Model families (`PhsModelSpec.family`) and their dims and parameter rows (the
-/// `piezohyst_core::spec` layouts; `HysteresisModel.to_row()` in Python):
+/// `piezohyst_core::layout` table; `HysteresisModel.to_row()` in Python):
 ///
-/// | family | dims | row |
-/// |---|---|---|
-/// | PI | n, creep_terms | p0, r[n], w[n] + creep |
-/// | GPI (GPI/MPI) | n, rising_kind, falling_kind, creep_terms | range_lo, range_hi, poly[4], rising[4], falling[4], r[n], b[n] + creep |
-/// | RDPI | n, creep_terms | ts, p0, beta, filter_tau, r[n], w[n], c[n] + creep |
-/// | CREEP | terms | ts, tau[m], c[m] |
-/// | PREISACH | levels, memory | lo, hi, offset, slope, w[levels(levels+1)/2] |
-/// | BOUCWEN | (none) | a, beta, gamma, n, d |
-/// | DUHEM | (none) | alpha, f[4], g[4] |
-/// | DAHL | (none) | sigma, h_c, a |
+/// <!-- layout:families -->
+/// | family | code | dims | row |
+/// |---|---|---|---|
+/// | PI | 1 | n, creep_terms | p0, r[n], w[n], creep_ts (if creep_terms > 0), creep_tau[creep_terms], creep_c[creep_terms] |
+/// | GPI | 2 | n, rising_kind, falling_kind, creep_terms | range_lo, range_hi, poly[4], rising[4], falling[4], r[n], b[n], creep_ts (if creep_terms > 0), creep_tau[creep_terms], creep_c[creep_terms] |
+/// | RDPI | 3 | n, creep_terms | ts, p0, beta, filter_tau, r[n], w[n], c[n], creep_ts (if creep_terms > 0), creep_tau[creep_terms], creep_c[creep_terms] |
+/// | CREEP | 4 | terms | creep_ts, creep_tau[terms], creep_c[terms] |
+/// | PREISACH | 5 | levels, memory | lo, hi, offset, slope, w[levels(levels+1)/2] |
+/// | BOUCWEN | 6 | (none) | a, beta, gamma, n, d |
+/// | DUHEM | 7 | (none) | alpha, f[4], g[4] |
+/// | DAHL | 8 | (none) | sigma, h_c, a |
+/// <!-- /layout:families -->
 ///
-/// The creep tail is `ts, tau[m], c[m]` (absent when creep_terms = 0); envelope kinds are
-/// 0 identity, 1 polynomial, 2 tanh.
+/// A `creep_*` tail is absent when `creep_terms = 0`; envelope kinds are 0 identity,
+/// 1 polynomial, 2 tanh.
 #[repr(u32)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PhsFamily {
@@ -132,22 +132,22 @@ pub enum PhsFamily {
     PHS_FAMILY_DAHL = 8,
 }
 
-/// Controller kinds and their parameter arrays (those of `controller.core(stage)` in
-/// `python/piezohyst/control.py`; the last two values are always the output limits
-/// `u_min, u_max`, in volts, or in metres behind an inverse model):
+/// Controller kinds and their parameter arrays (the `piezohyst_core::layout` table; those
+/// of `controller.core(stage)` in Python). The last two values are always the output
+/// limits `u_min, u_max`, in volts, or in metres behind an inverse model:
 ///
-/// * OPEN_LOOP (6): gain, offset, c1, c2, u_min, u_max —
-///   `u = offset + gain (x_d + c1 x_d' + c2 x_d'')`.
-/// * PID (9): kp, ki, kd, tau_d, ts, ff_gain, offset, u_min, u_max.
-/// * SMC (21): M, B, K, kp, kv, alpha, switching (0 boundary layer, 1 super-twisting),
-///   ks or k1, phi or k2, observer_bandwidth, ts, observer_delay, cemf (0 or 1), tem,
-///   capacitance, hyst_alpha, hyst_beta, hyst_gamma, desired_model_terms (0 measured,
-///   1 on the reference), u_min, u_max.
-/// * ABSMC (22): b, theta0[2], theta_min[2], theta_max[2], c1, lambda, ks, phi,
-///   gamma_theta[2], gamma_d, d0, d_max, desired_regressor (0 or 1), observer_bandwidth,
-///   ts, observer_delay, u_min, u_max.
-/// * CEMF_FEEDFORWARD (10): M, B, K, tem, capacitance, hyst_alpha, hyst_beta, hyst_gamma,
-///   u_min, u_max.
+/// <!-- layout:controllers -->
+/// * OPEN_LOOP = 1 (6): gain, offset, c1, c2, u_min, u_max.
+///   u = offset + gain (x_d + c1 x_d' + c2 x_d'').
+/// * PID = 2 (9): kp, ki, kd, tau_d, ts, ff_gain, offset, u_min, u_max.
+///   PID with feedforward, filtered derivative and anti-windup.
+/// * SMC = 3 (21): M, B, K, kp, kv, alpha, switching, ks_or_k1, phi_or_k2, observer_bandwidth, ts, observer_delay, cemf, tem, capacitance, hyst_alpha, hyst_beta, hyst_gamma, desired_model_terms, u_min, u_max.
+///   switching: 0 boundary layer (ks, phi), 1 super-twisting (k1, k2); cemf: 0 or 1; desired_model_terms: 0 measured, 1 on the reference.
+/// * ABSMC = 4 (22): b, theta0_0, theta0_1, theta_min_0, theta_min_1, theta_max_0, theta_max_1, c1, lambda, ks, phi, gamma_theta_0, gamma_theta_1, gamma_d, d0, d_max, desired_regressor, observer_bandwidth, ts, observer_delay, u_min, u_max.
+///   desired_regressor: 0 or 1.
+/// * CEMF_FEEDFORWARD = 5 (10): M, B, K, tem, capacitance, hyst_alpha, hyst_beta, hyst_gamma, u_min, u_max.
+///   exact inverse feedforward of the CEMF stage model.
+/// <!-- /layout:controllers -->
 #[repr(u32)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PhsControllerKind {
@@ -277,47 +277,6 @@ pub struct PhsController {
 // ---------------------------------------------------------------------------------------
 // built configurations stored in the caller's struct
 
-/// The base controller of a kind.
-#[derive(Debug, Clone, Copy)]
-enum Law {
-    OpenLoop(OpenLoop),
-    Pid(Pid),
-    Smc(Smc),
-    Absmc(Absmc),
-    CemfFeedforward(CemfFeedforward),
-}
-
-macro_rules! on_law {
-    ($b:expr, $c:ident => $e:expr) => {
-        match $b {
-            Law::OpenLoop($c) => $e,
-            Law::Pid($c) => $e,
-            Law::Smc($c) => $e,
-            Law::Absmc($c) => $e,
-            Law::CemfFeedforward($c) => $e,
-        }
-    };
-}
-
-impl Controller for Law {
-    fn state_len(&self) -> usize {
-        on_law!(self, c => c.state_len())
-    }
-    fn reset(&self, state: &mut [f64], y0: f64) {
-        on_law!(self, c => c.reset(state, y0))
-    }
-    #[inline]
-    fn step(&self, state: &mut [f64], r: &Reference, y: f64) -> Output {
-        on_law!(self, c => c.step(state, r, y))
-    }
-    fn term_names(&self) -> &'static [&'static str] {
-        on_law!(self, c => c.term_names())
-    }
-    fn limits(&self) -> Limits {
-        on_law!(self, c => c.limits())
-    }
-}
-
 /// What `PhsController.built` holds. With an inverse model *and* learning, learning acts
 /// in the linearized domain, before the inverse (as in the Python binding).
 #[derive(Debug, Clone, Copy)]
@@ -422,14 +381,20 @@ impl fmt::Display for Why {
             Why::Null(name) => write!(f, "{name} is NULL"),
             Why::Length(name, got, want) => write!(f, "{name} = {got}, expected {want}"),
             Why::NotFinite(name, x) => write!(f, "{name} = {x} is not finite"),
-            Why::UnknownFamily(c) => write!(
-                f,
-                "family = {c} is unknown; expected 1 PI, 2 GPI, 3 RDPI, 4 CREEP, 5 PREISACH, 6 BOUCWEN, 7 DUHEM, 8 DAHL"
-            ),
-            Why::UnknownKind(c) => write!(
-                f,
-                "kind = {c} is unknown; expected 1 OPEN_LOOP, 2 PID, 3 SMC, 4 ABSMC, 5 CEMF_FEEDFORWARD"
-            ),
+            Why::UnknownFamily(c) => {
+                write!(f, "family = {c} is unknown; expected")?;
+                for (i, fam) in FAMILIES.iter().enumerate() {
+                    write!(f, "{} {} {}", if i > 0 { "," } else { "" }, fam.code, fam.label)?;
+                }
+                Ok(())
+            }
+            Why::UnknownKind(c) => {
+                write!(f, "kind = {c} is unknown; expected")?;
+                for (i, k) in CONTROLLERS.iter().enumerate() {
+                    write!(f, "{} {} {}", if i > 0 { "," } else { "" }, k.code, k.label)?;
+                }
+                Ok(())
+            }
             Why::NotInitialized(name) => write!(f, "{name} was not initialized by a successful init call"),
             Why::Overlap(a, b) => write!(f, "{a} and {b} overlap; they must be distinct buffers"),
             Why::Diverged(y) => write!(
@@ -625,22 +590,12 @@ pub extern "C" fn phs_version() -> *const c_char {
 // models
 
 fn family_of(spec: &PhsModelSpec) -> Result<Family, Why> {
-    let name = match spec.family {
-        1 => "pi",
-        2 => "gpi",
-        3 => "rdpi",
-        4 => "creep",
-        5 => "preisach",
-        6 => "boucwen",
-        7 => "duhem",
-        8 => "dahl",
-        c => return Err(Why::UnknownFamily(c)),
-    };
+    let layout = FamilyLayout::by_code(spec.family).ok_or(Why::UnknownFamily(spec.family))?;
     let n = spec.n_dims as usize;
     if n > PHS_MAX_DIMS {
         return Err(Why::Length("n_dims", n, PHS_MAX_DIMS));
     }
-    Ok(Family::parse(name, &spec.dims[..n])?)
+    Ok(layout.family(&spec.dims[..n])?)
 }
 
 fn overlap(a: &[f64], b: &[f64]) -> bool {
@@ -895,70 +850,18 @@ pub unsafe extern "C" fn phs_model_inverse_step(
 // ---------------------------------------------------------------------------------------
 // controllers
 
-/// Parameter count of each kind (index = kind code).
-const PARAM_COUNTS: [usize; 6] = [0, 6, 9, 21, 22, 10];
-
-fn param_count(kind: u32) -> Result<usize, Why> {
-    match kind {
-        1..=5 => Ok(PARAM_COUNTS[kind as usize]),
-        _ => Err(Why::UnknownKind(kind)),
-    }
+fn layout_of(kind: u32) -> Result<&'static ControllerLayout, Why> {
+    ControllerLayout::by_code(kind).ok_or(Why::UnknownKind(kind))
 }
 
-fn cemf(p: &[f64]) -> Result<CemfModel, ModelError> {
-    CemfModel::new(p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7])
-}
-
-/// The base controller from its flat parameters (the layouts of
-/// `crates/python/src/control.rs`).
+/// The base controller from its flat parameters: the core's one decoder, with a wrong
+/// count reported against `n_params`.
 fn law(kind: u32, p: &[f64]) -> Result<Law, Why> {
-    let count = param_count(kind)?;
-    if p.len() != count {
-        return Err(Why::Length("n_params", p.len(), count));
+    let layout = layout_of(kind)?;
+    if p.len() != layout.param_len() {
+        return Err(Why::Length("n_params", p.len(), layout.param_len()));
     }
-    if let Some(k) = p.iter().position(|x| !x.is_finite()) {
-        return Err(Why::Model(ModelError::NotFinite("params", k, p[k])));
-    }
-    let n = p.len();
-    let limits = Limits::new(p[n - 2], p[n - 1])?;
-    let observer = |i: usize| VelocityObserver::new(p[i], p[i + 1], p[i + 2]);
-    Ok(match kind {
-        1 => Law::OpenLoop(OpenLoop::new(p[0], p[1], p[2], p[3], limits)?),
-        2 => Law::Pid(Pid::new(p[0], p[1], p[2], p[3], p[4], p[5], p[6], limits)?),
-        3 => {
-            let switching = if p[6] == 0.0 {
-                Switching::BoundaryLayer { gain: p[7], width: p[8] }
-            } else if p[6] == 1.0 {
-                Switching::SuperTwisting { k1: p[7], k2: p[8] }
-            } else {
-                return Err(Why::Model(ModelError::OutOfRange(
-                    "switching (0 boundary layer, 1 super-twisting)",
-                    usize::MAX,
-                    p[6],
-                    0.0,
-                    1.0,
-                )));
-            };
-            let model =
-                if p[12] != 0.0 { Some(cemf(&[p[0], p[1], p[2], p[13], p[14], p[15], p[16], p[17]])?) } else { None };
-            let mut smc = Smc::new((p[0], p[1], p[2]), p[3], p[4], p[5], switching, model, observer(9)?, limits)?;
-            smc.desired_model_terms = p[18] != 0.0;
-            Law::Smc(smc)
-        }
-        4 => Law::Absmc(Absmc::new(
-            p[0],
-            [p[1], p[2]],
-            [p[3], p[4]],
-            [p[5], p[6]],
-            (p[7], p[8], p[9], p[10]),
-            [p[11], p[12]],
-            (p[13], p[14], p[15]),
-            p[16] != 0.0,
-            observer(17)?,
-            limits,
-        )?),
-        _ => Law::CemfFeedforward(CemfFeedforward { model: cemf(&p[..8])?, limits }),
-    })
+    Ok(layout.decode(p)?)
 }
 
 /// # Safety
@@ -972,7 +875,7 @@ unsafe fn controller_init(
     ilc: *const PhsIlcSpec,
 ) -> Result<(), Why> {
     dst.magic = 0;
-    param_count(kind)?;
+    layout_of(kind)?;
     // SAFETY: API contract (the values are copied into the built controller)
     let p = unsafe { array(params, n_params, "params")? };
     let b = law(kind, p)?;
@@ -1032,7 +935,7 @@ unsafe fn controller_ref<'a>(p: *const PhsController) -> Result<(&'a Built, usiz
 #[no_mangle]
 pub unsafe extern "C" fn phs_controller_param_count(kind: u32, n_params: *mut usize) -> PhsStatus {
     guard("phs_controller_param_count", || {
-        let n = param_count(kind)?;
+        let n = layout_of(kind)?.param_len();
         *out(n_params, "n_params")? = n;
         Ok(())
     })

@@ -26,6 +26,7 @@ pub mod error;
 pub mod generalized;
 pub mod ilc;
 pub mod inverse;
+pub mod layout;
 pub mod linalg;
 mod math;
 pub mod pi;

@@ -1,24 +1,14 @@
-//! Flat parameter layouts: every model family as one `f64` row, so that Python, the batch
-//! engine and the C ABI describe a parameter set the same way.
-//!
-//! | family     | dims                                   | row layout |
-//! |------------|----------------------------------------|------------|
-//! | `pi`       | `[n, creep_terms]`                     | `p0, r[n], w[n]` + creep |
-//! | `gpi`      | `[n, rising_kind, falling_kind, creep_terms]` | `range_lo, range_hi, poly[4], rising[4], falling[4], r[n], b[n]` + creep |
-//! | `rdpi`     | `[n, creep_terms]`                     | `ts, p0, beta, filter_tau, r[n], w[n], c[n]` + creep |
-//! | `creep`    | `[terms]`                              | `ts, tau[m], c[m]` |
-//! | `preisach` | `[levels, memory]`                     | `lo, hi, offset, slope, w[levels(levels+1)/2]` |
-//! | `boucwen`  | `[]`                                   | `a, beta, gamma, n, d` |
-//! | `duhem`    | `[]`                                   | `alpha, f[4], g[4]` |
-//! | `dahl`     | `[]`                                   | `sigma, h_c, a` |
-//!
-//! The creep tail is `ts, tau[m], c[m]` (absent when `creep_terms = 0`). Envelope kinds:
-//! 0 identity, 1 polynomial, 2 tanh (coefficients are ignored for identity).
+//! Flat parameter rows: every model family as one `f64` row, so that Python, the batch
+//! engine and the C ABI describe a parameter set the same way. The row layouts (slot names
+//! and order) are declared once, in [`crate::layout::FAMILIES`]; this module builds a model
+//! from a row. Envelope kinds: 0 identity, 1 polynomial, 2 tanh (coefficients are ignored
+//! for identity).
 use crate::creep::{lag_gains, Creep};
 use crate::differential::{BoucWen, Dahl, Duhem};
 use crate::envelope::Envelope;
 use crate::error::ModelError;
 use crate::generalized::GeneralizedPi;
+use crate::layout::FamilyLayout;
 use crate::pi::Pi;
 use crate::preisach::{cell_count, row_prefix, Preisach};
 use crate::rate::RateDependentPi;
@@ -48,49 +38,36 @@ pub enum Family {
 /// Operators per model are capped so a typo cannot ask for terabytes.
 pub const MAX_OPERATORS: usize = 100_000;
 
-fn dim(dims: &[usize], i: usize, name: &'static str) -> Result<usize, ModelError> {
-    let d = *dims.get(i).ok_or(ModelError::Structure(name, usize::MAX))?;
-    if d > MAX_OPERATORS {
-        return Err(ModelError::Structure(name, d));
-    }
-    Ok(d)
-}
-
 impl Family {
-    /// Parse a family name and its dims (see the module table).
+    /// Parse a family name and its dims (the rows of [`crate::layout::FAMILIES`]).
     pub fn parse(name: &str, dims: &[usize]) -> Result<Self, ModelError> {
-        let want = match name {
-            "pi" | "rdpi" | "preisach" => 2,
-            "gpi" => 4,
-            "creep" => 1,
-            "boucwen" | "duhem" | "dahl" => 0,
-            _ => return Err(ModelError::Structure("family (unknown name)", 0)),
+        FamilyLayout::by_name(name).ok_or(ModelError::Structure("family (unknown name)", 0))?.family(dims)
+    }
+
+    /// The family's row of the layout table.
+    pub fn layout(&self) -> &'static FamilyLayout {
+        let name = match self {
+            Family::Pi { .. } => "pi",
+            Family::Gpi { .. } => "gpi",
+            Family::Rdpi { .. } => "rdpi",
+            Family::Creep { .. } => "creep",
+            Family::Preisach { .. } => "preisach",
+            Family::BoucWen => "boucwen",
+            Family::Duhem => "duhem",
+            Family::Dahl => "dahl",
         };
-        if dims.len() != want {
-            return Err(ModelError::Length("dims", want, dims.len()));
+        FamilyLayout::by_name(name).expect("every family has a layout row")
+    }
+
+    /// The dims this family was parsed from (`.0[..len]`, `len = .1`).
+    pub fn dims(&self) -> ([usize; 4], usize) {
+        match *self {
+            Family::Pi { n, creep } | Family::Rdpi { n, creep } => ([n, creep, 0, 0], 2),
+            Family::Gpi { n, rising, falling, creep } => ([n, rising, falling, creep], 4),
+            Family::Creep { terms } => ([terms, 0, 0, 0], 1),
+            Family::Preisach { levels, memory } => ([levels, memory, 0, 0], 2),
+            Family::BoucWen | Family::Duhem | Family::Dahl => ([0; 4], 0),
         }
-        Ok(match name {
-            "pi" => Family::Pi { n: dim(dims, 0, "n")?, creep: dim(dims, 1, "creep_terms")? },
-            "gpi" => {
-                let (rising, falling) = (dims[1], dims[2]);
-                Envelope::from_code(rising, [0.0; 4])?;
-                Envelope::from_code(falling, [0.0; 4])?;
-                Family::Gpi { n: dim(dims, 0, "n")?, rising, falling, creep: dim(dims, 3, "creep_terms")? }
-            }
-            "rdpi" => Family::Rdpi { n: dim(dims, 0, "n")?, creep: dim(dims, 1, "creep_terms")? },
-            "creep" => Family::Creep { terms: dim(dims, 0, "terms")? },
-            "preisach" => {
-                let levels = dim(dims, 0, "levels")?;
-                if levels == 0 || levels > 1000 {
-                    return Err(ModelError::Structure("levels", levels));
-                }
-                Family::Preisach { levels, memory: dim(dims, 1, "memory")? }
-            }
-            "boucwen" => Family::BoucWen,
-            "duhem" => Family::Duhem,
-            "dahl" => Family::Dahl,
-            _ => return Err(ModelError::Structure("family (unknown name)", 0)),
-        })
     }
 
     fn creep_terms(&self) -> usize {
@@ -110,19 +87,10 @@ impl Family {
         }
     }
 
-    /// Length of a parameter row.
+    /// Length of a parameter row (summed over the family's slots in the layout table).
     pub fn param_len(&self) -> usize {
-        let base = match *self {
-            Family::Pi { n, .. } => 1 + 2 * n,
-            Family::Gpi { n, .. } => 14 + 2 * n,
-            Family::Rdpi { n, .. } => 4 + 3 * n,
-            Family::Creep { .. } => 0,
-            Family::Preisach { levels, .. } => 4 + cell_count(levels),
-            Family::BoucWen => 5,
-            Family::Duhem => 9,
-            Family::Dahl => 3,
-        };
-        base + self.creep_tail_len()
+        let (dims, n) = self.dims();
+        self.layout().param_len(&dims[..n])
     }
 
     /// Length of a state vector.

@@ -163,9 +163,7 @@ fn batch_args<'a>(
 /// solved or that diverges costs +inf.
 #[pyfunction]
 #[pyo3(signature = (params, input, h, factor, target, skip=0, invalid_cost=None))]
-#[allow(clippy::too_many_arguments)]
 fn boucwen_benchmark_batch_rmse<'py>(
-    py: Python<'py>,
     params: PyReadonlyArray2<'py, f64>,
     input: PyReadonlyArray1<'py, f64>,
     h: f64,
@@ -174,6 +172,7 @@ fn boucwen_benchmark_batch_rmse<'py>(
     skip: usize,
     invalid_cost: Option<f64>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let py = params.py();
     let b = batch_args(&params, &input, h, factor, invalid_cost.is_none())?;
     let t = slice(&target, "target")?;
     check_finite("target", t)?;

@@ -10,6 +10,7 @@ static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 mod boucwen_benchmark;
 mod control;
+mod layout;
 mod models;
 mod plant;
 mod steps;
@@ -22,6 +23,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     unsafe { libmimalloc_sys::mi_option_set(15, 1000) };
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     models::register(m)?;
+    layout::register(m)?;
     boucwen_benchmark::register(m)?;
     plant::register(m)?;
     steps::register(m)?;

@@ -9,18 +9,20 @@ use numpy::{
 use piezohyst_core::batch::{pi_lanes, pi_lanes_fixed};
 use piezohyst_core::inverse::{inverse_simulate, solve_increasing};
 use piezohyst_core::pi::Pi;
-use piezohyst_core::spec::{Family, Model};
+use piezohyst_core::spec::{Family, Model as CoreModel};
 use piezohyst_core::{Hysteresis, ModelError};
 use pyo3::prelude::*;
 
 use crate::util::{check_finite, err, slice};
+
 use rayon::prelude::*;
 
 pub(crate) fn family(name: &str, dims: Vec<usize>) -> PyResult<Family> {
     Family::parse(name, &dims).map_err(|e| match e {
-        ModelError::Structure("family (unknown name)", _) => ParameterError::new_err(format!(
-            "family = {name:?} is unknown; expected one of pi, gpi, rdpi, creep, preisach, boucwen, duhem, dahl"
-        )),
+        ModelError::Structure("family (unknown name)", _) => {
+            let names: Vec<&str> = piezohyst_core::layout::FAMILIES.iter().map(|f| f.name).collect();
+            ParameterError::new_err(format!("family = {name:?} is unknown; expected one of {}", names.join(", ")))
+        }
         e => err(e),
     })
 }
@@ -38,7 +40,7 @@ fn check_output(ys: &[f64]) -> PyResult<()> {
 fn with_model<R>(
     fam: Family,
     params: &[f64],
-    f: impl FnOnce(&Model<'_>) -> Result<R, ModelError>,
+    f: impl FnOnce(&CoreModel<'_>) -> Result<R, ModelError>,
 ) -> Result<R, ModelError> {
     let mut scratch = vec![0.0; fam.scratch_len()];
     let model = fam.build(params, &mut scratch)?;
@@ -72,6 +74,42 @@ fn validate(name: &str, dims: Vec<usize>, params: PyReadonlyArray1<'_, f64>) -> 
     with_model(fam, slice(&params, "params")?, |_| Ok(())).map_err(err)
 }
 
+fn initial_state_of(fam: Family, p: &[f64]) -> PyResult<Vec<f64>> {
+    let mut st = vec![0.0; fam.state_len()];
+    with_model(fam, p, |m| {
+        m.reset(&mut st);
+        Ok(())
+    })
+    .map_err(err)?;
+    Ok(st)
+}
+
+fn simulate_from(py: Python<'_>, fam: Family, p: &[f64], v: &[f64], st: &mut [f64]) -> PyResult<Vec<f64>> {
+    check_finite("input", v)?;
+    let mut y = vec![0.0; v.len()];
+    py.detach(|| {
+        with_model(fam, p, |m| {
+            for (yk, &vk) in y.iter_mut().zip(v) {
+                *yk = m.step(st, vk);
+            }
+            Ok(())
+        })
+    })
+    .map_err(err)?;
+    check_output(&y)?;
+    Ok(y)
+}
+
+fn inverse_from(py: Python<'_>, fam: Family, p: &[f64], yd: &[f64], st: &mut [f64], guess: f64) -> PyResult<Vec<f64>> {
+    check_finite("desired", yd)?;
+    if !guess.is_finite() {
+        return Err(ParameterError::new_err(format!("guess = {guess} is not finite")));
+    }
+    let mut v = vec![0.0; yd.len()];
+    py.detach(|| with_model(fam, p, |m| inverse_simulate(m, st, yd, &mut v, guess))).map_err(err)?;
+    Ok(v)
+}
+
 /// The relaxed initial state.
 #[pyfunction]
 fn initial_state<'py>(
@@ -81,13 +119,7 @@ fn initial_state<'py>(
     params: PyReadonlyArray1<'py, f64>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
     let fam = family(name, dims)?;
-    let mut st = vec![0.0; fam.state_len()];
-    with_model(fam, slice(&params, "params")?, |m| {
-        m.reset(&mut st);
-        Ok(())
-    })
-    .map_err(err)?;
-    Ok(st.into_pyarray(py))
+    Ok(initial_state_of(fam, slice(&params, "params")?)?.into_pyarray(py))
 }
 
 /// Simulate from `state` (updated in place); returns the outputs.
@@ -105,18 +137,7 @@ fn simulate<'py>(
     let v = slice(&input, "input")?;
     check_finite("input", v)?;
     let st = state_slice(fam, &mut state)?;
-    let mut y = vec![0.0; v.len()];
-    py.detach(|| {
-        with_model(fam, p, |m| {
-            for (yk, &vk) in y.iter_mut().zip(v) {
-                *yk = m.step(st, vk);
-            }
-            Ok(())
-        })
-    })
-    .map_err(err)?;
-    check_output(&y)?;
-    Ok(y.into_pyarray(py))
+    Ok(simulate_from(py, fam, p, v, st)?.into_pyarray(py))
 }
 
 /// Exact per-sample inverse from `state` (the forward state, updated in place).
@@ -138,10 +159,105 @@ fn inverse<'py>(
         return Err(ParameterError::new_err(format!("guess = {guess} is not finite")));
     }
     let st = state_slice(fam, &mut state)?;
-    let mut v = vec![0.0; yd.len()];
-    py.detach(|| with_model(fam, p, |m| inverse_simulate(m, st, yd, &mut v, guess))).map_err(err)?;
-    Ok(v.into_pyarray(py))
+    Ok(inverse_from(py, fam, p, yd, st, guess)?.into_pyarray(py))
 }
+
+/// A hysteresis model built once from its family name, dims and parameter row, validated
+/// at construction (immutable; states are the caller's arrays).
+#[pyclass(frozen, module = "piezohyst._core")]
+pub struct Model {
+    pub(crate) fam: Family,
+    pub(crate) name: String,
+    pub(crate) dims: Vec<usize>,
+    pub(crate) params: Vec<f64>,
+}
+
+impl Model {
+    /// Validate and keep a model.
+    pub fn build(name: &str, dims: Vec<usize>, params: &[f64]) -> PyResult<Self> {
+        let fam = family(name, dims.clone())?;
+        with_model(fam, params, |_| Ok(())).map_err(err)?;
+        Ok(Model { fam, name: fam.layout().name.to_string(), dims, params: params.to_vec() })
+    }
+}
+
+#[pymethods]
+impl Model {
+    #[new]
+    fn new(family: &str, dims: Vec<usize>, params: PyReadonlyArray1<'_, f64>) -> PyResult<Self> {
+        Model::build(family, dims, slice(&params, "params")?)
+    }
+    /// Family name.
+    #[getter]
+    fn family(&self) -> &str {
+        &self.name
+    }
+    /// Structural sizes.
+    #[getter]
+    fn dims(&self) -> Vec<usize> {
+        self.dims.clone()
+    }
+    /// The parameter row (a copy).
+    #[getter]
+    fn params<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.params.clone().into_pyarray(py)
+    }
+    /// Length of the parameter row.
+    #[getter]
+    fn param_len(&self) -> usize {
+        self.fam.param_len()
+    }
+    /// Length of a state.
+    #[getter]
+    fn state_len(&self) -> usize {
+        self.fam.state_len()
+    }
+    /// The row's layout (as `family_layout`).
+    #[getter]
+    fn layout<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
+        crate::layout::family_dict(py, &self.name, &self.dims)
+    }
+    /// The relaxed initial state.
+    fn initial_state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        Ok(initial_state_of(self.fam, &self.params)?.into_pyarray(py))
+    }
+    /// Outputs for `input` from `state` (updated in place), or from the relaxed state.
+    #[pyo3(signature = (input, state=None))]
+    fn simulate<'py>(
+        &self,
+        py: Python<'py>,
+        input: PyReadonlyArray1<'py, f64>,
+        state: Option<PyReadwriteArray1<'py, f64>>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let v = slice(&input, "input")?;
+        let y = match state {
+            Some(mut st) => simulate_from(py, self.fam, &self.params, v, state_slice(self.fam, &mut st)?)?,
+            None => {
+                let mut st = initial_state_of(self.fam, &self.params)?;
+                simulate_from(py, self.fam, &self.params, v, &mut st)?
+            }
+        };
+        Ok(y.into_pyarray(py))
+    }
+    /// Exact per-sample inverse from the forward `state` (updated in place).
+    #[pyo3(signature = (desired, state, guess=0.0))]
+    fn inverse<'py>(
+        &self,
+        py: Python<'py>,
+        desired: PyReadonlyArray1<'py, f64>,
+        mut state: PyReadwriteArray1<'py, f64>,
+        guess: f64,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let yd = slice(&desired, "desired")?;
+        let st = state_slice(self.fam, &mut state)?;
+        Ok(inverse_from(py, self.fam, &self.params, yd, st, guess)?.into_pyarray(py))
+    }
+    fn __repr__(&self) -> String {
+        format!("Model({:?}, {:?}, <{} params>)", self.name, self.dims, self.params.len())
+    }
+}
+
+type InversePi<'py> = (f64, Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>);
 
 /// Analytic inverse PI parameters `(p0', thresholds', weights')` (docs/spec.md §2.1).
 #[pyfunction]
@@ -150,7 +266,7 @@ fn pi_analytic_inverse<'py>(
     p0: f64,
     thresholds: PyReadonlyArray1<'py, f64>,
     weights: PyReadonlyArray1<'py, f64>,
-) -> PyResult<(f64, Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
+) -> PyResult<InversePi<'py>> {
     let r = slice(&thresholds, "thresholds")?;
     let w = slice(&weights, "weights")?;
     let m = Pi::new(p0, r, w).map_err(err)?;
@@ -383,7 +499,7 @@ fn check_rows(fam: Family, params: &[f64], s: usize, raise: bool) -> PyResult<Ve
         let row = &params[j * p..(j + 1) * p];
         match with_model(fam, row, |_| Ok(())) {
             Ok(()) => ok.push(true),
-            Err(e) if raise => return Err(ParameterError::new_err(format!("params[{j}]: {e}"))),
+            Err(e) if raise => return Err(crate::util::err_in(&format!("params[{j}]"), e)),
             Err(_) => ok.push(false),
         }
     }
@@ -487,7 +603,7 @@ fn batch_simulate<'py>(
     let mut out = vec![0.0; s * v.len()];
     let errs = py.detach(|| batch_core(fam, p, s, v, None, &valid, &mut out));
     if let Some((j, e)) = errs.iter().enumerate().find_map(|(j, e)| e.map(|e| (j, e))) {
-        return Err(ParameterError::new_err(format!("params[{j}]: {e}")));
+        return Err(crate::util::err_in(&format!("params[{j}]"), e));
     }
     let arr = Array2::from_shape_vec((s, v.len()), out).expect("shape matches length");
     Ok(arr.into_pyarray(py))
@@ -583,6 +699,7 @@ fn thread_count() -> usize {
 
 /// Add this module's functions to the extension module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Model>()?;
     m.add_function(wrap_pyfunction!(family_sizes, m)?)?;
     m.add_function(wrap_pyfunction!(validate, m)?)?;
     m.add_function(wrap_pyfunction!(initial_state, m)?)?;

@@ -9,37 +9,32 @@ use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1, PyUntypedArrayMethods,
 };
 use piezohyst_core::closed_loop::{run_recorder, run_tracking, Recorder, Sample};
-use piezohyst_core::control::{Controller, Limits, Pid, MAX_TERMS};
+use piezohyst_core::control::{Controller as CoreController, Pid, MAX_TERMS};
+use piezohyst_core::layout::Law;
 use piezohyst_core::sensor::Sensor;
-use piezohyst_core::stage::{Stage, StageParams, StageState};
+use piezohyst_core::stage::{Stage as CoreStage, StageParams, StageState};
 use pyo3::prelude::*;
 
 use crate::control::{with_controller, ControllerSpec};
+use crate::models::Model;
 use crate::util::{check_finite, err, slice};
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyTuple};
 use rayon::prelude::*;
 
-fn stage(params: &[f64], ts: f64, substeps: usize, tolerance: f64) -> PyResult<Stage> {
+fn stage(params: &[f64], ts: f64, substeps: usize, tolerance: f64) -> PyResult<CoreStage> {
     let p = StageParams::from_slice(params).map_err(err)?;
-    Stage::new(p, ts, substeps, tolerance).map_err(err)
+    CoreStage::new(p, ts, substeps, tolerance).map_err(err)
 }
 
-/// Simulate the stage open loop under a held voltage command per period; `state` (12
-/// values `[va, x, v, vh, creep[8]]`) is updated in place. Returns `(position at the start
-/// of each period, amplifier voltage at the end, CEMF voltage at the end)`.
-#[pyfunction]
-#[allow(clippy::type_complexity)]
-fn stage_simulate<'py>(
+type Positions<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>);
+
+fn simulate_stage<'py>(
     py: Python<'py>,
-    params: PyReadonlyArray1<'py, f64>,
-    ts: f64,
-    substeps: usize,
-    tolerance: f64,
-    command: PyReadonlyArray1<'py, f64>,
-    mut state: PyReadwriteArray1<'py, f64>,
-) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
-    let st = stage(slice(&params, "params")?, ts, substeps, tolerance)?;
-    let u = slice(&command, "command")?;
+    st: &CoreStage,
+    command: &PyReadonlyArray1<'py, f64>,
+    state: &mut PyReadwriteArray1<'py, f64>,
+) -> PyResult<Positions<'py>> {
+    let u = slice(command, "command")?;
     check_finite("command", u)?;
     let s = state.as_slice_mut().map_err(|_| ParameterError::new_err("state must be a contiguous float64 array"))?;
     let mut ss = StageState::from_array(s).map_err(err)?;
@@ -60,19 +55,48 @@ fn stage_simulate<'py>(
     Ok((x.into_pyarray(py), va.into_pyarray(py), vh.into_pyarray(py)))
 }
 
-/// A controller as Python passes it: `(kind, params, inverse, ilc)` with `inverse` either
+/// Simulate the stage open loop under a held voltage command per period; `state` (12
+/// values `[va, x, v, vh, creep[8]]`) is updated in place. Returns `(position at the start
+/// of each period, amplifier voltage at the end, CEMF voltage at the end)`.
+#[pyfunction]
+fn stage_simulate<'py>(
+    py: Python<'py>,
+    params: PyReadonlyArray1<'py, f64>,
+    ts: f64,
+    substeps: usize,
+    tolerance: f64,
+    command: PyReadonlyArray1<'py, f64>,
+    mut state: PyReadwriteArray1<'py, f64>,
+) -> PyResult<Positions<'py>> {
+    let st = stage(slice(&params, "params")?, ts, substeps, tolerance)?;
+    simulate_stage(py, &st, &command, &mut state)
+}
+
+/// The tuple form of a controller: `(kind, params, inverse, ilc)` with `inverse` either
 /// `None` or `(family, dims, row, u_min, u_max)` and `ilc` either `None` or `(period, gain,
 /// forgetting, lead, delay)`.
-pub type ControllerArg<'py> = (
+pub type ControllerTuple<'py> = (
     String,
     PyReadonlyArray1<'py, f64>,
     Option<(String, Vec<usize>, PyReadonlyArray1<'py, f64>, f64, f64)>,
     Option<(usize, f64, f64, usize, usize)>,
 );
 
+/// A controller as Python passes it: a [`Controller`] object or the tuple form.
+#[derive(FromPyObject)]
+pub enum ControllerArg<'py> {
+    /// A validated `_core.Controller`.
+    Typed(Bound<'py, Controller>),
+    /// `(kind, params, inverse, ilc)`.
+    Tuple(ControllerTuple<'py>),
+}
+
 /// Validate a controller argument into an owned spec (built once to check it).
 pub(crate) fn controller_spec(arg: &ControllerArg<'_>) -> PyResult<ControllerSpec> {
-    let (kind, params, inverse, ilc) = arg;
+    let (kind, params, inverse, ilc) = match arg {
+        ControllerArg::Typed(c) => return Ok(c.get().spec.clone()),
+        ControllerArg::Tuple(t) => t,
+    };
     let inverse = match inverse {
         None => None,
         Some((name, dims, row, lo, hi)) => {
@@ -82,14 +106,259 @@ pub(crate) fn controller_spec(arg: &ControllerArg<'_>) -> PyResult<ControllerSpe
             Some((family, row, [*lo, *hi]))
         }
     };
-    let spec =
-        ControllerSpec { kind: kind.clone(), params: slice(params, "controller_params")?.to_vec(), inverse, ilc: *ilc };
+    let params = slice(params, "controller_params")?.to_vec();
+    checked_spec(ControllerSpec { kind: kind.clone(), params, inverse, ilc: *ilc })
+}
+
+fn checked_spec(spec: ControllerSpec) -> PyResult<ControllerSpec> {
     with_controller(&spec, |_| ()).map_err(ParameterError::new_err)?;
     Ok(spec)
 }
 
-/// One scenario's inputs.
-struct Scenario<'a> {
+/// A controller validated once: kind and flat parameters (layout: `controller_layout`),
+/// optionally behind the exact inverse of a model (`inverse = (model, u_min, u_max)`)
+/// and/or with learning (`ilc = (period, gain, forgetting, lead, delay)`).
+#[pyclass(frozen, module = "piezohyst._core")]
+pub struct Controller {
+    pub(crate) spec: ControllerSpec,
+    state_len: usize,
+}
+
+#[pymethods]
+impl Controller {
+    #[new]
+    #[pyo3(signature = (kind, params, inverse=None, ilc=None))]
+    fn new(
+        kind: String,
+        params: PyReadonlyArray1<'_, f64>,
+        inverse: Option<(Bound<'_, Model>, f64, f64)>,
+        ilc: Option<(usize, f64, f64, usize, usize)>,
+    ) -> PyResult<Self> {
+        let params = slice(&params, "controller_params")?.to_vec();
+        check_finite("controller_params", &params)?;
+        let inverse = inverse.map(|(m, lo, hi)| {
+            let m = m.get();
+            (m.fam, m.params.clone(), [lo, hi])
+        });
+        let spec = checked_spec(ControllerSpec { kind, params, inverse, ilc })?;
+        let state_len = with_controller(&spec, |c| c.state_len()).map_err(ParameterError::new_err)?;
+        Ok(Controller { spec, state_len })
+    }
+    /// Kind name.
+    #[getter]
+    fn kind(&self) -> &str {
+        &self.spec.kind
+    }
+    /// The flat parameters (a copy).
+    #[getter]
+    fn params<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.spec.params.clone().into_pyarray(py)
+    }
+    /// Length of a state.
+    #[getter]
+    fn state_len(&self) -> usize {
+        self.state_len
+    }
+    /// The parameter layout (as `controller_layout`).
+    #[getter]
+    fn layout<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        crate::layout::controller_dict(py, &self.spec.kind)
+    }
+    /// The state before the first step, given the first measurement `y0`.
+    fn initial_state<'py>(&self, py: Python<'py>, y0: f64) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        crate::steps::initial_state(py, &self.spec, y0)
+    }
+    /// Step from `state` (updated in place) on the reference and the measured positions;
+    /// returns the commands (empty velocity / acceleration stand for zeros).
+    fn steps<'py>(
+        &self,
+        py: Python<'py>,
+        reference: PyReadonlyArray1<'py, f64>,
+        velocity: PyReadonlyArray1<'py, f64>,
+        acceleration: PyReadonlyArray1<'py, f64>,
+        measured: PyReadonlyArray1<'py, f64>,
+        state: PyReadwriteArray1<'py, f64>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let signals = crate::steps::Signals { reference, velocity, acceleration, measured };
+        crate::steps::steps(py, &self.spec, signals, state)
+    }
+    fn __repr__(&self) -> String {
+        format!("Controller({:?}, <{} params>)", self.spec.kind, self.spec.params.len())
+    }
+}
+
+/// One closed-loop scenario: a controller, the reference (position, velocity and
+/// acceleration; empty derivatives stand for zeros) and the sensor noise seed.
+#[pyclass(frozen, module = "piezohyst._core")]
+pub struct Scenario {
+    controller: ControllerSpec,
+    reference: Vec<f64>,
+    velocity: Vec<f64>,
+    acceleration: Vec<f64>,
+    seed: u64,
+}
+
+#[pymethods]
+impl Scenario {
+    #[new]
+    #[pyo3(signature = (controller, reference, velocity=None, acceleration=None, seed=0))]
+    fn new(
+        controller: ControllerArg<'_>,
+        reference: PyReadonlyArray1<'_, f64>,
+        velocity: Option<PyReadonlyArray1<'_, f64>>,
+        acceleration: Option<PyReadonlyArray1<'_, f64>>,
+        seed: u64,
+    ) -> PyResult<Self> {
+        let controller = controller_spec(&controller)?;
+        let empty = |a: Option<PyReadonlyArray1<'_, f64>>, name: &str| -> PyResult<Vec<f64>> {
+            a.map_or(Ok(Vec::new()), |a| Ok(slice(&a, name)?.to_vec()))
+        };
+        let reference = slice(&reference, "reference")?.to_vec();
+        let (velocity, acceleration) = (empty(velocity, "velocity")?, empty(acceleration, "acceleration")?);
+        check_scenario(&reference, &velocity, &acceleration)?;
+        Ok(Scenario { controller, reference, velocity, acceleration, seed })
+    }
+    /// Number of samples.
+    fn __len__(&self) -> usize {
+        self.reference.len()
+    }
+    /// Sensor noise seed.
+    #[getter]
+    fn seed(&self) -> u64 {
+        self.seed
+    }
+}
+
+/// A scenario as Python passes it: a [`Scenario`] or `(controller, reference, velocity,
+/// acceleration, seed)`.
+#[derive(FromPyObject)]
+pub enum ScenarioArg<'py> {
+    /// A validated `_core.Scenario`.
+    Typed(Bound<'py, Scenario>),
+    /// The tuple form.
+    Tuple(
+        (ControllerArg<'py>, PyReadonlyArray1<'py, f64>, PyReadonlyArray1<'py, f64>, PyReadonlyArray1<'py, f64>, u64),
+    ),
+}
+
+/// The runs of `scenarios` (validated; errors name the scenario).
+fn runs<'a>(py: Python<'_>, scenarios: &'a [ScenarioArg<'_>]) -> PyResult<Vec<Run<'a>>> {
+    let mut list = Vec::with_capacity(scenarios.len());
+    for (j, sc) in scenarios.iter().enumerate() {
+        let prefix = |e: PyErr| ParameterError::new_err(format!("scenarios[{j}]: {}", e.value(py)));
+        list.push(match sc {
+            ScenarioArg::Typed(s) => {
+                let s = s.get();
+                Run {
+                    reference: &s.reference,
+                    velocity: &s.velocity,
+                    acceleration: &s.acceleration,
+                    seed: s.seed,
+                    controller: s.controller.clone(),
+                }
+            }
+            ScenarioArg::Tuple((cp, r, v, a, seed)) => {
+                let c = controller_spec(cp).map_err(prefix)?;
+                let (r, v, a) = scenario_arrays(r, v, a).map_err(prefix)?;
+                Run { reference: r, velocity: v, acceleration: a, seed: *seed, controller: c }
+            }
+        });
+    }
+    Ok(list)
+}
+
+/// A stage with its sensor, built once: the stage parameters (`STAGE_PARAM_LEN` values),
+/// the control period `ts`, the integration settings and the sensor.
+#[pyclass(frozen, module = "piezohyst._core")]
+pub struct Stage {
+    stage: CoreStage,
+    sensor: Sensor,
+    params: Vec<f64>,
+    ts: f64,
+}
+
+#[pymethods]
+impl Stage {
+    #[new]
+    #[pyo3(signature = (params, ts, substeps, tolerance, sensor_quantization=0.0, sensor_noise=0.0, sensor_delay=0))]
+    fn new(
+        params: PyReadonlyArray1<'_, f64>,
+        ts: f64,
+        substeps: usize,
+        tolerance: f64,
+        sensor_quantization: f64,
+        sensor_noise: f64,
+        sensor_delay: usize,
+    ) -> PyResult<Self> {
+        let params = slice(&params, "stage_params")?.to_vec();
+        let stage = stage(&params, ts, substeps, tolerance)?;
+        let sensor = sensor(sensor_quantization, sensor_noise, sensor_delay)?;
+        Ok(Stage { stage, sensor, params, ts })
+    }
+    /// The stage parameters (a copy).
+    #[getter]
+    fn params<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.params.clone().into_pyarray(py)
+    }
+    /// Control period, s.
+    #[getter]
+    fn ts(&self) -> f64 {
+        self.ts
+    }
+    /// Open loop under a held command per period (as `stage_simulate`).
+    fn simulate<'py>(
+        &self,
+        py: Python<'py>,
+        command: PyReadonlyArray1<'py, f64>,
+        mut state: PyReadwriteArray1<'py, f64>,
+    ) -> PyResult<Positions<'py>> {
+        simulate_stage(py, &self.stage, &command, &mut state)
+    }
+    /// One closed loop (as `closed_loop`).
+    fn closed_loop<'py>(
+        &self,
+        py: Python<'py>,
+        scenario: ScenarioArg<'py>,
+        initial_state: PyReadonlyArray1<'py, f64>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let init = StageState::from_array(slice(&initial_state, "initial_state")?).map_err(err)?;
+        let scenarios = [scenario];
+        let sc = runs(py, &scenarios).map_err(|e| ParameterError::new_err(strip_prefix(py, e)))?;
+        let sig = py.detach(|| run_scenario(&self.stage, &self.sensor, &sc[0], init));
+        if let Some(k) = sig.diverged_at {
+            return Err(ParameterError::new_err(format!("the closed loop diverged at sample {k}")));
+        }
+        signals_dict(py, sig)
+    }
+    /// Many closed loops in parallel (as `closed_loop_batch`).
+    fn closed_loop_batch<'py>(
+        &self,
+        py: Python<'py>,
+        scenarios: Vec<ScenarioArg<'py>>,
+        initial_state: PyReadonlyArray1<'py, f64>,
+    ) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        batch(py, &self.stage, &self.sensor, &scenarios, &initial_state)
+    }
+    /// Tracking figures of many closed loops (as `closed_loop_batch_tracking`).
+    fn closed_loop_batch_tracking<'py>(
+        &self,
+        py: Python<'py>,
+        scenarios: Vec<ScenarioArg<'py>>,
+        initial_state: PyReadonlyArray1<'py, f64>,
+        skip: usize,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        tracking(py, &self.stage, &self.sensor, &scenarios, &initial_state, skip)
+    }
+}
+
+/// The message of a `scenarios[0]: ...` error without its prefix (a single run).
+fn strip_prefix(py: Python<'_>, e: PyErr) -> String {
+    let msg = e.value(py).to_string();
+    msg.strip_prefix("scenarios[0]: ").map(str::to_string).unwrap_or(msg)
+}
+
+/// One scenario's inputs, borrowed for a run.
+struct Run<'a> {
     reference: &'a [f64],
     velocity: &'a [f64],
     acceleration: &'a [f64],
@@ -151,11 +420,11 @@ impl Recorder for Out<'_> {
 }
 
 #[inline(always)]
-fn record_run<C: Controller + ?Sized>(
-    stage: &Stage,
+fn record_run<C: CoreController + ?Sized>(
+    stage: &CoreStage,
     sensor: &Sensor,
     c: &C,
-    sc: &Scenario<'_>,
+    sc: &Run<'_>,
     init: StageState,
 ) -> Signals {
     let n = sc.reference.len();
@@ -226,11 +495,11 @@ fn record_run<C: Controller + ?Sized>(
 /// so the results are the same to the bit on either path.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn record_run_avx2<C: Controller + ?Sized>(
-    stage: &Stage,
+unsafe fn record_run_avx2<C: CoreController + ?Sized>(
+    stage: &CoreStage,
     sensor: &Sensor,
     c: &C,
-    sc: &Scenario<'_>,
+    sc: &Run<'_>,
     init: StageState,
 ) -> Signals {
     record_run(stage, sensor, c, sc, init)
@@ -244,11 +513,11 @@ fn use_avx2() -> bool {
     *USE.get_or_init(|| std::is_x86_feature_detected!("avx2") && std::env::var_os("PIEZOHYST_NO_AVX2").is_none())
 }
 
-fn record_run_dispatch<C: Controller + ?Sized>(
-    stage: &Stage,
+fn record_run_dispatch<C: CoreController + ?Sized>(
+    stage: &CoreStage,
     sensor: &Sensor,
     c: &C,
-    sc: &Scenario<'_>,
+    sc: &Run<'_>,
     init: StageState,
 ) -> Signals {
     #[cfg(target_arch = "x86_64")]
@@ -261,18 +530,19 @@ fn record_run_dispatch<C: Controller + ?Sized>(
     record_run(stage, sensor, c, sc, init)
 }
 
-/// A plain PID (no inverse, no learning) as its own type, so the loop inlines its step:
-/// the parameter layout of `control::base` for "pid" (validated there before any run).
+/// A plain PID (no inverse, no learning) as its own type, so the loop inlines its step
+/// (decoded by the core's one decoder; validated there before any run).
 fn plain_pid(spec: &ControllerSpec) -> Option<Pid> {
-    if spec.kind != "pid" || spec.inverse.is_some() || spec.ilc.is_some() || spec.params.len() != 9 {
+    if spec.kind != "pid" || spec.inverse.is_some() || spec.ilc.is_some() {
         return None;
     }
-    let p = &spec.params;
-    let limits = Limits::new(p[7], p[8]).ok()?;
-    Pid::new(p[0], p[1], p[2], p[3], p[4], p[5], p[6], limits).ok()
+    match crate::control::law(&spec.kind, &spec.params) {
+        Ok(Law::Pid(pid)) => Some(pid),
+        _ => None,
+    }
 }
 
-fn run_scenario(stage: &Stage, sensor: &Sensor, sc: &Scenario<'_>, init: StageState) -> Signals {
+fn run_scenario(stage: &CoreStage, sensor: &Sensor, sc: &Run<'_>, init: StageState) -> Signals {
     if let Some(pid) = plain_pid(&sc.controller) {
         return record_run_dispatch(stage, sensor, &pid, sc, init);
     }
@@ -320,6 +590,11 @@ fn scenario_arrays<'a>(
     a: &'a PyReadonlyArray1<'_, f64>,
 ) -> PyResult<(&'a [f64], &'a [f64], &'a [f64])> {
     let (r, v, a) = (slice(r, "reference")?, slice(v, "velocity")?, slice(a, "acceleration")?);
+    check_scenario(r, v, a)?;
+    Ok((r, v, a))
+}
+
+fn check_scenario(r: &[f64], v: &[f64], a: &[f64]) -> PyResult<()> {
     check_finite_fast("reference", r)?;
     check_finite_fast("velocity", v)?;
     check_finite_fast("acceleration", a)?;
@@ -332,74 +607,83 @@ fn scenario_arrays<'a>(
             a.len()
         )));
     }
-    Ok((r, v, a))
+    Ok(())
 }
 
-/// Run one closed loop. Returns a dict of signals.
-#[pyfunction]
-#[allow(clippy::too_many_arguments)]
-fn closed_loop<'py>(
-    py: Python<'py>,
-    stage_params: PyReadonlyArray1<'py, f64>,
+/// The leading positional arguments of the free closed-loop functions: stage parameters,
+/// `ts`, `substeps`, `tolerance`, sensor quantization, noise and delay.
+#[derive(FromPyObject)]
+struct StageArgs<'py>(PyReadonlyArray1<'py, f64>, f64, usize, f64, f64, f64, usize);
+
+type Arr<'py> = PyReadonlyArray1<'py, f64>;
+
+/// Split the positional arguments of a free closed-loop function into the stage (the
+/// first 7) and the rest (`T`, `n` values).
+fn split_args<'py, T: for<'a> FromPyObject<'a, 'py>>(
+    name: &str,
+    args: &Bound<'py, PyTuple>,
+    n: usize,
+) -> PyResult<(Stage, T)> {
+    if args.len() != 7 + n {
+        return Err(pyo3::exceptions::PyTypeError::new_err(format!(
+            "{name}() takes {} positional arguments, got {}",
+            7 + n,
+            args.len()
+        )));
+    }
+    let StageArgs(p, ts, m, tol, q, noise, delay) = args.get_slice(0, 7).extract()?;
+    let rest = args.get_slice(7, 7 + n).extract().map_err(Into::<PyErr>::into)?;
+    Ok((stage_of(&p, ts, m, tol, q, noise, delay)?, rest))
+}
+
+/// The stage and sensor of the leading positional arguments.
+fn stage_of(
+    p: &PyReadonlyArray1<'_, f64>,
     ts: f64,
-    substeps: usize,
-    tolerance: f64,
-    sensor_quantization: f64,
-    sensor_noise: f64,
-    sensor_delay: usize,
-    controller: ControllerArg<'py>,
-    reference: PyReadonlyArray1<'py, f64>,
-    velocity: PyReadonlyArray1<'py, f64>,
-    acceleration: PyReadonlyArray1<'py, f64>,
-    initial_state: PyReadonlyArray1<'py, f64>,
-    seed: u64,
-) -> PyResult<Bound<'py, PyDict>> {
-    let st = stage(slice(&stage_params, "stage_params")?, ts, substeps, tolerance)?;
-    let se = sensor(sensor_quantization, sensor_noise, sensor_delay)?;
+    m: usize,
+    tol: f64,
+    q: f64,
+    noise: f64,
+    delay: usize,
+) -> PyResult<Stage> {
+    let params = slice(p, "stage_params")?.to_vec();
+    let st = stage(&params, ts, m, tol)?;
+    Ok(Stage { stage: st, sensor: sensor(q, noise, delay)?, params, ts })
+}
+
+/// Run one closed loop. Returns a dict of signals. (`Stage.closed_loop` with the stage
+/// and the scenario as positional values.)
+#[pyfunction]
+#[pyo3(
+    signature = (*args),
+    text_signature = "(stage_params, ts, substeps, tolerance, sensor_quantization, sensor_noise, sensor_delay, \
+                      controller, reference, velocity, acceleration, initial_state, seed)"
+)]
+fn closed_loop<'py>(py: Python<'py>, args: &Bound<'py, PyTuple>) -> PyResult<Bound<'py, PyDict>> {
+    type Rest<'py> = (ControllerArg<'py>, Arr<'py>, Arr<'py>, Arr<'py>, Arr<'py>, u64);
+    let (st, (controller, reference, velocity, acceleration, init, seed)): (Stage, Rest<'py>) =
+        split_args("closed_loop", args, 6)?;
     let c = controller_spec(&controller)?;
     let (r, v, a) = scenario_arrays(&reference, &velocity, &acceleration)?;
-    let init = StageState::from_array(slice(&initial_state, "initial_state")?).map_err(err)?;
-    let sc = Scenario { reference: r, velocity: v, acceleration: a, seed, controller: c };
-    let sig = py.detach(|| run_scenario(&st, &se, &sc, init));
+    let init = StageState::from_array(slice(&init, "initial_state")?).map_err(err)?;
+    let sc = Run { reference: r, velocity: v, acceleration: a, seed, controller: c };
+    let sig = py.detach(|| run_scenario(&st.stage, &st.sensor, &sc, init));
     if let Some(k) = sig.diverged_at {
         return Err(ParameterError::new_err(format!("the closed loop diverged at sample {k}")));
     }
     signals_dict(py, sig)
 }
 
-/// Run many closed-loop scenarios on one stage in parallel (GIL released, rayon).
-/// `scenarios` is a list of `(controller, reference, velocity, acceleration, seed)`; returns a list of dicts as `closed_loop`.
-#[pyfunction]
-#[allow(clippy::too_many_arguments, clippy::type_complexity)]
-fn closed_loop_batch<'py>(
+fn batch<'py>(
     py: Python<'py>,
-    stage_params: PyReadonlyArray1<'py, f64>,
-    ts: f64,
-    substeps: usize,
-    tolerance: f64,
-    sensor_quantization: f64,
-    sensor_noise: f64,
-    sensor_delay: usize,
-    scenarios: Vec<(
-        ControllerArg<'py>,
-        PyReadonlyArray1<'py, f64>,
-        PyReadonlyArray1<'py, f64>,
-        PyReadonlyArray1<'py, f64>,
-        u64,
-    )>,
-    initial_state: PyReadonlyArray1<'py, f64>,
+    st: &CoreStage,
+    se: &Sensor,
+    scenarios: &[ScenarioArg<'py>],
+    initial_state: &PyReadonlyArray1<'py, f64>,
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
-    let st = stage(slice(&stage_params, "stage_params")?, ts, substeps, tolerance)?;
-    let se = sensor(sensor_quantization, sensor_noise, sensor_delay)?;
-    let init = StageState::from_array(slice(&initial_state, "initial_state")?).map_err(err)?;
-    let mut list = Vec::with_capacity(scenarios.len());
-    for (j, (cp, r, v, a, seed)) in scenarios.iter().enumerate() {
-        let prefix = |e: PyErr| ParameterError::new_err(format!("scenarios[{j}]: {}", e.value(py)));
-        let c = controller_spec(cp).map_err(prefix)?;
-        let (r, v, a) = scenario_arrays(r, v, a).map_err(prefix)?;
-        list.push(Scenario { reference: r, velocity: v, acceleration: a, seed: *seed, controller: c });
-    }
-    let results: Vec<Signals> = py.detach(|| list.par_iter().map(|sc| run_scenario(&st, &se, sc, init)).collect());
+    let init = StageState::from_array(slice(initial_state, "initial_state")?).map_err(err)?;
+    let list = runs(py, scenarios)?;
+    let results: Vec<Signals> = py.detach(|| list.par_iter().map(|sc| run_scenario(st, se, sc, init)).collect());
     let mut out = Vec::with_capacity(results.len());
     for (j, sig) in results.into_iter().enumerate() {
         if let Some(k) = sig.diverged_at {
@@ -410,46 +694,37 @@ fn closed_loop_batch<'py>(
     Ok(out)
 }
 
-/// Tracking figures of many closed-loop scenarios on one stage, recording no signals (GIL
-/// released, rayon): an `(S, 3)` array of `[rmse, max_error, saturated_fraction]` of
-/// `reference - true position` from sample `skip` on. Scenarios as `closed_loop_batch`. A
-/// diverging run gives `inf`. The engine of gain tuning.
+/// Run many closed-loop scenarios on one stage in parallel (GIL released, rayon).
+/// `scenarios` is a list of `Scenario` or `(controller, reference, velocity, acceleration,
+/// seed)`; returns a list of dicts as `closed_loop`. (`Stage.closed_loop_batch`.)
 #[pyfunction]
-#[allow(clippy::too_many_arguments, clippy::type_complexity)]
-fn closed_loop_batch_tracking<'py>(
+#[pyo3(
+    signature = (*args),
+    text_signature = "(stage_params, ts, substeps, tolerance, sensor_quantization, sensor_noise, sensor_delay, \
+                      scenarios, initial_state)"
+)]
+fn closed_loop_batch<'py>(py: Python<'py>, args: &Bound<'py, PyTuple>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+    let (st, (scenarios, init)): (Stage, (Vec<ScenarioArg<'py>>, Arr<'py>)) = split_args("closed_loop_batch", args, 2)?;
+    batch(py, &st.stage, &st.sensor, &scenarios, &init)
+}
+
+fn tracking<'py>(
     py: Python<'py>,
-    stage_params: PyReadonlyArray1<'py, f64>,
-    ts: f64,
-    substeps: usize,
-    tolerance: f64,
-    sensor_quantization: f64,
-    sensor_noise: f64,
-    sensor_delay: usize,
-    scenarios: Vec<(
-        ControllerArg<'py>,
-        PyReadonlyArray1<'py, f64>,
-        PyReadonlyArray1<'py, f64>,
-        PyReadonlyArray1<'py, f64>,
-        u64,
-    )>,
-    initial_state: PyReadonlyArray1<'py, f64>,
+    st: &CoreStage,
+    se: &Sensor,
+    scenarios: &[ScenarioArg<'py>],
+    initial_state: &PyReadonlyArray1<'py, f64>,
     skip: usize,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let st = stage(slice(&stage_params, "stage_params")?, ts, substeps, tolerance)?;
-    let se = sensor(sensor_quantization, sensor_noise, sensor_delay)?;
-    let init = StageState::from_array(slice(&initial_state, "initial_state")?).map_err(err)?;
-    let mut list = Vec::with_capacity(scenarios.len());
-    for (j, (cp, r, v, a, seed)) in scenarios.iter().enumerate() {
-        let prefix = |e: PyErr| ParameterError::new_err(format!("scenarios[{j}]: {}", e.value(py)));
-        let c = controller_spec(cp).map_err(prefix)?;
-        let (r, v, a) = scenario_arrays(r, v, a).map_err(prefix)?;
-        if skip >= r.len() {
+    let init = StageState::from_array(slice(initial_state, "initial_state")?).map_err(err)?;
+    let list = runs(py, scenarios)?;
+    for (j, sc) in list.iter().enumerate() {
+        if skip >= sc.reference.len() {
             return Err(ParameterError::new_err(format!(
                 "skip = {skip} leaves nothing of scenarios[{j}]'s {} samples",
-                r.len()
+                sc.reference.len()
             )));
         }
-        list.push(Scenario { reference: r, velocity: v, acceleration: a, seed: *seed, controller: c });
     }
     let rows: Vec<[f64; 3]> = py.detach(|| {
         list.par_iter()
@@ -460,9 +735,9 @@ fn closed_loop_batch_tracking<'py>(
                     let mut cst = vec![0.0; c.state_len()];
                     c.reset(&mut cst, ss.x);
                     let t = run_tracking(
-                        &st,
+                        st,
                         &mut ss,
-                        &se,
+                        se,
                         &mut sst,
                         c,
                         &mut cst,
@@ -482,15 +757,29 @@ fn closed_loop_batch_tracking<'py>(
     Ok(Array2::from_shape_vec((rows.len(), 3), flat).expect("shape").into_pyarray(py))
 }
 
+/// Tracking figures of many closed-loop scenarios on one stage, recording no signals (GIL
+/// released, rayon): an `(S, 3)` array of `[rmse, max_error, saturated_fraction]` of
+/// `reference - true position` from sample `skip` on. Scenarios as `closed_loop_batch`. A
+/// diverging run gives `inf`. The engine of gain tuning. (`Stage.closed_loop_batch_tracking`.)
+#[pyfunction]
+#[pyo3(
+    signature = (*args),
+    text_signature = "(stage_params, ts, substeps, tolerance, sensor_quantization, sensor_noise, sensor_delay, \
+                      scenarios, initial_state, skip)"
+)]
+fn closed_loop_batch_tracking<'py>(py: Python<'py>, args: &Bound<'py, PyTuple>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    type Rest<'py> = (Vec<ScenarioArg<'py>>, Arr<'py>, usize);
+    let (st, (scenarios, init, skip)): (Stage, Rest<'py>) = split_args("closed_loop_batch_tracking", args, 3)?;
+    tracking(py, &st.stage, &st.sensor, &scenarios, &init, skip)
+}
+
 /// `(S,)` RMSE between the open-loop position of `S` stage parameter rows (`(S,
 /// STAGE_PARAM_LEN)`) driven by one held-command record and a measured position, from rest
 /// (GIL released, rayon across rows). Invalid rows raise, or cost `invalid_cost` if given;
 /// a diverging simulation costs +inf. The engine of grey-box stage identification.
 #[pyfunction]
 #[pyo3(signature = (params, ts, substeps, tolerance, command, target, invalid_cost=None))]
-#[allow(clippy::too_many_arguments)]
 fn stage_batch_rmse<'py>(
-    py: Python<'py>,
     params: PyReadonlyArray2<'py, f64>,
     ts: f64,
     substeps: usize,
@@ -499,6 +788,7 @@ fn stage_batch_rmse<'py>(
     target: PyReadonlyArray1<'py, f64>,
     invalid_cost: Option<f64>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let py = params.py();
     let shape = params.shape();
     let width = piezohyst_core::stage::PARAM_LEN;
     if shape[1] != width {
@@ -570,6 +860,9 @@ fn virtual_stage_params<'py>(py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Stage>()?;
+    m.add_class::<Controller>()?;
+    m.add_class::<Scenario>()?;
     m.add_function(wrap_pyfunction!(virtual_stage_params, m)?)?;
     m.add_function(wrap_pyfunction!(stage_simulate, m)?)?;
     m.add_function(wrap_pyfunction!(closed_loop, m)?)?;

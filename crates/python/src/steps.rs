@@ -5,7 +5,7 @@ use crate::util::ParameterError;
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1, PyReadwriteArray1};
 use pyo3::prelude::*;
 
-use crate::control::with_controller;
+use crate::control::{with_controller, ControllerSpec};
 use crate::plant::{controller_spec, ControllerArg};
 use crate::util::{check_finite, slice};
 
@@ -20,18 +20,12 @@ fn state_of<'a>(state: &'a mut PyReadwriteArray1<'_, f64>, want: usize) -> PyRes
     Ok(s)
 }
 
-/// The controller's state before its first step, given the first measurement `y0`.
-#[pyfunction]
-fn controller_initial_state<'py>(
-    py: Python<'py>,
-    controller: ControllerArg<'py>,
-    y0: f64,
-) -> PyResult<Bound<'py, PyArray1<f64>>> {
+/// The state of the controller `spec` describes before its first step, given `y0`.
+pub fn initial_state<'py>(py: Python<'py>, spec: &ControllerSpec, y0: f64) -> PyResult<Bound<'py, PyArray1<f64>>> {
     if !y0.is_finite() {
         return Err(ParameterError::new_err(format!("y0 = {y0} is not finite")));
     }
-    let spec = controller_spec(&controller)?;
-    let st = with_controller(&spec, |c| {
+    let st = with_controller(spec, |c| {
         let mut st = vec![0.0; c.state_len()];
         c.reset(&mut st, y0);
         st
@@ -40,25 +34,26 @@ fn controller_initial_state<'py>(
     Ok(st.into_pyarray(py))
 }
 
-/// Step the controller from `state` (updated in place) on the reference `(reference,
-/// velocity, acceleration)` and the `measured` positions; returns the commands. Empty
-/// `velocity` / `acceleration` stand for zeros.
-#[pyfunction]
-fn controller_steps<'py>(
+/// The signals a controller is stepped on.
+pub struct Signals<'py> {
+    pub reference: PyReadonlyArray1<'py, f64>,
+    pub velocity: PyReadonlyArray1<'py, f64>,
+    pub acceleration: PyReadonlyArray1<'py, f64>,
+    pub measured: PyReadonlyArray1<'py, f64>,
+}
+
+/// Step the controller `spec` describes from `state` (updated in place); the commands.
+pub fn steps<'py>(
     py: Python<'py>,
-    controller: ControllerArg<'py>,
-    reference: PyReadonlyArray1<'py, f64>,
-    velocity: PyReadonlyArray1<'py, f64>,
-    acceleration: PyReadonlyArray1<'py, f64>,
-    measured: PyReadonlyArray1<'py, f64>,
+    spec: &ControllerSpec,
+    signals: Signals<'py>,
     mut state: PyReadwriteArray1<'py, f64>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let spec = controller_spec(&controller)?;
     let (r, v, a, y) = (
-        slice(&reference, "reference")?,
-        slice(&velocity, "velocity")?,
-        slice(&acceleration, "acceleration")?,
-        slice(&measured, "measured")?,
+        slice(&signals.reference, "reference")?,
+        slice(&signals.velocity, "velocity")?,
+        slice(&signals.acceleration, "acceleration")?,
+        slice(&signals.measured, "measured")?,
     );
     for (name, x) in [("reference", r), ("velocity", v), ("acceleration", a), ("measured", y)] {
         check_finite(name, x)?;
@@ -74,7 +69,7 @@ fn controller_steps<'py>(
         )));
     }
     let mut u = vec![0.0; n];
-    let run = with_controller(&spec, |c| -> PyResult<()> {
+    let run = with_controller(spec, |c| -> PyResult<()> {
         let st = state_of(&mut state, c.state_len())?;
         let pick = |s: &[f64], k: usize| if s.is_empty() { 0.0 } else { s[k] };
         py.detach(|| {
@@ -88,6 +83,36 @@ fn controller_steps<'py>(
     .map_err(ParameterError::new_err)?;
     run?;
     Ok(u.into_pyarray(py))
+}
+
+/// The controller's state before its first step, given the first measurement `y0`.
+#[pyfunction]
+fn controller_initial_state<'py>(
+    py: Python<'py>,
+    controller: ControllerArg<'py>,
+    y0: f64,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    if !y0.is_finite() {
+        return Err(ParameterError::new_err(format!("y0 = {y0} is not finite")));
+    }
+    initial_state(py, &controller_spec(&controller)?, y0)
+}
+
+/// Step the controller from `state` (updated in place) on the reference `(reference,
+/// velocity, acceleration)` and the `measured` positions; returns the commands. Empty
+/// `velocity` / `acceleration` stand for zeros.
+#[pyfunction]
+fn controller_steps<'py>(
+    py: Python<'py>,
+    controller: ControllerArg<'py>,
+    reference: PyReadonlyArray1<'py, f64>,
+    velocity: PyReadonlyArray1<'py, f64>,
+    acceleration: PyReadonlyArray1<'py, f64>,
+    measured: PyReadonlyArray1<'py, f64>,
+    state: PyReadwriteArray1<'py, f64>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let spec = controller_spec(&controller)?;
+    steps(py, &spec, Signals { reference, velocity, acceleration, measured }, state)
 }
 
 /// Add this module's functions to the extension module.
