@@ -14,6 +14,7 @@ def stub_functions():
     tree = ast.parse(STUB.read_text())
     funcs = {n.name: [a.arg for a in n.args.args] for n in tree.body if isinstance(n, ast.FunctionDef)}
     names = {t.target.id for t in tree.body if isinstance(t, ast.AnnAssign)}
+    names |= {n.name for n in tree.body if isinstance(n, ast.ClassDef)}
     return funcs, names
 
 
@@ -29,3 +30,17 @@ def test_stub_signatures_match_compiled_signatures():
     for name, args in funcs.items():
         sig = inspect.signature(getattr(_core, name))
         assert list(sig.parameters) == args, name
+
+
+def test_stub_classes_are_final_and_frozen():
+    tree = ast.parse(STUB.read_text())
+    for node in tree.body:
+        if isinstance(node, ast.ClassDef):
+            assert any(getattr(d, "id", None) == "final" for d in node.decorator_list), node.name
+            cls = getattr(_core, node.name)
+            try:
+                cls.__new__(cls).x = 1  # noqa: B018 - an attribute may not be set on a frozen class
+            except (AttributeError, TypeError):
+                pass
+            else:
+                raise AssertionError(f"{node.name} accepts new attributes")

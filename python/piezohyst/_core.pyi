@@ -1,72 +1,126 @@
 """Type stub of the compiled core (``crates/python``). Checked against the module by
 ``tests/test_stub.py``: every public name here exists there and vice versa."""
 
+from typing import Any, final
+
 import numpy as np
 import numpy.typing as npt
 
+__all__ = [
+    "Controller",
+    "MAX_TERMS",
+    "Model",
+    "STAGE_PARAM_LEN",
+    "STAGE_STATE_LEN",
+    "Scenario",
+    "Stage",
+    "__version__",
+    "batch_rmse",
+    "batch_simulate",
+    "boucwen_benchmark_batch_rmse",
+    "boucwen_benchmark_batch_simulate",
+    "boucwen_benchmark_decimate",
+    "boucwen_benchmark_integrate",
+    "closed_loop",
+    "closed_loop_batch",
+    "closed_loop_batch_tracking",
+    "controller_initial_state",
+    "controller_layout",
+    "controller_steps",
+    "envelope_eval",
+    "envelope_inverse",
+    "family_layout",
+    "family_sizes",
+    "initial_state",
+    "inverse",
+    "layout_codes",
+    "pi_analytic_inverse",
+    "regressors",
+    "simulate",
+    "solve_cubic_increasing",
+    "stage_batch_rmse",
+    "stage_simulate",
+    "thread_count",
+    "validate",
+    "virtual_stage_params",
+]
+
 __version__: str
 
-Array1 = npt.NDArray[np.float64]
-Array2 = npt.NDArray[np.float64]
+_Array1 = npt.NDArray[np.float64]
+_Array2 = npt.NDArray[np.float64]
+
+def family_layout(name: str, dims: list[int]) -> dict[str, Any]:
+    """The core's layout table for a family with these dims: ``family``, ``code`` (the C
+    ``PhsFamily``), ``dim_names``, ``dims``, ``slots`` (slot names in row order, ``r[0]`` ...),
+    ``groups`` (``(name, offset, length)`` per declared slot), ``linear`` (slot names of the
+    regressor columns), ``param_len``, ``state_len``."""
+
+def controller_layout(kind: str) -> dict[str, Any]:
+    """The core's layout table for a controller kind: ``kind``, ``code`` (the C
+    ``PhsControllerKind``), ``slots`` (parameter names in order), ``param_len``."""
+
+def layout_codes() -> tuple[dict[str, int], dict[str, int]]:
+    """``({family: PhsFamily code}, {controller kind: PhsControllerKind code})``."""
 
 def family_sizes(name: str, dims: list[int]) -> tuple[int, int]:
     """``(param_len, state_len)`` of a model family with these dims."""
 
-def validate(name: str, dims: list[int], params: Array1) -> None:
+def validate(name: str, dims: list[int], params: _Array1) -> None:
     """Raise ``ValueError`` naming the offending parameter if the row is not valid."""
 
-def initial_state(name: str, dims: list[int], params: Array1) -> Array1:
+def initial_state(name: str, dims: list[int], params: _Array1) -> _Array1:
     """The relaxed initial state."""
 
-def simulate(name: str, dims: list[int], params: Array1, input: Array1, state: Array1) -> Array1:
+def simulate(name: str, dims: list[int], params: _Array1, input: _Array1, state: _Array1) -> _Array1:
     """Outputs for ``input`` from ``state`` (updated in place)."""
 
-def inverse(name: str, dims: list[int], params: Array1, desired: Array1, state: Array1, guess: float) -> Array1:
+def inverse(name: str, dims: list[int], params: _Array1, desired: _Array1, state: _Array1, guess: float) -> _Array1:
     """Exact per-sample inverse from the forward ``state`` (updated in place)."""
 
-def pi_analytic_inverse(p0: float, thresholds: Array1, weights: Array1) -> tuple[float, Array1, Array1]:
+def pi_analytic_inverse(p0: float, thresholds: _Array1, weights: _Array1) -> tuple[float, _Array1, _Array1]:
     """``(p0', thresholds', weights')`` of the inverse PI model."""
 
-def envelope_inverse(kind: int, coefficients: list[float], values: Array1) -> Array1:
+def envelope_inverse(kind: int, coefficients: list[float], values: _Array1) -> _Array1:
     """Element-wise ``g^{-1}`` of an envelope (0 identity, 1 polynomial, 2 tanh)."""
 
-def envelope_eval(kind: int, coefficients: list[float], values: Array1) -> Array1:
+def envelope_eval(kind: int, coefficients: list[float], values: _Array1) -> _Array1:
     """Element-wise ``g`` of an envelope."""
 
 def solve_cubic_increasing(coefficients: list[float], y: float, guess: float) -> float | None:
     """Root of an increasing cubic by the per-sample inverse's solver."""
 
-def batch_simulate(name: str, dims: list[int], params: Array2, input: Array1) -> Array2:
+def batch_simulate(name: str, dims: list[int], params: _Array2, input: _Array1) -> _Array2:
     """``(S, N)`` outputs of ``S`` parameter rows (GIL released, rayon)."""
 
 def batch_rmse(
-    name: str, dims: list[int], params: Array2, input: Array1, target: Array1, invalid_cost: float | None = None
-) -> Array1:
+    name: str, dims: list[int], params: _Array2, input: _Array1, target: _Array1, invalid_cost: float | None = None
+) -> _Array1:
     """``(S,)`` RMSE of ``S`` parameter rows against ``target`` (GIL released, rayon)."""
 
-def regressors(name: str, dims: list[int], params: Array1, input: Array1) -> Array2:
+def regressors(name: str, dims: list[int], params: _Array1, input: _Array1) -> _Array2:
     """``(N, m)`` regressors of a row's linear parameters over ``input`` from rest."""
 
 def thread_count() -> int:
     """Threads rayon uses for batch calls."""
 
-def boucwen_benchmark_integrate(params: Array1, input: Array1, h: float, state: Array1) -> tuple[Array1, Array1]:
+def boucwen_benchmark_integrate(params: _Array1, input: _Array1, h: float, state: _Array1) -> tuple[_Array1, _Array1]:
     """Bouc–Wen benchmark by Newmark (average acceleration) + trapezoidal ``z``: ``(y, z)`` at
     ``t_0 + (i+1) h`` for ``input[i]``; ``params = [mass, damping, stiffness, alpha, beta, gamma,
     delta, nu]``, ``state = [y, dy, ddy, z]`` at ``t_0`` (updated in place)."""
 
-def boucwen_benchmark_decimate(x: Array1, factor: int) -> Array1:
+def boucwen_benchmark_decimate(x: _Array1, factor: int) -> _Array1:
     """MATLAB ``decimate(x, p, 'fir')`` for each prime factor ``p`` of ``factor`` (increasing)."""
 
 def boucwen_benchmark_batch_rmse(
-    params: Array2,
-    input: Array1,
+    params: _Array2,
+    input: _Array1,
     h: float,
     factor: int,
-    target: Array1,
+    target: _Array1,
     skip: int = 0,
     invalid_cost: float | None = None,
-) -> Array1:
+) -> _Array1:
     """``(S,)`` RMSE (m) of ``S`` rows ``[mass, damping, stiffness, alpha, beta, gamma, delta, nu]``
     against ``target``: each row simulates the high-rate force ``input`` (``input[i]`` at ``i h``)
     from rest and FIR-decimates by ``factor`` exactly as one simulation does, scored on the
@@ -75,8 +129,8 @@ def boucwen_benchmark_batch_rmse(
     a run that fails or diverges costs +inf."""
 
 def boucwen_benchmark_batch_simulate(
-    params: Array2, input: Array1, h: float, factor: int, skip: int = 0, count: int | None = None
-) -> Array2:
+    params: _Array2, input: _Array1, h: float, factor: int, skip: int = 0, count: int | None = None
+) -> _Array2:
     """``(S, count)`` decimated displacements (m) of ``S`` rows, simulated as in
     ``boucwen_benchmark_batch_rmse``: samples ``skip .. skip + count`` (``count`` defaults to the
     rest). Invalid rows raise naming the row; a run that fails or diverges is a NaN row."""
@@ -86,91 +140,192 @@ STAGE_STATE_LEN: int
 MAX_TERMS: int
 
 #: ``(kind, params, inverse, ilc)``: ``inverse`` is ``None`` or ``(family, dims, row, u_min,
-#: u_max)``, ``ilc`` is ``None`` or ``(period, gain, forgetting, lead, delay)``.
-ControllerSpec = tuple[
-    str, Array1, tuple[str, list[int], Array1, float, float] | None, tuple[int, float, float, int, int] | None
-]
+#: u_max)``, ``ilc`` is ``None`` or ``(period, gain, forgetting, lead, delay)``; or a
+#: :class:`Controller`.
+_ControllerSpec = (
+    tuple[str, _Array1, tuple[str, list[int], _Array1, float, float] | None, tuple[int, float, float, int, int] | None]
+    | Controller
+)
+#: A :class:`Scenario` or ``(controller, reference, velocity, acceleration, seed)``.
+_ScenarioSpec = Scenario | tuple[_ControllerSpec, _Array1, _Array1, _Array1, int]
 
-def virtual_stage_params() -> Array1:
+@final
+class Model:
+    """A hysteresis model built once from family name, dims and parameter row (validated at
+    construction; immutable). States are the caller's arrays."""
+
+    def __new__(cls, family: str, dims: list[int], params: _Array1) -> Model: ...
+    @property
+    def family(self) -> str: ...
+    @property
+    def dims(self) -> list[int]: ...
+    @property
+    def params(self) -> _Array1: ...
+    @property
+    def param_len(self) -> int: ...
+    @property
+    def state_len(self) -> int: ...
+    @property
+    def layout(self) -> dict[str, Any]: ...
+    def initial_state(self) -> _Array1:
+        """The relaxed initial state."""
+    def simulate(self, input: _Array1, state: _Array1 | None = None) -> _Array1:
+        """Outputs for ``input`` from ``state`` (updated in place) or from rest."""
+    def inverse(self, desired: _Array1, state: _Array1, guess: float = 0.0) -> _Array1:
+        """Exact per-sample inverse from the forward ``state`` (updated in place)."""
+
+@final
+class Controller:
+    """A controller validated once: kind and flat parameters (``controller_layout``),
+    optionally behind the exact inverse of a model and/or with ILC."""
+
+    def __new__(
+        cls,
+        kind: str,
+        params: _Array1,
+        inverse: tuple[Model, float, float] | None = None,
+        ilc: tuple[int, float, float, int, int] | None = None,
+    ) -> Controller: ...
+    @property
+    def kind(self) -> str: ...
+    @property
+    def params(self) -> _Array1: ...
+    @property
+    def state_len(self) -> int: ...
+    @property
+    def layout(self) -> dict[str, Any]: ...
+    def initial_state(self, y0: float) -> _Array1:
+        """The state before the first step, given the first measured position ``y0``."""
+    def steps(
+        self, reference: _Array1, velocity: _Array1, acceleration: _Array1, measured: _Array1, state: _Array1
+    ) -> _Array1:
+        """Commands stepped on given inputs from ``state`` (updated in place)."""
+
+@final
+class Scenario:
+    """A closed-loop scenario: controller, reference (empty derivatives stand for zeros) and
+    sensor noise seed."""
+
+    def __new__(
+        cls,
+        controller: _ControllerSpec,
+        reference: _Array1,
+        velocity: _Array1 | None = None,
+        acceleration: _Array1 | None = None,
+        seed: int = 0,
+    ) -> Scenario: ...
+    def __len__(self) -> int: ...
+    @property
+    def seed(self) -> int: ...
+
+@final
+class Stage:
+    """A stage and its sensor built once (parameters of ``STAGE_PARAM_LEN`` values, control
+    period, integration settings, sensor)."""
+
+    def __new__(
+        cls,
+        params: _Array1,
+        ts: float,
+        substeps: int,
+        tolerance: float,
+        sensor_quantization: float = 0.0,
+        sensor_noise: float = 0.0,
+        sensor_delay: int = 0,
+    ) -> Stage: ...
+    @property
+    def params(self) -> _Array1: ...
+    @property
+    def ts(self) -> float: ...
+    def simulate(self, command: _Array1, state: _Array1) -> tuple[_Array1, _Array1, _Array1]:
+        """As ``stage_simulate``."""
+    def closed_loop(self, scenario: _ScenarioSpec, initial_state: _Array1) -> dict:
+        """As ``closed_loop``."""
+    def closed_loop_batch(self, scenarios: list[_ScenarioSpec], initial_state: _Array1) -> list[dict]:
+        """As ``closed_loop_batch``."""
+    def closed_loop_batch_tracking(self, scenarios: list[_ScenarioSpec], initial_state: _Array1, skip: int) -> _Array2:
+        """As ``closed_loop_batch_tracking``."""
+
+def virtual_stage_params() -> _Array1:
     """The Rust core's copy of the packaged virtual stage's parameters (flat layout of
     ``StageParams::from_slice``), held equal to ``presets/virtual_stage.json`` by a test."""
 
 def stage_simulate(
-    params: Array1, ts: float, substeps: int, tolerance: float, command: Array1, state: Array1
-) -> tuple[Array1, Array1, Array1]:
+    params: _Array1, ts: float, substeps: int, tolerance: float, command: _Array1, state: _Array1
+) -> tuple[_Array1, _Array1, _Array1]:
     """Open-loop stage under a held command per period: ``(position at each period start,
     amplifier voltage, CEMF voltage at each period end)``; ``state`` updated in place."""
 
 def closed_loop(
-    stage_params: Array1,
+    stage_params: _Array1,
     ts: float,
     substeps: int,
     tolerance: float,
     sensor_quantization: float,
     sensor_noise: float,
     sensor_delay: int,
-    controller: ControllerSpec,
-    reference: Array1,
-    velocity: Array1,
-    acceleration: Array1,
-    initial_state: Array1,
+    controller: _ControllerSpec,
+    reference: _Array1,
+    velocity: _Array1,
+    acceleration: _Array1,
+    initial_state: _Array1,
     seed: int,
 ) -> dict:
     """One closed-loop run: dict of ``command, voltage, position, measured, terms, term_names,
     final_state``."""
 
 def closed_loop_batch(
-    stage_params: Array1,
+    stage_params: _Array1,
     ts: float,
     substeps: int,
     tolerance: float,
     sensor_quantization: float,
     sensor_noise: float,
     sensor_delay: int,
-    scenarios: list[tuple[ControllerSpec, Array1, Array1, Array1, int]],
-    initial_state: Array1,
+    scenarios: list[_ScenarioSpec],
+    initial_state: _Array1,
 ) -> list[dict]:
     """Many scenarios ``(controller, reference, velocity, acceleration, seed)`` in parallel
     (GIL released, rayon)."""
 
 def closed_loop_batch_tracking(
-    stage_params: Array1,
+    stage_params: _Array1,
     ts: float,
     substeps: int,
     tolerance: float,
     sensor_quantization: float,
     sensor_noise: float,
     sensor_delay: int,
-    scenarios: list[tuple[ControllerSpec, Array1, Array1, Array1, int]],
-    initial_state: Array1,
+    scenarios: list[_ScenarioSpec],
+    initial_state: _Array1,
     skip: int,
-) -> Array2:
+) -> _Array2:
     """``(S, 3)`` ``[rmse, max_error, saturated_fraction]`` of many scenarios, recording no
     signals (GIL released, rayon)."""
 
-def controller_initial_state(controller: ControllerSpec, y0: float) -> Array1:
+def controller_initial_state(controller: _ControllerSpec, y0: float) -> _Array1:
     """The controller's state before its first step, given the first measured position ``y0``."""
 
 def controller_steps(
-    controller: ControllerSpec,
-    reference: Array1,
-    velocity: Array1,
-    acceleration: Array1,
-    measured: Array1,
-    state: Array1,
-) -> Array1:
+    controller: _ControllerSpec,
+    reference: _Array1,
+    velocity: _Array1,
+    acceleration: _Array1,
+    measured: _Array1,
+    state: _Array1,
+) -> _Array1:
     """Commands of the controller stepped on given inputs without a plant (as a real-time loop
     or the C library runs it) from ``state`` (updated in place); empty ``velocity`` /
     ``acceleration`` stand for zeros."""
 
 def stage_batch_rmse(
-    params: Array2,
+    params: _Array2,
     ts: float,
     substeps: int,
     tolerance: float,
-    command: Array1,
-    target: Array1,
+    command: _Array1,
+    target: _Array1,
     invalid_cost: float | None = None,
-) -> Array1:
+) -> _Array1:
     """``(S,)`` RMSE of the open-loop position of ``S`` stage rows against ``target``, from rest
     (GIL released, rayon)."""

@@ -50,7 +50,13 @@ __all__ = [
 
 
 class PiezohystError(Exception):
-    """Base class of every error piezohyst raises on purpose."""
+    """Base class of every error piezohyst raises on purpose. Errors the Rust core raises
+    also say what they are about: ``parameter`` (its name), ``index`` (the element, for an
+    array) and ``value`` (the offending value); each is ``None`` where it does not apply."""
+
+    parameter: str | None = None
+    index: int | None = None
+    value: float | None = None
 
 
 class ParameterError(PiezohystError, ValueError):

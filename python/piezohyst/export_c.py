@@ -57,74 +57,11 @@ __all__ = [
     "save_controller",
 ]
 
-#: ``PhsFamily`` codes of the C library.
-FAMILY_CODES = {"pi": 1, "gpi": 2, "rdpi": 3, "creep": 4, "preisach": 5, "boucwen": 6, "duhem": 7, "dahl": 8}
-#: ``PhsControllerKind`` codes of the C library.
-CONTROLLER_KINDS = {"open_loop": 1, "pid": 2, "smc": 3, "absmc": 4, "cemf_feedforward": 5}
-#: Names of the flat parameters of each controller kind (``controller.core(stage)[1]``).
-CONTROLLER_PARAMS = {
-    "open_loop": ("gain", "offset", "c1", "c2", "u_min", "u_max"),
-    "pid": ("kp", "ki", "kd", "tau_d", "ts", "ff_gain", "offset", "u_min", "u_max"),
-    "smc": (
-        "M",
-        "B",
-        "K",
-        "kp",
-        "kv",
-        "alpha",
-        "switching",
-        "ks_or_k1",
-        "phi_or_k2",
-        "observer_bandwidth",
-        "ts",
-        "observer_delay",
-        "cemf",
-        "tem",
-        "capacitance",
-        "hyst_alpha",
-        "hyst_beta",
-        "hyst_gamma",
-        "desired_model_terms",
-        "u_min",
-        "u_max",
-    ),
-    "absmc": (
-        "b",
-        "theta0_0",
-        "theta0_1",
-        "theta_min_0",
-        "theta_min_1",
-        "theta_max_0",
-        "theta_max_1",
-        "c1",
-        "lambda",
-        "ks",
-        "phi",
-        "gamma_theta_0",
-        "gamma_theta_1",
-        "gamma_d",
-        "d0",
-        "d_max",
-        "desired_regressor",
-        "observer_bandwidth",
-        "ts",
-        "observer_delay",
-        "u_min",
-        "u_max",
-    ),
-    "cemf_feedforward": (
-        "M",
-        "B",
-        "K",
-        "tem",
-        "capacitance",
-        "hyst_alpha",
-        "hyst_beta",
-        "hyst_gamma",
-        "u_min",
-        "u_max",
-    ),
-}
+#: ``PhsFamily`` and ``PhsControllerKind`` codes of the C library (the core's layout table).
+FAMILY_CODES, CONTROLLER_KINDS = _core.layout_codes()
+#: Names of the flat parameters of each controller kind (``controller.core(stage)[1]``;
+#: the core's layout table, ``_core.controller_layout``).
+CONTROLLER_PARAMS = {kind: tuple(_core.controller_layout(kind)["slots"]) for kind in CONTROLLER_KINDS}
 #: Version of the controller-file layout.
 CONTROLLER_SCHEMA_VERSION = 1
 _FORMAT = "piezohyst-controller"
@@ -366,53 +303,11 @@ def load_controller(path) -> ExportedController:
 
 
 def row_names(family: str, dims) -> list[str]:
-    """Names of the slots of a model family's parameter row (``piezohyst_core::spec``)."""
-    dims = [int(x) for x in dims]
-
-    def creep(m, always=False):
-        if m == 0 and not always:
-            return []
-        return ["creep_ts"] + [f"creep_tau[{j}]" for j in range(m)] + [f"creep_c[{j}]" for j in range(m)]
-
-    if family == "pi":
-        n, m = dims
-        names = ["p0"] + [f"r[{i}]" for i in range(n)] + [f"w[{i}]" for i in range(n)] + creep(m)
-    elif family == "gpi":
-        n, _, _, m = dims
-        names = (
-            ["range_lo", "range_hi"]
-            + [f"poly[{i}]" for i in range(4)]
-            + [f"rising[{i}]" for i in range(4)]
-            + [f"falling[{i}]" for i in range(4)]
-            + [f"r[{i}]" for i in range(n)]
-            + [f"b[{i}]" for i in range(n)]
-            + creep(m)
-        )
-    elif family == "rdpi":
-        n, m = dims
-        names = (
-            ["ts", "p0", "beta", "filter_tau"]
-            + [f"r[{i}]" for i in range(n)]
-            + [f"w[{i}]" for i in range(n)]
-            + [f"c[{i}]" for i in range(n)]
-            + creep(m)
-        )
-    elif family == "creep":
-        names = creep(dims[0], always=True)
-    elif family == "preisach":
-        levels = dims[0]
-        names = ["lo", "hi", "offset", "slope"] + [f"w[{i}]" for i in range(levels * (levels + 1) // 2)]
-    elif family == "boucwen":
-        names = ["a", "beta", "gamma", "n", "d"]
-    elif family == "duhem":
-        names = ["alpha"] + [f"f[{i}]" for i in range(4)] + [f"g[{i}]" for i in range(4)]
-    elif family == "dahl":
-        names = ["sigma", "h_c", "a"]
-    else:
+    """Names of the slots of a model family's parameter row (the core's layout table,
+    ``_core.family_layout``)."""
+    if family not in FAMILY_CODES:
         raise ParameterError(f"family = {family!r} is unknown; expected one of {', '.join(FAMILY_CODES)}")
-    want, _ = _core.family_sizes(family, list(dims))
-    assert len(names) == want, (family, dims, len(names), want)
-    return names
+    return list(_core.family_layout(family, [int(x) for x in dims])["slots"])
 
 
 def _repo_root() -> Path:

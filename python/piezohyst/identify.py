@@ -141,63 +141,78 @@ def _check_loss(loss, delta):
     return loss, as_scalar(delta, "huber_delta", positive=True)
 
 
+#: Linear slots (names of the core's layout table) that fits keep non-negative.
+_NONNEGATIVE = frozenset({"p0", "w", "b", "slope", "creep_c"})
+
+
+def _linear_slots(model):
+    """``(name, length)`` of the model's linear slots in regressor-column order (the core's
+    layout table, ``_core.family_layout``)."""
+    layout = _core.family_layout(model.family, list(model.dims))
+    length = {name: size for name, _, size in layout["groups"]}
+    return [(name, length[name]) for name in layout["linear"]]
+
+
 def _layout(model):
     """Column bounds ``(lb, ub)`` of the regressors and a function mapping the solution back
     to a model of the same structure."""
     inf = np.inf
     creep = getattr(model, "creep", None)
-    m_creep = 0 if creep is None else creep.terms
+    if not isinstance(model, (PI, GeneralizedPI, RateDependentPI, Preisach)):
+        raise ParameterTypeError(
+            f"model must be PI, GeneralizedPI, RateDependentPI or Preisach, got {type(model).__name__}"
+        )
+    slots = _linear_slots(model)
+    lb = np.concatenate([np.full(size, 0.0 if name in _NONNEGATIVE else -inf) for name, size in slots])
+
+    def parts(t):
+        ends = np.cumsum([size for _, size in slots])
+        return {name: t[end - size : end] for (name, size), end in zip(slots, ends, strict=True)}
 
     def with_creep(theta_tail):
         return None if creep is None else Creep(creep.ts, creep.taus, theta_tail)
 
     if isinstance(model, RateDependentPI):
-        n = model.thresholds.size
-        lb = np.r_[0.0, np.zeros(n), np.full(n, -inf), np.zeros(m_creep)]
 
         def build(t):
+            p = parts(t)
             return RateDependentPI(
                 model.thresholds,
-                t[1 : 1 + n],
+                p["w"],
                 model.ts,
-                t[0],
+                p["p0"][0],
                 model.beta,
-                t[1 + n : 1 + 2 * n],
+                p["c"],
                 model.filter_tau,
-                creep=with_creep(t[1 + 2 * n :]),
+                creep=with_creep(p["creep_c"]),
                 units=model.units,
             )
     elif isinstance(model, GeneralizedPI):
-        n = model.thresholds.size
-        lb = np.r_[np.full(4, -inf), np.zeros(n), np.zeros(m_creep)]
 
         def build(t):
+            p = parts(t)
             return GeneralizedPI(
                 model.thresholds,
-                t[4 : 4 + n],
-                t[:4],
+                p["b"],
+                p["poly"],
                 model.rising,
                 model.falling,
                 model.input_range,
-                creep=with_creep(t[4 + n :]),
+                creep=with_creep(p["creep_c"]),
                 units=model.units,
             )
     elif isinstance(model, PI):
-        n = model.thresholds.size
-        lb = np.r_[0.0, np.zeros(n), np.zeros(m_creep)]
 
         def build(t):
-            return PI(model.thresholds, t[1 : 1 + n], t[0], creep=with_creep(t[1 + n :]), units=model.units)
-    elif isinstance(model, Preisach):
-        cells = model.weights.size
-        lb = np.r_[-inf, 0.0, np.zeros(cells)]
-
-        def build(t):
-            return Preisach(model.levels, model.input_range, t[2:], t[0], t[1], model.memory, units=model.units)
+            p = parts(t)
+            return PI(model.thresholds, p["w"], p["p0"][0], creep=with_creep(p["creep_c"]), units=model.units)
     else:
-        raise ParameterTypeError(
-            f"model must be PI, GeneralizedPI, RateDependentPI or Preisach, got {type(model).__name__}"
-        )
+
+        def build(t):
+            p = parts(t)
+            return Preisach(
+                model.levels, model.input_range, p["w"], p["offset"][0], p["slope"][0], model.memory, units=model.units
+            )
     return lb, np.full(lb.size, inf), build
 
 
