@@ -85,3 +85,43 @@ fn lanes_for(l: usize, n: usize, mut seed: u64) -> Lanes {
         })
         .collect()
 }
+
+/// `batch::pi_group` (the grouped rows of the batch engine, moved from the Python binding)
+/// gives each row's outputs and sum of squared errors bit for bit as a `Pi` run alone,
+/// for unrolled (n <= 12) and general (n > 12) operator counts and partial groups.
+#[test]
+fn pi_group_is_bit_identical_to_single_runs() {
+    use piezohyst_core::batch::{pi_group, MAX_FIXED_OPERATORS};
+    use piezohyst_core::Hysteresis;
+    const L: usize = 8;
+    let v: Vec<f64> = (0..203).map(|k| (k as f64 * 0.07).sin() * (1.0 + 0.01 * k as f64)).collect();
+    let target: Vec<f64> = v.iter().map(|x| 0.5 * x).collect();
+    for &(n, used) in &[(3usize, 8usize), (9, 5), (MAX_FIXED_OPERATORS + 3, 8), (20, 1)] {
+        let rows: Vec<Vec<f64>> = (0..used)
+            .map(|j| {
+                let mut row = vec![0.8 + 0.01 * j as f64];
+                row.extend((0..n).map(|i| 0.05 * i as f64));
+                row.extend((0..n).map(|i| 0.3 / (1.0 + i as f64 + j as f64)));
+                row
+            })
+            .collect();
+        let refs: Vec<&[f64]> = rows.iter().map(|r| r.as_slice()).collect();
+        let mut scratch = vec![[0.0; L]; 3 * n];
+        let mut out = vec![0.0; used * v.len()];
+        pi_group::<L>(n, &refs, &v, &mut out, None, &mut scratch);
+        let mut sse = vec![0.0; used];
+        pi_group::<L>(n, &refs, &v, &mut sse, Some(&target), &mut scratch);
+        for (j, row) in rows.iter().enumerate() {
+            let pi = Pi::new(row[0], &row[1..1 + n], &row[1 + n..]).unwrap();
+            let mut st = vec![0.0; n];
+            let mut e2 = 0.0;
+            for (k, &vk) in v.iter().enumerate() {
+                let y = pi.step(&mut st, vk);
+                assert_eq!(y.to_bits(), out[j * v.len() + k].to_bits(), "n {n} row {j} sample {k}");
+                let e = y - target[k];
+                e2 += e * e;
+            }
+            assert_eq!(e2.to_bits(), sse[j].to_bits(), "n {n} row {j} sse");
+        }
+    }
+}

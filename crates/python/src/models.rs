@@ -6,7 +6,7 @@ use numpy::ndarray::Array2;
 use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1, PyUntypedArrayMethods,
 };
-use piezohyst_core::batch::{pi_lanes, pi_lanes_fixed};
+use piezohyst_core::batch::pi_group;
 use piezohyst_core::inverse::{inverse_simulate, solve_increasing};
 use piezohyst_core::pi::Pi;
 use piezohyst_core::spec::{Family, Model as CoreModel};
@@ -353,140 +353,6 @@ fn run_one(fam: Family, row: &[f64], v: &[f64], sink: &mut Sink<'_>) -> Result<(
     })
 }
 
-/// Samples go through the lane kernels in short blocks so the outputs stay in L1.
-const BLOCK: usize = 16;
-
-/// Hand one block of lane outputs to the caller's sink: either rows of `out` (`(used, nv)`
-/// row-major) or the running sums of squared errors against `target`.
-#[inline(always)]
-fn drain_block<const L: usize>(
-    y: &[[f64; L]],
-    k0: usize,
-    used: usize,
-    nv: usize,
-    out: &mut [f64],
-    target: Option<&[f64]>,
-    sse: &mut [f64; L],
-) {
-    match target {
-        None => {
-            for l in 0..used {
-                for (j, yk) in y.iter().enumerate() {
-                    out[l * nv + k0 + j] = yk[l];
-                }
-            }
-        }
-        Some(t) => {
-            for (yk, &tk) in y.iter().zip(&t[k0..]) {
-                for l in 0..L {
-                    let e = yk[l] - tk;
-                    sse[l] += e * e;
-                }
-            }
-        }
-    }
-}
-
-/// Lane-major parameters of up to `L` rows (padded with the last row).
-fn gather<const L: usize>(n: usize, rows: &[&[f64]], r: &mut [[f64; L]], w: &mut [[f64; L]]) -> [f64; L] {
-    let mut p0 = [0.0; L];
-    for l in 0..L {
-        let row = rows[l.min(rows.len() - 1)];
-        p0[l] = row[0];
-        for i in 0..n {
-            r[i][l] = row[1 + i];
-            w[i][l] = row[1 + n + i];
-        }
-    }
-    p0
-}
-
-/// `L` classical-PI parameter sets at once (rows already valid, at most `L`), any `n`.
-#[inline(always)]
-fn pi_group_body<const L: usize>(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
-    let mut r = vec![[0.0; L]; n];
-    let mut w = vec![[0.0; L]; n];
-    let mut z = vec![[0.0; L]; n];
-    let p0 = gather(n, rows, &mut r, &mut w);
-    let mut y = [[0.0; L]; BLOCK];
-    let mut sse = [0.0; L];
-    for (b, vb) in v.chunks(BLOCK).enumerate() {
-        pi_lanes(&p0, &r, &w, &mut z, vb, &mut y);
-        drain_block(&y[..vb.len()], b * BLOCK, rows.len(), v.len(), out, target, &mut sse);
-    }
-    if target.is_some() {
-        out[..rows.len()].copy_from_slice(&sse[..rows.len()]);
-    }
-}
-
-/// As [`pi_group_body`] with `N` operators fixed at compile time (states in registers).
-/// Kept as a separate copy on purpose: passing the kernel as a closure that captures the
-/// lane states cost 4x in throughput (the states left the registers).
-#[inline(always)]
-fn pi_group_fixed<const L: usize, const N: usize>(rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
-    let mut r = [[0.0; L]; N];
-    let mut w = [[0.0; L]; N];
-    let mut z = [[0.0; L]; N];
-    let p0 = gather(N, rows, &mut r, &mut w);
-    let mut y = [[0.0; L]; BLOCK];
-    let mut sse = [0.0; L];
-    for (b, vb) in v.chunks(BLOCK).enumerate() {
-        pi_lanes_fixed(&p0, &r, &w, &mut z, vb, &mut y);
-        drain_block(&y[..vb.len()], b * BLOCK, rows.len(), v.len(), out, target, &mut sse);
-    }
-    if target.is_some() {
-        out[..rows.len()].copy_from_slice(&sse[..rows.len()]);
-    }
-}
-
-/// Dispatch on the operator count: the common sizes (1..=12, seed 2 uses 9) get an
-/// unrolled kernel, larger ones the general loop.
-#[inline(always)]
-fn pi_group_any<const L: usize>(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
-    macro_rules! fixed {
-        ($($n:literal)*) => {
-            match n {
-                $($n => pi_group_fixed::<L, $n>(rows, v, out, target),)*
-                _ => pi_group_body::<L>(n, rows, v, out, target),
-            }
-        };
-    }
-    fixed!(1 2 3 4 5 6 7 8 9 10 11 12)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn pi_group_avx512<const L: usize>(
-    n: usize,
-    rows: &[&[f64]],
-    v: &[f64],
-    out: &mut [f64],
-    target: Option<&[f64]>,
-) {
-    pi_group_any::<L>(n, rows, v, out, target)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn pi_group_avx2<const L: usize>(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
-    pi_group_any::<L>(n, rows, v, out, target)
-}
-
-/// Same arithmetic on every path (no FMA contraction): the instruction set only changes
-/// the speed, never the bits.
-fn pi_group<const L: usize>(n: usize, rows: &[&[f64]], v: &[f64], out: &mut [f64], target: Option<&[f64]>) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::is_x86_feature_detected!("avx512f") {
-            return unsafe { pi_group_avx512::<L>(n, rows, v, out, target) };
-        }
-        if std::is_x86_feature_detected!("avx2") {
-            return unsafe { pi_group_avx2::<L>(n, rows, v, out, target) };
-        }
-    }
-    pi_group_any::<L>(n, rows, v, out, target)
-}
-
 /// Parameter sets per lane group: with the operator count unrolled, 8 lanes (one AVX-512
 /// register per operator) keep every play state in registers; wider groups spill.
 const GROUP: usize = 8;
@@ -529,7 +395,12 @@ fn batch_core(
                 .map(|g| {
                     let rows: Vec<&[f64]> = g.iter().map(|&j| &params[j * p..(j + 1) * p]).collect();
                     let mut buf = vec![0.0; g.len() * per];
-                    pi_group::<GROUP>(n, &rows, v, &mut buf, target);
+                    let mut scratch = if n > piezohyst_core::batch::MAX_FIXED_OPERATORS {
+                        vec![[0.0; GROUP]; 3 * n]
+                    } else {
+                        Vec::new()
+                    };
+                    pi_group::<GROUP>(n, &rows, v, &mut buf, target, &mut scratch);
                     (g.to_vec(), buf)
                 })
                 .collect();
