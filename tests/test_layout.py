@@ -78,7 +78,7 @@ def test_controller_names_and_codes_are_the_table():
 )
 def test_identify_columns_are_the_table_linear_slots(model):
     layout = _core.family_layout(model.family, list(model.dims))
-    lb, ub, build = identify._layout(model)
+    lb, _, build = identify._layout(model)
     sizes = {name: size for name, _, size in layout["groups"]}
     assert lb.size == sum(sizes[n] for n in layout["linear"])
     assert _core.regressors(model.family, list(model.dims), model.to_row(), np.linspace(0, 1, 4)).shape[1] == lb.size
@@ -99,7 +99,10 @@ def test_typed_model_matches_the_free_functions():
     assert np.array_equal(core.simulate(v), m.simulate(v))
     st = core.initial_state()
     y = core.simulate(v, st)
-    assert np.array_equal(core.inverse(y, core.initial_state()), _core.inverse(m.family, list(m.dims), m.to_row(), y, core.initial_state(), 0.0))
+    assert np.array_equal(
+        core.inverse(y, core.initial_state()),
+        _core.inverse(m.family, list(m.dims), m.to_row(), y, core.initial_state(), 0.0),
+    )
 
 
 def test_core_errors_carry_parameter_index_value():

@@ -39,7 +39,7 @@ def test_stub_classes_are_final_and_frozen():
             assert any(getattr(d, "id", None) == "final" for d in node.decorator_list), node.name
             cls = getattr(_core, node.name)
             try:
-                cls.__new__(cls).x = 1  # noqa: B018 - an attribute may not be set on a frozen class
+                cls.__new__(cls).x = 1  # an attribute may not be set on a frozen class
             except (AttributeError, TypeError):
                 pass
             else:

@@ -213,6 +213,7 @@ def _layout(model):
             return Preisach(
                 model.levels, model.input_range, p["w"], p["offset"][0], p["slope"][0], model.memory, units=model.units
             )
+
     return lb, np.full(lb.size, inf), build
 
 
