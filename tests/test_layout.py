@@ -121,3 +121,13 @@ def test_bad_switching_is_out_of_range_not_not_finite():
     p[-1] = 100.0  # u_max > u_min
     with pytest.raises(ParameterError, match=r"switching .* = 2 must lie within \[0, 1\]"):
         _core.Controller("smc", p)
+
+
+def test_controller_arrays_are_packed_by_table_names():
+    stage = ph.virtual_stage()
+    kind, params, _, _ = ph.PID(kp=2e6, ki=2e9, kd=10.0).core(stage)
+    named = dict(zip(_core.controller_layout(kind)["slots"], params, strict=True))
+    assert (named["kp"], named["ki"], named["kd"], named["ts"]) == (2e6, 2e9, 10.0, stage.sample_time)
+    kind, params, _, _ = ph.SMC(stage.params, switching="super_twisting", k1=10.0, k2=1000.0).core(stage)
+    named = dict(zip(_core.controller_layout(kind)["slots"], params, strict=True))
+    assert (named["switching"], named["ks_or_k1"], named["phi_or_k2"]) == (1.0, 10.0, 1000.0)

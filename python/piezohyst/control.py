@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from . import _core
 from ._validate import as_int, as_scalar
 from .errors import ParameterError, ParameterTypeError
 
@@ -108,8 +109,14 @@ class OpenLoop:
         lo, hi = _domain_limits(self, stage, limits)
         return (
             "open_loop",
-            np.array(
-                [gain, as_scalar(self.offset, "offset"), as_scalar(self.c1, "c1"), as_scalar(self.c2, "c2"), lo, hi]
+            _pack(
+                "open_loop",
+                gain=gain,
+                offset=as_scalar(self.offset, "offset"),
+                c1=as_scalar(self.c1, "c1"),
+                c2=as_scalar(self.c2, "c2"),
+                u_min=lo,
+                u_max=hi,
             ),
             None,
             None,
@@ -151,8 +158,17 @@ class PID:
         lo, hi = _domain_limits(self, stage, limits)
         return (
             "pid",
-            np.array(
-                [self.kp, self.ki, self.kd, self.tau_d, stage.sample_time, ff, as_scalar(self.offset, "offset"), lo, hi]
+            _pack(
+                "pid",
+                kp=self.kp,
+                ki=self.ki,
+                kd=self.kd,
+                tau_d=self.tau_d,
+                ts=stage.sample_time,
+                ff_gain=ff,
+                offset=as_scalar(self.offset, "offset"),
+                u_min=lo,
+                u_max=hi,
             ),
             None,
             None,
@@ -183,9 +199,22 @@ def cemf_model_parameters(params) -> dict:
     }
 
 
-def _cemf_row(params) -> list:
+def _pack(kind: str, **values) -> np.ndarray:
+    """The flat parameter array of a controller kind from its values by slot name, in the
+    order of the core's layout table (``_core.controller_layout``)."""
+    slots = _core.controller_layout(kind)["slots"]
+    assert set(values) == set(slots), (kind, sorted(set(values) ^ set(slots)))
+    return np.array([values[name] for name in slots], dtype=float)
+
+
+def _cemf_slots(params) -> dict:
     c = cemf_model_parameters(params)
-    return [c["M"], c["B"], c["K"], c["tem"], c["capacitance"], c["alpha"], c["beta"], c["gamma"]]
+    names = {"M": "M", "B": "B", "K": "K", "tem": "tem", "capacitance": "capacitance"}
+    return {**{slot: c[key] for slot, key in names.items()}, **{f"hyst_{k}": c[k] for k in ("alpha", "beta", "gamma")}}
+
+
+def _observer_slots(observer, stage) -> dict:
+    return dict(zip(("observer_bandwidth", "ts", "observer_delay"), observer.core(stage), strict=True))
 
 
 @dataclass(frozen=True)
@@ -224,7 +253,7 @@ class SMC:
     uses_reference_derivatives = True
 
     def core(self, stage, *, limits=None):
-        row = _cemf_row(self.model)
+        cemf = _cemf_slots(self.model)
         kp, kv, alpha = (as_scalar(getattr(self, n), n) for n in ("kp", "kv", "alpha"))
         if alpha < 0:
             raise ParameterError(f"alpha = {alpha} must be >= 0")
@@ -243,20 +272,20 @@ class SMC:
         if self.model_terms not in ("measured", "desired"):
             raise ParameterError(f"model_terms = {self.model_terms!r} must be 'measured' or 'desired'")
         lo, hi = _domain_limits(self, stage, limits)
-        p = [
-            *row[:3],
-            kp,
-            kv,
-            alpha,
-            *sw,
-            *self.observer.core(stage),
-            1.0 if self.cemf else 0.0,
-            *row[3:],
-            1.0 if self.model_terms == "desired" else 0.0,
-            lo,
-            hi,
-        ]
-        return "smc", np.array(p), None, None
+        p = _pack(
+            "smc",
+            **cemf,
+            kp=kp,
+            kv=kv,
+            alpha=alpha,
+            **dict(zip(("switching", "ks_or_k1", "phi_or_k2"), sw, strict=True)),
+            **_observer_slots(self.observer, stage),
+            cemf=1.0 if self.cemf else 0.0,
+            desired_model_terms=1.0 if self.model_terms == "desired" else 0.0,
+            u_min=lo,
+            u_max=hi,
+        )
+        return "smc", p, None, None
 
 
 @dataclass(frozen=True)
@@ -338,25 +367,28 @@ class ABSMC:
         d_max = (hi - lo) * b if self.d_max is None else as_scalar(self.d_max, "d_max", nonnegative=True)
         if self.regressor not in ("desired", "measured"):
             raise ParameterError(f"regressor = {self.regressor!r} must be 'desired' or 'measured'")
-        p = [
-            b,
-            *th,
-            *lo_t,
-            *hi_t,
-            self.c1,
-            self.lam,
-            self.ks,
-            self.phi,
-            *g,
-            self.gamma_d,
-            d0,
-            d_max,
-            1.0 if self.regressor == "desired" else 0.0,
-            *self.observer.core(stage),
-            lo,
-            hi,
-        ]
-        return "absmc", np.array(p, dtype=float), None, None
+        p = _pack(
+            "absmc",
+            b=b,
+            **{
+                f"{name}_{i}": x
+                for name, xs in (("theta0", th), ("theta_min", lo_t), ("theta_max", hi_t))
+                for i, x in enumerate(xs)
+            },
+            c1=self.c1,
+            **{"lambda": self.lam},
+            ks=self.ks,
+            phi=self.phi,
+            **{f"gamma_theta_{i}": x for i, x in enumerate(g)},
+            gamma_d=self.gamma_d,
+            d0=d0,
+            d_max=d_max,
+            desired_regressor=1.0 if self.regressor == "desired" else 0.0,
+            **_observer_slots(self.observer, stage),
+            u_min=lo,
+            u_max=hi,
+        )
+        return "absmc", p, None, None
 
 
 @dataclass(frozen=True)
@@ -373,7 +405,7 @@ class CemfFeedforward:
 
     def core(self, stage, *, limits=None):
         lo, hi = _domain_limits(self, stage, limits)
-        return "cemf_feedforward", np.array([*_cemf_row(self.model), lo, hi]), None, None
+        return "cemf_feedforward", _pack("cemf_feedforward", **_cemf_slots(self.model), u_min=lo, u_max=hi), None, None
 
 
 def _model_output_range(model, v_min, v_max) -> tuple:
