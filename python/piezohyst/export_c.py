@@ -654,10 +654,7 @@ int main(int argc, char **argv) {{
     if (check(phs_controller_reset(&controller, state, n_state, plant_read()), "phs_controller_reset")) return 1;
     for (k = 0; k < STEPS; k++) {{
         double x = triangle(k, X_LO, X_HI, &rate), y = plant_read(), u;
-        PhsReference r = {{0.0, 0.0, 0.0}};
-        r.x = x;
-        r.v = rate / TS;
-        if (check(phs_controller_step(&controller, state, n_state, r, y, &u), "phs_controller_step")) return 1;
+        if (check(phs_controller_step(&controller, state, n_state, x, rate / TS, 0.0, y, &u), "phs_controller_step")) return 1;
         if (plant_write(u)) return 1;
         if (k >= STEPS / 3) sse += (x - y) * (x - y);
         if (trace) printf("%ld %.17g %.17g %.17g\\n", k, x, y, u);

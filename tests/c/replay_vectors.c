@@ -228,11 +228,7 @@ int main(int argc, char **argv) {
             n = count();
             for (k = 0; k < n; k++) {
                 double x = number(), v = number(), a = number(), y = number(), want = number(), u;
-                PhsReference r;
-                r.x = x;
-                r.v = v;
-                r.a = a;
-                ok(phs_controller_step(&c, state, n_state, r, y, &u), "phs_controller_step", name);
+                ok(phs_controller_step(&c, state, n_state, x, v, a, y, &u), "phs_controller_step", name);
                 compare(name, k, u, want);
             }
             free(state);

@@ -255,16 +255,6 @@ typedef struct PhsIlcSpec {
   size_t delay;
 } PhsIlcSpec;
 
-// The reference of one control step, passed by value to `phs_controller_step`.
-typedef struct PhsReference {
-  // Position, m.
-  double x;
-  // Velocity, m/s (0 when unknown).
-  double v;
-  // Acceleration, m/s^2 (0 when unknown).
-  double a;
-} PhsReference;
-
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
@@ -408,9 +398,9 @@ PhsStatus phs_controller_reset(const struct PhsController *controller,
                                size_t n_state,
                                double y0);
 
-// One control step: the reference `(x, v, a)` (m, m/s, m/s^2) and the measured position
-// `y` (m) in; the command (V, inside the limits) out in `*u_out`. Non-finite inputs are
-// rejected before the state is touched.
+// One control step: reference position, velocity, acceleration (m, m/s, m/s^2) and the
+// measured position `y` (m) in; the command (V, inside the limits) out in `*u_out`.
+// Non-finite inputs are rejected before the state is touched.
 //
 // # Safety
 // `controller` points to a `PhsController`; `state` to `n_state` writable values that do
@@ -418,7 +408,9 @@ PhsStatus phs_controller_reset(const struct PhsController *controller,
 PhsStatus phs_controller_step(const struct PhsController *controller,
                               double *state,
                               size_t n_state,
-                              struct PhsReference reference,
+                              double x_ref,
+                              double v_ref,
+                              double a_ref,
                               double y,
                               double *u_out);
 

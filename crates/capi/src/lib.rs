@@ -257,18 +257,6 @@ pub struct PhsIlcSpec {
     pub delay: usize,
 }
 
-/// The reference of one control step, passed by value to `phs_controller_step`.
-#[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct PhsReference {
-    /// Position, m.
-    pub x: f64,
-    /// Velocity, m/s (0 when unknown).
-    pub v: f64,
-    /// Acceleration, m/s^2 (0 when unknown).
-    pub a: f64,
-}
-
 /// An initialized controller: filled by `phs_controller_init`, then read-only (copyable;
 /// one controller can drive many states).
 #[repr(C)]
@@ -1035,19 +1023,22 @@ pub unsafe extern "C" fn phs_controller_reset(
     })
 }
 
-/// One control step: the reference `(x, v, a)` (m, m/s, m/s^2) and the measured position
-/// `y` (m) in; the command (V, inside the limits) out in `*u_out`. Non-finite inputs are
-/// rejected before the state is touched.
+/// One control step: reference position, velocity, acceleration (m, m/s, m/s^2) and the
+/// measured position `y` (m) in; the command (V, inside the limits) out in `*u_out`.
+/// Non-finite inputs are rejected before the state is touched.
 ///
 /// # Safety
 /// `controller` points to a `PhsController`; `state` to `n_state` writable values that do
 /// not overlap any buffer the controller borrows; `u_out` to a writable double.
 #[no_mangle]
+#[allow(clippy::too_many_arguments)]
 pub unsafe extern "C" fn phs_controller_step(
     controller: *const PhsController,
     state: *mut f64,
     n_state: usize,
-    reference: PhsReference,
+    x_ref: f64,
+    v_ref: f64,
+    a_ref: f64,
     y: f64,
     u_out: *mut f64,
 ) -> PhsStatus {
@@ -1057,11 +1048,11 @@ pub unsafe extern "C" fn phs_controller_step(
         // SAFETY: API contract
         let st = unsafe { buffer(state, n_state, len, "state", "n_state")? };
         let u_out = out(u_out, "u_out")?;
-        finite("reference.x", reference.x)?;
-        finite("reference.v", reference.v)?;
-        finite("reference.a", reference.a)?;
+        finite("x_ref", x_ref)?;
+        finite("v_ref", v_ref)?;
+        finite("a_ref", a_ref)?;
         finite("y", y)?;
-        let r = Reference { x: reference.x, v: reference.v, a: reference.a };
+        let r = Reference { x: x_ref, v: v_ref, a: a_ref };
         let u = on_built!(c, c => c.step(st, &r, y).u);
         if !u.is_finite() {
             return Err(Why::Diverged(u));

@@ -300,7 +300,7 @@ proptest! {
             prop_assert_eq!(c.magic, 0);
             let mut u = 0.0;
             let mut st = [0.0; 4];
-            prop_assert_eq!(unsafe { phs_controller_step(&c, st.as_mut_ptr(), 4, PhsReference { x: 0.0, v: 0.0, a: 0.0 }, 0.0, &mut u) }, PHS_ERR_NOT_INITIALIZED);
+            prop_assert_eq!(unsafe { phs_controller_step(&c, st.as_mut_ptr(), 4, 0.0, 0.0, 0.0, 0.0, &mut u) }, PHS_ERR_NOT_INITIALIZED);
             return Ok(());
         }
         // output limits: the inverse's voltage limits, else the kind's last two parameters
@@ -317,7 +317,7 @@ proptest! {
         }
         for (x, v, a, y) in steps {
             let mut u = f64::NAN;
-            let code = unsafe { phs_controller_step(&c, state.as_mut_ptr(), n, PhsReference { x, v, a }, y, &mut u) };
+            let code = unsafe { phs_controller_step(&c, state.as_mut_ptr(), n, x, v, a, y, &mut u) };
             prop_assert!(documented(code), "step: {code:?}");
             match code {
                 PHS_OK => prop_assert!(u.is_finite() && u >= u_lo && u <= u_hi, "u = {} outside [{}, {}]", u, u_lo, u_hi),
@@ -345,7 +345,7 @@ proptest! {
         c.state_len = words[3] as usize % 64;
         c.built.copy_from_slice(&words[40..40 + PHS_CONTROLLER_WORDS]);
         prop_assume!(c.magic != PHS_CONTROLLER_MAGIC);
-        prop_assert_eq!(unsafe { phs_controller_step(&c, st.as_mut_ptr(), c.state_len, PhsReference { x: v, v: 0.0, a: 0.0 }, v, &mut y) }, PHS_ERR_NOT_INITIALIZED);
+        prop_assert_eq!(unsafe { phs_controller_step(&c, st.as_mut_ptr(), c.state_len, v, 0.0, 0.0, v, &mut y) }, PHS_ERR_NOT_INITIALIZED);
         prop_assert_eq!(unsafe { phs_controller_reset(&c, st.as_mut_ptr(), c.state_len, 0.0) }, PHS_ERR_NOT_INITIALIZED);
         // and the controller built on an uninitialized inverse model refuses too
         let inverse = PhsInverse { model: &m, u_min: 0.0, u_max: 1.0 };
@@ -385,7 +385,7 @@ fn null_pointers_everywhere() {
         assert_eq!(phs_controller_init(&mut c, 1, p.as_ptr(), 6, &inv, ptr::null()), PHS_ERR_NULL_POINTER);
         assert_eq!(phs_controller_param_count(3, ptr::null_mut()), PHS_ERR_NULL_POINTER);
         assert_eq!(
-            phs_controller_step(ptr::null(), st.as_mut_ptr(), 0, PhsReference { x: 0.0, v: 0.0, a: 0.0 }, 0.0, &mut y),
+            phs_controller_step(ptr::null(), st.as_mut_ptr(), 0, 0.0, 0.0, 0.0, 0.0, &mut y),
             PHS_ERR_NULL_POINTER
         );
         let msg = std::ffi::CStr::from_ptr(phs_last_error_message()).to_str().unwrap();

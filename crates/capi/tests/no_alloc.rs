@@ -184,7 +184,7 @@ fn controllers_never_allocate() {
             for &(x, v, a, y) in &inputs {
                 let mut u = 0.0;
                 assert_eq!(
-                    unsafe { phs_controller_step(&c, state.as_mut_ptr(), n, PhsReference { x, v, a }, y, &mut u) },
+                    unsafe { phs_controller_step(&c, state.as_mut_ptr(), n, x, v, a, y, &mut u) },
                     PHS_OK,
                     "{}",
                     case.name
@@ -198,29 +198,11 @@ fn controllers_never_allocate() {
         let errors = allocations(|| {
             let mut u = 0.0;
             assert_eq!(
-                unsafe {
-                    phs_controller_step(
-                        &c,
-                        state.as_mut_ptr(),
-                        n,
-                        PhsReference { x: 0.0, v: 0.0, a: 0.0 },
-                        f64::NAN,
-                        &mut u,
-                    )
-                },
+                unsafe { phs_controller_step(&c, state.as_mut_ptr(), n, 0.0, 0.0, 0.0, f64::NAN, &mut u) },
                 PHS_ERR_NOT_FINITE
             );
             assert_eq!(
-                unsafe {
-                    phs_controller_step(
-                        &c,
-                        state.as_mut_ptr(),
-                        n + 1,
-                        PhsReference { x: 0.0, v: 0.0, a: 0.0 },
-                        0.0,
-                        &mut u,
-                    )
-                },
+                unsafe { phs_controller_step(&c, state.as_mut_ptr(), n + 1, 0.0, 0.0, 0.0, 0.0, &mut u) },
                 PHS_ERR_BAD_LENGTH
             );
             let mut c2 = empty_controller();
