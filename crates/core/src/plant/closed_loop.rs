@@ -6,8 +6,8 @@
 //! the amplifier and stage advance one period under it. Recorded at `k`: reference, command,
 //! amplifier output at the end of the period, `x_k`, the reading, and the controller terms.
 use crate::control::{Controller, Reference, MAX_TERMS};
-use crate::sensor::{Sensor, SensorState};
-use crate::stage::{Stage, StageState, MAX_CREEP};
+use crate::plant::sensor::{Sensor, SensorState};
+use crate::plant::stage::{Stage, StageState, MAX_CREEP};
 
 /// Where a run writes its signals; every slice has the run's length (`terms`: the
 /// controller's `term_names().len()` values per sample, row-major).
@@ -236,8 +236,11 @@ pub fn run_tracking<C: Controller + ?Sized>(
         if k >= skip {
             let e = reference[k] - x;
             t.sse += e * e;
-            t.max_error =
-                if crate::math::abs(e) > t.max_error || e.is_nan() { crate::math::abs(e) } else { t.max_error };
+            t.max_error = if crate::num::math::abs(e) > t.max_error || e.is_nan() {
+                crate::num::math::abs(e)
+            } else {
+                t.max_error
+            };
             t.samples += 1;
         }
         let y = sensor.read(sensor_state, x);
@@ -264,7 +267,7 @@ mod tests {
     extern crate std;
     use super::*;
     use crate::control::{Limits, Pid};
-    use crate::stage::{HysteresisDrive, StageParams};
+    use crate::plant::stage::{HysteresisDrive, StageParams};
     use std::vec;
     use std::vec::Vec;
 

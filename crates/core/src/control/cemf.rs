@@ -8,10 +8,10 @@
 //! dVh = alpha dq - beta |dq| Vh - gamma dq |Vh|
 //! ```
 use crate::control::{positive, terms, Controller, Limits, Output, Reference};
-use crate::differential::bouc_wen_1_exact;
 use crate::error::{check_scalar, ModelError};
-use crate::inverse::solve_increasing;
-use crate::math::{abs, clamp};
+use crate::hysteresis::differential::bouc_wen_1_exact;
+use crate::hysteresis::inverse::solve_increasing;
+use crate::num::math::{abs, clamp};
 
 /// Parameters of the identified CEMF model (volt-normalized, as identified).
 #[derive(Debug, Clone, Copy, PartialEq)]

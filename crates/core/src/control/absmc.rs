@@ -20,12 +20,12 @@
 //!
 //! Alone it drives the stage in volts
 //! (`b = 1/M`, `theta = [K/M, B/M]`); behind an inverse hysteresis model
-//! ([`crate::compensated::Compensated`]) it acts in the linearized (displacement) domain
+//! ([`crate::control::compensated::Compensated`]) it acts in the linearized (displacement) domain
 //! (`b = a0 = omega_n^2` of the linearized stage). Adaptation is explicit Euler with the
 //! observer's sample time and stops while the output is saturated (anti-windup).
 use crate::control::{nonnegative, positive, terms, Controller, Limits, Output, Reference, VelocityObserver};
 use crate::error::{check_scalar, ModelError};
-use crate::math::{abs, clamp};
+use crate::num::math::{abs, clamp};
 
 /// Seed 2's controller. Build with [`Absmc::new`].
 #[derive(Debug, Clone, Copy, PartialEq)]

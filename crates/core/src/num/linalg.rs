@@ -1,5 +1,5 @@
 //! Small dense matrices for discretizing linear dynamics (no allocation, no_std).
-use crate::math::abs;
+use crate::num::math::abs;
 
 /// An `N x N` matrix, row-major.
 pub type Mat<const N: usize> = [[f64; N]; N];

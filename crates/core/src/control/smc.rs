@@ -21,10 +21,10 @@
 //! `kv + alpha > 0` and `alpha kv + kp > 0` (checked). Position and velocity come from the
 //! [`VelocityObserver`]; `xi` is discretized exactly for a held `e` and, like `nu`, holds
 //! while the output is saturated in the direction it would push.
-use crate::cemf::CemfModel;
+use crate::control::cemf::CemfModel;
 use crate::control::{nonnegative, positive, terms, Controller, Limits, Output, Reference, VelocityObserver};
 use crate::error::{check_scalar, ModelError};
-use crate::math::{abs, clamp, exp, sign, sqrt};
+use crate::num::math::{abs, clamp, exp, sign, sqrt};
 
 /// The switching part of the control.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -1,4 +1,4 @@
-//! Controllers: the interface every controller implements, the velocity observer the
+//! Control: the interface every controller implements, the velocity observer the
 //! model-based laws share, and the baselines (open loop with dynamic feedforward, PID).
 //!
 //! Like the hysteresis models, a controller is an immutable **configuration** and a flat
@@ -7,8 +7,19 @@
 //! state over as a plain buffer. The output voltage is always inside the limits, and every
 //! integrator or adaptation law stops while the output is saturated in the direction that
 //! would deepen the saturation (anti-windup).
+//!
+//! The model-based laws and wrappers live in the submodules: [`smc`] (seed 1), [`absmc`]
+//! (seed 2), [`cemf`] (the identified CEMF model as observer and inverse feedforward, used by
+//! [`smc`]), [`compensated`] (any controller behind an exact inverse hysteresis model) and
+//! [`ilc`] (iterative learning on top of any controller).
+pub mod absmc;
+pub mod cemf;
+pub mod compensated;
+pub mod ilc;
+pub mod smc;
+
 use crate::error::{check_scalar, ModelError};
-use crate::math::{clamp, exp};
+use crate::num::math::{clamp, exp};
 
 /// Internal terms a controller may record per step (unused slots are 0).
 pub const MAX_TERMS: usize = 8;
@@ -189,7 +200,7 @@ impl VelocityObserver {
 ///
 /// With `c1 = c2 = 0` it is a static inverse; with `c1 = B/K`, `c2 = M/K` it inverts a
 /// second-order stage `M x'' + B x' + K x = u / gain`. Behind a hysteresis inverse
-/// ([`crate::compensated::Compensated`]) with `gain = 1` it is the inverse feedforward.
+/// ([`crate::control::compensated::Compensated`]) with `gain = 1` it is the inverse feedforward.
 /// Terms: `[u_unsaturated]`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OpenLoop {

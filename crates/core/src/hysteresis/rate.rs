@@ -11,8 +11,8 @@
 //!
 //! State layout: `[z_1 .. z_n, v_prev, rate, started]`.
 use crate::error::{check_finite, check_scalar, check_thresholds, ModelError};
-use crate::math::{abs, clamp, exp, sign};
-use crate::{Hysteresis, Invertible};
+use crate::hysteresis::{Hysteresis, Invertible};
+use crate::num::math::{abs, clamp, exp, sign};
 
 /// Rate-dependent PI configuration.
 #[derive(Debug, Clone, Copy)]

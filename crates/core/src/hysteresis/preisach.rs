@@ -21,7 +21,7 @@
 //! When a new extremum would exceed `memory`, the adjacent pair of extrema closest in value
 //! is merged away (the smallest nested minor loop is forgotten; its mass is the error).
 use crate::error::{check_finite, check_scalar, ModelError};
-use crate::{Hysteresis, Invertible};
+use crate::hysteresis::{Hysteresis, Invertible};
 
 /// Largest memory depth (number of stored extrema).
 pub const MAX_MEMORY: usize = 256;
@@ -274,7 +274,7 @@ impl<'a> Preisach<'a> {
         let mut best = 0;
         let mut best_gap = f64::INFINITY;
         for j in 0..len - 1 {
-            let gap = crate::math::abs(ext[j] - ext[j + 1]);
+            let gap = crate::num::math::abs(ext[j] - ext[j + 1]);
             if gap < best_gap {
                 best_gap = gap;
                 best = j;
