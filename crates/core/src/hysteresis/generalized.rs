@@ -94,7 +94,7 @@ impl<'a> GeneralizedPi<'a> {
             ));
         }
         match self.thresholds.first() {
-            Some(&r0) if r0 == 0.0 => Ok(self.weights[0]),
+            Some(&0.0) => Ok(self.weights[0]),
             _ => Err(ModelError::NoAnalyticInverse("the first threshold must be 0 (its weight is the linear term)")),
         }
     }

@@ -11,6 +11,7 @@ use crate::plant::stage::{Stage, StageState, MAX_CREEP};
 
 /// Where a run writes its signals; every slice has the run's length (`terms`: the
 /// controller's `term_names().len()` values per sample, row-major).
+#[derive(Debug)]
 pub struct Record<'a> {
     /// Voltage command, V.
     pub command: &'a mut [f64],
@@ -231,10 +232,10 @@ pub fn run_tracking<C: Controller + ?Sized>(
 ) -> Tracking {
     let limits = controller.limits();
     let mut t = Tracking::default();
-    for k in 0..reference.len() {
+    for (k, &xr) in reference.iter().enumerate() {
         let x = stage_state.x;
         if k >= skip {
-            let e = reference[k] - x;
+            let e = xr - x;
             t.sse += e * e;
             t.max_error = if crate::num::math::abs(e) > t.max_error || e.is_nan() {
                 crate::num::math::abs(e)
@@ -245,7 +246,7 @@ pub fn run_tracking<C: Controller + ?Sized>(
         }
         let y = sensor.read(sensor_state, x);
         let r = Reference {
-            x: reference[k],
+            x: xr,
             v: velocity.get(k).copied().unwrap_or(0.0),
             a: acceleration.get(k).copied().unwrap_or(0.0),
         };
@@ -264,12 +265,9 @@ pub fn run_tracking<C: Controller + ?Sized>(
 
 #[cfg(test)]
 mod tests {
-    extern crate std;
     use super::*;
     use crate::control::{Limits, Pid};
     use crate::plant::stage::{HysteresisDrive, StageParams};
-    use std::vec;
-    use std::vec::Vec;
 
     fn params(creep_terms: usize, drive: HysteresisDrive) -> StageParams {
         let mut taus = [1.0; MAX_CREEP];

@@ -168,12 +168,12 @@ impl<const N: usize> Discrete<N> {
     #[inline(always)]
     fn apply(&self, z: &[f64; N], u: f64, d0: f64, d1: f64) -> [f64; N] {
         let mut out = [0.0; N];
-        for i in 0..N {
+        for (i, out_i) in out.iter_mut().enumerate() {
             let mut acc = self.gu[i] * u + self.g0[i] * d0 + self.g1[i] * d1;
-            for j in 0..N {
-                acc += self.phi[i][j] * z[j];
+            for (&phi_ij, &z_j) in self.phi[i].iter().zip(z) {
+                acc += phi_ij * z_j;
             }
-            out[i] = acc;
+            *out_i = acc;
         }
         out
     }
@@ -885,8 +885,8 @@ impl StageParams {
             return Err(ModelError::Length("stage parameters", PARAM_LEN, p.len()));
         }
         let drive = match p[8] {
-            x if x == 0.0 => HysteresisDrive::Charge,
-            x if x == 1.0 => HysteresisDrive::Voltage,
+            0.0 => HysteresisDrive::Charge,
+            1.0 => HysteresisDrive::Voltage,
             x => return Err(ModelError::NotFinite("hyst_drive (0 charge, 1 voltage)", usize::MAX, x)),
         };
         let terms = p[14];
@@ -926,7 +926,6 @@ impl StageParams {
 
 #[cfg(test)]
 mod tests {
-    extern crate std;
     use super::*;
 
     #[test]
