@@ -1,7 +1,7 @@
 //! Time the closed loop on the virtual stage's values (a quick check during development;
 //! the benchmark of record is bench/closed_loop.py):
 //! `cargo run --release -p piezohyst-core --example closed_loop_speed`.
-use piezohyst_core::closed_loop::{run, Record};
+use piezohyst_core::closed_loop::{run, Loop, Record, Trajectory};
 use piezohyst_core::control::{Limits, Pid};
 use piezohyst_core::sensor::Sensor;
 use piezohyst_core::stage::{Stage, StageParams, StageState};
@@ -28,18 +28,18 @@ fn main() {
             let mut cst = [0.0; 3];
             piezohyst_core::control::Controller::reset(&pid, &mut cst, 0.0);
             let t0 = Instant::now();
-            run(
-                &stage,
-                &mut st,
-                &sensor,
-                &mut sst,
-                &pid,
-                &mut cst,
-                &r,
-                &z,
-                &z,
-                Record { command: &mut c, voltage: &mut va, position: &mut x, measured: &mut y, terms: &mut terms },
-            );
+            let parts = Loop {
+                stage: &stage,
+                stage_state: &mut st,
+                sensor: &sensor,
+                sensor_state: &mut sst,
+                controller: &pid,
+                controller_state: &mut cst,
+            };
+            let trajectory = Trajectory { position: &r, velocity: &z, acceleration: &z };
+            let rec =
+                Record { command: &mut c, voltage: &mut va, position: &mut x, measured: &mut y, terms: &mut terms };
+            run(parts, trajectory, rec);
             best = best.min(t0.elapsed().as_secs_f64());
         }
         let rmse = (r.iter().zip(&x).map(|(a, b)| (a - b) * (a - b)).sum::<f64>() / n as f64).sqrt();

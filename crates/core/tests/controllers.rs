@@ -9,7 +9,7 @@
 //! Newton solve).
 use piezohyst_core::absmc::Absmc;
 use piezohyst_core::cemf::{CemfFeedforward, CemfModel};
-use piezohyst_core::closed_loop::run_tracking;
+use piezohyst_core::closed_loop::{run_tracking, Loop, Trajectory};
 use piezohyst_core::compensated::Compensated;
 use piezohyst_core::control::{Controller, Limits, OpenLoop, Pid, Reference, VelocityObserver};
 use piezohyst_core::ilc::Ilc;
@@ -713,12 +713,29 @@ fn cemf_feedforward_inverts_the_stage() {
     let mut sst = sensor.state(0.0, 1);
     let mut cs = [0.0; 2];
     ff.reset(&mut cs, 0.0);
-    let tr = run_tracking(&stage, &mut st, &sensor, &mut sst, &ff, &mut cs, &r, &v, &a, 0);
+    let trajectory = Trajectory { position: &r, velocity: &v, acceleration: &a };
+    let parts = Loop {
+        stage: &stage,
+        stage_state: &mut st,
+        sensor: &sensor,
+        sensor_state: &mut sst,
+        controller: &ff,
+        controller_state: &mut cs,
+    };
+    let tr = run_tracking(parts, trajectory, 0);
     // a static inverse without the hysteresis voltage, for contrast
     let static_inverse = OpenLoop::new(model.k, 0.0, 0.0, 0.0, volts()).unwrap();
     let mut st2 = StageState::ZERO;
     let mut sst2 = sensor.state(0.0, 1);
-    let tr_static = run_tracking(&stage, &mut st2, &sensor, &mut sst2, &static_inverse, &mut [], &r, &v, &a, 0);
+    let parts = Loop {
+        stage: &stage,
+        stage_state: &mut st2,
+        sensor: &sensor,
+        sensor_state: &mut sst2,
+        controller: &static_inverse,
+        controller_state: &mut [],
+    };
+    let tr_static = run_tracking(parts, trajectory, 0);
     let rms = |t: &piezohyst_core::closed_loop::Tracking| (t.sse / t.samples as f64).sqrt() / amp;
     eprintln!(
         "cemf feedforward: max |r - x| = {:.3e} m = {:.3} % of the amplitude (rms {:.3} %), saturated {}; static inverse: {:.2} %",

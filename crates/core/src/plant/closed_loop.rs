@@ -9,6 +9,36 @@ use crate::control::{Controller, Reference, MAX_TERMS};
 use crate::plant::sensor::{Sensor, SensorState};
 use crate::plant::stage::{Stage, StageState, MAX_CREEP};
 
+/// The parts of a closed loop, each configuration with its state (the caller resets them):
+/// the stage with its amplifier, the sensor and the controller.
+#[derive(Debug)]
+pub struct Loop<'a, C: ?Sized> {
+    /// Stage and amplifier.
+    pub stage: &'a Stage,
+    /// Their state, advanced by the run.
+    pub stage_state: &'a mut StageState,
+    /// Position sensor.
+    pub sensor: &'a Sensor,
+    /// Its state (noise stream, delay line), advanced by the run.
+    pub sensor_state: &'a mut SensorState,
+    /// Controller.
+    pub controller: &'a C,
+    /// Its state ([`Controller::state_len`] slots), advanced by the run.
+    pub controller_state: &'a mut [f64],
+}
+
+/// The desired motion, one value per sample (m, m/s, m/s^2). An empty `velocity` or
+/// `acceleration` means zeros (for controllers that do not use them).
+#[derive(Debug, Clone, Copy)]
+pub struct Trajectory<'a> {
+    /// Desired position.
+    pub position: &'a [f64],
+    /// Desired velocity, or empty.
+    pub velocity: &'a [f64],
+    /// Desired acceleration, or empty.
+    pub acceleration: &'a [f64],
+}
+
 /// Where a run writes its signals; every slice has the run's length (`terms`: the
 /// controller's `term_names().len()` values per sample, row-major).
 #[derive(Debug)]
@@ -74,60 +104,29 @@ impl Recorder for RecordTerms<'_, '_> {
     }
 }
 
-/// Run a whole reference. `reference`, `velocity`, `acceleration` are the desired signals
-/// per sample; an empty `velocity` or `acceleration` means zeros (for controllers that do
-/// not use them). Stops at the shortest of the other slices.
-#[allow(clippy::too_many_arguments)]
-pub fn run<C: Controller + ?Sized>(
-    stage: &Stage,
-    stage_state: &mut StageState,
-    sensor: &Sensor,
-    sensor_state: &mut SensorState,
-    controller: &C,
-    controller_state: &mut [f64],
-    reference: &[f64],
-    velocity: &[f64],
-    acceleration: &[f64],
-    mut rec: Record<'_>,
-) {
-    let width = controller.term_names().len().min(MAX_TERMS);
+/// Run a whole trajectory, writing every sample to `rec`. Stops at the shortest of the
+/// trajectory's position (and non-empty derivatives) and the record's slices.
+pub fn run<C: Controller + ?Sized>(parts: Loop<'_, C>, trajectory: Trajectory<'_>, mut rec: Record<'_>) {
+    let width = parts.controller.term_names().len().min(MAX_TERMS);
     let len = [rec.command.len(), rec.voltage.len(), rec.position.len(), rec.measured.len()]
         .into_iter()
         .min()
         .unwrap_or(0)
         .min(rec.terms.len() / width.max(1));
     let mut sink = RecordTerms { rec: &mut rec, width, len };
-    run_recorder(
-        stage,
-        stage_state,
-        sensor,
-        sensor_state,
-        controller,
-        controller_state,
-        reference,
-        velocity,
-        acceleration,
-        &mut sink,
-    );
+    run_recorder(parts, trajectory, &mut sink);
 }
 
 /// [`run`] handing each sample to `recorder`; returns the number of samples run (the
 /// shortest of the signals and the recorder's capacity). Exactly the same arithmetic as
 /// [`run`], whatever the recorder keeps.
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub fn run_recorder<C: Controller + ?Sized, R: Recorder>(
-    stage: &Stage,
-    stage_state: &mut StageState,
-    sensor: &Sensor,
-    sensor_state: &mut SensorState,
-    controller: &C,
-    controller_state: &mut [f64],
-    reference: &[f64],
-    velocity: &[f64],
-    acceleration: &[f64],
+    parts: Loop<'_, C>,
+    trajectory: Trajectory<'_>,
     recorder: &mut R,
 ) -> usize {
+    let Trajectory { position: reference, velocity, acceleration } = trajectory;
     let len_or_any = |s: &[f64]| if s.is_empty() { usize::MAX } else { s.len() };
     let n = reference.len().min(len_or_any(velocity)).min(len_or_any(acceleration)).min(recorder.capacity());
     // every signal cut to the run's length (empty derivatives stay empty: zeros)
@@ -138,22 +137,23 @@ pub fn run_recorder<C: Controller + ?Sized, R: Recorder>(
             &s[..n]
         }
     }
-    let (r, v, a) = (&reference[..n], cut(velocity, n), cut(acceleration, n));
-    let args = (stage, stage_state, sensor, sensor_state, controller, controller_state);
+    let cut_trajectory =
+        Trajectory { position: &reference[..n], velocity: cut(velocity, n), acceleration: cut(acceleration, n) };
+    let (stage, sensor) = (parts.stage, parts.sensor);
     // one copy of the loop per creep-lag count, so the stage's creep loops unroll, and for
     // the typical stage and sensor one whose configuration checks fold away
     macro_rules! dispatch {
         ($t:literal) => {
             match stage.params.creep_terms {
-                0 => run_n::<C, R, 0, $t>(args, r, v, a, recorder),
-                1 => run_n::<C, R, 1, $t>(args, r, v, a, recorder),
-                2 => run_n::<C, R, 2, $t>(args, r, v, a, recorder),
-                3 => run_n::<C, R, 3, $t>(args, r, v, a, recorder),
-                4 => run_n::<C, R, 4, $t>(args, r, v, a, recorder),
-                5 => run_n::<C, R, 5, $t>(args, r, v, a, recorder),
-                6 => run_n::<C, R, 6, $t>(args, r, v, a, recorder),
-                7 => run_n::<C, R, 7, $t>(args, r, v, a, recorder),
-                _ => run_n::<C, R, MAX_CREEP, $t>(args, r, v, a, recorder),
+                0 => run_n::<C, R, 0, $t>(parts, cut_trajectory, recorder),
+                1 => run_n::<C, R, 1, $t>(parts, cut_trajectory, recorder),
+                2 => run_n::<C, R, 2, $t>(parts, cut_trajectory, recorder),
+                3 => run_n::<C, R, 3, $t>(parts, cut_trajectory, recorder),
+                4 => run_n::<C, R, 4, $t>(parts, cut_trajectory, recorder),
+                5 => run_n::<C, R, 5, $t>(parts, cut_trajectory, recorder),
+                6 => run_n::<C, R, 6, $t>(parts, cut_trajectory, recorder),
+                7 => run_n::<C, R, 7, $t>(parts, cut_trajectory, recorder),
+                _ => run_n::<C, R, MAX_CREEP, $t>(parts, cut_trajectory, recorder),
             }
         };
     }
@@ -165,14 +165,10 @@ pub fn run_recorder<C: Controller + ?Sized, R: Recorder>(
     n
 }
 
-type LoopArgs<'s, C> = (&'s Stage, &'s mut StageState, &'s Sensor, &'s mut SensorState, &'s C, &'s mut [f64]);
-
 #[inline(always)]
 fn run_n<C: Controller + ?Sized, R: Recorder, const NC: usize, const T: bool>(
-    (stage, stage_state, sensor, sensor_state, controller, controller_state): LoopArgs<'_, C>,
-    reference: &[f64],
-    velocity: &[f64],
-    acceleration: &[f64],
+    Loop { stage, stage_state, sensor, sensor_state, controller, controller_state }: Loop<'_, C>,
+    Trajectory { position: reference, velocity, acceleration }: Trajectory<'_>,
     recorder: &mut R,
 ) {
     // the creep voltage is carried from period to period (the same sum each period starts
@@ -215,21 +211,11 @@ pub struct Tracking {
     pub saturated: usize,
 }
 
-/// Run a whole reference like [`run`], recording nothing; errors count from sample `skip`
+/// Run a whole trajectory like [`run`], recording nothing; errors count from sample `skip`
 /// on (to leave out the start-up transient). A diverging plant gives infinite figures.
-#[allow(clippy::too_many_arguments)]
-pub fn run_tracking<C: Controller + ?Sized>(
-    stage: &Stage,
-    stage_state: &mut StageState,
-    sensor: &Sensor,
-    sensor_state: &mut SensorState,
-    controller: &C,
-    controller_state: &mut [f64],
-    reference: &[f64],
-    velocity: &[f64],
-    acceleration: &[f64],
-    skip: usize,
-) -> Tracking {
+pub fn run_tracking<C: Controller + ?Sized>(parts: Loop<'_, C>, trajectory: Trajectory<'_>, skip: usize) -> Tracking {
+    let Loop { stage, stage_state, sensor, sensor_state, controller, controller_state } = parts;
+    let Trajectory { position: reference, velocity, acceleration } = trajectory;
     let limits = controller.limits();
     let mut t = Tracking::default();
     for (k, &xr) in reference.iter().enumerate() {
@@ -334,7 +320,15 @@ mod tests {
                 pid.reset(&mut cst, st.x);
                 let rec =
                     Record { command: &mut c, voltage: &mut va, position: &mut x, measured: &mut y, terms: &mut terms };
-                run(&stage, &mut st, &sensor, &mut sst, &pid, &mut cst, &r, &[], &[], rec);
+                let parts = Loop {
+                    stage: &stage,
+                    stage_state: &mut st,
+                    sensor: &sensor,
+                    sensor_state: &mut sst,
+                    controller: &pid,
+                    controller_state: &mut cst,
+                };
+                run(parts, Trajectory { position: &r, velocity: &[], acceleration: &[] }, rec);
 
                 let mut hand = init;
                 let mut hsst = sensor.state(hand.x, 9);
@@ -379,7 +373,16 @@ mod tests {
         let mut sst = sensor.state(0.0, 1);
         let mut cst = [0.0; 3];
         let mut count = Count(7, 0);
-        let done = run_recorder(&stage, &mut st, &sensor, &mut sst, &pid, &mut cst, &[1e-6; 20], &[], &[], &mut count);
+        let parts = Loop {
+            stage: &stage,
+            stage_state: &mut st,
+            sensor: &sensor,
+            sensor_state: &mut sst,
+            controller: &pid,
+            controller_state: &mut cst,
+        };
+        let trajectory = Trajectory { position: &[1e-6; 20], velocity: &[], acceleration: &[] };
+        let done = run_recorder(parts, trajectory, &mut count);
         assert_eq!((done, count.1), (7, 7));
     }
 }
