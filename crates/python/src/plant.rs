@@ -9,7 +9,7 @@ use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1, PyUntypedArrayMethods,
 };
 use piezohyst_core::closed_loop::{run_recorder, run_tracking, Loop, Recorder, Sample, Trajectory};
-use piezohyst_core::control::{Controller, Limits, Pid, MAX_TERMS};
+use piezohyst_core::control::{Controller, Limits, Pid, PidConfig, MAX_TERMS};
 use piezohyst_core::sensor::Sensor;
 use piezohyst_core::stage::{Stage, StageParams, StageState};
 use pyo3::prelude::*;
@@ -262,7 +262,8 @@ fn plain_pid(spec: &ControllerSpec) -> Option<Pid> {
     }
     let p = &spec.params;
     let limits = Limits::new(p[7], p[8]).ok()?;
-    Pid::new(p[0], p[1], p[2], p[3], p[4], p[5], p[6], limits).ok()
+    Pid::new(PidConfig { kp: p[0], ki: p[1], kd: p[2], tau_d: p[3], ts: p[4], ff_gain: p[5], offset: p[6], limits })
+        .ok()
 }
 
 fn run_scenario(stage: &Stage, sensor: &Sensor, sc: &Scenario<'_>, init: StageState) -> Signals {

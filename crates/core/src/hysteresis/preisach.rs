@@ -70,7 +70,8 @@ pub fn row_prefix(levels: usize, weights: &[f64], prefix: &mut [f64]) {
 }
 
 impl<'a> Preisach<'a> {
-    /// Validate and build; `prefix` must have been filled by [`row_prefix`].
+    /// [`Preisach::validated`] of the configuration with these fields, in declaration order.
+    // positional form kept for spec.rs, which another change rewrites (issue 18)
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         lo: f64,
@@ -82,6 +83,13 @@ impl<'a> Preisach<'a> {
         slope: f64,
         memory: usize,
     ) -> Result<Self, ModelError> {
+        Preisach { lo, hi, levels, weights, prefix, offset, slope, memory }.validated()
+    }
+
+    /// Validate a configuration built as a struct literal; returns it unchanged. `prefix`
+    /// must have been filled by [`row_prefix`].
+    pub fn validated(self) -> Result<Self, ModelError> {
+        let Preisach { lo, hi, levels, weights, prefix, offset, slope, memory } = self;
         check_scalar("lo", lo)?;
         check_scalar("hi", hi)?;
         if !(hi > lo) {
@@ -111,7 +119,7 @@ impl<'a> Preisach<'a> {
         if slope < 0.0 {
             return Err(ModelError::Negative("slope", usize::MAX, slope));
         }
-        Ok(Preisach { lo, hi, levels, weights, prefix, offset, slope, memory })
+        Ok(self)
     }
 
     #[inline]

@@ -252,7 +252,7 @@ pub fn run_tracking<C: Controller + ?Sized>(parts: Loop<'_, C>, trajectory: Traj
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::control::{Limits, Pid};
+    use crate::control::{Limits, Pid, PidConfig};
     use crate::plant::stage::{HysteresisDrive, StageParams};
 
     fn params(creep_terms: usize, drive: HysteresisDrive) -> StageParams {
@@ -299,7 +299,17 @@ mod tests {
                 8e-6 + 6e-6 * libm::sin(2.0 * core::f64::consts::PI * 20.0 * t) + if k % 700 < 350 { 2e-6 } else { 0.0 }
             })
             .collect();
-        let pid = Pid::new(1e6, 5e9, 0.0, 1e-4, ts, 7.333e7 / 10.5, 0.0, Limits::new(-20.0, 150.0).unwrap()).unwrap();
+        let pid = Pid::new(PidConfig {
+            kp: 1e6,
+            ki: 5e9,
+            kd: 0.0,
+            tau_d: 1e-4,
+            ts,
+            ff_gain: 7.333e7 / 10.5,
+            offset: 0.0,
+            limits: Limits::new(-20.0, 150.0).unwrap(),
+        })
+        .unwrap();
         for creep_terms in 0..=MAX_CREEP {
             for (drive, substeps, tolerance, sensor) in [
                 (HysteresisDrive::Charge, 1, 0.05, (1e-8, 3e-9, 1)),
@@ -368,7 +378,17 @@ mod tests {
         }
         let stage = Stage::new(params(5, HysteresisDrive::Charge), 1e-4, 1, 0.05).unwrap();
         let sensor = Sensor::new(0.0, 0.0, 0).unwrap();
-        let pid = Pid::new(1e6, 5e9, 0.0, 1e-4, 1e-4, 0.0, 0.0, Limits::new(-20.0, 150.0).unwrap()).unwrap();
+        let pid = Pid::new(PidConfig {
+            kp: 1e6,
+            ki: 5e9,
+            kd: 0.0,
+            tau_d: 1e-4,
+            ts: 1e-4,
+            ff_gain: 0.0,
+            offset: 0.0,
+            limits: Limits::new(-20.0, 150.0).unwrap(),
+        })
+        .unwrap();
         let mut st = StageState::ZERO;
         let mut sst = sensor.state(0.0, 1);
         let mut cst = [0.0; 3];
