@@ -15,6 +15,11 @@
 //! **state** (a flat `&mut [f64]` owned by the caller). One configuration can drive many
 //! states; a step never allocates, and the crate is `no_std` without its `std` feature.
 //!
+//! A configuration with many parameters is written as a struct literal with named fields.
+//! One that derives coefficients is built from its `…Config` by `new` (e.g. [`control::PidConfig`],
+//! [`control::smc::SmcConfig`]); one that derives nothing is its own configuration and
+//! `validated()` checks it (e.g. [`control::absmc::Absmc`], [`plant::boucwen_benchmark::BoucWenBenchmark`]).
+//!
 //! Units: the models are unit-agnostic; inputs `v` (usually volts) and outputs `y`
 //! (usually metres or µm) only need to be consistent with the parameters.
 // unit tests run on the host with std (Vec, format!); the library itself is no_std without `std`
