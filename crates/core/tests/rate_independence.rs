@@ -123,7 +123,7 @@ proptest! {
         let w = &w[..cell_count(levels)];
         let mut pre = vec![0.0; w.len()];
         row_prefix(levels, w, &mut pre);
-        let m = Preisach::new(-1.0, 1.0, levels, w, &pre, 0.1, slope, MAX_MEMORY).unwrap();
+        let m = Preisach { lo: -1.0, hi: 1.0, levels, weights: w, prefix: &pre, offset: 0.1, slope, memory: MAX_MEMORY }.validated().unwrap();
         // the relaxed Preisach state is negative saturation: its input is `lo`
         check_rate_independence(&m, preisach_view, -1.0, &v, Retiming { repeats: &reps, inserts: &ins }, None, "preisach")?;
     }
