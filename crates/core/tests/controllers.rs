@@ -193,13 +193,12 @@ fn msg(e: ModelError) -> String {
 #[test]
 fn construction_errors_name_the_parameter() {
     let c = cemf_of(&ideal_stage_params());
-    let mck = (c.m, c.b, c.k);
     let bl = Switching::BoundaryLayer { gain: 5.0, width: 1e-3 };
     let smc = |kp: f64, kv: f64, alpha: f64, sw: Switching| {
         Smc::new(SmcConfig {
-            m: mck.0,
-            b: mck.1,
-            k: mck.2,
+            m: c.m,
+            b: c.b,
+            k: c.k,
             kp,
             kv,
             alpha,
