@@ -1,5 +1,5 @@
 """Controllers on the virtual stage (docs/spec.md §5): parameter checks, saturation, the recorded terms
-against the control laws of ``crates/core/src/{smc,absmc,ilc}.rs``, the velocity observer,
+against the control laws of ``crates/core/src/control/{smc,absmc,ilc}.rs``, the velocity observer,
 the CEMF feedforward and observer (seed 1), inverse feedforward and compensated feedback,
 ABSMC (seed 2) with projection, ILC, and determinism of single and batch runs.
 

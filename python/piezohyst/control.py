@@ -1,5 +1,5 @@
 """Controllers and compensators. The step functions live in the Rust core
-(``crates/core/src/control.rs``, ``smc.rs``, ``absmc.rs``, ``cemf.rs``, ``compensated.rs``,
+(``crates/core/src/control/``: ``mod.rs``, ``smc.rs``, ``absmc.rs``, ``cemf.rs``, ``compensated.rs``,
 ``ilc.rs``); these classes validate and carry the parameters.
 
 Every controller takes the reference and the measured position (m) and returns a voltage
@@ -60,7 +60,7 @@ def _domain_limits(controller, stage, limits):
 class VelocityObserver:
     """Position and velocity from the quantized, delayed reading: a steady-state alpha-beta
     filter with a double pole at ``exp(-2 pi bandwidth Ts)``, projected ``delay`` samples
-    ahead (by default the sensor's delay). See ``crates/core/src/control.rs``."""
+    ahead (by default the sensor's delay). See ``crates/core/src/control/mod.rs``."""
 
     bandwidth: float = 1000.0
     delay: float | None = None
@@ -274,7 +274,7 @@ class ABSMC:
     ``regressor="desired"`` (default) evaluates ``phi`` on the reference, ``"measured"`` on the
     observer's estimate as seed 2 writes it; the measured form cancels the stage stiffness with
     a delayed, quantized position and loses stability on a stiff stage (see
-    ``crates/core/src/absmc.rs``).
+    ``crates/core/src/control/absmc.rs``).
     """
 
     b: float

@@ -1,6 +1,6 @@
 """Closed-loop simulation: controller at its sample time, amplifier and stage with
 sub-steps, sensor with noise, quantization and delay. The loop runs in the Rust core
-(``crates/core/src/closed_loop.rs``); a batch of scenarios runs in parallel.
+(``crates/core/src/plant/closed_loop.rs``); a batch of scenarios runs in parallel.
 """
 
 from __future__ import annotations

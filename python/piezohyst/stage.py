@@ -1,7 +1,7 @@
 """Piezo-driven stages: parameters, the default virtual stage, open-loop simulation and the
 measurements ``piezohyst stage info`` prints (docs/spec.md §2.6, §3.1, §3.2).
 
-The physics (integrated in the Rust core, ``crates/core/src/stage.rs``)::
+The physics (integrated in the Rust core, ``crates/core/src/plant/stage.rs``)::
 
     m x'' + b x' + k x = Tem (Va - Vh + Vcr + e2 Va^2)
     q   = Cz (Va - Vh) + Tem x

@@ -44,10 +44,10 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use piezohyst_core::absmc::Absmc;
 use piezohyst_core::cemf::{CemfFeedforward, CemfModel};
 use piezohyst_core::compensated::Compensated;
-use piezohyst_core::control::{Controller, Limits, OpenLoop, Output, Pid, Reference, VelocityObserver};
+use piezohyst_core::control::{Controller, Limits, OpenLoop, Output, Pid, PidConfig, Reference, VelocityObserver};
 use piezohyst_core::ilc::Ilc;
 use piezohyst_core::inverse::inverse_step;
-use piezohyst_core::smc::{Smc, Switching};
+use piezohyst_core::smc::{Smc, SmcConfig, Switching};
 use piezohyst_core::spec::{Base, Family, Model};
 use piezohyst_core::{Hysteresis, ModelError};
 
@@ -906,7 +906,7 @@ fn param_count(kind: u32) -> Result<usize, Why> {
 }
 
 fn cemf(p: &[f64]) -> Result<CemfModel, ModelError> {
-    CemfModel::new(p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7])
+    CemfModel::from_slice(p)
 }
 
 /// The base controller from its flat parameters (the layouts of
@@ -924,7 +924,16 @@ fn law(kind: u32, p: &[f64]) -> Result<Law, Why> {
     let observer = |i: usize| VelocityObserver::new(p[i], p[i + 1], p[i + 2]);
     Ok(match kind {
         1 => Law::OpenLoop(OpenLoop::new(p[0], p[1], p[2], p[3], limits)?),
-        2 => Law::Pid(Pid::new(p[0], p[1], p[2], p[3], p[4], p[5], p[6], limits)?),
+        2 => Law::Pid(Pid::new(PidConfig {
+            kp: p[0],
+            ki: p[1],
+            kd: p[2],
+            tau_d: p[3],
+            ts: p[4],
+            ff_gain: p[5],
+            offset: p[6],
+            limits,
+        })?),
         3 => {
             let switching = if p[6] == 0.0 {
                 Switching::BoundaryLayer { gain: p[7], width: p[8] }
@@ -941,22 +950,41 @@ fn law(kind: u32, p: &[f64]) -> Result<Law, Why> {
             };
             let model =
                 if p[12] != 0.0 { Some(cemf(&[p[0], p[1], p[2], p[13], p[14], p[15], p[16], p[17]])?) } else { None };
-            let mut smc = Smc::new((p[0], p[1], p[2]), p[3], p[4], p[5], switching, model, observer(9)?, limits)?;
-            smc.desired_model_terms = p[18] != 0.0;
+            let smc = Smc::new(SmcConfig {
+                m: p[0],
+                b: p[1],
+                k: p[2],
+                kp: p[3],
+                kv: p[4],
+                alpha: p[5],
+                switching,
+                cemf: model,
+                desired_model_terms: p[18] != 0.0,
+                observer: observer(9)?,
+                limits,
+            })?;
             Law::Smc(smc)
         }
-        4 => Law::Absmc(Absmc::new(
-            p[0],
-            [p[1], p[2]],
-            [p[3], p[4]],
-            [p[5], p[6]],
-            (p[7], p[8], p[9], p[10]),
-            [p[11], p[12]],
-            (p[13], p[14], p[15]),
-            p[16] != 0.0,
-            observer(17)?,
-            limits,
-        )?),
+        4 => Law::Absmc(
+            Absmc {
+                b: p[0],
+                theta0: [p[1], p[2]],
+                theta_min: [p[3], p[4]],
+                theta_max: [p[5], p[6]],
+                c1: p[7],
+                lambda: p[8],
+                ks: p[9],
+                phi: p[10],
+                gamma_theta: [p[11], p[12]],
+                gamma_d: p[13],
+                d0: p[14],
+                d_max: p[15],
+                desired_regressor: p[16] != 0.0,
+                observer: observer(17)?,
+                limits,
+            }
+            .validated()?,
+        ),
         _ => Law::CemfFeedforward(CemfFeedforward { model: cemf(&p[..8])?, limits }),
     })
 }

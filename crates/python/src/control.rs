@@ -5,9 +5,9 @@
 use piezohyst_core::absmc::Absmc;
 use piezohyst_core::cemf::{CemfFeedforward, CemfModel};
 use piezohyst_core::compensated::Compensated;
-use piezohyst_core::control::{Controller, Limits, OpenLoop, Pid, VelocityObserver};
+use piezohyst_core::control::{Controller, Limits, OpenLoop, Pid, PidConfig, VelocityObserver};
 use piezohyst_core::ilc::Ilc;
-use piezohyst_core::smc::{Smc, Switching};
+use piezohyst_core::smc::{Smc, SmcConfig, Switching};
 use piezohyst_core::spec::Family;
 use piezohyst_core::ModelError;
 
@@ -51,7 +51,7 @@ fn observer(bandwidth: f64, ts: f64, delay: f64) -> Result<VelocityObserver, Mod
 }
 
 fn cemf(p: &[f64]) -> Result<CemfModel, ModelError> {
-    CemfModel::new(p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7])
+    CemfModel::from_slice(p)
 }
 
 fn base(kind: &str, p: &[f64]) -> Result<Base, String> {
@@ -70,7 +70,16 @@ fn base(kind: &str, p: &[f64]) -> Result<Base, String> {
         let limits = Limits::new(p[n - 2], p[n - 1])?;
         Ok(match kind {
             "open_loop" => Base::OpenLoop(OpenLoop::new(p[0], p[1], p[2], p[3], limits)?),
-            "pid" => Base::Pid(Pid::new(p[0], p[1], p[2], p[3], p[4], p[5], p[6], limits)?),
+            "pid" => Base::Pid(Pid::new(PidConfig {
+                kp: p[0],
+                ki: p[1],
+                kd: p[2],
+                tau_d: p[3],
+                ts: p[4],
+                ff_gain: p[5],
+                offset: p[6],
+                limits,
+            })?),
             "smc" => {
                 let switching = match p[6] {
                     x if x == 0.0 => Switching::BoundaryLayer { gain: p[7], width: p[8] },
@@ -88,31 +97,41 @@ fn base(kind: &str, p: &[f64]) -> Result<Base, String> {
                 } else {
                     None
                 };
-                let mut smc = Smc::new(
-                    (p[0], p[1], p[2]),
-                    p[3],
-                    p[4],
-                    p[5],
+                let smc = Smc::new(SmcConfig {
+                    m: p[0],
+                    b: p[1],
+                    k: p[2],
+                    kp: p[3],
+                    kv: p[4],
+                    alpha: p[5],
                     switching,
-                    model,
-                    observer(p[9], p[10], p[11])?,
+                    cemf: model,
+                    desired_model_terms: p[18] != 0.0,
+                    observer: observer(p[9], p[10], p[11])?,
                     limits,
-                )?;
-                smc.desired_model_terms = p[18] != 0.0;
+                })?;
                 Base::Smc(smc)
             }
-            "absmc" => Base::Absmc(Absmc::new(
-                p[0],
-                [p[1], p[2]],
-                [p[3], p[4]],
-                [p[5], p[6]],
-                (p[7], p[8], p[9], p[10]),
-                [p[11], p[12]],
-                (p[13], p[14], p[15]),
-                p[16] != 0.0,
-                observer(p[17], p[18], p[19])?,
-                limits,
-            )?),
+            "absmc" => Base::Absmc(
+                Absmc {
+                    b: p[0],
+                    theta0: [p[1], p[2]],
+                    theta_min: [p[3], p[4]],
+                    theta_max: [p[5], p[6]],
+                    c1: p[7],
+                    lambda: p[8],
+                    ks: p[9],
+                    phi: p[10],
+                    gamma_theta: [p[11], p[12]],
+                    gamma_d: p[13],
+                    d0: p[14],
+                    d_max: p[15],
+                    desired_regressor: p[16] != 0.0,
+                    observer: observer(p[17], p[18], p[19])?,
+                    limits,
+                }
+                .validated()?,
+            ),
             "cemf_feedforward" => Base::CemfFeedforward(CemfFeedforward { model: cemf(&p[..8])?, limits }),
             _ => unreachable!("kind checked above"),
         })

@@ -8,8 +8,8 @@ use numpy::ndarray::Array2;
 use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1, PyUntypedArrayMethods,
 };
-use piezohyst_core::closed_loop::{run_recorder, run_tracking, Recorder, Sample};
-use piezohyst_core::control::{Controller, Limits, Pid, MAX_TERMS};
+use piezohyst_core::closed_loop::{run_recorder, run_tracking, Loop, Recorder, Sample, Trajectory};
+use piezohyst_core::control::{Controller, Limits, Pid, PidConfig, MAX_TERMS};
 use piezohyst_core::sensor::Sensor;
 use piezohyst_core::stage::{Stage, StageParams, StageState};
 use pyo3::prelude::*;
@@ -180,15 +180,8 @@ fn record_run<C: Controller + ?Sized>(
         width,
     };
     let done = run_recorder(
-        stage,
-        &mut st,
-        sensor,
-        &mut sst,
-        c,
-        &mut cst,
-        sc.reference,
-        sc.velocity,
-        sc.acceleration,
+        Loop { stage, stage_state: &mut st, sensor, sensor_state: &mut sst, controller: c, controller_state: &mut cst },
+        Trajectory { position: sc.reference, velocity: sc.velocity, acceleration: sc.acceleration },
         &mut out,
     );
     // SAFETY: run_recorder handed samples 0..done to `out` in order, which wrote element k
@@ -269,7 +262,8 @@ fn plain_pid(spec: &ControllerSpec) -> Option<Pid> {
     }
     let p = &spec.params;
     let limits = Limits::new(p[7], p[8]).ok()?;
-    Pid::new(p[0], p[1], p[2], p[3], p[4], p[5], p[6], limits).ok()
+    Pid::new(PidConfig { kp: p[0], ki: p[1], kd: p[2], tau_d: p[3], ts: p[4], ff_gain: p[5], offset: p[6], limits })
+        .ok()
 }
 
 fn run_scenario(stage: &Stage, sensor: &Sensor, sc: &Scenario<'_>, init: StageState) -> Signals {
@@ -460,15 +454,15 @@ fn closed_loop_batch_tracking<'py>(
                     let mut cst = vec![0.0; c.state_len()];
                     c.reset(&mut cst, ss.x);
                     let t = run_tracking(
-                        &st,
-                        &mut ss,
-                        &se,
-                        &mut sst,
-                        c,
-                        &mut cst,
-                        sc.reference,
-                        sc.velocity,
-                        sc.acceleration,
+                        Loop {
+                            stage: &st,
+                            stage_state: &mut ss,
+                            sensor: &se,
+                            sensor_state: &mut sst,
+                            controller: c,
+                            controller_state: &mut cst,
+                        },
+                        Trajectory { position: sc.reference, velocity: sc.velocity, acceleration: sc.acceleration },
                         skip,
                     );
                     let n = t.samples.max(1) as f64;

@@ -8,7 +8,7 @@
 //! [`WithCreep`] adds the creep output to any other model (Kuhnen's modified PI: play +
 //! creep + superposition).
 use crate::error::{check_finite, check_scalar, ModelError};
-use crate::{Hysteresis, Invertible};
+use crate::hysteresis::{Hysteresis, Invertible};
 
 /// Lag gains `a_j = 1 - exp(-ts/tau_j)` for the given time constants.
 pub fn lag_gains(ts: f64, taus: &[f64], out: &mut [f64]) -> Result<(), ModelError> {
@@ -24,7 +24,7 @@ pub fn lag_gains(ts: f64, taus: &[f64], out: &mut [f64]) -> Result<(), ModelErro
         if !(tau > 0.0) {
             return Err(ModelError::NotPositive("taus", i, tau));
         }
-        *a = -crate::math::expm1(-ts / tau);
+        *a = -crate::num::math::expm1(-ts / tau);
     }
     Ok(())
 }

@@ -5,8 +5,8 @@
 //! y(k)   = p0*v(k) + sum_i w_i * z_{r_i}(k)
 //! ```
 use crate::error::{check_finite, check_scalar, check_thresholds, ModelError};
-use crate::math::clamp;
-use crate::{Hysteresis, Invertible};
+use crate::hysteresis::{Hysteresis, Invertible};
+use crate::num::math::clamp;
 
 /// One step of the classical play (backlash) operator with threshold `r >= 0`.
 #[inline(always)]

@@ -1,6 +1,6 @@
 //! Envelope functions of the generalized play operator (docs/spec.md §2.2).
 use crate::error::ModelError;
-use crate::math::{abs, atanh, tanh};
+use crate::num::math::{abs, atanh, tanh};
 
 /// An increasing envelope `g(v)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -108,7 +108,7 @@ impl Envelope {
             }
             Envelope::Polynomial(_) => {
                 let f = |v: f64| (self.eval(v), self.slope(v));
-                crate::inverse::solve_increasing(f, y, guess)
+                crate::hysteresis::inverse::solve_increasing(f, y, guess)
             }
         }
     }

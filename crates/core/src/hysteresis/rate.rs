@@ -11,8 +11,8 @@
 //!
 //! State layout: `[z_1 .. z_n, v_prev, rate, started]`.
 use crate::error::{check_finite, check_scalar, check_thresholds, ModelError};
-use crate::math::{abs, clamp, exp, sign};
-use crate::{Hysteresis, Invertible};
+use crate::hysteresis::{Hysteresis, Invertible};
+use crate::num::math::{abs, clamp, exp, sign};
 
 /// Rate-dependent PI configuration.
 #[derive(Debug, Clone, Copy)]
@@ -92,11 +92,12 @@ impl Hysteresis for RateDependentPi<'_> {
         let n = self.thresholds.len();
         let (rate, _) = self.rate(state, v);
         let mut y = self.p0 * v;
-        for i in 0..n {
-            let r = self.thresholds[i] + self.beta * rate;
-            let w = self.weights[i] + self.rate_weights[i] * rate;
-            state[i] = clamp(state[i], v - r, v + r);
-            y += w * state[i];
+        let operators = self.thresholds.iter().zip(self.weights).zip(self.rate_weights);
+        for (z, ((&r0, &w0), &c)) in state[..n].iter_mut().zip(operators) {
+            let r = r0 + self.beta * rate;
+            let w = w0 + c * rate;
+            *z = clamp(*z, v - r, v + r);
+            y += w * *z;
         }
         state[n] = v;
         state[n + 1] = rate;
@@ -111,10 +112,10 @@ impl Invertible for RateDependentPi<'_> {
         let (rate, drate) = self.rate(state, v);
         let mut y = self.p0 * v;
         let mut dy = self.p0;
-        for i in 0..n {
-            let r = self.thresholds[i] + self.beta * rate;
-            let w = self.weights[i] + self.rate_weights[i] * rate;
-            let z0 = state[i];
+        let operators = self.thresholds.iter().zip(self.weights).zip(self.rate_weights);
+        for (&z0, ((&r0, &w0), &c)) in state[..n].iter().zip(operators) {
+            let r = r0 + self.beta * rate;
+            let w = w0 + c * rate;
             let z = clamp(z0, v - r, v + r);
             y += w * z;
             let dz = if v + r < z0 {
@@ -124,7 +125,7 @@ impl Invertible for RateDependentPi<'_> {
             } else {
                 0.0
             };
-            dy += self.rate_weights[i] * drate * z + w * dz;
+            dy += c * drate * z + w * dz;
         }
         (y, dy)
     }

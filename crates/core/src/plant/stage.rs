@@ -23,10 +23,10 @@
 //! between the start and the predicted end), then the CEMF voltage is re-solved from the
 //! corrected motion. The error is O(h^2) in the coupling only; `bench/closed_loop.py`
 //! reports it against `scipy.integrate.solve_ivp` as a function of `substeps`.
-use crate::differential::bouc_wen_1_exact;
 use crate::error::{check_scalar, ModelError};
-use crate::linalg::{expm, Mat};
-use crate::math::{abs, exp, F2};
+use crate::hysteresis::differential::bouc_wen_1_exact;
+use crate::num::linalg::{expm, Mat};
+use crate::num::math::{abs, exp, F2};
 
 /// Most creep lags a stage can have.
 pub const MAX_CREEP: usize = 8;
@@ -168,12 +168,12 @@ impl<const N: usize> Discrete<N> {
     #[inline(always)]
     fn apply(&self, z: &[f64; N], u: f64, d0: f64, d1: f64) -> [f64; N] {
         let mut out = [0.0; N];
-        for i in 0..N {
+        for (i, out_i) in out.iter_mut().enumerate() {
             let mut acc = self.gu[i] * u + self.g0[i] * d0 + self.g1[i] * d1;
-            for j in 0..N {
-                acc += self.phi[i][j] * z[j];
+            for (&phi_ij, &z_j) in self.phi[i].iter().zip(z) {
+                acc += phi_ij * z_j;
             }
-            out[i] = acc;
+            *out_i = acc;
         }
         out
     }
@@ -277,12 +277,12 @@ impl Level {
         for j in 0..p.creep_terms {
             let x = h / p.creep_taus[j];
             creep_e[j] = exp(-x);
-            creep_1me[j] = -crate::math::expm1(-x);
+            creep_1me[j] = -crate::num::math::expm1(-x);
             // b = 1 - (1 - e^-x)/x, by its series where the difference would cancel
             creep_b[j] = if x < 1e-3 {
                 x * (0.5 - x * (1.0 / 6.0 - x * (1.0 / 24.0 - x / 120.0)))
             } else {
-                1.0 + crate::math::expm1(-x) / x
+                1.0 + crate::num::math::expm1(-x) / x
             };
         }
         Level { h, mech, amp_mech, amp_decay, creep_e, creep_1me, creep_b }
@@ -432,7 +432,7 @@ impl Stage {
         for (j, level) in levels.iter_mut().enumerate().skip(1) {
             *level = Level::new(p, amp_ideal, amp_tau, ts / (substeps << j) as f64);
         }
-        let omega_n = crate::math::sqrt(p.stiffness / p.mass);
+        let omega_n = crate::num::math::sqrt(p.stiffness / p.mass);
         let static_gain = p.tem / p.stiffness;
         Ok(Stage {
             params,
@@ -459,7 +459,7 @@ impl Stage {
     /// Clamp a command to the amplifier's range.
     #[inline]
     pub fn saturate(&self, u: f64) -> f64 {
-        crate::math::clamp(u, self.params.amp_min, self.params.amp_max)
+        crate::num::math::clamp(u, self.params.amp_min, self.params.amp_max)
     }
 
     /// Forcing (acceleration) that is not in the exact linear part.
@@ -627,7 +627,7 @@ impl Stage {
         // b dq - e dq^2 = q_ext (b = 1 + Cz g0, e = Cz c g0 / 2) has the root
         // dq = l (1 + k + 2 k^2 + ...), l = q_ext / b, k = e l / b: the start.
         let s = if i == 0 { 1.0 } else { -1.0 };
-        let half_czcg = 0.5 * cz * (p.hyst_beta * s + p.hyst_gamma * crate::math::sign(vh0)) * at.g[i];
+        let half_czcg = 0.5 * cz * (p.hyst_beta * s + p.hyst_gamma * crate::num::math::sign(vh0)) * at.g[i];
         let lin = q_ext * inv_b;
         let k = half_czcg * lin * inv_b;
         let mut dq = if abs(k) < 0.1 { lin * (1.0 + k * (1.0 + 2.0 * k)) } else { lin };
@@ -662,7 +662,7 @@ impl Stage {
         if vh0 != 0.0 {
             // vh0 + (a - c vh0) dq phi1(c dq), c = beta sign(dq) + gamma sign(vh0)
             let j = if dq > 0.0 { 0 } else { 1 };
-            let end = vh0 + at.a_c[j] * dq * crate::differential::phi1(at.c[j] * dq);
+            let end = vh0 + at.a_c[j] * dq * crate::hysteresis::differential::phi1(at.c[j] * dq);
             if end * at.sh > 0.0 {
                 return end;
             }
@@ -683,14 +683,14 @@ impl Stage {
             }
             let step = slew * lv.h;
             let d = u - va0;
-            return (if abs(d) <= step { u } else { va0 + step * crate::math::sign(d) }, false);
+            return (if abs(d) <= step { u } else { va0 + step * crate::num::math::sign(d) }, false);
         }
         let gap = u - va0;
         if (!T && slew.is_infinite()) || abs(gap) <= self.slew_tau {
             return (u - gap * lv.amp_decay, true);
         }
         // slew-limited ramp until |u - Va| = slew * tau, then the exponential
-        let s = crate::math::sign(gap);
+        let s = crate::num::math::sign(gap);
         let t_ramp = (abs(gap) - self.slew_tau) / slew;
         if t_ramp >= lv.h {
             (va0 + s * slew * lv.h, false)
@@ -727,7 +727,7 @@ impl Stage {
 
     /// [`Stage::advance`] with the number of creep lags a constant, `NC ==
     /// params.creep_terms`, and `T` true only for a typical stage ([`Stage::is_typical`]):
-    /// loops over a whole run pick both once (see [`crate::closed_loop`]).
+    /// loops over a whole run pick both once (see [`crate::plant::closed_loop`]).
     #[inline(always)]
     pub(crate) fn advance_n<const NC: usize, const T: bool>(&self, st: &mut StageState, u: f64) -> f64 {
         let vcr = self.creep_voltage::<NC>(st);
@@ -885,8 +885,8 @@ impl StageParams {
             return Err(ModelError::Length("stage parameters", PARAM_LEN, p.len()));
         }
         let drive = match p[8] {
-            x if x == 0.0 => HysteresisDrive::Charge,
-            x if x == 1.0 => HysteresisDrive::Voltage,
+            0.0 => HysteresisDrive::Charge,
+            1.0 => HysteresisDrive::Voltage,
             x => return Err(ModelError::NotFinite("hyst_drive (0 charge, 1 voltage)", usize::MAX, x)),
         };
         let terms = p[14];
@@ -926,7 +926,6 @@ impl StageParams {
 
 #[cfg(test)]
 mod tests {
-    extern crate std;
     use super::*;
 
     #[test]

@@ -1,6 +1,6 @@
 //! Position sensor: white noise, quantization and a delay of whole samples (docs/spec.md §3.2).
 use crate::error::{check_scalar, ModelError};
-use crate::rng::Rng;
+use crate::num::rng::Rng;
 
 /// Longest delay, samples.
 pub const MAX_DELAY: usize = 16;
@@ -78,7 +78,7 @@ impl Sensor {
         const SHIFT: f64 = 6755399441055744.0; // 1.5 * 2^52
         if T || self.quantization > 0.0 {
             let t = x * self.inv_quantization;
-            let r = if crate::math::abs(t) < 2251799813685248.0 { (t + SHIFT) - SHIFT } else { t };
+            let r = if crate::num::math::abs(t) < 2251799813685248.0 { (t + SHIFT) - SHIFT } else { t };
             r * self.quantization
         } else {
             x

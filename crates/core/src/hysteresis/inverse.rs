@@ -6,8 +6,8 @@
 //! leaves the bracket. The forward states are then advanced with the found `v`, so the
 //! inverse never drifts from the model it inverts.
 use crate::error::ModelError;
-use crate::math::abs;
-use crate::Invertible;
+use crate::hysteresis::Invertible;
+use crate::num::math::abs;
 
 /// Largest number of bracket expansions (each doubles the step): reaching 2^200 means the
 /// target is out of range, not that we were unlucky.

@@ -20,14 +20,15 @@
 //!
 //! Alone it drives the stage in volts
 //! (`b = 1/M`, `theta = [K/M, B/M]`); behind an inverse hysteresis model
-//! ([`crate::compensated::Compensated`]) it acts in the linearized (displacement) domain
+//! ([`crate::control::compensated::Compensated`]) it acts in the linearized (displacement) domain
 //! (`b = a0 = omega_n^2` of the linearized stage). Adaptation is explicit Euler with the
 //! observer's sample time and stops while the output is saturated (anti-windup).
 use crate::control::{nonnegative, positive, terms, Controller, Limits, Output, Reference, VelocityObserver};
 use crate::error::{check_scalar, ModelError};
-use crate::math::{abs, clamp};
+use crate::num::math::{abs, clamp};
 
-/// Seed 2's controller. Build with [`Absmc::new`].
+/// Seed 2's controller, built as a struct literal and checked by [`Absmc::validated`] (it
+/// derives nothing, so the configuration is the controller).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Absmc {
     /// Input gain `b` (> 0).
@@ -63,20 +64,9 @@ pub struct Absmc {
 }
 
 impl Absmc {
-    /// Validate and build.
-    #[allow(clippy::too_many_arguments)]
-    pub fn new(
-        b: f64,
-        theta0: [f64; 2],
-        theta_min: [f64; 2],
-        theta_max: [f64; 2],
-        (c1, lambda, ks, phi): (f64, f64, f64, f64),
-        gamma_theta: [f64; 2],
-        (gamma_d, d0, d_max): (f64, f64, f64),
-        desired_regressor: bool,
-        observer: VelocityObserver,
-        limits: Limits,
-    ) -> Result<Self, ModelError> {
+    /// Validate; returns the configuration unchanged.
+    pub fn validated(self) -> Result<Self, ModelError> {
+        let Absmc { b, theta0, theta_min, theta_max, c1, lambda, ks, phi, gamma_theta, gamma_d, d0, d_max, .. } = self;
         positive("b", b)?;
         positive("c1", c1)?;
         positive("lambda", lambda)?;
@@ -98,23 +88,7 @@ impl Absmc {
         if d0 > d_max {
             return Err(ModelError::OutOfRange("d0", usize::MAX, d0, 0.0, d_max));
         }
-        Ok(Absmc {
-            b,
-            theta0,
-            theta_min,
-            theta_max,
-            c1,
-            lambda,
-            ks,
-            phi,
-            gamma_theta,
-            gamma_d,
-            d0,
-            d_max,
-            desired_regressor,
-            observer,
-            limits,
-        })
+        Ok(self)
     }
 }
 

@@ -91,18 +91,11 @@ impl BoucWenBenchmark {
         nu: 1.0,
     };
 
-    /// Validate and build. Errors name the parameter and its value.
-    #[allow(clippy::too_many_arguments)]
-    pub fn new(
-        mass: f64,
-        damping: f64,
-        stiffness: f64,
-        alpha: f64,
-        beta: f64,
-        gamma: f64,
-        delta: f64,
-        nu: f64,
-    ) -> Result<Self, ModelError> {
+    /// Validate a configuration built as a struct literal (often
+    /// `BoucWenBenchmark { mass: 3.0, ..BoucWenBenchmark::NOEL_SCHOUKENS }`); returns it
+    /// unchanged. Errors name the parameter and its value.
+    pub fn validated(self) -> Result<Self, ModelError> {
+        let BoucWenBenchmark { mass, damping, stiffness, alpha, beta, gamma, delta, nu } = self;
         let named = [
             ("mass", mass),
             ("damping", damping),
@@ -129,7 +122,7 @@ impl BoucWenBenchmark {
         if !(nu >= 1.0) {
             return Err(ModelError::NotPositive("nu (must be >= 1)", usize::MAX, nu));
         }
-        Ok(BoucWenBenchmark { mass, damping, stiffness, alpha, beta, gamma, delta, nu })
+        Ok(self)
     }
 
     /// Build from `[mass, damping, stiffness, alpha, beta, gamma, delta, nu]`.
@@ -137,7 +130,9 @@ impl BoucWenBenchmark {
         if p.len() != Self::PARAM_LEN {
             return Err(ModelError::Length("params", Self::PARAM_LEN, p.len()));
         }
-        Self::new(p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7])
+        let [mass, damping, stiffness, alpha, beta, gamma, delta, nu] =
+            [p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7]];
+        BoucWenBenchmark { mass, damping, stiffness, alpha, beta, gamma, delta, nu }.validated()
     }
 
     /// The parameters as `[mass, damping, stiffness, alpha, beta, gamma, delta, nu]`.
@@ -607,24 +602,34 @@ pub enum RecordFailure {
     Diverged(usize),
 }
 
+/// The buffers of one record simulation ([`simulate_record`], [`record_rmse`]), allocated once
+/// per input length and decimation factor and reused across parameter sets.
+#[derive(Debug)]
+pub struct RecordBuffers<'b> {
+    /// Displacement at every internal sample, m: same length as the high-rate input.
+    pub fine: &'b mut [f64],
+    /// Scratch of the decimation cascade: at least [`cascade_work_len`] long.
+    pub work: &'b mut [f64],
+    /// The decimated record, m: [`decimated_len`] long.
+    pub out: &'b mut [f64],
+}
+
 /// The benchmark's simulation of a record, as the official generator and
 /// `piezohyst.boucwen_benchmark.BoucWenBenchmark.simulate`: from rest at `t_0` (the initial
 /// acceleration solves the equation of motion under `u_fine[0]`), integrate over the
 /// high-rate input `u_fine` (`u_fine[i]` is the force at `t_0 + i h`, N; its length a
 /// multiple of `factor` for a whole record), write the displacement at every internal
-/// sample to `fine` (`fine[0] = 0`; same length as `u_fine`), then FIR-decimate by
-/// `factor` ([`decimate_cascade`], `fine` is overwritten) into `out`, of length
-/// [`decimated_len`]`(u_fine.len(), factor)`, m. The run stops at the first implicit step
-/// that cannot be solved or the first non-finite displacement, and `out` is then not
-/// written. `work` has length at least [`cascade_work_len`]`(u_fine.len(), factor)`.
+/// sample to `buffers.fine` (`fine[0] = 0`), then FIR-decimate by `factor`
+/// ([`decimate_cascade`], `fine` is overwritten) into `buffers.out`. The run stops at the
+/// first implicit step that cannot be solved or the first non-finite displacement, and
+/// `out` is then not written.
 pub fn simulate_record(
     stepper: &Newmark,
     u_fine: &[f64],
     factor: usize,
-    fine: &mut [f64],
-    work: &mut [f64],
-    out: &mut [f64],
+    buffers: &mut RecordBuffers<'_>,
 ) -> Result<Result<(), RecordFailure>, ModelError> {
+    let RecordBuffers { fine, work, out } = buffers;
     if u_fine.is_empty() {
         return Err(ModelError::Length("u_fine", 1, 0));
     }
@@ -666,26 +671,23 @@ pub fn simulate_record(
 /// RMSE (m) between `out[skip..skip + target.len()]` of [`simulate_record`] and `target`;
 /// `+inf` when the simulation fails or diverges. The sum runs in sample order, so the value
 /// depends only on the arguments. `target` must not be empty and must fit in the output.
-#[allow(clippy::too_many_arguments)]
 pub fn record_rmse(
     stepper: &Newmark,
     u_fine: &[f64],
     factor: usize,
     target: &[f64],
     skip: usize,
-    fine: &mut [f64],
-    work: &mut [f64],
-    out: &mut [f64],
+    buffers: &mut RecordBuffers<'_>,
 ) -> Result<f64, ModelError> {
     let n_out = decimated_len(u_fine.len(), factor.max(1));
     if target.is_empty() || skip + target.len() > n_out {
         return Err(ModelError::Length("target", n_out.saturating_sub(skip), target.len()));
     }
-    if simulate_record(stepper, u_fine, factor, fine, work, out)?.is_err() {
+    if simulate_record(stepper, u_fine, factor, buffers)?.is_err() {
         return Ok(f64::INFINITY);
     }
     let mut sse = 0.0;
-    for (&o, &t) in out[skip..skip + target.len()].iter().zip(target) {
+    for (&o, &t) in buffers.out[skip..skip + target.len()].iter().zip(target) {
         let e = o - t;
         sse += e * e;
     }
@@ -754,18 +756,52 @@ mod tests {
         decimate_cascade(&mut y, 20, &mut work, &mut expect).unwrap();
         let mut fine = [0.0; 4000];
         let mut out = [0.0; 200];
-        simulate_record(&nm, &u, 20, &mut fine, &mut work, &mut out).unwrap().unwrap();
+        simulate_record(&nm, &u, 20, &mut RecordBuffers { fine: &mut fine, work: &mut work, out: &mut out })
+            .unwrap()
+            .unwrap();
         assert_eq!(out, expect);
-        let r = record_rmse(&nm, &u, 20, &expect[50..], 50, &mut fine, &mut work, &mut out).unwrap();
+        let r = record_rmse(
+            &nm,
+            &u,
+            20,
+            &expect[50..],
+            50,
+            &mut RecordBuffers { fine: &mut fine, work: &mut work, out: &mut out },
+        )
+        .unwrap();
         assert_eq!(r, 0.0);
         let mut shifted = [0.0; 150];
         for (t, e) in shifted.iter_mut().zip(&expect[50..]) {
             *t = e + 1e-6;
         }
-        let r = record_rmse(&nm, &u, 20, &shifted, 50, &mut fine, &mut work, &mut out).unwrap();
+        let r = record_rmse(
+            &nm,
+            &u,
+            20,
+            &shifted,
+            50,
+            &mut RecordBuffers { fine: &mut fine, work: &mut work, out: &mut out },
+        )
+        .unwrap();
         assert!((r - 1e-6).abs() < 1e-15, "{r}");
-        assert!(record_rmse(&nm, &u, 20, &shifted, 51, &mut fine, &mut work, &mut out).is_err());
-        assert!(record_rmse(&nm, &u, 20, &[], 0, &mut fine, &mut work, &mut out).is_err());
+        assert!(record_rmse(
+            &nm,
+            &u,
+            20,
+            &shifted,
+            51,
+            &mut RecordBuffers { fine: &mut fine, work: &mut work, out: &mut out }
+        )
+        .is_err());
+        assert!(record_rmse(
+            &nm,
+            &u,
+            20,
+            &[],
+            0,
+            &mut RecordBuffers { fine: &mut fine, work: &mut work, out: &mut out }
+        )
+        .is_err());
     }
 
     /// For `nu = 1` the closed-form root solves the implicit equation of every step to
@@ -809,9 +845,18 @@ mod tests {
         let mut fine = [0.0; 4000];
         let mut work = [0.0; 2000];
         let mut out = [0.0; 200];
-        let res = simulate_record(&nm, &u, 20, &mut fine, &mut work, &mut out).unwrap();
+        let res = simulate_record(&nm, &u, 20, &mut RecordBuffers { fine: &mut fine, work: &mut work, out: &mut out })
+            .unwrap();
         assert!(res.is_err(), "{res:?}");
-        let r = record_rmse(&nm, &u, 20, &[0.0; 200], 0, &mut fine, &mut work, &mut out).unwrap();
+        let r = record_rmse(
+            &nm,
+            &u,
+            20,
+            &[0.0; 200],
+            0,
+            &mut RecordBuffers { fine: &mut fine, work: &mut work, out: &mut out },
+        )
+        .unwrap();
         assert_eq!(r, f64::INFINITY);
     }
 }

@@ -21,7 +21,7 @@
 //! When a new extremum would exceed `memory`, the adjacent pair of extrema closest in value
 //! is merged away (the smallest nested minor loop is forgotten; its mass is the error).
 use crate::error::{check_finite, check_scalar, ModelError};
-use crate::{Hysteresis, Invertible};
+use crate::hysteresis::{Hysteresis, Invertible};
 
 /// Largest memory depth (number of stored extrema).
 pub const MAX_MEMORY: usize = 256;
@@ -70,7 +70,8 @@ pub fn row_prefix(levels: usize, weights: &[f64], prefix: &mut [f64]) {
 }
 
 impl<'a> Preisach<'a> {
-    /// Validate and build; `prefix` must have been filled by [`row_prefix`].
+    /// [`Preisach::validated`] of the configuration with these fields, in declaration order.
+    // positional form kept for spec.rs, which another change rewrites (issue 18)
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         lo: f64,
@@ -82,6 +83,13 @@ impl<'a> Preisach<'a> {
         slope: f64,
         memory: usize,
     ) -> Result<Self, ModelError> {
+        Preisach { lo, hi, levels, weights, prefix, offset, slope, memory }.validated()
+    }
+
+    /// Validate a configuration built as a struct literal; returns it unchanged. `prefix`
+    /// must have been filled by [`row_prefix`].
+    pub fn validated(self) -> Result<Self, ModelError> {
+        let Preisach { lo, hi, levels, weights, prefix, offset, slope, memory } = self;
         check_scalar("lo", lo)?;
         check_scalar("hi", hi)?;
         if !(hi > lo) {
@@ -111,7 +119,7 @@ impl<'a> Preisach<'a> {
         if slope < 0.0 {
             return Err(ModelError::Negative("slope", usize::MAX, slope));
         }
-        Ok(Preisach { lo, hi, levels, weights, prefix, offset, slope, memory })
+        Ok(self)
     }
 
     #[inline]
@@ -274,7 +282,7 @@ impl<'a> Preisach<'a> {
         let mut best = 0;
         let mut best_gap = f64::INFINITY;
         for j in 0..len - 1 {
-            let gap = crate::math::abs(ext[j] - ext[j + 1]);
+            let gap = crate::num::math::abs(ext[j] - ext[j + 1]);
             if gap < best_gap {
                 best_gap = gap;
                 best = j;

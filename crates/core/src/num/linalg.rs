@@ -1,5 +1,5 @@
 //! Small dense matrices for discretizing linear dynamics (no allocation, no_std).
-use crate::math::abs;
+use crate::num::math::abs;
 
 /// An `N x N` matrix, row-major.
 pub type Mat<const N: usize> = [[f64; N]; N];
@@ -21,7 +21,7 @@ pub fn matmul<const N: usize>(a: &Mat<N>, b: &Mat<N>) -> Mat<N> {
 fn norm1<const N: usize>(a: &Mat<N>) -> f64 {
     let mut best = 0.0;
     for j in 0..N {
-        let s: f64 = (0..N).map(|i| abs(a[i][j])).sum();
+        let s: f64 = a.iter().map(|row| abs(row[j])).sum();
         if s > best {
             best = s;
         }
@@ -41,23 +41,23 @@ pub fn expm<const N: usize>(a: &Mat<N>) -> Mat<N> {
         s += 1;
     }
     let mut x = [[0.0; N]; N];
-    for i in 0..N {
-        for j in 0..N {
-            x[i][j] = a[i][j] * scale;
+    for (x_row, a_row) in x.iter_mut().zip(a) {
+        for (xij, &aij) in x_row.iter_mut().zip(a_row) {
+            *xij = aij * scale;
         }
     }
     // Horner: I + X(I + X/2(I + X/3(...)))
     let mut e = [[0.0; N]; N];
-    for i in 0..N {
-        e[i][i] = 1.0;
+    for (i, row) in e.iter_mut().enumerate() {
+        row[i] = 1.0;
     }
     for k in (1..=18).rev() {
         let mut t = matmul(&x, &e);
-        for i in 0..N {
-            for j in 0..N {
-                t[i][j] /= k as f64;
+        for (i, row) in t.iter_mut().enumerate() {
+            for tij in row.iter_mut() {
+                *tij /= k as f64;
             }
-            t[i][i] += 1.0;
+            row[i] += 1.0;
         }
         e = t;
     }

@@ -7,10 +7,10 @@
 //! ```
 //! GPI is the case `P = 0` (a zero threshold then carries the linear part); MPI has a
 //! polynomial `P`. With `g_l = g_r = identity` and `P = p0 v` this is the classical PI.
-use crate::envelope::Envelope;
 use crate::error::{check_finite, check_thresholds, ModelError};
-use crate::math::clamp;
-use crate::{Hysteresis, Invertible};
+use crate::hysteresis::envelope::Envelope;
+use crate::hysteresis::{Hysteresis, Invertible};
+use crate::num::math::clamp;
 
 /// One step of the generalized play operator.
 #[inline(always)]
@@ -83,7 +83,7 @@ impl<'a> GeneralizedPi<'a> {
 
     /// With equal envelopes `g`, `P = 0` and a zero first threshold of positive weight, the
     /// model is `PI[g(v)]` and has the analytic inverse `v = g^{-1}(PI^{-1}[y])`. Returns the
-    /// equivalent classical PI's `p0` (the inverse is then built by [`crate::pi::Pi`]).
+    /// equivalent classical PI's `p0` (the inverse is then built by [`crate::hysteresis::pi::Pi`]).
     pub fn as_pi_of_envelope(&self) -> Result<f64, ModelError> {
         if self.rising != self.falling {
             return Err(ModelError::NoAnalyticInverse("rising and falling envelopes differ"));
@@ -94,7 +94,7 @@ impl<'a> GeneralizedPi<'a> {
             ));
         }
         match self.thresholds.first() {
-            Some(&r0) if r0 == 0.0 => Ok(self.weights[0]),
+            Some(&0.0) => Ok(self.weights[0]),
             _ => Err(ModelError::NoAnalyticInverse("the first threshold must be 0 (its weight is the linear term)")),
         }
     }

@@ -17,7 +17,7 @@
 //! learned. Learning holds while the output is saturated in the direction it would push.
 use crate::control::{check_positive_count, nonnegative, terms, Controller, Limits, Output, Reference};
 use crate::error::{check_scalar, ModelError};
-use crate::math::clamp;
+use crate::num::math::clamp;
 
 /// Learning on top of controller `C`.
 #[derive(Debug, Clone, Copy)]

@@ -69,37 +69,45 @@ type F2Repr = core::arch::x86_64::__m128d;
 type F2Repr = [f64; 2];
 
 #[cfg(target_arch = "x86_64")]
-#[allow(unused_unsafe)] // SSE2 intrinsics are safe to call on x86-64 in recent Rust
+// the blocks are needed before Rust 1.87 (rust-version is 1.80); since then SSE2 intrinsics are safe
+#[allow(unused_unsafe)]
 mod f2_impl {
     use super::F2;
     use core::arch::x86_64::*;
     impl F2 {
         #[inline(always)]
         pub(crate) fn new(a: f64, b: f64) -> F2 {
+            // SAFETY: SSE2 is baseline on x86-64; the intrinsic touches registers only
             F2(unsafe { _mm_set_pd(b, a) })
         }
         #[inline(always)]
         pub(crate) fn splat(a: f64) -> F2 {
+            // SAFETY: SSE2 is baseline on x86-64; the intrinsic touches registers only
             F2(unsafe { _mm_set1_pd(a) })
         }
         #[inline(always)]
         pub(crate) fn get(self) -> [f64; 2] {
             let mut out = [0.0; 2];
+            // SAFETY: SSE2 is part of the x86-64 baseline; the unaligned store writes exactly the two
+            // f64 of `out`
             unsafe { _mm_storeu_pd(out.as_mut_ptr(), self.0) };
             out
         }
         #[inline(always)]
         pub(crate) fn abs(self) -> F2 {
+            // SAFETY: SSE2 is baseline on x86-64; the intrinsic touches registers only
             F2(unsafe { _mm_andnot_pd(_mm_set1_pd(-0.0), self.0) })
         }
         /// Lanes where `self <= o` (bit 0: lane 0, bit 1: lane 1; false for NaN).
         #[inline(always)]
         pub(crate) fn le_bits(self, o: F2) -> u32 {
+            // SAFETY: SSE2 is baseline on x86-64; the intrinsic touches registers only
             unsafe { _mm_movemask_pd(_mm_cmple_pd(self.0, o.0)) as u32 }
         }
         /// Lanes where `self > o`.
         #[inline(always)]
         pub(crate) fn gt_bits(self, o: F2) -> u32 {
+            // SAFETY: SSE2 is baseline on x86-64; the intrinsic touches registers only
             unsafe { _mm_movemask_pd(_mm_cmpgt_pd(self.0, o.0)) as u32 }
         }
     }
@@ -107,6 +115,7 @@ mod f2_impl {
         type Output = F2;
         #[inline(always)]
         fn add(self, o: F2) -> F2 {
+            // SAFETY: SSE2 is baseline on x86-64; the intrinsic touches registers only
             F2(unsafe { _mm_add_pd(self.0, o.0) })
         }
     }
@@ -114,6 +123,7 @@ mod f2_impl {
         type Output = F2;
         #[inline(always)]
         fn sub(self, o: F2) -> F2 {
+            // SAFETY: SSE2 is baseline on x86-64; the intrinsic touches registers only
             F2(unsafe { _mm_sub_pd(self.0, o.0) })
         }
     }
@@ -121,6 +131,7 @@ mod f2_impl {
         type Output = F2;
         #[inline(always)]
         fn mul(self, o: F2) -> F2 {
+            // SAFETY: SSE2 is baseline on x86-64; the intrinsic touches registers only
             F2(unsafe { _mm_mul_pd(self.0, o.0) })
         }
     }
@@ -128,6 +139,7 @@ mod f2_impl {
         type Output = F2;
         #[inline(always)]
         fn div(self, o: F2) -> F2 {
+            // SAFETY: SSE2 is baseline on x86-64; the intrinsic touches registers only
             F2(unsafe { _mm_div_pd(self.0, o.0) })
         }
     }

@@ -12,9 +12,9 @@
 //! logarithm, square root or division. Otherwise (i > 0) a second uniform places the point
 //! in the layer's height range and `x` is kept if it lies under `f`; layer 0's overhang is
 //! the tail `|x| > R`, drawn exactly by Marsaglia's method (1964). Rejected attempts start
-//! over with a fresh word. [`crate::sensor`] draws its noise through the same function, so
+//! over with a fresh word. [`crate::plant::sensor`] draws its noise through the same function, so
 //! the sensor's noise is the stream `Rng::normal` gives for the sensor's seed.
-use crate::ziggurat_tables::{ZIG_F, ZIG_R, ZIG_X};
+use crate::num::ziggurat_tables::{ZIG_F, ZIG_R, ZIG_X};
 
 /// Generator state (4 words).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -75,7 +75,7 @@ impl Rng {
         // (2 m + 1) 2^-52 - 1 for the top 52 bits m: uniform in (-1, 1), symmetric, exact
         let u = ((bits >> 11) | 1) as f64 * EPS52 - 1.0;
         let x = u * ZIG_X[i];
-        if crate::math::abs(x) < ZIG_X[i + 1] {
+        if crate::num::math::abs(x) < ZIG_X[i + 1] {
             return x;
         }
         self.normal_rest(i, u, x)
@@ -90,14 +90,14 @@ impl Rng {
             if i == 0 {
                 return self.normal_tail(u < 0.0);
             }
-            if ZIG_F[i] + (ZIG_F[i + 1] - ZIG_F[i]) * self.uniform() < crate::math::exp(-0.5 * x * x) {
+            if ZIG_F[i] + (ZIG_F[i + 1] - ZIG_F[i]) * self.uniform() < crate::num::math::exp(-0.5 * x * x) {
                 return x;
             }
             let bits = self.next_u64();
             i = (bits & 0xff) as usize;
             u = ((bits >> 11) | 1) as f64 * EPS52 - 1.0;
             x = u * ZIG_X[i];
-            if crate::math::abs(x) < ZIG_X[i + 1] {
+            if crate::num::math::abs(x) < ZIG_X[i + 1] {
                 return x;
             }
         }
@@ -149,7 +149,7 @@ mod tests {
     /// decrease from R to 0, ZIG_F is f of ZIG_X, and layer 0 with the tail has area V.
     #[test]
     fn tables_have_equal_layers() {
-        use crate::ziggurat_tables::ZIG_V;
+        use crate::num::ziggurat_tables::ZIG_V;
         let f = |x: f64| libm::exp(-0.5 * x * x);
         assert_eq!(ZIG_X[1], ZIG_R);
         assert_eq!((ZIG_X[256], ZIG_F[256]), (0.0, 1.0));

@@ -21,10 +21,10 @@
 //! `kv + alpha > 0` and `alpha kv + kp > 0` (checked). Position and velocity come from the
 //! [`VelocityObserver`]; `xi` is discretized exactly for a held `e` and, like `nu`, holds
 //! while the output is saturated in the direction it would push.
-use crate::cemf::CemfModel;
+use crate::control::cemf::CemfModel;
 use crate::control::{nonnegative, positive, terms, Controller, Limits, Output, Reference, VelocityObserver};
 use crate::error::{check_scalar, ModelError};
-use crate::math::{abs, clamp, exp, sign, sqrt};
+use crate::num::math::{abs, clamp, exp, sign, sqrt};
 
 /// The switching part of the control.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -45,9 +45,9 @@ pub enum Switching {
     },
 }
 
-/// Seed 1's controller. Build with [`Smc::new`].
+/// Seed 1's controller tuning and model, as a struct literal; [`Smc::new`] validates it.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Smc {
+pub struct SmcConfig {
     /// Nominal `M̂`, V s^2/m.
     pub m: f64,
     /// Nominal `B̂`, V s/m.
@@ -70,6 +70,12 @@ pub struct Smc {
     pub observer: VelocityObserver,
     /// Output limits, V.
     pub limits: Limits,
+}
+
+/// Seed 1's controller: a validated [`SmcConfig`] and the compensator's discretization.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Smc {
+    config: SmcConfig,
     xi_decay: f64,
     xi_gain: f64,
 }
@@ -85,17 +91,8 @@ const X_OBS: usize = 7;
 
 impl Smc {
     /// Validate and build; the sample time is the observer's.
-    #[allow(clippy::too_many_arguments)]
-    pub fn new(
-        (m, b, k): (f64, f64, f64),
-        kp: f64,
-        kv: f64,
-        alpha: f64,
-        switching: Switching,
-        cemf: Option<CemfModel>,
-        observer: VelocityObserver,
-        limits: Limits,
-    ) -> Result<Self, ModelError> {
+    pub fn new(config: SmcConfig) -> Result<Self, ModelError> {
+        let SmcConfig { m, b, k, kp, kv, alpha, switching, observer, .. } = config;
         positive("M", m)?;
         nonnegative("B", b)?;
         nonnegative("K", k)?;
@@ -126,21 +123,12 @@ impl Smc {
         // xi' = -alpha xi + e with e held over a period
         let (xi_decay, xi_gain) =
             if alpha * ts > 1e-12 { (exp(-alpha * ts), (1.0 - exp(-alpha * ts)) / alpha) } else { (1.0, ts) };
-        Ok(Smc {
-            m,
-            b,
-            k,
-            kp,
-            kv,
-            alpha,
-            switching,
-            cemf,
-            desired_model_terms: false,
-            observer,
-            limits,
-            xi_decay,
-            xi_gain,
-        })
+        Ok(Smc { config, xi_decay, xi_gain })
+    }
+
+    /// The configuration it was built from.
+    pub fn config(&self) -> &SmcConfig {
+        &self.config
     }
 }
 
@@ -150,12 +138,13 @@ impl Controller for Smc {
     }
     fn reset(&self, state: &mut [f64], y0: f64) {
         state.fill(0.0);
-        self.observer.reset(&mut state[OBS..OBS + 2], y0);
+        self.config.observer.reset(&mut state[OBS..OBS + 2], y0);
         state[X_OBS] = y0;
     }
     fn step(&self, state: &mut [f64], r: &Reference, y: f64) -> Output {
-        let (x, v) = self.observer.update(&mut state[OBS..OBS + 2], y);
-        if let Some(model) = &self.cemf {
+        let c = &self.config;
+        let (x, v) = c.observer.update(&mut state[OBS..OBS + 2], y);
+        if let Some(model) = &c.cemf {
             // the voltage applied since the last update is the previous command
             state[VH] = model.observe(state[VH], x - state[X_OBS], state[U_LAST] - state[U_OBS]);
             state[U_OBS] = state[U_LAST];
@@ -164,25 +153,22 @@ impl Controller for Smc {
         let e = r.x - x;
         let de = r.v - v;
         let xi = state[XI];
-        let s = de + self.kv * e + self.kp * xi;
-        let (xm, vm) = if self.desired_model_terms { (r.x, r.v) } else { (x, v) };
-        let equivalent = self.m * (r.a + self.kv * de + self.kp * e - self.alpha * self.kp * xi)
-            + self.b * vm
-            + self.k * xm
-            + state[VH];
-        let switching = match self.switching {
+        let s = de + c.kv * e + c.kp * xi;
+        let (xm, vm) = if c.desired_model_terms { (r.x, r.v) } else { (x, v) };
+        let equivalent = c.m * (r.a + c.kv * de + c.kp * e - c.alpha * c.kp * xi) + c.b * vm + c.k * xm + state[VH];
+        let switching = match c.switching {
             Switching::BoundaryLayer { gain, width } => gain * clamp(s / width, -1.0, 1.0),
             Switching::SuperTwisting { k1, .. } => k1 * sqrt(abs(s)) * sign(s) + state[NU],
         };
         let raw = equivalent + switching;
-        let (u, hold_xi) = self.limits.apply(raw, self.kp * e);
+        let (u, hold_xi) = c.limits.apply(raw, c.kp * e);
         if !hold_xi {
             state[XI] = self.xi_decay * xi + self.xi_gain * e;
         }
-        if let Switching::SuperTwisting { k2, .. } = self.switching {
-            let (_, hold_nu) = self.limits.apply(raw, s);
+        if let Switching::SuperTwisting { k2, .. } = c.switching {
+            let (_, hold_nu) = c.limits.apply(raw, s);
             if !hold_nu {
-                state[NU] += self.observer.ts * k2 * sign(s);
+                state[NU] += c.observer.ts * k2 * sign(s);
             }
         }
         state[U_LAST] = u;
@@ -192,6 +178,6 @@ impl Controller for Smc {
         &["equivalent", "switching", "s", "xi", "vh_hat", "x_hat", "v_hat", "u_unsaturated"]
     }
     fn limits(&self) -> Limits {
-        self.limits
+        self.config.limits
     }
 }

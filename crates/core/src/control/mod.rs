@@ -1,4 +1,4 @@
-//! Controllers: the interface every controller implements, the velocity observer the
+//! Control: the interface every controller implements, the velocity observer the
 //! model-based laws share, and the baselines (open loop with dynamic feedforward, PID).
 //!
 //! Like the hysteresis models, a controller is an immutable **configuration** and a flat
@@ -7,8 +7,19 @@
 //! state over as a plain buffer. The output voltage is always inside the limits, and every
 //! integrator or adaptation law stops while the output is saturated in the direction that
 //! would deepen the saturation (anti-windup).
+//!
+//! The model-based laws and wrappers live in the submodules: [`smc`] (seed 1), [`absmc`]
+//! (seed 2), [`cemf`] (the identified CEMF model as observer and inverse feedforward, used by
+//! [`smc`]), [`compensated`] (any controller behind an exact inverse hysteresis model) and
+//! [`ilc`] (iterative learning on top of any controller).
+pub mod absmc;
+pub mod cemf;
+pub mod compensated;
+pub mod ilc;
+pub mod smc;
+
 use crate::error::{check_scalar, ModelError};
-use crate::math::{clamp, exp};
+use crate::num::math::{clamp, exp};
 
 /// Internal terms a controller may record per step (unused slots are 0).
 pub const MAX_TERMS: usize = 8;
@@ -189,7 +200,7 @@ impl VelocityObserver {
 ///
 /// With `c1 = c2 = 0` it is a static inverse; with `c1 = B/K`, `c2 = M/K` it inverts a
 /// second-order stage `M x'' + B x' + K x = u / gain`. Behind a hysteresis inverse
-/// ([`crate::compensated::Compensated`]) with `gain = 1` it is the inverse feedforward.
+/// ([`crate::control::compensated::Compensated`]) with `gain = 1` it is the inverse feedforward.
 /// Terms: `[u_unsaturated]`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OpenLoop {
@@ -237,13 +248,23 @@ impl Controller for OpenLoop {
 /// PID with static feedforward, derivative on the measurement through a first-order
 /// filter (backward Euler, time constant `tau_d`), and conditional-integration anti-windup
 /// (the integrator holds while the output is saturated and the error would deepen it).
-/// Build it with [`Pid::new`] (it derives the filter coefficients).
+/// Build it from a [`PidConfig`] with [`Pid::new`] (it derives the filter coefficients).
 ///
 /// `u = offset + ff_gain x_d + kp e + I + D`, `e = x_d - y`,
 /// `I += ki Ts e`, `D = a D - kd (1 - a) (y - y_prev) / Ts`, `a = tau_d / (tau_d + Ts)`.
 /// State `[I, D, y_prev]`. Terms: `[P, I, D, feedforward, u_unsaturated]`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Pid {
+    config: PidConfig,
+    /// Derivative filter pole `tau_d / (tau_d + Ts)`.
+    filter: f64,
+    /// `kd (1 - filter) / Ts`.
+    derivative_gain: f64,
+}
+
+/// Gains, sample time and limits of a [`Pid`], as a struct literal.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PidConfig {
     /// Proportional gain, V/m.
     pub kp: f64,
     /// Integral gain, V/(m s).
@@ -260,25 +281,12 @@ pub struct Pid {
     pub offset: f64,
     /// Output limits.
     pub limits: Limits,
-    /// Derivative filter pole `tau_d / (tau_d + Ts)` (derived).
-    filter: f64,
-    /// `kd (1 - filter) / Ts` (derived).
-    derivative_gain: f64,
 }
 
 impl Pid {
     /// Validate and build.
-    #[allow(clippy::too_many_arguments)]
-    pub fn new(
-        kp: f64,
-        ki: f64,
-        kd: f64,
-        tau_d: f64,
-        ts: f64,
-        ff_gain: f64,
-        offset: f64,
-        limits: Limits,
-    ) -> Result<Self, ModelError> {
+    pub fn new(config: PidConfig) -> Result<Self, ModelError> {
+        let PidConfig { kp, ki, kd, tau_d, ts, ff_gain, offset, .. } = config;
         for (n, x) in [("kp", kp), ("ki", ki), ("kd", kd)] {
             nonnegative(n, x)?;
         }
@@ -287,7 +295,12 @@ impl Pid {
         positive("tau_d", tau_d)?;
         positive("ts", ts)?;
         let filter = tau_d / (tau_d + ts);
-        Ok(Pid { kp, ki, kd, tau_d, ts, ff_gain, offset, limits, filter, derivative_gain: kd * (1.0 - filter) / ts })
+        Ok(Pid { config, filter, derivative_gain: kd * (1.0 - filter) / ts })
+    }
+
+    /// The configuration it was built from.
+    pub fn config(&self) -> &PidConfig {
+        &self.config
     }
 }
 
@@ -300,24 +313,25 @@ impl Controller for Pid {
     }
     #[inline]
     fn step(&self, state: &mut [f64], r: &Reference, y: f64) -> Output {
+        let c = &self.config;
         let e = r.x - y;
         state[1] = self.filter * state[1] - self.derivative_gain * (y - state[2]);
         state[2] = y;
-        let p = self.kp * e;
-        let ff = self.offset + self.ff_gain * r.x;
-        let candidate = state[0] + self.ki * self.ts * e;
-        let (_, hold) = self.limits.apply(ff + p + candidate + state[1], e);
+        let p = c.kp * e;
+        let ff = c.offset + c.ff_gain * r.x;
+        let candidate = state[0] + c.ki * c.ts * e;
+        let (_, hold) = c.limits.apply(ff + p + candidate + state[1], e);
         if !hold {
             state[0] = candidate;
         }
         let raw = ff + p + state[0] + state[1];
-        Output { u: clamp(raw, self.limits.min, self.limits.max), terms: terms([p, state[0], state[1], ff, raw]) }
+        Output { u: clamp(raw, c.limits.min, c.limits.max), terms: terms([p, state[0], state[1], ff, raw]) }
     }
     fn term_names(&self) -> &'static [&'static str] {
         &["P", "I", "D", "feedforward", "u_unsaturated"]
     }
     fn limits(&self) -> Limits {
-        self.limits
+        self.config.limits
     }
 }
 

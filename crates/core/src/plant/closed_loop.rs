@@ -6,11 +6,42 @@
 //! the amplifier and stage advance one period under it. Recorded at `k`: reference, command,
 //! amplifier output at the end of the period, `x_k`, the reading, and the controller terms.
 use crate::control::{Controller, Reference, MAX_TERMS};
-use crate::sensor::{Sensor, SensorState};
-use crate::stage::{Stage, StageState, MAX_CREEP};
+use crate::plant::sensor::{Sensor, SensorState};
+use crate::plant::stage::{Stage, StageState, MAX_CREEP};
+
+/// The parts of a closed loop, each configuration with its state (the caller resets them):
+/// the stage with its amplifier, the sensor and the controller.
+#[derive(Debug)]
+pub struct Loop<'a, C: ?Sized> {
+    /// Stage and amplifier.
+    pub stage: &'a Stage,
+    /// Their state, advanced by the run.
+    pub stage_state: &'a mut StageState,
+    /// Position sensor.
+    pub sensor: &'a Sensor,
+    /// Its state (noise stream, delay line), advanced by the run.
+    pub sensor_state: &'a mut SensorState,
+    /// Controller.
+    pub controller: &'a C,
+    /// Its state ([`Controller::state_len`] slots), advanced by the run.
+    pub controller_state: &'a mut [f64],
+}
+
+/// The desired motion, one value per sample (m, m/s, m/s^2). An empty `velocity` or
+/// `acceleration` means zeros (for controllers that do not use them).
+#[derive(Debug, Clone, Copy)]
+pub struct Trajectory<'a> {
+    /// Desired position.
+    pub position: &'a [f64],
+    /// Desired velocity, or empty.
+    pub velocity: &'a [f64],
+    /// Desired acceleration, or empty.
+    pub acceleration: &'a [f64],
+}
 
 /// Where a run writes its signals; every slice has the run's length (`terms`: the
 /// controller's `term_names().len()` values per sample, row-major).
+#[derive(Debug)]
 pub struct Record<'a> {
     /// Voltage command, V.
     pub command: &'a mut [f64],
@@ -73,60 +104,29 @@ impl Recorder for RecordTerms<'_, '_> {
     }
 }
 
-/// Run a whole reference. `reference`, `velocity`, `acceleration` are the desired signals
-/// per sample; an empty `velocity` or `acceleration` means zeros (for controllers that do
-/// not use them). Stops at the shortest of the other slices.
-#[allow(clippy::too_many_arguments)]
-pub fn run<C: Controller + ?Sized>(
-    stage: &Stage,
-    stage_state: &mut StageState,
-    sensor: &Sensor,
-    sensor_state: &mut SensorState,
-    controller: &C,
-    controller_state: &mut [f64],
-    reference: &[f64],
-    velocity: &[f64],
-    acceleration: &[f64],
-    mut rec: Record<'_>,
-) {
-    let width = controller.term_names().len().min(MAX_TERMS);
+/// Run a whole trajectory, writing every sample to `rec`. Stops at the shortest of the
+/// trajectory's position (and non-empty derivatives) and the record's slices.
+pub fn run<C: Controller + ?Sized>(parts: Loop<'_, C>, trajectory: Trajectory<'_>, mut rec: Record<'_>) {
+    let width = parts.controller.term_names().len().min(MAX_TERMS);
     let len = [rec.command.len(), rec.voltage.len(), rec.position.len(), rec.measured.len()]
         .into_iter()
         .min()
         .unwrap_or(0)
         .min(rec.terms.len() / width.max(1));
     let mut sink = RecordTerms { rec: &mut rec, width, len };
-    run_recorder(
-        stage,
-        stage_state,
-        sensor,
-        sensor_state,
-        controller,
-        controller_state,
-        reference,
-        velocity,
-        acceleration,
-        &mut sink,
-    );
+    run_recorder(parts, trajectory, &mut sink);
 }
 
 /// [`run`] handing each sample to `recorder`; returns the number of samples run (the
 /// shortest of the signals and the recorder's capacity). Exactly the same arithmetic as
 /// [`run`], whatever the recorder keeps.
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub fn run_recorder<C: Controller + ?Sized, R: Recorder>(
-    stage: &Stage,
-    stage_state: &mut StageState,
-    sensor: &Sensor,
-    sensor_state: &mut SensorState,
-    controller: &C,
-    controller_state: &mut [f64],
-    reference: &[f64],
-    velocity: &[f64],
-    acceleration: &[f64],
+    parts: Loop<'_, C>,
+    trajectory: Trajectory<'_>,
     recorder: &mut R,
 ) -> usize {
+    let Trajectory { position: reference, velocity, acceleration } = trajectory;
     let len_or_any = |s: &[f64]| if s.is_empty() { usize::MAX } else { s.len() };
     let n = reference.len().min(len_or_any(velocity)).min(len_or_any(acceleration)).min(recorder.capacity());
     // every signal cut to the run's length (empty derivatives stay empty: zeros)
@@ -137,22 +137,23 @@ pub fn run_recorder<C: Controller + ?Sized, R: Recorder>(
             &s[..n]
         }
     }
-    let (r, v, a) = (&reference[..n], cut(velocity, n), cut(acceleration, n));
-    let args = (stage, stage_state, sensor, sensor_state, controller, controller_state);
+    let cut_trajectory =
+        Trajectory { position: &reference[..n], velocity: cut(velocity, n), acceleration: cut(acceleration, n) };
+    let (stage, sensor) = (parts.stage, parts.sensor);
     // one copy of the loop per creep-lag count, so the stage's creep loops unroll, and for
     // the typical stage and sensor one whose configuration checks fold away
     macro_rules! dispatch {
         ($t:literal) => {
             match stage.params.creep_terms {
-                0 => run_n::<C, R, 0, $t>(args, r, v, a, recorder),
-                1 => run_n::<C, R, 1, $t>(args, r, v, a, recorder),
-                2 => run_n::<C, R, 2, $t>(args, r, v, a, recorder),
-                3 => run_n::<C, R, 3, $t>(args, r, v, a, recorder),
-                4 => run_n::<C, R, 4, $t>(args, r, v, a, recorder),
-                5 => run_n::<C, R, 5, $t>(args, r, v, a, recorder),
-                6 => run_n::<C, R, 6, $t>(args, r, v, a, recorder),
-                7 => run_n::<C, R, 7, $t>(args, r, v, a, recorder),
-                _ => run_n::<C, R, MAX_CREEP, $t>(args, r, v, a, recorder),
+                0 => run_n::<C, R, 0, $t>(parts, cut_trajectory, recorder),
+                1 => run_n::<C, R, 1, $t>(parts, cut_trajectory, recorder),
+                2 => run_n::<C, R, 2, $t>(parts, cut_trajectory, recorder),
+                3 => run_n::<C, R, 3, $t>(parts, cut_trajectory, recorder),
+                4 => run_n::<C, R, 4, $t>(parts, cut_trajectory, recorder),
+                5 => run_n::<C, R, 5, $t>(parts, cut_trajectory, recorder),
+                6 => run_n::<C, R, 6, $t>(parts, cut_trajectory, recorder),
+                7 => run_n::<C, R, 7, $t>(parts, cut_trajectory, recorder),
+                _ => run_n::<C, R, MAX_CREEP, $t>(parts, cut_trajectory, recorder),
             }
         };
     }
@@ -164,14 +165,10 @@ pub fn run_recorder<C: Controller + ?Sized, R: Recorder>(
     n
 }
 
-type LoopArgs<'s, C> = (&'s Stage, &'s mut StageState, &'s Sensor, &'s mut SensorState, &'s C, &'s mut [f64]);
-
 #[inline(always)]
 fn run_n<C: Controller + ?Sized, R: Recorder, const NC: usize, const T: bool>(
-    (stage, stage_state, sensor, sensor_state, controller, controller_state): LoopArgs<'_, C>,
-    reference: &[f64],
-    velocity: &[f64],
-    acceleration: &[f64],
+    Loop { stage, stage_state, sensor, sensor_state, controller, controller_state }: Loop<'_, C>,
+    Trajectory { position: reference, velocity, acceleration }: Trajectory<'_>,
     recorder: &mut R,
 ) {
     // the creep voltage is carried from period to period (the same sum each period starts
@@ -214,35 +211,28 @@ pub struct Tracking {
     pub saturated: usize,
 }
 
-/// Run a whole reference like [`run`], recording nothing; errors count from sample `skip`
+/// Run a whole trajectory like [`run`], recording nothing; errors count from sample `skip`
 /// on (to leave out the start-up transient). A diverging plant gives infinite figures.
-#[allow(clippy::too_many_arguments)]
-pub fn run_tracking<C: Controller + ?Sized>(
-    stage: &Stage,
-    stage_state: &mut StageState,
-    sensor: &Sensor,
-    sensor_state: &mut SensorState,
-    controller: &C,
-    controller_state: &mut [f64],
-    reference: &[f64],
-    velocity: &[f64],
-    acceleration: &[f64],
-    skip: usize,
-) -> Tracking {
+pub fn run_tracking<C: Controller + ?Sized>(parts: Loop<'_, C>, trajectory: Trajectory<'_>, skip: usize) -> Tracking {
+    let Loop { stage, stage_state, sensor, sensor_state, controller, controller_state } = parts;
+    let Trajectory { position: reference, velocity, acceleration } = trajectory;
     let limits = controller.limits();
     let mut t = Tracking::default();
-    for k in 0..reference.len() {
+    for (k, &xr) in reference.iter().enumerate() {
         let x = stage_state.x;
         if k >= skip {
-            let e = reference[k] - x;
+            let e = xr - x;
             t.sse += e * e;
-            t.max_error =
-                if crate::math::abs(e) > t.max_error || e.is_nan() { crate::math::abs(e) } else { t.max_error };
+            t.max_error = if crate::num::math::abs(e) > t.max_error || e.is_nan() {
+                crate::num::math::abs(e)
+            } else {
+                t.max_error
+            };
             t.samples += 1;
         }
         let y = sensor.read(sensor_state, x);
         let r = Reference {
-            x: reference[k],
+            x: xr,
             v: velocity.get(k).copied().unwrap_or(0.0),
             a: acceleration.get(k).copied().unwrap_or(0.0),
         };
@@ -261,12 +251,9 @@ pub fn run_tracking<C: Controller + ?Sized>(
 
 #[cfg(test)]
 mod tests {
-    extern crate std;
     use super::*;
-    use crate::control::{Limits, Pid};
-    use crate::stage::{HysteresisDrive, StageParams};
-    use std::vec;
-    use std::vec::Vec;
+    use crate::control::{Limits, Pid, PidConfig};
+    use crate::plant::stage::{HysteresisDrive, StageParams};
 
     fn params(creep_terms: usize, drive: HysteresisDrive) -> StageParams {
         let mut taus = [1.0; MAX_CREEP];
@@ -312,7 +299,17 @@ mod tests {
                 8e-6 + 6e-6 * libm::sin(2.0 * core::f64::consts::PI * 20.0 * t) + if k % 700 < 350 { 2e-6 } else { 0.0 }
             })
             .collect();
-        let pid = Pid::new(1e6, 5e9, 0.0, 1e-4, ts, 7.333e7 / 10.5, 0.0, Limits::new(-20.0, 150.0).unwrap()).unwrap();
+        let pid = Pid::new(PidConfig {
+            kp: 1e6,
+            ki: 5e9,
+            kd: 0.0,
+            tau_d: 1e-4,
+            ts,
+            ff_gain: 7.333e7 / 10.5,
+            offset: 0.0,
+            limits: Limits::new(-20.0, 150.0).unwrap(),
+        })
+        .unwrap();
         for creep_terms in 0..=MAX_CREEP {
             for (drive, substeps, tolerance, sensor) in [
                 (HysteresisDrive::Charge, 1, 0.05, (1e-8, 3e-9, 1)),
@@ -333,7 +330,15 @@ mod tests {
                 pid.reset(&mut cst, st.x);
                 let rec =
                     Record { command: &mut c, voltage: &mut va, position: &mut x, measured: &mut y, terms: &mut terms };
-                run(&stage, &mut st, &sensor, &mut sst, &pid, &mut cst, &r, &[], &[], rec);
+                let parts = Loop {
+                    stage: &stage,
+                    stage_state: &mut st,
+                    sensor: &sensor,
+                    sensor_state: &mut sst,
+                    controller: &pid,
+                    controller_state: &mut cst,
+                };
+                run(parts, Trajectory { position: &r, velocity: &[], acceleration: &[] }, rec);
 
                 let mut hand = init;
                 let mut hsst = sensor.state(hand.x, 9);
@@ -373,12 +378,31 @@ mod tests {
         }
         let stage = Stage::new(params(5, HysteresisDrive::Charge), 1e-4, 1, 0.05).unwrap();
         let sensor = Sensor::new(0.0, 0.0, 0).unwrap();
-        let pid = Pid::new(1e6, 5e9, 0.0, 1e-4, 1e-4, 0.0, 0.0, Limits::new(-20.0, 150.0).unwrap()).unwrap();
+        let pid = Pid::new(PidConfig {
+            kp: 1e6,
+            ki: 5e9,
+            kd: 0.0,
+            tau_d: 1e-4,
+            ts: 1e-4,
+            ff_gain: 0.0,
+            offset: 0.0,
+            limits: Limits::new(-20.0, 150.0).unwrap(),
+        })
+        .unwrap();
         let mut st = StageState::ZERO;
         let mut sst = sensor.state(0.0, 1);
         let mut cst = [0.0; 3];
         let mut count = Count(7, 0);
-        let done = run_recorder(&stage, &mut st, &sensor, &mut sst, &pid, &mut cst, &[1e-6; 20], &[], &[], &mut count);
+        let parts = Loop {
+            stage: &stage,
+            stage_state: &mut st,
+            sensor: &sensor,
+            sensor_state: &mut sst,
+            controller: &pid,
+            controller_state: &mut cst,
+        };
+        let trajectory = Trajectory { position: &[1e-6; 20], velocity: &[], acceleration: &[] };
+        let done = run_recorder(parts, trajectory, &mut count);
         assert_eq!((done, count.1), (7, 7));
     }
 }

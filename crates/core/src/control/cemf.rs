@@ -8,10 +8,10 @@
 //! dVh = alpha dq - beta |dq| Vh - gamma dq |Vh|
 //! ```
 use crate::control::{positive, terms, Controller, Limits, Output, Reference};
-use crate::differential::bouc_wen_1_exact;
 use crate::error::{check_scalar, ModelError};
-use crate::inverse::solve_increasing;
-use crate::math::{abs, clamp};
+use crate::hysteresis::differential::bouc_wen_1_exact;
+use crate::hysteresis::inverse::solve_increasing;
+use crate::num::math::{abs, clamp};
 
 /// Parameters of the identified CEMF model (volt-normalized, as identified).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -35,19 +35,14 @@ pub struct CemfModel {
 }
 
 impl CemfModel {
-    /// Validate: positive `M`, `K`, `Tem`, `Cz`; `B >= 0`; finite Bouc–Wen parameters with
-    /// `beta + gamma >= 0`, `beta - gamma >= 0` (`Vh` stays bounded).
-    #[allow(clippy::too_many_arguments)]
-    pub fn new(
-        m: f64,
-        b: f64,
-        k: f64,
-        tem: f64,
-        cz: f64,
-        alpha: f64,
-        beta: f64,
-        gamma: f64,
-    ) -> Result<Self, ModelError> {
+    /// Number of parameters of [`CemfModel::from_slice`].
+    pub const PARAM_LEN: usize = 8;
+
+    /// Validate a configuration built as a struct literal; returns it unchanged. Positive
+    /// `M`, `K`, `Tem`, `Cz`; `B >= 0`; finite Bouc–Wen parameters with `beta + gamma >= 0`,
+    /// `beta - gamma >= 0` (`Vh` stays bounded).
+    pub fn validated(self) -> Result<Self, ModelError> {
+        let CemfModel { m, b, k, tem, cz, alpha, beta, gamma } = self;
         positive("M", m)?;
         positive("K", k)?;
         positive("tem", tem)?;
@@ -62,7 +57,16 @@ impl CemfModel {
         if beta + gamma < 0.0 || beta - gamma < 0.0 {
             return Err(ModelError::Negative("hyst_beta - |hyst_gamma|", usize::MAX, beta - abs(gamma)));
         }
-        Ok(CemfModel { m, b, k, tem, cz, alpha, beta, gamma })
+        Ok(self)
+    }
+
+    /// Build from `[M, B, K, tem, capacitance, hyst_alpha, hyst_beta, hyst_gamma]`, validated.
+    pub fn from_slice(p: &[f64]) -> Result<Self, ModelError> {
+        if p.len() != Self::PARAM_LEN {
+            return Err(ModelError::Length("cemf model parameters", Self::PARAM_LEN, p.len()));
+        }
+        let [m, b, k, tem, cz, alpha, beta, gamma] = [p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7]];
+        CemfModel { m, b, k, tem, cz, alpha, beta, gamma }.validated()
     }
 
     /// The CEMF voltage after the charge changes by `dq` from a state with `vh`.

@@ -8,8 +8,8 @@
 //!
 //! State layout of all three: `[hysteretic variable, w_prev]`, relaxed at `w = 0`.
 use crate::error::{check_finite, check_scalar, ModelError};
-use crate::math::{abs, exp, expm1, pow, sign};
-use crate::{Hysteresis, Invertible};
+use crate::hysteresis::{Hysteresis, Invertible};
+use crate::num::math::{abs, exp, expm1, pow, sign};
 
 /// `(1 - exp(-x)) / x`, with its limit 1 at 0. Below |x| = 0.03 its Taylor series to
 /// x^7 is exact to rounding (the next term is under 2e-18) and needs no exponential: the

@@ -8,8 +8,8 @@
 //! amplifier limits (for rate-independent models with wiping-out these are the extremes of
 //! the major loop, reached from any history), so its anti-windup sees the saturation.
 use crate::control::{Controller, Limits, Output, Reference};
-use crate::inverse::solve_increasing;
-use crate::Invertible;
+use crate::hysteresis::inverse::solve_increasing;
+use crate::hysteresis::Invertible;
 
 /// Inner controller `C` behind the inverse of model `M`.
 #[derive(Debug, Clone, Copy)]
@@ -49,7 +49,7 @@ impl<C: Controller, M: Invertible> Controller for Compensated<C, M> {
         let frozen: &[f64] = model_state;
         // unreachable targets (beyond what the model can output) hold the last voltage
         let solved = solve_increasing(|v| self.model.trial(frozen, v), out.u, last[0]).unwrap_or(last[0]);
-        let u = crate::math::clamp(solved, self.limits.min, self.limits.max);
+        let u = crate::num::math::clamp(solved, self.limits.min, self.limits.max);
         self.model.step(model_state, u);
         last[0] = u;
         out.u = u;
