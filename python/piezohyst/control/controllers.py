@@ -17,8 +17,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ._validate import as_int, as_scalar
-from .errors import ParameterError, ParameterTypeError
+from .._validate import as_int, as_scalar
+from ..errors import ParameterError, ParameterTypeError
 
 __all__ = [
     "ABSMC",
@@ -162,7 +162,7 @@ class PID:
 def cemf_model_parameters(params) -> dict:
     """The volt-normalized CEMF model of seed 1 from (identified) stage parameters:
     ``M = m/Tem``, ``B = b/Tem``, ``K = k/Tem`` and the charge-driven Bouc–Wen law."""
-    from .stage import StageParameters
+    from ..plant.stage import StageParameters
 
     if not isinstance(params, StageParameters):
         raise ParameterTypeError(
@@ -401,7 +401,7 @@ class Compensated:
         return getattr(self.inner, "uses_reference_derivatives", True)
 
     def core(self, stage, *, limits=None):
-        from .model import HysteresisModel
+        from ..models.model import HysteresisModel
 
         if not isinstance(self.model, HysteresisModel):
             raise ParameterTypeError(

@@ -10,11 +10,11 @@ from functools import lru_cache
 
 import numpy as np
 
-from . import _core
-from ._validate import as_record
-from .control import is_controller
-from .errors import ParameterError, ParameterTypeError
-from .metrics import tracking_metrics
+from .. import _core
+from .._validate import as_record
+from ..errors import ParameterError, ParameterTypeError
+from ..signals.metrics import tracking_metrics
+from .controllers import is_controller
 
 __all__ = ["ClosedLoopResult", "closed_loop", "closed_loop_batch", "seed_from"]
 

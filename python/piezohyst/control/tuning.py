@@ -16,10 +16,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from . import _core
-from ._validate import as_record, as_scalar
-from .control import is_controller
-from .errors import ComputationError, ParameterError, ParameterTypeError
+from .. import _core
+from .._validate import as_record, as_scalar
+from ..errors import ComputationError, ParameterError, ParameterTypeError
+from .controllers import is_controller
 from .simulation import ClosedLoopResult, _prepare, closed_loop, seed_from
 
 __all__ = ["TuningResult", "stage_from_model", "track", "tune"]
@@ -41,7 +41,7 @@ def track(
     >>> bool(res.metrics["rmse"] < 0.1e-6)
     True
     """
-    from .stage import virtual_stage
+    from ..plant.stage import virtual_stage
 
     stage = virtual_stage() if stage is None else stage
     res = closed_loop(stage, controller, reference, velocity=velocity, acceleration=acceleration, rng=rng)
@@ -122,8 +122,8 @@ def tune(
         (seed 1 compares its two cases with identical gains): the cost is the mean RMSE over
         every variant and reference, and a candidate must satisfy the constraints in each.
     """
-    from .optimize import minimize
-    from .stage import virtual_stage
+    from ..optimize.core import minimize
+    from ..plant.stage import virtual_stage
 
     t0 = time.perf_counter()
     stage = virtual_stage() if stage is None else stage

@@ -16,25 +16,22 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import _core
-from ._validate import as_int, as_record, as_scalar
-from .creep import Creep
-from .errors import ParameterError, ParameterTypeError
-from .pi import PI, GeneralizedPI, RateDependentPI
-from .preisach import Preisach
+from .. import _core
+from .._validate import as_int, as_record, as_scalar
+from ..errors import ParameterError, ParameterTypeError
+from ..models.creep import Creep
+from ..models.pi import PI, GeneralizedPI, RateDependentPI
+from ..models.preisach import Preisach
 
 __all__ = [
     "CEMF_PARAMETERS",
-    "KINDS",
     "LOSSES",
-    "STRUCTURES",
     "FitResult",
     "IdentificationResult",
     "default_huber_delta",
     "fit_linear",
     "fit_metrics",
     "huber_cost",
-    "identify",
     "identify_cemf",
     "identify_mpi",
     "identify_pi",
@@ -397,275 +394,6 @@ class IdentificationResult:
         return fig
 
 
-#: Model kinds :func:`identify` accepts.
-KINDS = ("pi", "gpi", "mpi", "rdpi", "preisach", "boucwen", "cemf", "boucwen-benchmark")
-
-#: Kinds fitted by least squares over their linear parameters.
-_LINEAR_KINDS = ("pi", "gpi", "mpi", "rdpi", "preisach")
-
-#: ``structure`` values of :func:`identify`: the default structure, or identified with it by
-#: variable projection.
-STRUCTURES = ("fixed", "fit")
-
-#: Kinds whose structure variable projection identifies.
-_VP_KINDS = ("pi", "gpi", "mpi", "rdpi")
-
-#: Keywords :func:`identify` passes on to :func:`piezohyst.varpro.identify_vp`.
-_VP_OPTIONS = ("envelope", "bounds", "polish", "starts")
-
-#: Iterations of the population optimizer when ``max_iterations`` is not given.
-_DEFAULT_ITERATIONS = {"boucwen": 200, "cemf": 150, "boucwen-benchmark": 30}
-
-
-def _boucwen_bounds(v, y):
-    """Search box for Bouc–Wen ``(a, beta, gamma, n = 1, d)`` from the data's scales."""
-    dv = float(np.ptp(v)) or 1.0
-    gain = float(np.ptp(y)) / dv
-    return [(0.0, 4 * gain), (1e-3 / dv, 50.0 / dv), (-50.0 / dv, 50.0 / dv), (1.0, 1.0), (0.0, 4 * gain)]
-
-
-def identify(
-    input,
-    output,
-    model="mpi",
-    *,
-    fs=None,
-    operators=9,
-    levels=12,
-    structure="fixed",
-    creep=0,
-    optimizer="ls",
-    rng=None,
-    max_iterations=None,
-    population_size=None,
-    validate=None,
-    progress=False,
-    callback=None,
-    loss="squared",
-    huber_delta=None,
-    **options,
-):
-    """Identify a hysteresis model from an input/output record (free-run simulation error).
-
-    One entry point for every model kind: the linear families by least squares, the
-    differential and stage models by a population optimizer, each population simulated in one
-    Rust batch call.
-
-    Parameters
-    ----------
-    input, output : array_like
-        The training record. For ``cemf``: the voltage across the stack (V) and the
-        displacement; for ``boucwen-benchmark``: force (N) and displacement (m).
-    model : str
-        One of ``KINDS``:
-
-        - ``pi``, ``gpi``/``mpi``, ``rdpi``, ``preisach``: least squares over the linear
-          parameters with a default structure (thresholds over half the input range; a grid
-          over the input range); with ``structure="fit"`` (not ``preisach``) the structure is
-          identified too, by variable projection (:func:`piezohyst.varpro.identify_vp`);
-        - ``boucwen``: a population optimizer over all its parameters (then L-BFGS-B);
-        - ``cemf``: seed 1's grey-box stage model, :func:`identify_cemf` (needs ``fs``);
-        - ``boucwen-benchmark``: the Noël–Schoukens oscillator,
-          :func:`piezohyst.boucwen_benchmark.identify_boucwen_benchmark` (``fs`` defaults to
-          the benchmark's 750 Hz).
-    fs : float, optional
-        Sample rate, Hz (needed by ``rdpi``, ``cemf`` and ``creep``).
-    operators, levels : int
-        Play operators (PI family) and Preisach grid size.
-    structure : {"fixed", "fit"}
-        PI family only. ``"fixed"`` (default): the default structure, weights by least squares.
-        ``"fit"``: variable projection — a population optimizer (``optimizer``, default DE)
-        over the nonlinear structure parameters (threshold spread; rising/falling envelopes
-        of ``gpi``/``mpi``; ``beta`` and ``filter_tau`` of ``rdpi``; creep time constants),
-        the weights solved exactly by bounded least squares for every candidate, the cost the
-        free-run RMSE; then a Gauss–Newton polish. Options ``envelope``, ``bounds``,
-        ``polish``, ``starts`` of :func:`piezohyst.varpro.identify_vp` are accepted then.
-    creep : int
-        PI family only: number of creep lags added to the model (needs ``fs``). Fixed
-        structure: time constants log-spaced over ``[2 Ts, T]`` (``T`` the record's duration),
-        one in the middle of each of ``creep`` equal decade bands; ``structure="fit"`` searches
-        each within its band.
-    optimizer : str
-        ``"ls"`` for the linear families; ``"css"``, ``"pso"``, ``"mpso"`` or ``"de"`` for the
-        others and for ``structure="fit"`` (``"ls"`` there means each kind's default:
-        ``"de"``, or ``"css"`` for ``cemf``).
-    rng, population_size, progress, callback
-        Passed to the population optimizer (:func:`piezohyst.optimize.minimize`).
-    max_iterations : int, optional
-        Optimizer iterations; by default 200 (``boucwen``), 150 (``cemf``), 30
-        (``boucwen-benchmark``), 60 (``structure="fit"``).
-    validate : tuple, optional
-        A held-out record ``(input, output)``; its metrics are reported, it is not fitted.
-    loss : {"squared", "huber"}
-        ``"squared"``: the RMSE of the free-run simulation. ``"huber"``: the robust Huber
-        cost, for records with glitches — iteratively reweighted least squares for the
-        linear families (:func:`fit_linear`), :func:`huber_cost` of the simulated residuals
-        for the population optimizers (``boucwen``, ``cemf``; not ``boucwen-benchmark``) by
-        :func:`minimize_huber`. The reported metrics stay RMSE and max error.
-    huber_delta : float, optional
-        Huber threshold in the output's unit; by default 1.345 times the MAD-based robust
-        sigma of the residuals (:func:`default_huber_delta`).
-    **options
-        Further keywords of :func:`identify_cemf` or of
-        :func:`~piezohyst.boucwen_benchmark.identify_boucwen_benchmark` (e.g. ``bounds``,
-        ``fit_range``), or of :func:`~piezohyst.varpro.identify_vp` with ``structure="fit"``
-        (``envelope``, ``bounds``, ``polish``, ``starts``); refused otherwise.
-
-    Returns
-    -------
-    IdentificationResult
-        ``method`` names the optimizer, with ``+huber`` for the Huber loss.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from piezohyst import PI, identify
-    >>> v = 0.5 + 0.4 * np.sin(np.linspace(0, 30, 1500)) * np.linspace(1, 0.3, 1500)
-    >>> truth = PI(np.arange(1, 5) * np.ptp(v) / 10, [0.4, 0.2, 0.1, 0.05], p0=0.6)   # the default structure
-    >>> y = truth.simulate(v)
-    >>> y[::100] += 0.5                                   # glitches on 1 % of the samples
-    >>> fits = {loss: identify(v, y, "pi", operators=4, loss=loss) for loss in ("squared", "huber")}
-    >>> {k: round(float(np.sqrt(np.mean((f.model.simulate(v) - truth.simulate(v)) ** 2))), 4) for k, f in fits.items()}
-    {'squared': 0.005, 'huber': 0.0}
-    """
-    t0 = time.perf_counter()
-    if model not in KINDS:
-        raise ParameterError(f"model = {model!r} is unknown; expected one of {list(KINDS)}")
-    loss, delta = _check_loss(loss, huber_delta)
-    if structure not in STRUCTURES:
-        raise ParameterError(f"structure = {structure!r} is unknown; expected one of {list(STRUCTURES)}")
-    creep = as_int(creep, "creep")
-    if structure == "fit" and model not in _VP_KINDS:
-        raise ParameterError(
-            f"structure = 'fit' applies to model = {' / '.join(repr(k) for k in _VP_KINDS)}; "
-            f"{model!r} has no fixed structure to fit (use structure = 'fixed')"
-        )
-    if creep and model not in _VP_KINDS:
-        raise ParameterError(
-            f"creep = {creep} applies to model = {' / '.join(repr(k) for k in _VP_KINDS)}, not to {model!r}"
-        )
-    if structure == "fit":
-        unknown = sorted(set(options) - set(_VP_OPTIONS))
-        if unknown:
-            raise ParameterTypeError(
-                f"identify() got unexpected keyword arguments {unknown} for model = {model!r}, "
-                f"structure = 'fit' (accepted: {list(_VP_OPTIONS)})"
-            )
-        from .varpro import identify_vp
-
-        return identify_vp(
-            input,
-            output,
-            model,
-            fs=fs,
-            operators=operators,
-            creep=creep,
-            optimizer="de" if optimizer == "ls" else optimizer,
-            rng=rng,
-            max_iterations=max_iterations,
-            population_size=population_size,
-            validate=validate,
-            progress=progress,
-            callback=callback,
-            loss=loss,
-            huber_delta=delta,
-            **options,
-        )
-    if options and model not in ("cemf", "boucwen-benchmark"):
-        raise ParameterTypeError(f"identify() got unexpected keyword arguments {sorted(options)} for model = {model!r}")
-    if max_iterations is None:
-        max_iterations = _DEFAULT_ITERATIONS.get(model, 200)
-    search = dict(
-        optimizer=optimizer,
-        rng=rng,
-        max_iterations=max_iterations,
-        population_size=population_size,
-        validate=validate,
-        progress=progress,
-        callback=callback,
-    )
-    if model == "cemf":
-        if fs is None:
-            raise ParameterError("fs is required for model = 'cemf' (the stage is simulated at the sample time)")
-        return identify_cemf(input, output, fs, loss=loss, huber_delta=delta, **search, **options)
-    if model == "boucwen-benchmark":
-        return _identify_benchmark(input, output, fs, loss, search, options)
-    v = as_record(input, "input", min_length=2)
-    y = as_record(output, "output", min_length=2)
-    if y.size != v.size:
-        raise ParameterError(f"output has {y.size} samples, input has {v.size}; they must match")
-    history, partial = None, False
-    if model in _LINEAR_KINDS:
-        fitted, method = _identify_linear(model, v, y, fs, operators, levels, loss, delta, creep), "ls"
-    else:
-        fitted, method, history, partial = _identify_boucwen(v, y, loss, delta, search)
-    if loss == "huber":
-        method += "+huber"
-    train = fit_metrics(fitted.simulate(v), y)
-    val = None
-    if validate is not None:
-        vv = as_record(validate[0], "validate input")
-        vy = as_record(validate[1], "validate output")
-        val = fit_metrics(fitted.simulate(vv), vy)
-    return IdentificationResult(fitted, train, val, method, time.perf_counter() - t0, history, partial=partial)
-
-
-def _identify_linear(model, v, y, fs, operators, levels, loss, delta, creep=0):
-    """The least-squares kinds' fitted model."""
-    robust = {"loss": loss, "huber_delta": delta}
-    lags = _default_creep(v.size, fs, creep)
-    if model == "pi":
-        return identify_pi(v, y, operators=operators, creep=lags, **robust).model
-    if model in ("gpi", "mpi"):
-        return identify_mpi(v, y, operators=operators, creep=lags, **robust).model
-    if model == "preisach":
-        return identify_preisach(v, y, levels=levels, **robust).model
-    if fs is None:
-        raise ParameterError("fs is required for model = 'rdpi' (the rate needs the sample time)")
-    r = _default_thresholds(v, as_int(operators, "operators", minimum=1))
-    template = RateDependentPI(r, np.zeros(r.size), 1.0 / float(fs), 1.0, 0.0, creep=lags)
-    return fit_linear(template, v, y, **robust).model
-
-
-def _default_creep(n, fs, terms):
-    """``terms`` creep lags for a record of ``n`` samples at ``fs``: one time constant in the
-    middle (in decades) of each of ``terms`` equal bands of ``[2 Ts, n Ts]``; ``None`` for 0."""
-    if not terms:
-        return None
-    if fs is None:
-        raise ParameterError(f"fs is required with creep = {terms} (the lags need the sample time)")
-    fs = as_scalar(fs, "fs", positive=True)
-    lo, hi = np.log10(2.0 / fs), np.log10(n / fs)
-    w = (hi - lo) / terms
-    return Creep(1.0 / fs, 10.0 ** (lo + w * (np.arange(terms) + 0.5)), np.zeros(terms))
-
-
-def _identify_boucwen(v, y, loss, delta, search):
-    """Bouc–Wen by a population optimizer: ``(model, method, history)``."""
-    from .differential import BoucWen
-    from .optimize import minimize
-
-    search = dict(search)
-    search.pop("validate")
-    optimizer = search.pop("optimizer")
-    method = "de" if optimizer == "ls" else optimizer
-    family = BoucWen(1.0, 1.0, 0.0).family
-    bounds = _boucwen_bounds(v, y)
-    if loss == "huber":
-        # the rows stay inside the box, where every Bouc-Wen row is valid (n = 1, finite)
-        def simulate(rows):
-            return _core.batch_simulate(family, [], np.ascontiguousarray(rows), v)
-
-        res = minimize_huber(simulate, y, bounds, delta, method=method, **search)
-    else:
-
-        def cost(rows):
-            return _core.batch_rmse(family, [], np.ascontiguousarray(rows), v, y, float("inf"))
-
-        res = minimize(cost, bounds, method=method, polish=True, **search)
-    return BoucWen(*res.x), method, res.history, res.interrupted
-
-
 def minimize_huber(simulate, target, bounds, delta=None, **search):
     """Minimize the Huber cost of ``simulate(X) - target`` over a box with a population
     optimizer, then L-BFGS-B.
@@ -691,7 +419,7 @@ def minimize_huber(simulate, target, bounds, delta=None, **search):
     """
     from dataclasses import replace
 
-    from .optimize import _polish, minimize
+    from ..optimize.core import minimize, polish_lbfgsb
 
     def fixed(X):
         return huber_cost(simulate(X) - target, delta)
@@ -707,31 +435,11 @@ def minimize_huber(simulate, target, bounds, delta=None, **search):
     tiny = 1e-15 * (float(np.max(np.abs(target))) or 1.0)  # an exact majority leaves MAD = 0
     delta = max(float(default_huber_delta(r0)), tiny)
     lower, upper = np.array(bounds, dtype=np.float64).T
-    x, f, n = _polish(fixed, x0, float(fixed(x0[None, :])[0]), lower, upper, {})
+    x, f, n = polish_lbfgsb(fixed, x0, float(fixed(x0[None, :])[0]), lower, upper, {})
     message = f"{res.message}; Huber threshold {delta:.6g} from the MAD, then L-BFGS-B to {f:.6g}"
     return replace(
         res, x=x, fun=f, nfev=res.nfev + n + 1, message=message, history={**res.history, "huber_delta": delta}
     )
-
-
-def _identify_benchmark(u, y, fs, loss, search, options):
-    """Dispatch to :func:`piezohyst.boucwen_benchmark.identify_boucwen_benchmark`."""
-    from .boucwen_benchmark import FS, identify_boucwen_benchmark
-
-    if loss != "squared":
-        # its cost is the RMSE computed inside the Rust batch call, with its own polish
-        raise ParameterError("loss = 'huber' is not available for model = 'boucwen-benchmark'; use loss = 'squared'")
-    from dataclasses import replace
-
-    from .boucwen_benchmark import UPSAMPLE
-
-    search = dict(search)
-    if search["optimizer"] == "ls":
-        search["optimizer"] = "de"
-    fs = FS if fs is None else fs
-    res = identify_boucwen_benchmark(u, y, fs, **search, **options)
-    upsample, interpolation = options.get("upsample", UPSAMPLE), options.get("interpolation", "fft")
-    return replace(res, simulator=lambda u_: res.model.simulate(u_, fs, upsample, interpolation=interpolation))
 
 
 #: Parameters searched by :func:`identify_cemf`, in seed 1's normalized form.
@@ -783,8 +491,8 @@ def identify_cemf(
     Returns an :class:`IdentificationResult` whose ``model`` is a :class:`piezohyst.StageParameters`;
     its ``simulate`` predicts positions from voltages with the identified stage.
     """
-    from .optimize import minimize
-    from .stage import Amplifier, Stage, StageParameters
+    from ..optimize.core import minimize
+    from ..plant.stage import Amplifier, Stage, StageParameters
 
     t0 = time.perf_counter()
     loss, delta = _check_loss(loss, huber_delta)

@@ -56,11 +56,11 @@ import time
 
 import numpy as np
 
-from . import _core
-from ._validate import as_int, as_record, as_scalar
-from .creep import Creep
-from .errors import ParameterError, ParameterTypeError
-from .pi import PI, Envelope, GeneralizedPI, RateDependentPI
+from .. import _core
+from .._validate import as_int, as_record, as_scalar
+from ..errors import ParameterError, ParameterTypeError
+from ..models.creep import Creep
+from ..models.pi import PI, Envelope, GeneralizedPI, RateDependentPI
 
 __all__ = ["ENVELOPES", "VP_KINDS", "identify_vp", "vp_parameters"]
 
@@ -269,7 +269,7 @@ class _Problem:
     def solve(self, template):
         """``(z, scale, A_scaled, fit)``: the bounded least-squares weights (equilibrated
         columns) of ``template`` and the fitted free-run output ``A z``."""
-        from .identify import _irls_huber, _layout
+        from .core import _irls_huber, _layout
 
         lb, ub, _ = _layout(template)
         A = _core.regressors(template.family, list(template.dims), template.to_row(), self.v)
@@ -292,7 +292,7 @@ class _Problem:
         return r if np.all(np.isfinite(r)) else None
 
     def cost(self, p: dict) -> float:
-        from .identify import huber_cost
+        from .core import huber_cost
 
         r = self.residual(p)
         if r is None:
@@ -450,8 +450,8 @@ def identify_vp(
     >>> res.method, bool(res.train["rmse_percent"] < 0.01)
     ('vp-de+polish', True)
     """
-    from .identify import IdentificationResult, _check_loss, fit_linear, fit_metrics
-    from .optimize import _polish, minimize
+    from ..optimize.core import minimize, polish_lbfgsb
+    from .core import IdentificationResult, _check_loss, fit_linear, fit_metrics
 
     t0 = time.perf_counter()
     loss, delta = _check_loss(loss, huber_delta)
@@ -547,7 +547,7 @@ def identify_vp(
             nfev += k + 1
             extra = {"screened": np.array(screened)}
         else:
-            x1, f1, nfev = _polish(cost_batch, x, before, lower, upper, {})
+            x1, f1, nfev = polish_lbfgsb(cost_batch, x, before, lower, upper, {})
             message, extra = "L-BFGS-B on the Huber cost", {}
         if f1 < before:
             x = x1

@@ -21,9 +21,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import _core
-from ._validate import as_int, as_record
-from .errors import ParameterError, ParameterTypeError
+from .. import _core
+from .._validate import as_int, as_record
+from ..errors import ParameterError, ParameterTypeError
 
 __all__ = ["batch_rmse", "batch_simulate"]
 

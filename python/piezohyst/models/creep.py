@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._validate import as_scalar, as_vector
-from .errors import ParameterError, ParameterTypeError
+from .._validate import as_scalar, as_vector
+from ..errors import ParameterError, ParameterTypeError
 from .model import HysteresisModel, _register
 
 __all__ = ["Creep"]

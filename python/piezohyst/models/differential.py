@@ -6,8 +6,8 @@ remove step-size error (Bouc–Wen n = 1, Duhem with cubic f and g, Dahl for any
 
 from __future__ import annotations
 
-from ._validate import as_scalar, as_vector
-from .errors import ParameterError
+from .._validate import as_scalar, as_vector
+from ..errors import ParameterError
 from .model import HysteresisModel, _register
 
 __all__ = ["BoucWen", "Dahl", "Duhem"]

@@ -13,10 +13,10 @@ from pathlib import Path
 
 import numpy as np
 
-from . import _core
-from ._io import load_json_file, malformed_as, write_atomic
-from ._validate import as_record, as_scalar
-from .errors import ParameterError, ParameterTypeError
+from .. import _core
+from .._io import load_json_file, malformed_as, write_atomic
+from .._validate import as_record, as_scalar
+from ..errors import ParameterError, ParameterTypeError
 
 __all__ = ["SCHEMA_VERSION", "HysteresisModel", "Inverse", "load_model", "model_from_dict"]
 

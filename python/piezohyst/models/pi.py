@@ -12,10 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import _core
-from ._validate import as_interval, as_record, as_scalar, as_vector
+from .. import _core
+from .._validate import as_interval, as_record, as_scalar, as_vector
+from ..errors import ParameterError, ParameterTypeError
 from .creep import creep_from, creep_parts
-from .errors import ParameterError, ParameterTypeError
 from .model import HysteresisModel, _register
 
 __all__ = [
@@ -224,7 +224,7 @@ class GeneralizedPI(HysteresisModel):
 
     Examples
     --------
-    >>> from piezohyst import mpi_seed2
+    >>> from piezohyst.papers import mpi_seed2
     >>> m = mpi_seed2()
     >>> round(float(m.simulate([0.0, 0.5, 1.0])[-1]), 4)
     1.3833

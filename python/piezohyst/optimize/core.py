@@ -47,8 +47,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ._validate import as_int, as_scalar
-from .errors import ComputationError, ParameterError, ParameterTypeError
+from .._validate import as_int, as_scalar
+from ..errors import ComputationError, ParameterError, ParameterTypeError
 
 __all__ = [
     "CSS",
@@ -84,7 +84,8 @@ def _as_bounds(bounds) -> tuple[np.ndarray, np.ndarray]:
             raise ParameterTypeError(f"bounds must be a sequence of (lower, upper) pairs of numbers: {e}") from None
         if b.ndim != 2 or b.shape[1] != 2 or b.shape[0] < 1:
             raise ParameterError(
-                f"bounds must have shape (D, 2) with D >= 1 (one (lower, upper) pair per parameter), got shape {b.shape}"
+                "bounds must have shape (D, 2) with D >= 1 (one (lower, upper) pair per parameter), "
+                f"got shape {b.shape}"
             )
         lo, hi = b[:, 0].copy(), b[:, 1].copy()
     if lo.size < 1:
@@ -351,7 +352,8 @@ class Optimizer:
         """
         if self.done:
             raise ComputationError(
-                f"{self.name}: max_iterations = {self.max_iterations} populations have been evaluated; nothing more to ask"
+                f"{self.name}: max_iterations = {self.max_iterations} populations have been evaluated; "
+                "nothing more to ask"
             )
         if self._t_start is None:
             self._t_start = time.perf_counter()
@@ -1040,7 +1042,7 @@ def _evaluate(fun_batch, X):
     return f
 
 
-def _polish(fun_batch, x0, f0, lower, upper, options):
+def polish_lbfgsb(fun_batch, x0, f0, lower, upper, options):
     """L-BFGS-B from ``x0`` with central-difference gradients, each value+gradient one batch
     call of ``2 D + 1`` rows. Returns ``(x, f, nfev)``."""
     from scipy.optimize import minimize as sp_minimize
@@ -1208,7 +1210,7 @@ def minimize(
     res = opt.result(message=message, success=success)
     if polish is not False and polish is not None and message != "interrupted" and np.isfinite(res.fun):
         try:
-            x, f, n = _polish(
+            x, f, n = polish_lbfgsb(
                 fun_batch, res.x, res.fun, opt._lower, opt._upper, polish if isinstance(polish, dict) else {}
             )
         except KeyboardInterrupt:

@@ -29,8 +29,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ._io import write_atomic
-from .errors import DataError, ParameterError
+from .._io import write_atomic
+from ..errors import DataError, ParameterError
 
 __all__ = ["BENCHMARKS", "Benchmark", "find_bench_dir", "run_suite", "summarize", "to_markdown", "update_readme"]
 

@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import OutputExistsError, ParameterError
+from ..plant.stage import virtual_stage
 from . import experiments as ex
-from .errors import OutputExistsError, ParameterError
-from .stage import virtual_stage
 
 __all__ = ["REPORT_FILES", "run_demo"]
 
@@ -55,7 +55,7 @@ def run_demo(out_dir="piezohyst-report", *, force=False, quick=False, seed=0, pr
 
     Raises ``FileExistsError`` if ``out_dir`` already holds a report and ``force`` is false.
     """
-    from ._io import write_atomic
+    from .._io import write_atomic
     from .report import write_report
 
     out_dir = Path(out_dir)
@@ -108,7 +108,7 @@ def run_demo(out_dir="piezohyst-report", *, force=False, quick=False, seed=0, pr
     if not quick:
         # seed 2 identifies its MPI with MPSO: here MPSO over the structure (threshold spread,
         # envelopes, creep time constants) with the weights by least squares inside
-        from .identify import identify
+        from ..identify.dispatch import identify
 
         fs = 1.0 / stage.sample_time
         u, y = ex.measure(stage, ex.excitation(fs), np.random.default_rng([seed, 99]))

@@ -13,11 +13,12 @@ import time
 
 import numpy as np
 
-from .control import ABSMC, SMC, Compensated, InverseFeedforward, OpenLoop, VelocityObserver
-from .creep import Creep
-from .identify import identify_cemf, identify_mpi
-from .references import sine, triangle, variable_amplitude_sine
-from .tuning import stage_from_model, track, tune
+from ..control.controllers import ABSMC, SMC, Compensated, InverseFeedforward, OpenLoop, VelocityObserver
+from ..control.tuning import stage_from_model, track, tune
+from ..identify.core import identify_cemf, identify_mpi
+from ..models.creep import Creep
+from ..plant.experiment import excitation, measure
+from ..signals.references import sine, triangle, variable_amplitude_sine
 
 __all__ = [
     "SEED1_TABLE3",
@@ -66,26 +67,6 @@ SEED2_TABLE4 = {
 }
 
 
-def measure(stage, command, rng):
-    """What a lab records when it drives ``stage`` with ``command`` (V per sample): the
-    command and the sensor reading (noise, quantization). The reading at ``k + 1`` shows the
-    position the command at ``k`` produced, so the pair returned is aligned:
-    ``(command[:-1], reading[1:])``."""
-    x = stage.simulate(command).position
-    q = stage.sensor.quantization
-    noisy = x + stage.sensor.noise_std * rng.standard_normal(x.size)
-    y = np.round(noisy / q) * q if q > 0 else noisy
-    return np.asarray(command)[:-1], y[1:]
-
-
-def excitation(fs, seconds=2.0, freq=5.0, v_max=150.0, hold=0.4):
-    """Full-range sine from 0 V (``hold`` s of major loop), then a decaying envelope (nested
-    minor loops) down to 20 %."""
-    t = np.arange(round(seconds * fs)) / fs
-    env = np.clip(1 - 0.8 * (t - hold) / max(seconds - hold, 1e-9), 0.2, 1.0)
-    return 0.5 * v_max * (1 - env * np.cos(2 * np.pi * freq * t))
-
-
 def steady_sine(freq, amplitude, offset, fs, variable=False, warm=1.0):
     """``warm`` s of constant-amplitude sine from the bottom, then two evaluated periods
     (constant, or under a decaying envelope). Returns ``(reference, first evaluated sample)``."""
@@ -120,7 +101,7 @@ def identify_stage_cemf(
         polish=polish,
     )
     m = ident.model
-    f_res = stage._resonance()
+    f_res = stage.measured_resonance()
     k = m.stiffness / m.tem
     mass = k / (2 * np.pi * f_res) ** 2
     model = dataclasses.replace(m, mass=mass * m.tem, damping=2 * 0.03 * np.sqrt(k * mass) * m.tem)

@@ -27,8 +27,8 @@ import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
-from ._validate import as_int, as_scalar
-from .errors import ParameterError, ParameterTypeError
+from .._validate import as_int, as_scalar
+from ..errors import ParameterError, ParameterTypeError
 
 __all__ = ["A7075_YOUNGS_MODULUS", "CemfCoefficients", "FlexureStage", "LeafSpring", "seed1_stage"]
 

@@ -22,10 +22,10 @@ from importlib import resources
 
 import numpy as np
 
-from . import _core
-from ._io import load_json_file, malformed_as
-from ._validate import as_int, as_record, as_scalar, as_vector
-from .errors import ParameterError, ParameterTypeError
+from .. import _core
+from .._io import load_json_file, malformed_as
+from .._validate import as_int, as_record, as_scalar, as_vector
+from ..errors import ParameterError, ParameterTypeError
 
 __all__ = ["Amplifier", "Sensor", "Stage", "StageInfo", "StageParameters", "StageResponse", "virtual_stage"]
 
@@ -356,7 +356,7 @@ class Stage:
         last = t >= 2.0
         stroke, hyst = _loop_width(u[last], x[last])
         # first resonance: FRF position / amplifier voltage from a small multisine at 100 kHz
-        resonance = self._resonance()
+        resonance = self.measured_resonance()
         # creep: step to half range, held 100 s; slope of x against log10(t) over 0.1..100 s
         creep = self._creep_per_decade(0.5 * v_max)
         p = self.params
@@ -370,7 +370,9 @@ class Stage:
             {"full_range_V": [0.0, v_max], "amplifier_V": [self.amplifier.v_min, v_max]},
         )
 
-    def _resonance(self) -> float:
+    def measured_resonance(self) -> float:
+        """The first resonance (Hz), measured by simulation: a random-phase multisine through the
+        stage with an ideal amplifier, the peak of the response spectrum (what :meth:`info` reports)."""
         fs = 100_000.0
         ideal = self.with_(amplifier=Amplifier(self.amplifier.v_min, self.amplifier.v_max))
         n = 2**15

@@ -43,8 +43,8 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import as_int, as_record, as_scalar
-from .errors import DataError, ParameterError, ParameterTypeError
+from .._validate import as_int, as_record, as_scalar
+from ..errors import DataError, ParameterError, ParameterTypeError
 
 __all__ = ["TIME_RTOL", "Record", "load_record", "load_yan9a_model_record"]
 
@@ -240,7 +240,7 @@ def _check_increasing(t: np.ndarray, name: str) -> np.ndarray:
     return d
 
 
-def _fs_from_time(t: np.ndarray, name: str, rtol: float) -> float:
+def fs_from_time(t: np.ndarray, name: str, rtol: float) -> float:
     """The sample rate of a strictly increasing, uniform time axis (seconds)."""
     d = _check_increasing(t, name)
     med = float(np.median(d))
@@ -272,7 +272,7 @@ def _check_path(path) -> Path:
     return p
 
 
-def _check_column_spec(spec, name: str):
+def check_column_spec(spec, name: str):
     if spec is None:
         return None
     if isinstance(spec, str):
@@ -291,7 +291,7 @@ def _check_column_spec(spec, name: str):
 # (what identifies the column), a label (how to name it) and reads a 1-D float64 array.
 
 
-class _TextTable:
+class TextTable:
     kind = "text"
 
     def __init__(self, path: Path, delimiter, header):
@@ -515,7 +515,7 @@ def _dict_lookup(arrays: dict):
     return lookup
 
 
-def _open_npz(path: Path, dataset):
+def open_npz(path: Path, dataset):
     try:
         z = np.load(path, allow_pickle=False)
         if isinstance(z, np.ndarray):
@@ -527,7 +527,7 @@ def _open_npz(path: Path, dataset):
     return _ContainerTable(str(path), "NPZ", _numeric_shapes(arrays), _dict_lookup(arrays), dataset)
 
 
-def _open_npy(path: Path, dataset):
+def open_npy(path: Path, dataset):
     if dataset is not None:
         raise ParameterError(f"dataset = {dataset!r} does not apply to a .npy file (one matrix; columns by index)")
     try:
@@ -553,7 +553,7 @@ def _flatten_mat(d: Mapping, prefix: str, out: dict) -> None:
             out[name] = np.asarray(v)
 
 
-def _open_mat(path: Path, dataset):
+def open_mat(path: Path, dataset):
     from scipy.io import loadmat
     from scipy.io.matlab import matfile_version
 
@@ -562,7 +562,7 @@ def _open_mat(path: Path, dataset):
     except Exception as e:
         raise DataError(f"{path}: not a MATLAB .mat file ({type(e).__name__}: {e})") from None
     if major == 2:
-        return _open_hdf5(path, dataset, matlab=True)
+        return open_hdf5(path, dataset, matlab=True)
     try:
         d = loadmat(str(path), simplify_cells=True)
     except Exception as e:
@@ -640,7 +640,7 @@ class _Hdf5Source:
         return a
 
 
-def _open_hdf5(path: Path, dataset, matlab: bool = False):
+def open_hdf5(path: Path, dataset, matlab: bool = False):
     src = _Hdf5Source(path, matlab)
     try:
         table = _ContainerTable(str(path), src.kind, src.shapes, src.lookup, dataset)
@@ -742,9 +742,9 @@ def load_record(
     """
     p = _check_path(path)
     specs = {
-        "input": _check_column_spec(input, "input"),
-        "output": _check_column_spec(output, "output"),
-        "time": _check_column_spec(time, "time"),
+        "input": check_column_spec(input, "input"),
+        "output": check_column_spec(output, "output"),
+        "time": check_column_spec(time, "time"),
     }
     fs_given = None if fs is None else as_scalar(fs, "fs", positive=True)
     rtol = as_scalar(time_rtol, "time_rtol", positive=True)
@@ -769,7 +769,7 @@ def load_record(
     if suffix in TEXT_SUFFIXES:
         if dataset is not None:
             raise ParameterError(f"dataset = {dataset!r} applies to NPZ/MAT/HDF5 files; {p} is a text file")
-        table = _TextTable(p, delimiter, header)
+        table = TextTable(p, delimiter, header)
     else:
         if suffix not in SUPPORTED_SUFFIXES:
             raise DataError(f"{p}: unsupported file extension {p.suffix!r}; supported: {' '.join(SUPPORTED_SUFFIXES)}")
@@ -778,13 +778,13 @@ def load_record(
                 f"delimiter = {delimiter!r}, header = {header!r}: these apply to text files only, not {p.suffix!r}"
             )
         if suffix in NPZ_SUFFIXES:
-            table = _open_npz(p, dataset)
+            table = open_npz(p, dataset)
         elif suffix in NPY_SUFFIXES:
-            table = _open_npy(p, dataset)
+            table = open_npy(p, dataset)
         elif suffix in MAT_SUFFIXES:
-            table = _open_mat(p, dataset)
+            table = open_mat(p, dataset)
         else:
-            table = _open_hdf5(p, dataset)
+            table = open_hdf5(p, dataset)
     try:
         return _assemble(table, specs, fs_given, rtol)
     finally:
@@ -838,7 +838,7 @@ def _assemble(table, specs: dict, fs_given, rtol: float) -> Record:
     fs = fs_given
     if "time" in arrays:
         try:
-            fs_time = _fs_from_time(arrays["time"], "time", rtol)
+            fs_time = fs_from_time(arrays["time"], "time", rtol)
         except ValueError as e:
             raise DataError(f"{src}: {e}") from None
         if fs_given is not None and abs(fs_time - fs_given) > rtol * fs_given:

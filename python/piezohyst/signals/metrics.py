@@ -29,8 +29,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._validate import as_int, as_record
-from .errors import ParameterError
+from .._validate import as_int, as_record
+from ..errors import ParameterError
 
 __all__ = ["hysteresis_percent", "linearity_error", "max_error", "rmse", "tracking_metrics"]
 

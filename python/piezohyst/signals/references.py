@@ -36,8 +36,8 @@ import numbers
 
 import numpy as np
 
-from ._validate import as_int, as_scalar, as_vector
-from .errors import ParameterError, ParameterTypeError
+from .._validate import as_int, as_scalar, as_vector
+from ..errors import ParameterError, ParameterTypeError
 
 __all__ = ["chirp", "multisine", "sine", "staircase", "triangle", "variable_amplitude_sine"]
 
