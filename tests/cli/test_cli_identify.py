@@ -16,7 +16,7 @@ import pytest
 
 import piezohyst as ph
 
-YAN9A = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "piezo" / "yan9a_model_1hz.dat"
+YAN9A = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "piezo" / "yan9a_model_1hz.dat"
 FS = 1000.0
 N = 4000
 
@@ -55,7 +55,12 @@ def data(tmp_path_factory):
     d = tmp_path_factory.mktemp("cli_identify")
     t, v = mpi_signal()
     np.savetxt(
-        d / "mpi.csv", np.c_[t, v, ph.mpi_seed2().simulate(v)], delimiter=",", header="t,v,y", comments="", fmt="%.17g"
+        d / "mpi.csv",
+        np.c_[t, v, ph.papers.mpi_seed2().simulate(v)],
+        delimiter=",",
+        header="t,v,y",
+        comments="",
+        fmt="%.17g",
     )
     u = bw_signal()
     np.savetxt(
@@ -77,7 +82,7 @@ def data(tmp_path_factory):
     )
     (d / "nan.csv").write_text("v,y\n0,0\n0.5,0.4\nnan,1\n0.5,0.6\n")
     (d / "const.csv").write_text("v,y\n" + "".join(f"1.0,{0.1 * k}\n" for k in range(20)))
-    ph.mpi_seed2().save(d / "seed2.json")
+    ph.papers.mpi_seed2().save(d / "seed2.json")
     ph.RateDependentPI([0.1, 0.2], [0.5, 0.2], 1e-3, 1.0, 0.0).save(d / "rdpi.json")
     (d / "not_json.json").write_text("this is not JSON")
     (d / "kind.json").write_text('{"schema_version": 1, "kind": "warp-drive", "parameters": {}}')

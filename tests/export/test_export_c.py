@@ -28,7 +28,7 @@ from piezohyst.export_c import (
     save_controller,
 )
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
@@ -165,7 +165,7 @@ def test_parameter_names_match_the_core_and_the_c_library(c_library):
 
 
 def test_row_names_cover_every_family():
-    from models_zoo import zoo
+    from tests.models_zoo import zoo
 
     for m in zoo().values():
         names = row_names(m.family, m.dims)
@@ -230,7 +230,7 @@ def test_export_c_refuses_to_overwrite_and_bad_input(tmp_path, capsys, stage, mp
     assert code == 2 and "no such file" in err
     code, _, err = run_cli(capsys, "export-c", str(mpath), "--out", str(mpath))
     assert code == 2 and "not a directory" in err
-    other = ph.mpi_seed2()
+    other = ph.papers.mpi_seed2()
     cpath = save_controller(ph.InverseFeedforward(other), stage, tmp_path / "other.json")
     code, _, err = run_cli(capsys, "export-c", str(mpath), str(cpath), "--out", str(tmp_path / "d"))
     assert code == 2 and "export the model the controller was built on" in err

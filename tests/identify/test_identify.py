@@ -9,7 +9,7 @@ import pytest
 import piezohyst as ph
 from piezohyst import _core
 
-SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+SHARED = Path(__file__).resolve().parents[2].parent / "shared" / "data"
 
 
 def drive(n=3000, seed=0):
@@ -20,7 +20,7 @@ def drive(n=3000, seed=0):
 @pytest.mark.parametrize(
     "model",
     [
-        ph.mpi_seed2(),
+        ph.papers.mpi_seed2(),
         ph.PI([0.05, 0.15, 0.3], [0.4, 0.2, 0.1], p0=0.7),
         ph.PI([0.05, 0.15], [0.4, 0.2], p0=0.7, creep=ph.Creep(1e-3, [0.01, 0.1], [0.05, 0.03])),
         ph.RateDependentPI([0.05, 0.2], [0.4, 0.2], ts=1e-3, p0=0.6, beta=1e-4, rate_weights=[1e-3, -5e-4]),
@@ -39,7 +39,7 @@ def test_regressors_reproduce_the_output_and_least_squares_recovers_the_paramete
 
 
 def test_weights_are_recovered_exactly_when_the_structure_is_right():
-    truth = ph.mpi_seed2()
+    truth = ph.papers.mpi_seed2()
     v = drive()
     template = ph.GeneralizedPI(truth.thresholds, np.zeros(9), (0, 0, 0, 0), input_range=(0, 1))
     fit = ph.fit_linear(template, v, truth.simulate(v))
@@ -91,7 +91,7 @@ def test_identify_bouc_wen_recovers_the_parameters(method):
 
 
 def test_identify_reports_validation_metrics():
-    truth = ph.mpi_seed2()
+    truth = ph.papers.mpi_seed2()
     v_train, v_val = drive(2000, 1), drive(1500, 2)
     res = ph.identify(v_train, truth.simulate(v_train), "mpi", validate=(v_val, truth.simulate(v_val)))
     assert res.train["rmse_percent"] < 0.5 and res.validation["rmse_percent"] < 0.5

@@ -23,7 +23,7 @@ from piezohyst.boucwen_benchmark import (
 )
 from piezohyst.identify import IdentificationResult
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "boucwen" / "train_multisine.csv"
+DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "boucwen" / "train_multisine.csv"
 N = 8192  # samples per period of the training multisine
 FS, R = 750.0, 20
 H = 1.0 / (R * FS)

@@ -8,7 +8,8 @@ import pytest
 import piezohyst as ph
 from piezohyst import _core
 from piezohyst.boucwen_benchmark import FS, BoucWenBenchmark, identify_boucwen_benchmark
-from piezohyst.identify import KINDS, _default_thresholds, _stage_positions, default_huber_delta, huber_cost
+from piezohyst.identify import KINDS, default_huber_delta, huber_cost
+from piezohyst.identify.core import _default_thresholds, _stage_positions
 
 
 def drive(n=3000, seed=0):
@@ -92,7 +93,7 @@ def test_every_linear_kind_takes_the_huber_loss(kind):
     v = drive(1500, 1)
     kw = {"fs": 1000.0} if kind == "rdpi" else {}
     # a truth of the kind's default structure: its least-squares fit to the seed-2 MPI
-    truth = ph.identify(v, ph.mpi_seed2().simulate(v), kind, levels=6, **kw).model
+    truth = ph.identify(v, ph.papers.mpi_seed2().simulate(v), kind, levels=6, **kw).model
     y = truth.simulate(v)
     noisy, glitched = noisy_and_glitched(y, seed=4)
     ls = ph.identify(v, glitched, kind, levels=6, **kw)
@@ -227,7 +228,7 @@ def test_plot_carries_the_data():
     import matplotlib.pyplot as plt
 
     v = drive(800, 2)
-    y = ph.mpi_seed2().simulate(v) + np.random.default_rng(0).normal(0, 0.003, v.size)
+    y = ph.papers.mpi_seed2().simulate(v) + np.random.default_rng(0).normal(0, 0.003, v.size)
     res = ph.identify(v, y, "pi", operators=4)
     yp = res.model.simulate(v)
     fig = res.plot(v, y)

@@ -14,7 +14,7 @@ synthetic records; with noise, the validation error at the noise floor.
 import numpy as np
 
 import piezohyst as ph
-from piezohyst.identify import _default_thresholds
+from piezohyst.identify.core import _default_thresholds
 from piezohyst.stage import Amplifier, Stage, StageParameters
 
 
@@ -44,7 +44,7 @@ def test_pi_weights_and_p0_recovered_by_least_squares():
 
 def test_mpi_polynomial_and_weights_recovered_by_least_squares():
     v, vv = drive(3000, 2), drive(2000, 3)
-    t = ph.SEED2_TABLE1
+    t = ph.papers.SEED2_TABLE1
     r = _default_thresholds(v, 9)
     poly = (0.05, 0.2547, -0.00358, 0.7123)  # seed 2's, with an offset
     truth = ph.GeneralizedPI(r, t["weights"], poly, input_range=(0, 1))
@@ -58,7 +58,7 @@ def test_mpi_polynomial_and_weights_recovered_by_least_squares():
 
 def test_mpi_with_noise_reaches_the_noise_floor():
     v, vv = drive(3000, 4), drive(2000, 5)
-    t = ph.SEED2_TABLE1
+    t = ph.papers.SEED2_TABLE1
     truth = ph.GeneralizedPI(_default_thresholds(v, 9), t["weights"], t["polynomial"], input_range=(0, 1))
     y, clean_val = truth.simulate(v), truth.simulate(vv)
     sigma = 0.002 * np.ptp(y)

@@ -12,7 +12,7 @@ from numpy.polynomial import Polynomial
 import piezohyst as ph
 from piezohyst.varpro import identify_vp, vp_parameters
 
-YAN9A = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "piezo" / "yan9a_model_1hz.dat"
+YAN9A = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "piezo" / "yan9a_model_1hz.dat"
 
 
 def drive(n, seed):
@@ -47,7 +47,7 @@ TRUE_STRUCTURE = {
 
 @pytest.fixture(scope="module")
 def gpi_records():
-    t = ph.SEED2_TABLE1
+    t = ph.papers.SEED2_TABLE1
     truth = ph.GeneralizedPI(
         np.arange(1, 10) * 0.05,
         t["weights"],
@@ -98,7 +98,7 @@ def test_vp_tanh_envelopes():
     """The tanh parametrization on a truth in its family: recovered to the noise-free floor."""
     from piezohyst.varpro import _tanh_shape_coefficients
 
-    t = ph.SEED2_TABLE1
+    t = ph.papers.SEED2_TABLE1
     v, vv = drive(1000, 0), 0.05 + 0.9 * drive(1000, 2)
     rising = ph.Envelope.tanh(*_tanh_shape_coefficients(0.9, 0.2, 0.0, 1.0, 0.5, 0.5))
     falling = ph.Envelope.tanh(*_tanh_shape_coefficients(0.7, 0.1, 0.05, 1.0, 0.5, 0.5))
@@ -216,7 +216,10 @@ def test_vp_callback_fixed_parameters_no_polish_and_huber():
     sq = identify_vp(v, yg, "mpi", **kw)
     assert hub.method == "vp-de+polish+huber" and sq.method == "vp-de+polish"
     assert hub.history["structure"]["falling_offset"] == pytest.approx(0.02, abs=1e-3)
-    clean = lambda r: np.sqrt(np.mean((r.model.simulate(v) - y) ** 2))
+
+    def clean(r):
+        return np.sqrt(np.mean((r.model.simulate(v) - y) ** 2))
+
     assert clean(hub) < 0.1 * clean(sq)
 
 

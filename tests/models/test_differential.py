@@ -1,5 +1,7 @@
 """Bouc–Wen, Duhem, Dahl against tight ODE references."""
 
+import itertools
+
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
@@ -11,7 +13,7 @@ def ode_reference(rhs, v, h0=0.0):
     """Integrate dh/dt = rhs(h, dv/dt) with v linear between samples (1 s per sample)."""
     h = [h0]
     x = h0
-    for a, b in zip(v[:-1], v[1:], strict=False):
+    for a, b in itertools.pairwise(v):
         dv = b - a
         sol = solve_ivp(lambda t, y: [rhs(y[0], a + dv * t, dv)], (0, 1), [x], method="DOP853", rtol=1e-12, atol=1e-14)
         x = sol.y[0, -1]

@@ -38,7 +38,7 @@ def test_identity_envelopes_reduce_to_classical_pi(rng):
 
 
 def test_seed2_reference_parameters():
-    m = ph.mpi_seed2()
+    m = ph.papers.mpi_seed2()
     assert m.thresholds.tolist() == pytest.approx([0.1 * i for i in range(1, 10)])
     assert m.weights.tolist() == [0.2054, 0.1985, 0.0237, 0.0148, 0.0456, 0.0645, 0.0051, 0.0014, 0.0033]
     assert m.polynomial == (0.0, 0.2547, -0.00358, 0.7123)
@@ -61,7 +61,7 @@ def test_inverse_of_forward_is_identity_gpi(kind, seed):
 @given(seed=st.integers(0, 2**32 - 1))
 def test_inverse_of_forward_is_identity_mpi_seed2(seed):
     rng = np.random.default_rng(seed)
-    m = ph.mpi_seed2()
+    m = ph.papers.mpi_seed2()
     v = np.clip(0.5 + np.cumsum(rng.normal(0, 0.05, 400)), 0, 1)
     yd = m.simulate(v)
     v_found = m.inverse().simulate(yd)
@@ -86,7 +86,7 @@ def test_analytic_gpi_inverse_refused_with_reason():
     with pytest.raises(ValueError, match="envelopes differ"):
         gpi("polynomial").analytic_inverse()
     with pytest.raises(ValueError, match="polynomial"):
-        ph.mpi_seed2().analytic_inverse()
+        ph.papers.mpi_seed2().analytic_inverse()
 
 
 def rdpi(ts=1e-3, beta=2e-4):
@@ -106,7 +106,10 @@ def loop_width_at_zero(v, y):
     dv = np.diff(v)
     up = np.flatnonzero((v[:-1] < 0) & (v[1:] >= 0) & (dv > 0))[-1]
     down = np.flatnonzero((v[:-1] > 0) & (v[1:] <= 0) & (dv < 0))[-1]
-    at = lambda k: y[k] + (y[k + 1] - y[k]) * (0 - v[k]) / (v[k + 1] - v[k])
+
+    def at(k):
+        return y[k] + (y[k + 1] - y[k]) * (0 - v[k]) / (v[k + 1] - v[k])
+
     return at(down) - at(up)
 
 

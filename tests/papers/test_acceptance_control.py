@@ -10,7 +10,7 @@ import pytest
 
 import piezohyst as ph
 
-BENCH = Path(__file__).resolve().parents[1] / "bench" / "control.py"
+BENCH = Path(__file__).resolve().parents[2] / "bench" / "control.py"
 
 
 @pytest.fixture(scope="module")

@@ -14,7 +14,7 @@ from piezohyst import benchmarks as bm
 from piezohyst.cli import main
 from piezohyst.errors import DataError, ParameterError
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "bench" / "results"
 
 

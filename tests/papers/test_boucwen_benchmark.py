@@ -12,7 +12,7 @@ from scipy.integrate import solve_ivp
 from piezohyst import _core
 from piezohyst.boucwen_benchmark import BoucWenBenchmark, decimate, load_train_multisine, upsample
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "boucwen" / "train_multisine.csv"
+DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "boucwen" / "train_multisine.csv"
 N = 8192  # samples per period of the training multisine
 NOISE = 8e-6  # m, output noise of the record (docs/spec.md §3.3)
 

@@ -3,6 +3,7 @@ independent solve_ivp reference, the drive amplifier, creep, the numbers the def
 stage must measure, stage files and bad input."""
 
 import dataclasses
+import itertools
 import json
 import math
 from importlib import resources
@@ -12,7 +13,7 @@ import pytest
 
 import piezohyst as ph
 from piezohyst import Amplifier, Sensor, Stage, StageParameters, virtual_stage
-from stage_reference import reference_positions
+from tests.stage_reference import reference_positions
 
 TS = 1e-4  # the virtual stage's controller period
 N = 60  # 6 ms: six periods of the 1 kHz sine, the step's transient and its ringing
@@ -118,7 +119,7 @@ def test_error_decreases_with_tolerance(name):
     tolerances = [1.0, 1e-1, 1e-2, 1e-3, 1e-4]
     errors = [rel_error(st.simulate(u, substeps=1, tolerance=tol).position, x_ref) for tol in tolerances]
     assert errors[0] > 1e-3  # coarse refinement is visibly wrong ...
-    for coarse, fine in zip(errors, errors[1:], strict=False):
+    for coarse, fine in itertools.pairwise(errors):
         assert fine < coarse or fine < 1e-7, errors  # ... every tenfold tighter tolerance is better, down to the floor
     assert errors[-1] < 1e-5
 

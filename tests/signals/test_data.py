@@ -23,7 +23,7 @@ except ImportError:
 
 needs_h5py = pytest.mark.skipif(h5py is None, reason=H5PY_HINT)
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
 YAN9A_MODEL = DATA / "piezo" / "yan9a_model_1hz.dat"
 YAN9A_TEST = DATA / "piezo" / "yan9a_test.dat"
 MULTISINE = DATA / "boucwen" / "train_multisine.csv"
@@ -72,7 +72,7 @@ def test_csv_with_header_by_name(tmp_path):
 
 
 def test_tsv_without_header_by_index(tmp_path):
-    t, u, y = signals()
+    _t, u, y = signals()
     other = np.full_like(u, 7.0)
     f = write_csv(tmp_path / "run.tsv", None, [u, other, other, other, y, other], delimiter="\t")
     rec = load_record(f, input=0, output=4, fs=200.0)
@@ -145,7 +145,7 @@ def test_npz_by_key_and_matrix(tmp_path):
 
 
 def test_npy_matrix(tmp_path):
-    t, u, y = signals()
+    _t, u, y = signals()
     f = tmp_path / "a.npy"
     np.save(f, np.column_stack([u, y]).astype(np.float32))
     rec = load_record(f, fs=200)
