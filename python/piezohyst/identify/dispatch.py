@@ -59,7 +59,7 @@ class _Call:
     creep: int
     loss: str
     delta: object
-    validate: object
+    validate: tuple | None
     search: dict
     options: dict
     t0: float
