@@ -14,6 +14,7 @@ from .core import (
     css_forces,
     minimize,
 )
+from .report import RunReport
 
 __all__ = [
     "CSS",
@@ -24,6 +25,7 @@ __all__ = [
     "IntermediateResult",
     "OptimizeResult",
     "Optimizer",
+    "RunReport",
     "css_charges",
     "css_forces",
     "minimize",
