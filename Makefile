@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 RUST_SOURCES := $(shell find crates -name '*.rs' -o -name 'Cargo.toml') Cargo.toml
 BUILT  := $(VENV)/.built
 
-.PHONY: demo test test-rust test-python test-c bench bench-c clean
+.PHONY: demo test test-rust test-python test-c lint lint-rust lint-python bench bench-c clean
 
 $(BIN)/python:
 	$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "Python >= 3.11 is required"'
@@ -15,13 +15,33 @@ $(BIN)/python:
 
 # The extension is rebuilt (release, LTO) whenever a Rust source changes.
 $(BUILT): $(BIN)/python $(RUST_SOURCES) pyproject.toml
-	VIRTUAL_ENV=$(abspath $(VENV)) $(BIN)/maturin develop --release --extras test
+	VIRTUAL_ENV=$(abspath $(VENV)) $(BIN)/maturin develop --release --extras test,lint
 	touch $@
 
 demo: $(BUILT)
 	$(BIN)/python -m piezohyst demo --force   # regenerates ./piezohyst-report
 
 test: test-rust test-python test-c
+
+# The gates CI runs before the tests: formatting, lints, strict types, the stub against the
+# compiled module, and the core cross-built for a bare-metal Cortex-M4F (no_std, no allocator).
+EMBEDDED_TARGET := thumbv7em-none-eabihf
+PY_SOURCES := python tests bench
+
+lint: lint-rust lint-python
+
+lint-rust:
+	cargo fmt --all --check
+	cargo clippy --workspace --all-targets -- -D warnings
+	rustup target list --installed | grep -qx $(EMBEDDED_TARGET) || rustup target add $(EMBEDDED_TARGET)
+	cargo clippy -p piezohyst-core --target $(EMBEDDED_TARGET) -- -D warnings
+	cargo build -p piezohyst-core --release --target $(EMBEDDED_TARGET)
+
+lint-python: $(BUILT)
+	$(BIN)/ruff check $(PY_SOURCES)
+	$(BIN)/ruff format --check $(PY_SOURCES)
+	$(BIN)/mypy
+	$(BIN)/python -m mypy.stubtest piezohyst._core
 
 test-rust:
 	cargo build -p piezohyst-core            # no_std: the core without its std feature

@@ -96,7 +96,7 @@ ACC_SUBSTEPS = [1, 4, 16, 64, 256]
 IVP_METHODS = ["DOP853", "RK45", "LSODA"]
 IVP_RTOLS = [1e-4, 1e-6, 1e-8, 1e-10]
 REF_RTOL = 1e-12  # the tight reference
-LEVELS = 11  # crates/core/src/stage.rs::LEVELS (for the sub-step estimate)
+LEVELS = 11  # crates/core/src/plant/stage.rs::LEVELS (for the sub-step estimate)
 
 
 # ------------------------------------------------------------------------------ helpers
@@ -464,7 +464,7 @@ def ivp_closed_loop(stage, pid_core, reference, rtol, method, noise_seed):
 
 
 def refinement_substeps(stage, command, substeps, tolerance):
-    """Sub-steps per period the core takes (Stage::refinement in crates/core/src/stage.rs,
+    """Sub-steps per period the core takes (Stage::refinement in crates/core/src/plant/stage.rs,
     replicated here from the state at the start of each period; the state comes from
     simulating one period at a time). Returns (substeps per period, stepwise positions)."""
     p, amp = stage.params, stage.amplifier

@@ -353,7 +353,8 @@ def main(argv=None) -> int:
         "machine": info,
         "versions": vers,
         "method": {
-            "blas": "OPENBLAS_NUM_THREADS=1 everywhere: no BLAS call is timed, and an idle pool competes with rayon on 2 cores",
+            "blas": "OPENBLAS_NUM_THREADS=1 everywhere: no BLAS call is timed, and an idle pool competes with "
+            "rayon on 2 cores",
             "unit": "play-operator updates per second; one batch_rmse call = S*N*n updates",
             "statistic": "median of repetitions (min and raw times also given)",
             "piezohyst_call": "piezohyst.batch.batch_rmse('pi', params, v, target, dims=[n, 0]) "
@@ -406,7 +407,8 @@ def main(argv=None) -> int:
     )
     hdr = (
         f"{'workload':<12} {'S':>5} {'n':>2} {'N':>6} | {'piezohyst 1T':>12} {'piezohyst 2T':>12} "
-        f"{'2T/1T':>5} | {'NumPy':>7} {'per-step':>8} | {'2T/np':>6} {'2T/step':>7} | {'>=1e9':>5} {'>=100x':>6} {'(step)':>6}"
+        f"{'2T/1T':>5} | {'NumPy':>7} {'per-step':>8} | {'2T/np':>6} {'2T/step':>7} | "
+        f"{'>=1e9':>5} {'>=100x':>6} {'(step)':>6}"
     )
     print(hdr)
     print("-" * len(hdr))

@@ -17,11 +17,11 @@ def zoo():
         "gpi": ph.GeneralizedPI(
             r, w, (0, 0, 0, 0), Envelope.tanh(2.0, 0.8), Envelope.tanh(2.1, 0.75, 0.05, 0.02), input_range=(-1.5, 1.5)
         ),
-        "mpi": ph.mpi_seed2(),
+        "mpi": ph.papers.mpi_seed2(),
         "mpi+creep": ph.GeneralizedPI(
-            ph.SEED2_TABLE1["thresholds"],
-            ph.SEED2_TABLE1["weights"],
-            ph.SEED2_TABLE1["polynomial"],
+            ph.papers.SEED2_TABLE1["thresholds"],
+            ph.papers.SEED2_TABLE1["weights"],
+            ph.papers.SEED2_TABLE1["polynomial"],
             Envelope.polynomial(0.0, 1.0, 0.0, 0.05),
             Envelope.polynomial(0.02, 0.9, 0.05, 0.07),
             input_range=(0, 1),

@@ -71,7 +71,7 @@ def test_non_monotone_cubic_envelope_detected():
 )
 def test_bad_records(record, kind, message):
     with pytest.raises(kind, match=message):
-        ph.mpi_seed2().simulate(record)
+        ph.papers.mpi_seed2().simulate(record)
 
 
 def test_bad_state_and_step():

@@ -21,7 +21,7 @@ import piezohyst as ph
 STAGE = ph.virtual_stage()
 T = np.arange(400) / 1000.0
 V = 0.5 + 0.4 * np.sin(2 * np.pi * 5 * T) * np.linspace(1, 0.3, T.size)
-Y = ph.mpi_seed2().simulate(V)
+Y = ph.papers.mpi_seed2().simulate(V)
 REF = 8e-6 + 4e-6 * np.sin(2 * np.pi * 20 * np.arange(600) * 1e-4)
 
 
@@ -150,19 +150,19 @@ RECIPES = {
     ),
     "batch_rmse": (
         ph.batch_rmse,
-        (ph.mpi_seed2(), np.tile(ph.mpi_seed2()._row, (3, 1)), V, Y),
+        (ph.papers.mpi_seed2(), np.tile(ph.papers.mpi_seed2()._row, (3, 1)), V, Y),
         {},
         ["params", "input", "target"],
         [],
     ),
     "batch_simulate": (
         ph.batch_simulate,
-        (ph.mpi_seed2(), np.tile(ph.mpi_seed2()._row, (3, 1)), V),
+        (ph.papers.mpi_seed2(), np.tile(ph.papers.mpi_seed2()._row, (3, 1)), V),
         {},
         ["params", "input"],
         [],
     ),
-    "model.simulate": (ph.mpi_seed2().simulate, (V,), {}, ["input"], []),
+    "model.simulate": (ph.papers.mpi_seed2().simulate, (V,), {}, ["input"], []),
     "inverse.simulate": (ph.PI([0.0, 0.1, 0.2], [1.0, 0.5, 0.2]).inverse().simulate, (np.abs(V),), {}, ["desired"], []),
     "stage.simulate": (STAGE.simulate, (np.full(300, 50.0),), {}, ["command"], []),
 }

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import piezohyst as ph
-from models_zoo import drive, zoo
+from tests.models_zoo import drive, zoo
 
 ZOO = zoo()
 

@@ -27,9 +27,9 @@ from hypothesis import strategies as st
 from hypothesis.errors import InvalidArgument
 
 import piezohyst as ph
-from models_zoo import drive, zoo
 from piezohyst.cli import main
 from piezohyst.export_c import load_controller, save_controller
+from tests.models_zoo import drive, zoo
 
 EXAMPLES = int(os.environ.get("PIEZOHYST_FUZZ_EXAMPLES", "150"))
 FUZZ = settings(
@@ -45,7 +45,7 @@ STAGE = ph.virtual_stage()
 CONTROLLERS = {
     "pid": ph.PID(kp=2e6, ki=2e9),
     "smc": ph.SMC(STAGE.params, cemf=True),
-    "inverse": ph.InverseFeedforward(ph.mpi_seed2()),
+    "inverse": ph.InverseFeedforward(ph.papers.mpi_seed2()),
 }
 
 json_scalars = (
@@ -384,9 +384,9 @@ def cli_dir():
     d = Path(tempfile.mkdtemp())
     t = np.arange(400) / 1000.0
     v = 0.5 + 0.4 * np.sin(2 * np.pi * 5 * t)
-    y = ph.mpi_seed2().simulate(v)
+    y = ph.papers.mpi_seed2().simulate(v)
     np.savetxt(d / "data.csv", np.c_[t, v, y], delimiter=",", header="t,v,y", comments="")
-    ph.mpi_seed2().save(d / "model.json")
+    ph.papers.mpi_seed2().save(d / "model.json")
     (d / "stage.json").write_text(STAGE_TEXT)
     save_controller(CONTROLLERS["pid"], STAGE, d / "c.json")
     (d / "res").mkdir()
@@ -410,7 +410,7 @@ def _run_cli(argv, cwd):
 
 
 def test_unmutated_commands_run(cli_dir):
-    for command, argv in _BASE.items():
+    for argv in _BASE.values():
         code, _out, err = _run_cli(list(argv), cli_dir)
         assert code == 0, (argv, err)
 

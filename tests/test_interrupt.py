@@ -13,7 +13,7 @@ import time
 import numpy as np
 
 import piezohyst as ph
-from piezohyst import optimize
+from piezohyst.optimize import core as optimize
 
 
 def _interrupt_after(monkeypatch, calls: int):
@@ -56,7 +56,7 @@ def test_identify_vp_interrupted_is_partial(monkeypatch):
     rng = np.random.default_rng(1)
     v = np.cumsum(rng.normal(0, 1, 3000))
     v = 80 * (v - v.min()) / np.ptp(v)
-    y = ph.mpi_seed2().simulate(v)
+    y = ph.papers.mpi_seed2().simulate(v)
     _interrupt_after(monkeypatch, 3)
     res = ph.identify(v, y, model="mpi", structure="fit", optimizer="de", rng=0, max_iterations=20, population_size=6)
     assert res.partial and np.isfinite(res.train["rmse_percent"])

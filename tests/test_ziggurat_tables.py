@@ -1,4 +1,4 @@
-"""The normal generator's ziggurat tables (crates/core/src/ziggurat_tables.rs) are what their
+"""The normal generator's ziggurat tables (crates/core/src/num/ziggurat_tables.rs) are what their
 generator script (crates/core/ziggurat_tables.py, exact decimal arithmetic) prints."""
 
 import subprocess
@@ -15,7 +15,7 @@ def test_checked_in_tables_are_the_scripts_output():
         capture_output=True,
         text=True,
     ).stdout
-    assert out == (ROOT / "crates" / "core" / "src" / "ziggurat_tables.rs").read_text()
+    assert out == (ROOT / "crates" / "core" / "src" / "num" / "ziggurat_tables.rs").read_text()
     # the well-known constants of the 256-layer normal ziggurat (Marsaglia & Tsang 2000)
     assert "pub(crate) const ZIG_R: f64 = 3.654152885361009;" in out
     assert "ZIG_V: f64 = 0.0049286732339" in out

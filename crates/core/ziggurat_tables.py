@@ -1,9 +1,9 @@
-"""Generate crates/core/src/ziggurat_tables.rs: the 256-layer ziggurat of the standard normal
+"""Generate crates/core/src/num/ziggurat_tables.rs: the 256-layer ziggurat of the standard normal
 density (Marsaglia & Tsang 2000) used by piezohyst_core::rng for normal deviates.
 
 Usage (from the project root; Python's standard library only):
 
-    python3 crates/core/ziggurat_tables.py > crates/core/src/ziggurat_tables.rs
+    python3 crates/core/ziggurat_tables.py > crates/core/src/num/ziggurat_tables.rs
 
 ``tests/test_ziggurat_tables.py`` checks the checked-in file is this script's output.
 

@@ -1,13 +1,34 @@
 """piezohyst — model, identify and compensate the hysteresis of piezoelectric actuators.
 
 The hot loops run in a Rust core (``piezohyst._core``); this package holds the models'
-Python interface, batch evaluation, files and the command line.
+Python interface, batch evaluation, files and the command line, in sub-packages by role:
+
+- ``models``: the hysteresis models, model files, batch evaluation, the Bouc–Wen benchmark system;
+- ``signals``: measured records and their readers, reference trajectories, metrics;
+- ``optimize``: population optimizers;
+- ``identify``: identification (least squares, variable projection, the ``identify`` dispatcher);
+- ``plant``: the simulated stage, flexure design, generic experiment helpers;
+- ``control``: controllers, closed-loop simulation, tuning;
+- ``export``: C code export;
+- ``papers``: the seed papers' experiments, the demo and report, the benchmark suite, the
+  Bouc–Wen benchmark workflow and the provenance presets (``mpi_seed2``, ``seed1_stage``);
+- ``cli``: the command line, one module per command.
+
+Shared private helpers stay at the top: ``errors`` (the exception hierarchy), ``_validate``
+(argument checks), ``_io`` (atomic writes, JSON files) and ``_core`` (the Rust core). The
+library (every sub-package but ``papers`` and ``cli``) never imports ``papers`` or ``cli``;
+``tests/test_architecture.py`` holds the rules.
+
+The former flat module paths (``piezohyst.pi``, ``piezohyst.stage``, ``piezohyst.experiments``,
+...) stay importable: ``_MOVED`` below maps each to its new home, and a meta-path finder
+makes the old name an alias of the same module object.
 
 Examples
 --------
 >>> import numpy as np
 >>> import piezohyst as ph
->>> model = ph.mpi_seed2()
+>>> from piezohyst.papers import mpi_seed2
+>>> model = mpi_seed2()
 >>> v = 0.5 + 0.4 * np.sin(np.linspace(0, 4 * np.pi, 400))
 >>> y = model.simulate(v)
 >>> v_back = model.inverse().simulate(y)
@@ -15,13 +36,31 @@ Examples
 True
 """
 
+import importlib
+import importlib.abc
+import importlib.util
+import sys
+import warnings
+
 from . import _core
-from .batch import batch_rmse, batch_simulate
-from .boucwen_benchmark import BoucWenBenchmark, identify_boucwen_benchmark, load_train_multisine
-from .control import ABSMC, ILC, PID, SMC, CemfFeedforward, Compensated, InverseFeedforward, OpenLoop, VelocityObserver
-from .creep import Creep
-from .data import Record, load_record, load_yan9a_model_record
-from .differential import BoucWen, Dahl, Duhem
+from .control import (
+    ABSMC,
+    ILC,
+    PID,
+    SMC,
+    CemfFeedforward,
+    ClosedLoopResult,
+    Compensated,
+    InverseFeedforward,
+    OpenLoop,
+    TuningResult,
+    VelocityObserver,
+    closed_loop,
+    closed_loop_batch,
+    stage_from_model,
+    track,
+    tune,
+)
 from .errors import (
     ComputationError,
     DataError,
@@ -32,28 +71,69 @@ from .errors import (
     PiezohystError,
     UnreachableError,
 )
-from .flexure import A7075_YOUNGS_MODULUS, CemfCoefficients, FlexureStage, LeafSpring, seed1_stage
 from .identify import (
     FitResult,
     IdentificationResult,
     fit_linear,
     fit_metrics,
     identify,
+    identify_boucwen_benchmark,
     identify_cemf,
     identify_mpi,
     identify_pi,
     identify_preisach,
+    identify_vp,
 )
-from .metrics import hysteresis_percent, linearity_error, tracking_metrics
-from .model import SCHEMA_VERSION, HysteresisModel, Inverse, load_model, model_from_dict
+from .models import (
+    PI,
+    SCHEMA_VERSION,
+    BoucWen,
+    BoucWenBenchmark,
+    Creep,
+    Dahl,
+    Duhem,
+    Envelope,
+    GeneralizedPI,
+    GeneralizedPlay,
+    HysteresisModel,
+    Inverse,
+    PlayOperator,
+    Preisach,
+    RateDependentPI,
+    batch_rmse,
+    batch_simulate,
+    load_model,
+    model_from_dict,
+)
 from .optimize import CSS, DE, MPSO, PSO, IntermediateResult, Optimizer, OptimizeResult, minimize
-from .pi import PI, SEED2_TABLE1, Envelope, GeneralizedPI, GeneralizedPlay, PlayOperator, RateDependentPI, mpi_seed2
-from .preisach import Preisach
-from .references import chirp, multisine, sine, staircase, triangle, variable_amplitude_sine
-from .simulation import ClosedLoopResult, closed_loop, closed_loop_batch
-from .stage import Amplifier, Sensor, Stage, StageInfo, StageParameters, StageResponse, virtual_stage
-from .tuning import TuningResult, stage_from_model, track, tune
-from .varpro import identify_vp
+from .papers.boucwen_benchmark import load_train_multisine
+from .plant import (
+    A7075_YOUNGS_MODULUS,
+    Amplifier,
+    CemfCoefficients,
+    FlexureStage,
+    LeafSpring,
+    Sensor,
+    Stage,
+    StageInfo,
+    StageParameters,
+    StageResponse,
+    virtual_stage,
+)
+from .signals import (
+    Record,
+    chirp,
+    hysteresis_percent,
+    linearity_error,
+    load_record,
+    load_yan9a_model_record,
+    multisine,
+    sine,
+    staircase,
+    tracking_metrics,
+    triangle,
+    variable_amplitude_sine,
+)
 
 __version__ = _core.__version__
 
@@ -68,7 +148,6 @@ __all__ = [
     "PID",
     "PSO",
     "SCHEMA_VERSION",
-    "SEED2_TABLE1",
     "SMC",
     "Amplifier",
     "BoucWen",
@@ -135,9 +214,7 @@ __all__ = [
     "load_yan9a_model_record",
     "minimize",
     "model_from_dict",
-    "mpi_seed2",
     "multisine",
-    "seed1_stage",
     "sine",
     "stage_from_model",
     "staircase",
@@ -148,3 +225,74 @@ __all__ = [
     "variable_amplitude_sine",
     "virtual_stage",
 ]
+
+#: The former flat modules and their homes: ``piezohyst.<old>`` is the module
+#: ``piezohyst.<new>`` (the same object). ``identify``, ``optimize``, ``control`` and ``cli``
+#: kept their names as packages that re-export the former module's public names.
+_MOVED = {
+    "batch": "models.batch",
+    "benchmarks": "papers.benchmarks",
+    "boucwen_benchmark": "papers.boucwen_benchmark",
+    "creep": "models.creep",
+    "data": "signals.data",
+    "demo": "papers.demo",
+    "differential": "models.differential",
+    "experiments": "papers.experiments",
+    "export_c": "export.c",
+    "flexure": "plant.flexure",
+    "metrics": "signals.metrics",
+    "model": "models.model",
+    "pi": "models.pi",
+    "preisach": "models.preisach",
+    "references": "signals.references",
+    "report": "papers.report",
+    "simulation": "control.simulation",
+    "stage": "plant.stage",
+    "tuning": "control.tuning",
+    "varpro": "identify.varpro",
+}
+
+#: Provenance names that left ``__all__``: still importable from here, with a
+#: ``DeprecationWarning`` naming their home.
+_DEPRECATED = {
+    "SEED2_TABLE1": "piezohyst.papers",
+    "mpi_seed2": "piezohyst.papers",
+    "seed1_stage": "piezohyst.papers",
+}
+
+
+class _MovedModules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
+    """Imports ``piezohyst.<old>`` of ``_MOVED`` as the module at its new path."""
+
+    _prefix = __name__ + "."
+
+    def find_spec(self, fullname, path=None, target=None):
+        if fullname.startswith(self._prefix) and fullname[len(self._prefix) :] in _MOVED:
+            return importlib.util.spec_from_loader(fullname, self)
+        return None
+
+    def create_module(self, spec):
+        module = importlib.import_module(f"{__name__}.{_MOVED[spec.name[len(self._prefix) :]]}")
+        spec.loader_state = module.__spec__  # the import system sets module.__spec__ to the alias's
+        return module
+
+    def exec_module(self, module):
+        module.__spec__ = module.__spec__.loader_state or module.__spec__
+
+
+if not any(isinstance(f, _MovedModules) for f in sys.meta_path):
+    sys.meta_path.append(_MovedModules())
+
+
+def __getattr__(name):
+    if name in _DEPRECATED:
+        home = _DEPRECATED[name]
+        warnings.warn(
+            f"piezohyst.{name} moved to {home}.{name}; import it from {home}",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return getattr(importlib.import_module(home), name)
+    if name in _MOVED:
+        return importlib.import_module(f"{__name__}.{name}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -7,7 +7,7 @@ use piezohyst_core::cemf::CemfModel;
 use piezohyst_core::compensated::Compensated;
 use piezohyst_core::control::{Controller, Limits, OpenLoop, Reference, VelocityObserver};
 use piezohyst_core::inverse::inverse_step;
-use piezohyst_core::smc::{Smc, Switching};
+use piezohyst_core::smc::{Smc, SmcConfig, Switching};
 use piezohyst_core::spec::Family;
 use piezohyst_core::Invertible;
 use std::time::Instant;
@@ -101,45 +101,60 @@ fn main() {
     let mut pi_scratch = vec![0.0; pi_family.scratch_len()];
     let pi = pi_family.build(&pi_row, &mut pi_scratch).unwrap();
     let observer = VelocityObserver::new(1000.0, ts, 1.0).unwrap();
-    let cemf = CemfModel::new(0.0068, 13.0, 6.98e6, 10.5, 1.8e-6, 1.25e5, 8000.0, 3000.0).unwrap();
+    let cemf =
+        CemfModel { m: 0.0068, b: 13.0, k: 6.98e6, tem: 10.5, cz: 1.8e-6, alpha: 1.25e5, beta: 8000.0, gamma: 3000.0 }
+            .validated()
+            .unwrap();
     let smc = |with: bool| {
-        Smc::new(
-            (0.0068, 13.0, 6.98e6),
-            1e6,
-            2e3,
-            0.0,
-            Switching::BoundaryLayer { gain: 20.0, width: 0.01 },
-            if with { Some(cemf) } else { None },
+        Smc::new(SmcConfig {
+            m: 0.0068,
+            b: 13.0,
+            k: 6.98e6,
+            kp: 1e6,
+            kv: 2e3,
+            alpha: 0.0,
+            switching: Switching::BoundaryLayer { gain: 20.0, width: 0.01 },
+            cemf: if with { Some(cemf) } else { None },
+            desired_model_terms: false,
             observer,
             limits,
-        )
+        })
         .unwrap()
     };
     let disp = Limits::new(-2e-6, 22e-6).unwrap();
     let w2 = (2.0 * std::f64::consts::PI * 2000.0f64).powi(2);
-    let absmc = Absmc::new(
-        w2,
-        [w2, 1.4 * w2.sqrt()],
-        [w2 / 3.0, 0.0],
-        [3.0 * w2, 3.0 * w2.sqrt()],
-        (2e3, 2e3, 5e3, 1e-3),
-        [1e6, 1e3],
-        (1e4, 0.0, 1e5),
-        true,
+    let absmc = Absmc {
+        b: w2,
+        theta0: [w2, 1.4 * w2.sqrt()],
+        theta_min: [w2 / 3.0, 0.0],
+        theta_max: [3.0 * w2, 3.0 * w2.sqrt()],
+        c1: 2e3,
+        lambda: 2e3,
+        ks: 5e3,
+        phi: 1e-3,
+        gamma_theta: [1e6, 1e3],
+        gamma_d: 1e4,
+        d0: 0.0,
+        d_max: 1e5,
+        desired_regressor: true,
         observer,
-        disp,
-    )
+        limits: disp,
+    }
+    .validated()
     .unwrap();
-    let smc_disp = Smc::new(
-        (1.0 / w2, 1.4 / w2.sqrt(), 1.0),
-        1e6,
-        2e3,
-        0.0,
-        Switching::BoundaryLayer { gain: 1e-6, width: 0.01 },
-        None,
+    let smc_disp = Smc::new(SmcConfig {
+        m: 1.0 / w2,
+        b: 1.4 / w2.sqrt(),
+        k: 1.0,
+        kp: 1e6,
+        kv: 2e3,
+        alpha: 0.0,
+        switching: Switching::BoundaryLayer { gain: 1e-6, width: 0.01 },
+        cemf: None,
+        desired_model_terms: false,
         observer,
-        disp,
-    )
+        limits: disp,
+    })
     .unwrap();
     let rows = [
         ("PI inverse, 9 operators (inverse_step)", time_inverse(&pi, &refs)),

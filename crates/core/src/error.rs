@@ -10,7 +10,7 @@ pub enum ModelError {
     Negative(&'static str, usize, f64),
     /// A value must be > 0: (parameter, index, value).
     NotPositive(&'static str, usize, f64),
-    /// thresholds[i] <= thresholds[i-1]: (parameter, i, value).
+    /// `thresholds[i] <= thresholds[i-1]`: (parameter, i, value).
     NotIncreasing(&'static str, usize, f64),
     /// Two slices that must have equal length do not: (name, expected, got).
     Length(&'static str, usize, usize),

@@ -13,10 +13,10 @@ use core::fmt;
 
 use crate::absmc::Absmc;
 use crate::cemf::{CemfFeedforward, CemfModel};
-use crate::control::{Controller, Limits, OpenLoop, Output, Pid, Reference, VelocityObserver};
+use crate::control::{Controller, Limits, OpenLoop, Output, Pid, PidConfig, Reference, VelocityObserver};
 use crate::envelope::Envelope;
 use crate::error::ModelError;
-use crate::smc::{Smc, Switching};
+use crate::smc::{Smc, SmcConfig, Switching};
 use crate::spec::{Family, MAX_OPERATORS};
 
 // ---------------------------------------------------------------------------------------
@@ -292,14 +292,24 @@ fn observer(p: &[f64], i: usize) -> Result<VelocityObserver, ModelError> {
     VelocityObserver::new(p[i], p[i + 1], p[i + 2])
 }
 fn cemf(p: [f64; 8]) -> Result<CemfModel, ModelError> {
-    CemfModel::new(p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7])
+    CemfModel::from_slice(&p)
 }
 
 fn decode_open_loop(p: &[f64]) -> Result<Law, ModelError> {
     Ok(Law::OpenLoop(OpenLoop::new(p[0], p[1], p[2], p[3], limits(p)?)?))
 }
 fn decode_pid(p: &[f64]) -> Result<Law, ModelError> {
-    Ok(Law::Pid(Pid::new(p[0], p[1], p[2], p[3], p[4], p[5], p[6], limits(p)?)?))
+    let limits = limits(p)?;
+    Ok(Law::Pid(Pid::new(PidConfig {
+        kp: p[0],
+        ki: p[1],
+        kd: p[2],
+        tau_d: p[3],
+        ts: p[4],
+        ff_gain: p[5],
+        offset: p[6],
+        limits,
+    })?))
 }
 fn decode_smc(p: &[f64]) -> Result<Law, ModelError> {
     let limits = limits(p)?;
@@ -318,23 +328,41 @@ fn decode_smc(p: &[f64]) -> Result<Law, ModelError> {
         ));
     };
     let model = if p[12] != 0.0 { Some(cemf([p[0], p[1], p[2], p[13], p[14], p[15], p[16], p[17]])?) } else { None };
-    let mut smc = Smc::new((p[0], p[1], p[2]), p[3], p[4], p[5], switching, model, observer(p, 9)?, limits)?;
-    smc.desired_model_terms = p[18] != 0.0;
-    Ok(Law::Smc(smc))
+    Ok(Law::Smc(Smc::new(SmcConfig {
+        m: p[0],
+        b: p[1],
+        k: p[2],
+        kp: p[3],
+        kv: p[4],
+        alpha: p[5],
+        switching,
+        cemf: model,
+        desired_model_terms: p[18] != 0.0,
+        observer: observer(p, 9)?,
+        limits,
+    })?))
 }
 fn decode_absmc(p: &[f64]) -> Result<Law, ModelError> {
-    Ok(Law::Absmc(Absmc::new(
-        p[0],
-        [p[1], p[2]],
-        [p[3], p[4]],
-        [p[5], p[6]],
-        (p[7], p[8], p[9], p[10]),
-        [p[11], p[12]],
-        (p[13], p[14], p[15]),
-        p[16] != 0.0,
-        observer(p, 17)?,
-        limits(p)?,
-    )?))
+    Ok(Law::Absmc(
+        Absmc {
+            b: p[0],
+            theta0: [p[1], p[2]],
+            theta_min: [p[3], p[4]],
+            theta_max: [p[5], p[6]],
+            c1: p[7],
+            lambda: p[8],
+            ks: p[9],
+            phi: p[10],
+            gamma_theta: [p[11], p[12]],
+            gamma_d: p[13],
+            d0: p[14],
+            d_max: p[15],
+            desired_regressor: p[16] != 0.0,
+            observer: observer(p, 17)?,
+            limits: limits(p)?,
+        }
+        .validated()?,
+    ))
 }
 fn decode_cemf_feedforward(p: &[f64]) -> Result<Law, ModelError> {
     let m = cemf([p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7]])?;

@@ -6,9 +6,10 @@ use piezohyst_core::boucwen_benchmark::{
 use piezohyst_core::ModelError;
 
 const H: f64 = 1.0 / 15_000.0;
+const BENCHMARK: BoucWenBenchmark = BoucWenBenchmark::NOEL_SCHOUKENS;
 
 fn linear(mass: f64, damping: f64, stiffness: f64, alpha: f64) -> BoucWenBenchmark {
-    BoucWenBenchmark::new(mass, damping, stiffness, alpha, 0.0, 0.8, -1.1, 1.0).unwrap()
+    BoucWenBenchmark { mass, damping, stiffness, alpha, beta: 0.0, ..BENCHMARK }.validated().unwrap()
 }
 
 #[test]
@@ -20,13 +21,13 @@ fn defaults_are_the_benchmark() {
 
 #[test]
 fn validation_names_parameter_and_value() {
-    let e = BoucWenBenchmark::new(0.0, 10.0, 5e4, 5e4, 1e3, 0.8, -1.1, 1.0).unwrap_err();
+    let e = BoucWenBenchmark { mass: 0.0, ..BENCHMARK }.validated().unwrap_err();
     assert_eq!(e.to_string(), "mass = 0 must be > 0");
-    let e = BoucWenBenchmark::new(2.0, -1.0, 5e4, 5e4, 1e3, 0.8, -1.1, 1.0).unwrap_err();
+    let e = BoucWenBenchmark { damping: -1.0, ..BENCHMARK }.validated().unwrap_err();
     assert_eq!(e.to_string(), "damping = -1 must be >= 0");
-    let e = BoucWenBenchmark::new(2.0, 10.0, 5e4, 5e4, 1e3, f64::NAN, -1.1, 1.0).unwrap_err();
+    let e = BoucWenBenchmark { gamma: f64::NAN, ..BENCHMARK }.validated().unwrap_err();
     assert!(e.to_string().starts_with("gamma = NaN"), "{e}");
-    assert!(BoucWenBenchmark::new(2.0, 10.0, 5e4, 5e4, 1e3, 0.8, -1.1, 0.5).is_err());
+    assert!(BoucWenBenchmark { nu: 0.5, ..BENCHMARK }.validated().is_err());
     assert_eq!(BoucWenBenchmark::from_slice(&[1.0; 3]), Err(ModelError::Length("params", 8, 3)));
     assert!(Newmark::new(BoucWenBenchmark::default(), 0.0).is_err());
     assert!(Newmark::new(BoucWenBenchmark::default(), f64::INFINITY).is_err());

@@ -9,13 +9,13 @@
 //! Newton solve).
 use piezohyst_core::absmc::Absmc;
 use piezohyst_core::cemf::{CemfFeedforward, CemfModel};
-use piezohyst_core::closed_loop::run_tracking;
+use piezohyst_core::closed_loop::{run_tracking, Loop, Trajectory};
 use piezohyst_core::compensated::Compensated;
-use piezohyst_core::control::{Controller, Limits, OpenLoop, Pid, Reference, VelocityObserver};
+use piezohyst_core::control::{Controller, Limits, OpenLoop, Pid, PidConfig, Reference, VelocityObserver};
 use piezohyst_core::ilc::Ilc;
 use piezohyst_core::rng::Rng;
 use piezohyst_core::sensor::Sensor;
-use piezohyst_core::smc::{Smc, Switching};
+use piezohyst_core::smc::{Smc, SmcConfig, Switching};
 use piezohyst_core::spec::{Base, Family, Model};
 use piezohyst_core::stage::{HysteresisDrive, Stage, StageParams, StageState, MAX_CREEP};
 use piezohyst_core::{Hysteresis, Invertible, ModelError};
@@ -63,16 +63,17 @@ fn ideal_stage_params() -> StageParams {
 
 /// The CEMF model of a stage (volt-normalized: M = m/Tem, B = b/Tem, K = k/Tem).
 fn cemf_of(p: &StageParams) -> CemfModel {
-    CemfModel::new(
-        p.mass / p.tem,
-        p.damping / p.tem,
-        p.stiffness / p.tem,
-        p.tem,
-        p.capacitance,
-        p.hyst_alpha,
-        p.hyst_beta,
-        p.hyst_gamma,
-    )
+    CemfModel {
+        m: p.mass / p.tem,
+        b: p.damping / p.tem,
+        k: p.stiffness / p.tem,
+        tem: p.tem,
+        cz: p.capacitance,
+        alpha: p.hyst_alpha,
+        beta: p.hyst_beta,
+        gamma: p.hyst_gamma,
+    }
+    .validated()
     .unwrap()
 }
 
@@ -82,46 +83,77 @@ fn observer() -> VelocityObserver {
 
 fn smc_boundary_layer(cemf: Option<CemfModel>, alpha: f64) -> Smc {
     let c = cemf_of(&ideal_stage_params());
-    Smc::new(
-        (c.m, c.b, c.k),
-        1e6,
-        2e3,
+    Smc::new(SmcConfig {
+        m: c.m,
+        b: c.b,
+        k: c.k,
+        kp: 1e6,
+        kv: 2e3,
         alpha,
-        Switching::BoundaryLayer { gain: 5.0, width: 1e-3 },
+        switching: Switching::BoundaryLayer { gain: 5.0, width: 1e-3 },
         cemf,
-        observer(),
-        volts(),
-    )
+        desired_model_terms: false,
+        observer: observer(),
+        limits: volts(),
+    })
     .unwrap()
 }
 
 fn smc_super_twisting() -> Smc {
     let c = cemf_of(&ideal_stage_params());
-    Smc::new((c.m, c.b, c.k), 1e6, 2e3, 0.0, Switching::SuperTwisting { k1: 50.0, k2: 1e4 }, None, observer(), volts())
-        .unwrap()
+    Smc::new(SmcConfig {
+        m: c.m,
+        b: c.b,
+        k: c.k,
+        kp: 1e6,
+        kv: 2e3,
+        alpha: 0.0,
+        switching: Switching::SuperTwisting { k1: 50.0, k2: 1e4 },
+        cemf: None,
+        desired_model_terms: false,
+        observer: observer(),
+        limits: volts(),
+    })
+    .unwrap()
 }
 
 fn absmc(desired_regressor: bool) -> Absmc {
     let c = cemf_of(&ideal_stage_params());
     let (b, th) = (1.0 / c.m, [c.k / c.m, c.b / c.m]);
-    Absmc::new(
+    Absmc {
         b,
-        th,
-        [th[0] / 3.0, th[1] / 3.0],
-        [th[0] * 3.0, th[1] * 3.0],
-        (2e3, 2e3, 1e3, 1e-3),
-        [1e12, 1e6],
-        (1e6, 0.0, (U_MAX - U_MIN) * b),
+        theta0: th,
+        theta_min: [th[0] / 3.0, th[1] / 3.0],
+        theta_max: [th[0] * 3.0, th[1] * 3.0],
+        c1: 2e3,
+        lambda: 2e3,
+        ks: 1e3,
+        phi: 1e-3,
+        gamma_theta: [1e12, 1e6],
+        gamma_d: 1e6,
+        d0: 0.0,
+        d_max: (U_MAX - U_MIN) * b,
         desired_regressor,
-        observer(),
-        volts(),
-    )
+        observer: observer(),
+        limits: volts(),
+    }
+    .validated()
     .unwrap()
 }
 
 fn pid() -> Pid {
     let p = ideal_stage_params();
-    Pid::new(1e6, 5e9, 10.0, 1e-4, TS, p.stiffness / p.tem, 0.0, volts()).unwrap()
+    Pid::new(PidConfig {
+        kp: 1e6,
+        ki: 5e9,
+        kd: 10.0,
+        tau_d: 1e-4,
+        ts: TS,
+        ff_gain: p.stiffness / p.tem,
+        offset: 0.0,
+        limits: volts(),
+    })
+    .unwrap()
 }
 
 /// A PI row (µm per V when `scale = 1`, m per V when `scale = 1e-6`) with one negative
@@ -161,9 +193,22 @@ fn msg(e: ModelError) -> String {
 #[test]
 fn construction_errors_name_the_parameter() {
     let c = cemf_of(&ideal_stage_params());
-    let mck = (c.m, c.b, c.k);
     let bl = Switching::BoundaryLayer { gain: 5.0, width: 1e-3 };
-    let smc = |kp: f64, kv: f64, alpha: f64, sw: Switching| Smc::new(mck, kp, kv, alpha, sw, None, observer(), volts());
+    let smc = |kp: f64, kv: f64, alpha: f64, sw: Switching| {
+        Smc::new(SmcConfig {
+            m: c.m,
+            b: c.b,
+            k: c.k,
+            kp,
+            kv,
+            alpha,
+            switching: sw,
+            cemf: None,
+            desired_model_terms: false,
+            observer: observer(),
+            limits: volts(),
+        })
+    };
     assert!(smc(1e6, 2e3, 0.0, bl).is_ok());
 
     // kv + alpha <= 0 (boundary included)
@@ -193,18 +238,24 @@ fn construction_errors_name_the_parameter() {
     // ABSMC
     let th = [c.k / c.m, c.b / c.m];
     let ab = |theta0: [f64; 2], gains: (f64, f64, f64, f64), gamma_d: f64| {
-        Absmc::new(
-            1.0 / c.m,
+        Absmc {
+            b: 1.0 / c.m,
             theta0,
-            [th[0] / 3.0, th[1] / 3.0],
-            [th[0] * 3.0, th[1] * 3.0],
-            gains,
-            [1e12, 1e6],
-            (gamma_d, 0.0, 1e6),
-            true,
-            observer(),
-            volts(),
-        )
+            theta_min: [th[0] / 3.0, th[1] / 3.0],
+            theta_max: [th[0] * 3.0, th[1] * 3.0],
+            c1: gains.0,
+            lambda: gains.1,
+            ks: gains.2,
+            phi: gains.3,
+            gamma_theta: [1e12, 1e6],
+            gamma_d,
+            d0: 0.0,
+            d_max: 1e6,
+            desired_regressor: true,
+            observer: observer(),
+            limits: volts(),
+        }
+        .validated()
     };
     assert!(ab(th, (2e3, 2e3, 1e3, 1e-3), 1e6).is_ok());
     for c1 in [0.0, -5.0] {
@@ -222,18 +273,24 @@ fn construction_errors_name_the_parameter() {
         let e = msg(err);
         assert_eq!(e, format!("theta0[{i}] = {} must lie within [{lo}, {hi}]", theta0[i]));
     }
-    let e = msg(Absmc::new(
-        1.0 / c.m,
-        th,
-        [th[0] / 3.0, th[1] / 3.0],
-        [th[0] * 3.0, th[1] * 3.0],
-        (2e3, 2e3, 1e3, 1e-3),
-        [1e12, 1e6],
-        (1e6, 2.0, 1.0),
-        true,
-        observer(),
-        volts(),
-    )
+    let e = msg(Absmc {
+        b: 1.0 / c.m,
+        theta0: th,
+        theta_min: [th[0] / 3.0, th[1] / 3.0],
+        theta_max: [th[0] * 3.0, th[1] * 3.0],
+        c1: 2e3,
+        lambda: 2e3,
+        ks: 1e3,
+        phi: 1e-3,
+        gamma_theta: [1e12, 1e6],
+        gamma_d: 1e6,
+        d0: 2.0,
+        d_max: 1.0,
+        desired_regressor: true,
+        observer: observer(),
+        limits: volts(),
+    }
+    .validated()
     .unwrap_err());
     assert_eq!(e, "d0 = 2 must lie within [0, 1]");
     // on the bounds is fine
@@ -265,7 +322,9 @@ fn construction_errors_name_the_parameter() {
     }
 
     // CEMF model: beta >= |gamma| (equality allowed)
-    let cm = |beta: f64, gamma: f64| CemfModel::new(c.m, c.b, c.k, c.tem, c.cz, c.alpha, beta, gamma);
+    let cm = |beta: f64, gamma: f64| {
+        CemfModel { m: c.m, b: c.b, k: c.k, tem: c.tem, cz: c.cz, alpha: c.alpha, beta, gamma }.validated()
+    };
     assert!(cm(3000.0, 3000.0).is_ok() && cm(3000.0, -3000.0).is_ok());
     for (beta, gamma) in [(2999.0, 3000.0), (2999.0, -3000.0), (-1.0, 0.0)] {
         let err = cm(beta, gamma).unwrap_err();
@@ -478,7 +537,7 @@ proptest! {
         let model = fam.build(&row, &mut scratch).unwrap();
         let (y_lo, y_hi) = model_range(&model);
         let disp = Limits::new(y_lo, y_hi).unwrap();
-        let inner_pid = Pid::new(0.5, 2e3, 0.0, 1e-4, TS, 1.0, 0.0, disp).unwrap();
+        let inner_pid = Pid::new(PidConfig { kp: 0.5, ki: 2e3, kd: 0.0, tau_d: 1e-4, ts: TS, ff_gain: 1.0, offset: 0.0, limits: disp }).unwrap();
         check_bounded("compensated(pid, pi)", &Compensated { inner: inner_pid, model, limits: volts() }, &refs, &readings)?;
         // inner limits far wider than the model can reach: the voltage is still clamped
         let wide = OpenLoop::new(1.0, 0.0, 1e-4, 1e-8, Limits::new(-1e7, 1e7).unwrap()).unwrap();
@@ -495,7 +554,8 @@ proptest! {
 #[test]
 fn pid_integrator_does_not_wind_up() {
     let (kp, ki) = (1e6, 1e10); // P = 10 V and I grows 10 V per sample at e = 10 µm
-    let pid = Pid::new(kp, ki, 0.0, 1e-4, TS, 0.0, 0.0, volts()).unwrap();
+    let pid = Pid::new(PidConfig { kp, ki, kd: 0.0, tau_d: 1e-4, ts: TS, ff_gain: 0.0, offset: 0.0, limits: volts() })
+        .unwrap();
     let mut s = [0.0; 3];
     pid.reset(&mut s, 0.0);
     let r = Reference { x: 1e-5, v: 0.0, a: 0.0 };
@@ -713,12 +773,29 @@ fn cemf_feedforward_inverts_the_stage() {
     let mut sst = sensor.state(0.0, 1);
     let mut cs = [0.0; 2];
     ff.reset(&mut cs, 0.0);
-    let tr = run_tracking(&stage, &mut st, &sensor, &mut sst, &ff, &mut cs, &r, &v, &a, 0);
+    let trajectory = Trajectory { position: &r, velocity: &v, acceleration: &a };
+    let parts = Loop {
+        stage: &stage,
+        stage_state: &mut st,
+        sensor: &sensor,
+        sensor_state: &mut sst,
+        controller: &ff,
+        controller_state: &mut cs,
+    };
+    let tr = run_tracking(parts, trajectory, 0);
     // a static inverse without the hysteresis voltage, for contrast
     let static_inverse = OpenLoop::new(model.k, 0.0, 0.0, 0.0, volts()).unwrap();
     let mut st2 = StageState::ZERO;
     let mut sst2 = sensor.state(0.0, 1);
-    let tr_static = run_tracking(&stage, &mut st2, &sensor, &mut sst2, &static_inverse, &mut [], &r, &v, &a, 0);
+    let parts = Loop {
+        stage: &stage,
+        stage_state: &mut st2,
+        sensor: &sensor,
+        sensor_state: &mut sst2,
+        controller: &static_inverse,
+        controller_state: &mut [],
+    };
+    let tr_static = run_tracking(parts, trajectory, 0);
     let rms = |t: &piezohyst_core::closed_loop::Tracking| (t.sse / t.samples as f64).sqrt() / amp;
     eprintln!(
         "cemf feedforward: max |r - x| = {:.3e} m = {:.3} % of the amplitude (rms {:.3} %), saturated {}; static inverse: {:.2} %",
@@ -832,7 +909,7 @@ fn soak(steps: usize, seed: u64) -> [f64; 8] {
     let alpha = 200.0;
     let smc = smc_boundary_layer(Some(model), alpha);
     assert_eq!(smc.state_len(), 8);
-    let (gx, gv) = observer_l1_gains(&smc.observer);
+    let (gx, gv) = observer_l1_gains(&smc.config().observer);
     let vh_bound = model.alpha / (model.beta + model.gamma);
     let mut rng = Rng::new(seed);
     let mut s = [0.0; 8];
@@ -877,7 +954,7 @@ fn soak(steps: usize, seed: u64) -> [f64; 8] {
         );
     }
     // observer: BIBO bounds from the l1 gains (reported position adds delay Ts v)
-    let delay_ts = smc.observer.delay * TS;
+    let delay_ts = smc.config().observer.delay * TS;
     assert!(max_slot[0] <= gx * max_y * (1.0 + 1e-9), "x_hat {} > {gx} * {max_y}", max_slot[0]);
     assert!(max_slot[1] <= gv * max_y * (1.0 + 1e-9), "v_hat {} > {gv} * {max_y}", max_slot[1]);
     // xi' = -alpha xi + e, held or decaying: |xi| <= max|e| / alpha

@@ -226,7 +226,7 @@ proptest! {
         let w = &seed_w[..cell_count(levels)];
         let mut pre = vec![0.0; w.len()];
         row_prefix(levels, w, &mut pre);
-        let m = Preisach::new(-1.0, 1.0, levels, w, &pre, offset, slope, MAX_MEMORY).unwrap();
+        let m = Preisach { lo: -1.0, hi: 1.0, levels, weights: w, prefix: &pre, offset, slope, memory: MAX_MEMORY }.validated().unwrap();
         check_inverse(&m, &yd, "preisach")?;
         check_trial(&m, &yd, &yd, "preisach")?;
     }

@@ -27,7 +27,18 @@ impl P {
         P { lo, hi, levels, w, pre, offset, slope }
     }
     fn model(&self, memory: usize) -> Preisach<'_> {
-        Preisach::new(self.lo, self.hi, self.levels, &self.w, &self.pre, self.offset, self.slope, memory).unwrap()
+        Preisach {
+            lo: self.lo,
+            hi: self.hi,
+            levels: self.levels,
+            weights: &self.w,
+            prefix: &self.pre,
+            offset: self.offset,
+            slope: self.slope,
+            memory,
+        }
+        .validated()
+        .unwrap()
     }
     fn total(&self) -> f64 {
         self.w.iter().sum()
@@ -306,31 +317,28 @@ fn construction_errors() {
     let w = vec![0.1; cell_count(3)];
     let mut pre = vec![0.0; w.len()];
     row_prefix(3, &w, &mut pre);
+    let valid =
+        Preisach { lo: -1.0, hi: 1.0, levels: 3, weights: &w, prefix: &pre, offset: 0.0, slope: 0.1, memory: 8 };
+    assert!(valid.validated().is_ok());
+    assert_eq!(Preisach { lo: 1.0, ..valid }.validated().err(), Some(ModelError::NotIncreasing("input_range", 1, 1.0)));
+    assert_eq!(Preisach { levels: 0, ..valid }.validated().err(), Some(ModelError::Structure("levels", 0)));
+    assert_eq!(Preisach { memory: 1, ..valid }.validated().err(), Some(ModelError::Structure("memory", 1)));
     assert_eq!(
-        Preisach::new(1.0, 1.0, 3, &w, &pre, 0.0, 0.1, 8).err(),
-        Some(ModelError::NotIncreasing("input_range", 1, 1.0))
-    );
-    assert_eq!(Preisach::new(-1.0, 1.0, 0, &w, &pre, 0.0, 0.1, 8).err(), Some(ModelError::Structure("levels", 0)));
-    assert_eq!(Preisach::new(-1.0, 1.0, 3, &w, &pre, 0.0, 0.1, 1).err(), Some(ModelError::Structure("memory", 1)));
-    assert_eq!(
-        Preisach::new(-1.0, 1.0, 3, &w, &pre, 0.0, 0.1, MAX_MEMORY + 1).err(),
+        Preisach { memory: MAX_MEMORY + 1, ..valid }.validated().err(),
         Some(ModelError::Structure("memory", MAX_MEMORY + 1))
     );
-    assert_eq!(Preisach::new(-1.0, 1.0, 4, &w, &pre, 0.0, 0.1, 8).err(), Some(ModelError::Length("weights", 10, 6)));
-    assert_eq!(Preisach::new(-1.0, 1.0, 3, &w, &pre[..5], 0.0, 0.1, 8).err(), Some(ModelError::Length("prefix", 6, 5)));
+    assert_eq!(Preisach { levels: 4, ..valid }.validated().err(), Some(ModelError::Length("weights", 10, 6)));
+    assert_eq!(Preisach { prefix: &pre[..5], ..valid }.validated().err(), Some(ModelError::Length("prefix", 6, 5)));
     let mut wn = w.clone();
     wn[4] = -0.01;
+    assert_eq!(Preisach { weights: &wn, ..valid }.validated().err(), Some(ModelError::Negative("weights", 4, -0.01)));
     assert_eq!(
-        Preisach::new(-1.0, 1.0, 3, &wn, &pre, 0.0, 0.1, 8).err(),
-        Some(ModelError::Negative("weights", 4, -0.01))
-    );
-    assert_eq!(
-        Preisach::new(-1.0, 1.0, 3, &w, &pre, 0.0, -0.1, 8).err(),
+        Preisach { slope: -0.1, ..valid }.validated().err(),
         Some(ModelError::Negative("slope", usize::MAX, -0.1))
     );
     wn[4] = f64::NAN;
     assert!(
-        matches!(Preisach::new(-1.0, 1.0, 3, &wn, &pre, 0.0, 0.1, 8), Err(ModelError::NotFinite("weights", 4, x)) if x.is_nan())
+        matches!(Preisach { weights: &wn, ..valid }.validated(), Err(ModelError::NotFinite("weights", 4, x)) if x.is_nan())
     );
 }
 

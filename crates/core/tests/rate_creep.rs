@@ -11,7 +11,19 @@ use proptest::prelude::*;
 
 /// docs/spec.md §2.3, written out: rate(k) = rate(k-1) + a (|v(k) - v(k-1)|/Ts - rate(k-1)), rate = 0
 /// at the first sample; r_i(k) = r_i + beta rate(k); w_i(k) = w_i + c_i rate(k).
-fn rdpi_reference(ts: f64, p0: f64, beta: f64, a: f64, r: &[f64], w: &[f64], c: &[f64], v: &[f64]) -> Vec<f64> {
+/// The rate-dependent PI's parameters as the formulas name them (`a`: the rate filter's gain).
+struct RdpiFormula<'a> {
+    ts: f64,
+    p0: f64,
+    beta: f64,
+    a: f64,
+    r: &'a [f64],
+    w: &'a [f64],
+    c: &'a [f64],
+}
+
+fn rdpi_reference(f: &RdpiFormula<'_>, v: &[f64]) -> Vec<f64> {
+    let RdpiFormula { ts, p0, beta, a, r, w, c } = *f;
     let mut z = vec![0.0; r.len()];
     let mut rate = 0.0;
     let mut v_prev: Option<f64> = None;
@@ -53,7 +65,8 @@ proptest! {
         let a = if tau == 0.0 { 1.0 } else { 1.0 - (-ts / tau).exp() };
         prop_assert!((m.filter_gain - a).abs() <= 1e-15);
         let (y, st) = simulate(&m, &v);
-        let y_ref = rdpi_reference(ts, p0, beta, m.filter_gain, &r, &w[..n], &c[..n], &v);
+        let formula = RdpiFormula { ts, p0, beta, a: m.filter_gain, r: &r, w: &w[..n], c: &c[..n] };
+        let y_ref = rdpi_reference(&formula, &v);
         let scale = max_abs(&y_ref).max(1.0);
         prop_assert!(max_diff(&y, &y_ref) <= 1e-13 * scale, "max diff {:e}", max_diff(&y, &y_ref));
         // state layout [z.., v_prev, rate, started]

@@ -13,6 +13,14 @@ use piezohyst_core::preisach::{cell_count, row_prefix, Preisach, MAX_MEMORY};
 use piezohyst_core::Hysteresis;
 use proptest::prelude::*;
 
+/// How a record is re-timed without changing its path: sample `i` is repeated
+/// `repeats[i % len]` more times ([`repeat_samples`]), or followed by `inserts[i % len]`
+/// interpolated samples ([`stretch`]).
+struct Retiming<'a> {
+    repeats: &'a [usize],
+    inserts: &'a [usize],
+}
+
 /// Check repeated samples (bit-identical) and stretching (bit-identical if `tol` is None,
 /// else within `tol * max(max|y|, floor)`). `start` is the input of the relaxed state,
 /// prepended so that the first segment is stretched too.
@@ -21,8 +29,7 @@ fn check_rate_independence<M: Hysteresis>(
     state_view: fn(&[f64]) -> &[f64],
     start: f64,
     v: &[f64],
-    reps: &[usize],
-    ins: &[usize],
+    retiming: Retiming<'_>,
     tol: Option<(f64, f64)>,
     what: &str,
 ) -> Result<(), TestCaseError> {
@@ -30,11 +37,11 @@ fn check_rate_independence<M: Hysteresis>(
     v0.extend_from_slice(v);
     let (y, st) = simulate(m, &v0);
     prop_assert!(y.iter().all(|x| x.is_finite()), "{}: non-finite output", what);
-    let (vr, ir) = repeat_samples(&v0, reps);
+    let (vr, ir) = repeat_samples(&v0, retiming.repeats);
     let (yr, str_) = simulate(m, &vr);
     prop_bits_eq(&pick(&yr, &ir), &y, &format!("{what}: repeated samples"))?;
     prop_bits_eq(state_view(&str_), state_view(&st), &format!("{what}: state after repeated samples"))?;
-    let (vs, is) = stretch(&v0, ins);
+    let (vs, is) = stretch(&v0, retiming.inserts);
     let (ys, sts) = simulate(m, &vs);
     let ys = pick(&ys, &is);
     match tol {
@@ -86,7 +93,7 @@ proptest! {
         let rising = Envelope::Polynomial([-0.02, 0.9, 0.05, 0.3]);
         let falling = Envelope::Polynomial([0.02, 1.1, -0.05, 0.25]);
         let m = GeneralizedPi::new(poly, &r, &b, rising, falling, (-1.5, 1.5)).unwrap();
-        check_rate_independence(&m, all, 0.0, &v, &reps, &ins, None, "gpi polynomial")?;
+        check_rate_independence(&m, all, 0.0, &v, Retiming { repeats: &reps, inserts: &ins }, None, "gpi polynomial")?;
     }
 
     #[test]
@@ -101,7 +108,7 @@ proptest! {
         let rising = Envelope::Tanh([1.0, 1.2, -0.1, 0.0]);
         let falling = Envelope::Tanh([1.1, 1.0, 0.1, 0.05]);
         let m = GeneralizedPi::new(poly, &r, &b, rising, falling, (-2.0, 2.0)).unwrap();
-        check_rate_independence(&m, all, 0.0, &v, &reps, &ins, None, "gpi tanh")?;
+        check_rate_independence(&m, all, 0.0, &v, Retiming { repeats: &reps, inserts: &ins }, None, "gpi tanh")?;
     }
 
     #[test]
@@ -116,9 +123,9 @@ proptest! {
         let w = &w[..cell_count(levels)];
         let mut pre = vec![0.0; w.len()];
         row_prefix(levels, w, &mut pre);
-        let m = Preisach::new(-1.0, 1.0, levels, w, &pre, 0.1, slope, MAX_MEMORY).unwrap();
+        let m = Preisach { lo: -1.0, hi: 1.0, levels, weights: w, prefix: &pre, offset: 0.1, slope, memory: MAX_MEMORY }.validated().unwrap();
         // the relaxed Preisach state is negative saturation: its input is `lo`
-        check_rate_independence(&m, preisach_view, -1.0, &v, &reps, &ins, None, "preisach")?;
+        check_rate_independence(&m, preisach_view, -1.0, &v, Retiming { repeats: &reps, inserts: &ins }, None, "preisach")?;
     }
 
     #[test]
@@ -132,7 +139,7 @@ proptest! {
         ins in ins_strategy(),
     ) {
         let m = BoucWen::new(a, beta, gamma_frac * beta, 1.0, d).unwrap();
-        check_rate_independence(&m, all, 0.0, &v, &reps, &ins, Some((1e-12, 1e-3)), "bouc-wen n=1")?;
+        check_rate_independence(&m, all, 0.0, &v, Retiming { repeats: &reps, inserts: &ins }, Some((1e-12, 1e-3)), "bouc-wen n=1")?;
     }
 
     /// The Bouc–Wen benchmark parameters (Noël & Schoukens) with displacement-sized inputs.
@@ -143,7 +150,7 @@ proptest! {
         ins in ins_strategy(),
     ) {
         let m = BoucWen::new(5e4, 1e3 * 0.8, 1e3 * -1.1, 1.0, 0.0).unwrap();
-        check_rate_independence(&m, all, 0.0, &v, &reps, &ins, Some((1e-12, 1.0)), "bouc-wen benchmark")?;
+        check_rate_independence(&m, all, 0.0, &v, Retiming { repeats: &reps, inserts: &ins }, Some((1e-12, 1.0)), "bouc-wen benchmark")?;
     }
 
     #[test]
@@ -156,7 +163,7 @@ proptest! {
         ins in ins_strategy(),
     ) {
         let m = Dahl::new(sigma, h_c, a).unwrap();
-        check_rate_independence(&m, all, 0.0, &v, &reps, &ins, Some((1e-12, 1e-3)), "dahl")?;
+        check_rate_independence(&m, all, 0.0, &v, Retiming { repeats: &reps, inserts: &ins }, Some((1e-12, 1e-3)), "dahl")?;
     }
 
     #[test]
@@ -169,6 +176,6 @@ proptest! {
         ins in ins_strategy(),
     ) {
         let m = Duhem::new(alpha, f, g).unwrap();
-        check_rate_independence(&m, all, 0.0, &v, &reps, &ins, Some((1e-12, 1e-3)), "duhem")?;
+        check_rate_independence(&m, all, 0.0, &v, Retiming { repeats: &reps, inserts: &ins }, Some((1e-12, 1e-3)), "duhem")?;
     }
 }

@@ -7,7 +7,7 @@ use piezohyst_core::control::{Controller, Limits, Reference, VelocityObserver};
 use piezohyst_core::pi::{play, Pi};
 use piezohyst_core::rng::Rng;
 use piezohyst_core::sensor::Sensor;
-use piezohyst_core::smc::{Smc, Switching};
+use piezohyst_core::smc::{Smc, SmcConfig, Switching};
 use piezohyst_core::stage::{Stage, StageParams, StageState};
 use piezohyst_core::Hysteresis;
 
@@ -78,20 +78,25 @@ fn soak_closed_loop(desired: bool, steps: usize) -> f64 {
     let stage = virtual_stage();
     let sensor = Sensor::new(1e-7, 1e-8, 1).unwrap();
     let limits = Limits::new(-20.0, 150.0).unwrap();
-    let cemf = CemfModel::new(0.0068, 13.0, 6.98e6, 10.5, 1.8e-6, 1.25e5, 8000.0, 3000.0).unwrap();
+    let cemf =
+        CemfModel { m: 0.0068, b: 13.0, k: 6.98e6, tem: 10.5, cz: 1.8e-6, alpha: 1.25e5, beta: 8000.0, gamma: 3000.0 }
+            .validated()
+            .unwrap();
     let observer = VelocityObserver::new(300.0, 1e-4, 1.0).unwrap();
-    let mut smc = Smc::new(
-        (0.0068, 13.0, 6.98e6),
-        1e6,
-        2e3,
-        0.0,
-        Switching::BoundaryLayer { gain: 13.0, width: 0.015 },
-        Some(cemf),
+    let smc = Smc::new(SmcConfig {
+        m: 0.0068,
+        b: 13.0,
+        k: 6.98e6,
+        kp: 1e6,
+        kv: 2e3,
+        alpha: 0.0,
+        switching: Switching::BoundaryLayer { gain: 13.0, width: 0.015 },
+        cemf: Some(cemf),
+        desired_model_terms: desired,
         observer,
         limits,
-    )
+    })
     .unwrap();
-    smc.desired_model_terms = desired;
     let mut cst = vec![0.0; smc.state_len()];
     smc.reset(&mut cst, 0.0);
     let mut st = StageState::ZERO;

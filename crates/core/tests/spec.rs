@@ -160,7 +160,9 @@ fn preisach_round_trip() {
     row.extend_from_slice(&w);
     let mut pre = vec![0.0; w.len()];
     row_prefix(levels, &w, &mut pre);
-    let direct = Preisach::new(-1.5, 1.5, levels, &w, &pre, 0.2, 0.3, 16).unwrap();
+    let direct = Preisach { lo: -1.5, hi: 1.5, levels, weights: &w, prefix: &pre, offset: 0.2, slope: 0.3, memory: 16 }
+        .validated()
+        .unwrap();
     check_family("preisach", &[levels, 16], &row, &direct, true);
     let fam = Family::parse("preisach", &[levels, 16]).unwrap();
     assert_eq!((fam.param_len(), fam.state_len(), fam.scratch_len()), (10, 18, 6));

@@ -10,7 +10,7 @@ use numpy::{
 };
 use piezohyst_core::boucwen_benchmark::{
     cascade_work_len, decimate_cascade, decimated_len, integrate, record_rmse, simulate_record, BoucWenBenchmark,
-    Newmark, State,
+    Newmark, RecordBuffers, State,
 };
 use piezohyst_core::ModelError;
 use pyo3::prelude::*;
@@ -195,7 +195,7 @@ fn boucwen_benchmark_batch_rmse<'py>(
                 || (vec![0.0; u.len()], vec![0.0; wl], vec![0.0; n_out]),
                 |(fine, work, dec), st| match st {
                     None => Ok(bad),
-                    Some(st) => record_rmse(st, u, factor, t, skip, fine, work, dec),
+                    Some(st) => record_rmse(st, u, factor, t, skip, &mut RecordBuffers { fine, work, out: dec }),
                 },
             )
             .collect()
@@ -236,7 +236,7 @@ fn boucwen_benchmark_batch_simulate<'py>(
             || (vec![0.0; u.len()], vec![0.0; wl], vec![0.0; n_out]),
             |(fine, work, dec), (row, st)| {
                 let st = st.as_ref().expect("invalid rows raised above");
-                match simulate_record(st, u, factor, fine, work, dec)? {
+                match simulate_record(st, u, factor, &mut RecordBuffers { fine, work, out: dec })? {
                     Ok(()) => row.copy_from_slice(&dec[skip..skip + count]),
                     Err(_) => row.fill(f64::NAN),
                 }

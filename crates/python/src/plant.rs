@@ -8,7 +8,7 @@ use numpy::ndarray::Array2;
 use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1, PyUntypedArrayMethods,
 };
-use piezohyst_core::closed_loop::{run_recorder, run_tracking, Recorder, Sample};
+use piezohyst_core::closed_loop::{run_recorder, run_tracking, Loop, Recorder, Sample, Trajectory};
 use piezohyst_core::control::{Controller as CoreController, Pid, MAX_TERMS};
 use piezohyst_core::layout::Law;
 use piezohyst_core::sensor::Sensor;
@@ -449,15 +449,8 @@ fn record_run<C: CoreController + ?Sized>(
         width,
     };
     let done = run_recorder(
-        stage,
-        &mut st,
-        sensor,
-        &mut sst,
-        c,
-        &mut cst,
-        sc.reference,
-        sc.velocity,
-        sc.acceleration,
+        Loop { stage, stage_state: &mut st, sensor, sensor_state: &mut sst, controller: c, controller_state: &mut cst },
+        Trajectory { position: sc.reference, velocity: sc.velocity, acceleration: sc.acceleration },
         &mut out,
     );
     // SAFETY: run_recorder handed samples 0..done to `out` in order, which wrote element k
@@ -735,15 +728,15 @@ fn tracking<'py>(
                     let mut cst = vec![0.0; c.state_len()];
                     c.reset(&mut cst, ss.x);
                     let t = run_tracking(
-                        st,
-                        &mut ss,
-                        se,
-                        &mut sst,
-                        c,
-                        &mut cst,
-                        sc.reference,
-                        sc.velocity,
-                        sc.acceleration,
+                        Loop {
+                            stage: &st,
+                            stage_state: &mut ss,
+                            sensor: &se,
+                            sensor_state: &mut sst,
+                            controller: c,
+                            controller_state: &mut cst,
+                        },
+                        Trajectory { position: sc.reference, velocity: sc.velocity, acceleration: sc.acceleration },
                         skip,
                     );
                     let n = t.samples.max(1) as f64;

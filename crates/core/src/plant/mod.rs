@@ -1,0 +1,11 @@
+//! Simulated plants: what a controller acts on, and the loop that runs them together.
+//!
+//! - [`stage`]: the piezo-driven flexure stage with CEMF hysteresis, creep and amplifier;
+//! - [`sensor`]: the position sensor (noise, quantization, delay);
+//! - [`closed_loop`]: the engine running controller, amplifier, stage and sensor per sample;
+//! - [`boucwen_benchmark`]: the Bouc–Wen hysteretic benchmark system (Noël & Schoukens), its
+//!   integrator, decimation and record error.
+pub mod boucwen_benchmark;
+pub mod closed_loop;
+pub mod sensor;
+pub mod stage;

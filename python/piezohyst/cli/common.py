@@ -1,0 +1,176 @@
+"""What the commands share: the argument parser class, the one-line failure, argument checks and
+readers of data and model files."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import re
+from pathlib import Path
+
+from .._io import write_atomic
+from ..errors import ParameterError
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse whose usage errors are one line on stderr with exit code 2 (docs/spec.md §8, §10)."""
+
+    def error(self, message):
+        msg = " ".join(str(message).split())
+        self.exit(2, f"{self.prog}: error: {msg} (see {self.prog} --help)\n")
+
+
+class _Fail(ParameterError):
+    """A bad command-line input; the message names the argument and the value."""
+
+
+_FORMATS = (
+    "DATA formats: delimited text (.csv .tsv .txt .dat .asc; comma, tab, semicolon or whitespace\n"
+    "separated; with or without a header line), NumPy .npz/.npy, MATLAB .mat (v4-v7; v7.3 with h5py),\n"
+    "HDF5 (.h5 .hdf5 .he5, with h5py). A column COL is a name (header name, NPZ key, MATLAB variable or\n"
+    "'s.field', HDF5 dataset path) or a 0-based index, an integer ('column 5' of a data README is 4)."
+)
+
+
+def _column_help(role: str, default: str) -> str:
+    return f"{role} column, by name or 0-based index ({default})"
+
+
+def _atomic_savefig(fig, path) -> None:
+    fmt = Path(path).suffix.lstrip(".").lower() or "png"
+    write_atomic(path, writer=lambda tmp: fig.savefig(tmp, dpi=110, format=fmt))
+
+
+def _column(spec):
+    """A column spec from the command line: an integer string is a 0-based index."""
+    if spec is None:
+        return None
+    s = spec.strip()
+    if re.fullmatch(r"[+-]?\d+", s):
+        return int(s)
+    return spec
+
+
+def _check_fs(fs):
+    if fs is None:
+        return None
+    if not math.isfinite(fs) or fs <= 0:
+        raise _Fail(f"--fs = {fs:g} must be a finite sample rate > 0 Hz")
+    return fs
+
+
+def _check_count(value, name, minimum=1):
+    if value is not None and value < minimum:
+        raise _Fail(f"{name} = {value} must be >= {minimum}")
+    return value
+
+
+def _existing_file(path, name) -> Path:
+    p = Path(path)
+    if not p.exists():
+        raise _Fail(f"{name} = '{path}': no such file")
+    if p.is_dir():
+        raise _Fail(f"{name} = '{path}' is a directory, not a file")
+    return p
+
+
+def _writable(path, name, force) -> Path:
+    p = Path(path)
+    if p.is_dir():
+        raise _Fail(f"{name} = '{path}' is a directory; give a file name")
+    if p.exists() and not force:
+        raise _Fail(f"{name} = '{path}' exists; pass --force to overwrite it")
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise _Fail(f"{name} = '{path}': directory '{parent}' does not exist")
+    return p
+
+
+_RANGE = re.compile(r"\s*([^:]*?)\s*:\s*([^:]*?)\s*")
+
+
+def _parse_range(text, name):
+    """``"A:B"`` with either side optional -> ``(A or None, B or None)``; non-negative integers."""
+    m = _RANGE.fullmatch(text)
+    if m is None:
+        raise _Fail(f"{name} = '{text}' is not a sample range A:B (0-based, B exclusive; either side may be omitted)")
+    out = []
+    for part in m.groups():
+        if part == "":
+            out.append(None)
+        elif re.fullmatch(r"\+?\d+", part):
+            out.append(int(part))
+        else:
+            raise _Fail(f"{name} = '{text}': {part!r} is not a sample index (a non-negative integer)")
+    return tuple(out)
+
+
+def _resolve_range(spec, n, name, text, what="DATA"):
+    a = 0 if spec[0] is None else spec[0]
+    b = n if spec[1] is None else spec[1]
+    if a >= n:
+        raise _Fail(f"{name} = '{text}': start {a} is beyond the end of {what} ({n} samples, indices 0..{n - 1})")
+    if b > n:
+        raise _Fail(
+            f"{name} = '{text}': stop {b} is beyond the end of {what} ({n} samples; stop is exclusive, at most {n})"
+        )
+    if b <= a:
+        raise _Fail(f"{name} = '{text}': start {a} is not before stop {b}")
+    if b - a < 2:
+        raise _Fail(f"{name} = '{text}' keeps {b - a} sample; at least 2 are needed")
+    return a, b
+
+
+def _parse_validate(text):
+    """``--validate``: a sample range of DATA, or a file. Returns ``(range, None)`` or ``(None, path)``."""
+    if text is None:
+        return None, None
+    if re.fullmatch(r"\s*\+?\d*\s*:\s*\+?\d*\s*", text):
+        return _parse_range(text, "--validate"), None
+    if Path(text).exists():
+        return None, _existing_file(text, "--validate")
+    if ":" in text and not re.search(r"[/\\.]", text):
+        return _parse_range(text, "--validate"), None  # a malformed range: say why
+    raise _Fail(f"--validate = '{text}': no such file (and not a sample range A:B)")
+
+
+_ROLE = re.compile(r"(?<![\w-])(input|output|time|fs|dataset)(?= = | is not )")
+
+
+def _named(e: Exception, prefix: str = "") -> _Fail:
+    """A loader's error with its argument names spelled as the options (``input =`` -> ``--input =``)."""
+    msg = str(e)
+    if isinstance(e, FileNotFoundError) and e.filename is not None and not msg.startswith(str(e.filename)):
+        msg = f"{e.filename}: {e.strerror or msg}"
+    return _Fail(prefix + _ROLE.sub(r"--\1", msg))
+
+
+def _load(path, **kw):
+    from ..signals.data import load_record
+
+    try:
+        return load_record(path, **kw)
+    except (ValueError, TypeError, OSError, ImportError) as e:
+        raise _named(e) from None
+
+
+def _pct(x) -> str:
+    return f"{x:.4g} %"
+
+
+def _read_model(path: Path):
+    from ..models.model import model_from_dict
+
+    try:
+        d = json.loads(path.read_text())
+    except UnicodeDecodeError:
+        raise _Fail(f"MODEL = '{path}' is not a text (JSON) file") from None
+    except json.JSONDecodeError as e:
+        raise _Fail(f"MODEL = '{path}' is not valid JSON: {e}") from None
+    if isinstance(d, dict):
+        d = {k: v for k, v in d.items() if k != "fit"}  # the fit report is not part of the model
+    try:
+        return model_from_dict(d)
+    except (ValueError, TypeError) as e:
+        raise _Fail(f"MODEL = '{path}': {e}") from None

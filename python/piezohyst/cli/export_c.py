@@ -1,0 +1,121 @@
+"""``piezohyst export-c``: a saved model or controller as C code."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+from .common import (
+    _check_count,
+    _existing_file,
+    _Fail,
+    _read_model,
+)
+
+
+def _export_c_parser(sub) -> None:
+    e = sub.add_parser(
+        "export-c",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        help="write C initializers of a model (and controller) and an example loop for the C library",
+        description=(
+            "Write the model file's parameters as a C initializer (piezohyst_model.h/.c) and, when given, the\n"
+            "controller file's (piezohyst_controller.h/.c; written by piezohyst.export_c.save_controller), a copy\n"
+            "of piezohyst.h and example.c: a minimal real-time loop that compiles with cc against the C library\n"
+            "(crates/capi: `cargo build --release -p piezohyst-capi` gives target/release/libpiezohyst.a). The\n"
+            "C library runs the same code as Python: the exported objects give the same numbers, bit for bit.\n"
+            "Without a controller the example runs the model's exact inverse (inverse feedforward); with one,\n"
+            "it closes the loop around the model. A controller behind an inverse must use MODEL's inverse."
+        ),
+        epilog=(
+            "examples:\n"
+            "  piezohyst export-c mpi.json --out c/\n"
+            "  piezohyst export-c mpi.json absmc.json --out c/ --force\n\n"
+            "exit status: 0 on success, 2 on bad input (one line on stderr naming the argument)."
+        ),
+    )
+    e.add_argument("model", metavar="MODEL.json", help="the model file (piezohyst identify, HysteresisModel.save)")
+    e.add_argument(
+        "controller",
+        metavar="CONTROLLER.json",
+        nargs="?",
+        help="a controller file (piezohyst.export_c.save_controller)",
+    )
+    e.add_argument("--out", metavar="DIR", required=True, help="output directory (created if missing)")
+    e.add_argument("--force", action="store_true", help="overwrite existing files in DIR")
+    e.add_argument(
+        "--input-range",
+        metavar=("LO", "HI"),
+        nargs=2,
+        type=float,
+        help="input range the example drives the model over (default: the model's own range, e.g. an "
+        "MPI input_range, else [0, 2 max threshold] for PI models, else [-1, 1])",
+    )
+    e.add_argument("--steps", metavar="N", type=int, help="samples the example runs (default: 3 reference periods)")
+    e.add_argument("--json", action="store_true", help="print the written files and the build command as JSON")
+    e.add_argument("--debug", dest="sub_debug", action="store_true", help="show a traceback on errors")
+
+
+def _export_c(args) -> None:
+    from ..export import c as X
+
+    model_path = _existing_file(args.model, "MODEL")
+    model = _read_model(model_path)
+    controller = None
+    if args.controller is not None:
+        cpath = _existing_file(args.controller, "CONTROLLER")
+        try:
+            controller = X.load_controller(cpath)
+        except (ValueError, FileNotFoundError) as e:
+            raise _Fail(f"CONTROLLER = '{cpath}': {e}") from None
+    _check_count(args.steps, "--steps")
+    if args.input_range is not None:
+        lo, hi = args.input_range
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+            raise _Fail(f"--input-range = {lo:g} {hi:g} must be finite with LO < HI")
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise _Fail(f"--out = '{out}' exists and is not a directory")
+    if not out.exists() and not (out.parent if str(out.parent) else Path(".")).is_dir():
+        raise _Fail(f"--out = '{out}': directory '{out.parent}' does not exist")
+    source = model_path.name + (f" and {Path(args.controller).name}" if controller is not None else "")
+    try:
+        written = X.export_c(
+            model,
+            out,
+            controller=controller,
+            force=args.force,
+            source=source,
+            input_range=args.input_range,
+            steps=args.steps,
+        )
+    except FileExistsError as e:
+        raise _Fail(str(e)) from None
+    except ValueError as e:
+        raise _Fail(f"{'CONTROLLER' if controller is not None else 'MODEL'}: {e}") from None
+    lib = X.library_path()
+    sources = "example.c piezohyst_model.c" + (" piezohyst_controller.c" if controller is not None else "")
+    build = (
+        f"cc -std=c99 -O2 -ffp-contract=off -I{out} "
+        + " ".join(str(out / s) for s in sources.split())
+        + f" {lib if lib else 'path/to/libpiezohyst.a'} {X.LINK_LIBS} -o {out / 'example'}"
+    )
+    if args.json:
+        print(
+            json.dumps(
+                {
+                    "out": str(out),
+                    "files": [str(p) for p in written],
+                    "build": build,
+                    "library": None if lib is None else str(lib),
+                },
+                indent=2,
+            )
+        )
+        return
+    print(f"wrote {len(written)} files to {out}: {', '.join(p.name for p in written)}")
+    if lib is None:
+        print("  build the library first: cargo build --release -p piezohyst-capi")
+    print(f"  build the example: {build}")

@@ -1,0 +1,304 @@
+"""``piezohyst simulate``: run a saved model on an input record."""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import json
+import sys
+import time
+from pathlib import Path
+
+from .._io import write_atomic
+from .common import (
+    _FORMATS,
+    _check_fs,
+    _column,
+    _column_help,
+    _existing_file,
+    _Fail,
+    _load,
+    _named,
+    _parse_range,
+    _pct,
+    _read_model,
+    _writable,
+)
+
+
+def _simulate_parser(sub) -> None:
+    fmt = argparse.RawDescriptionHelpFormatter
+    s = sub.add_parser(
+        "simulate",
+        formatter_class=fmt,
+        help="simulate a model file on an input record; writes CSV",
+        description=(
+            "Simulate a model file (as written by 'piezohyst identify' or HysteresisModel.save) on the input\n"
+            "signal of a record, from the relaxed initial state, and write CSV with the columns time (when\n"
+            "known), input, output: exactly the numbers of load_model(MODEL).simulate(input), written so\n"
+            "that they read back bit for bit.\n\n" + _FORMATS.replace("DATA formats", "INPUT formats")
+        ),
+        epilog=(
+            "examples:\n"
+            "  piezohyst simulate mpi.json sweep.csv --input voltage --fs 1000 --out predicted.csv\n"
+            "  piezohyst simulate mpi.json run.csv --input v --output x --time t --out p.csv --json\n"
+            "  piezohyst simulate mpi.json sweep.csv --input 0 > predicted.csv\n"
+            "  piezohyst simulate mpi.json test.dat --input 0 --output 4 --fs 200 --rows 4652:6052 --lag 1 \\\n"
+            "      --score-from 400 --out p.csv\n\n"
+            "exit status: 0 on success, 2 on bad input (one line on stderr naming the argument)."
+        ),
+    )
+    s.add_argument("model", metavar="MODEL.json", help="the model file")
+    s.add_argument("input_file", metavar="INPUT", help="the file holding the input signal (see the formats above)")
+    s.add_argument(
+        "--input",
+        metavar="COL",
+        help=_column_help(
+            "input",
+            "default: the column named 'input', else "
+            "the only column besides --time; with --output, "
+            "the first of exactly two",
+        ),
+    )
+    s.add_argument(
+        "--output",
+        metavar="COL",
+        help="a measured output column to compare with: adds RMSE and max error to the summary "
+        "(not written to the CSV)",
+    )
+    g = s.add_mutually_exclusive_group()
+    g.add_argument(
+        "--fs",
+        metavar="HZ",
+        type=float,
+        help="sample rate in Hz (> 0), for the time column of the CSV; must agree with the sample "
+        "time of a model that has one (rdpi, creep). Default: the model's, else no time column",
+    )
+    g.add_argument(
+        "--time", metavar="COL", help="time column in seconds (strictly increasing, uniform), copied to the CSV"
+    )
+    s.add_argument(
+        "--dataset",
+        metavar="NAME",
+        help="NPZ/MAT/HDF5: a 2-D matrix (rows = samples) whose columns integer COLs address",
+    )
+    s.add_argument(
+        "--rows",
+        metavar="A:B",
+        help="simulate only samples A (inclusive) to B (exclusive) of INPUT, from the relaxed state (default: all)",
+    )
+    s.add_argument(
+        "--lag",
+        metavar="N",
+        type=int,
+        default=0,
+        help="the --output column lags the input by N samples (a sensor delay): compare "
+        "output[k + N] with the simulation at k (default 0)",
+    )
+    s.add_argument(
+        "--score-from",
+        metavar="K",
+        type=int,
+        default=0,
+        help="leave the first K simulated samples out of the comparison with --output (the "
+        "model's warm-up from the relaxed state; default 0)",
+    )
+    s.add_argument("--out", metavar="FILE", default="-", help="CSV file to write (default: '-', standard output)")
+    s.add_argument("--force", action="store_true", help="overwrite an existing --out file")
+    s.add_argument(
+        "--json",
+        action="store_true",
+        help="print summary statistics as JSON (needs --out FILE: the CSV cannot share stdout)",
+    )
+    s.add_argument("--debug", dest="sub_debug", action="store_true", help="show a traceback on errors")
+
+
+def _model_ts(model):
+    ts = getattr(model, "ts", None)
+    if ts is None:
+        ts = getattr(getattr(model, "creep", None), "ts", None)
+    return None if ts is None else float(ts)
+
+
+def _read_input(path: Path, input_spec, time_spec, dataset):
+    """The input column (and the time column when given) of a record file: what
+    :func:`~piezohyst.data.load_record` reads, without requiring an output column."""
+    from ..signals import data as D
+
+    suffix = path.suffix.lower()
+    if dataset is not None and not dataset.strip():
+        raise _Fail(f"--dataset = {dataset!r} may not be empty")
+    if suffix in D.TEXT_SUFFIXES:
+        if dataset is not None:
+            raise _Fail(f"--dataset = {dataset!r} applies to NPZ/MAT/HDF5 files; {path} is a text file")
+        opener = functools.partial(D.TextTable, path, None, "auto")
+    elif suffix in D.NPZ_SUFFIXES:
+        opener = functools.partial(D.open_npz, path, dataset)
+    elif suffix in D.NPY_SUFFIXES:
+        opener = functools.partial(D.open_npy, path, dataset)
+    elif suffix in D.MAT_SUFFIXES:
+        opener = functools.partial(D.open_mat, path, dataset)
+    elif suffix in D.HDF5_SUFFIXES:
+        opener = functools.partial(D.open_hdf5, path, dataset)
+    else:
+        raise _Fail(
+            f"INPUT = '{path}': unsupported file extension {path.suffix!r}; supported: {' '.join(D.SUPPORTED_SUFFIXES)}"
+        )
+    try:
+        in_spec = D.check_column_spec(input_spec, "input")
+        t_spec = D.check_column_spec(time_spec, "time")
+        table = opener()
+        try:
+            t_key = None if t_spec is None else table.resolve("time", t_spec)
+            if in_spec is not None:
+                key = table.resolve("input", in_spec)
+            else:
+                cols = table.columns()
+                named = [c for c in cols if c[1] == "input"]
+                free = [c for c in cols if t_key is None or c[0] != t_key[0]]
+                if len(named) == 1:
+                    key = named[0]
+                elif len(free) == 1:
+                    key = free[0]
+                else:
+                    raise _Fail(
+                        f"{table.source}: --input not given and not inferable from the {len(cols)} columns "
+                        f"{[lab for _, lab in cols]}; pass --input <name or 0-based index>"
+                    )
+            if t_key is not None and t_key[0] == key[0]:
+                raise _Fail(f"{table.source}: --input and --time are the same column {key[1]!r}")
+            v = table.read("input", *key)
+            t = None if t_key is None else table.read("time", *t_key)
+        finally:
+            close = getattr(table, "close", None)
+            if close is not None:
+                close()
+        if t is not None:
+            if t.size != v.size:
+                raise _Fail(
+                    f"{table.source}: time ({t_key[1]!r}) has {t.size} samples, input ({key[1]!r}) has "
+                    f"{v.size}: lengths must match"
+                )
+            try:
+                fs = D.fs_from_time(t, "time", D.TIME_RTOL) if t.size >= 2 else None
+            except ValueError as e:
+                raise _Fail(f"{table.source}: {e}") from None
+        else:
+            fs = None
+        if v.size < 1:
+            raise _Fail(f"{table.source}: input column {key[1]!r} is empty")
+        return v, t, fs, {"input": key[1], **({} if t_key is None else {"time": t_key[1]})}
+    except _Fail:
+        raise
+    except (ValueError, TypeError, OSError, ImportError) as e:
+        raise _named(e) from None
+
+
+def _simulate(args) -> None:
+    import numpy as np
+
+    from ..identify.core import fit_metrics
+
+    fs = _check_fs(args.fs)
+    model_path = _existing_file(args.model, "MODEL")
+    input_path = _existing_file(args.input_file, "INPUT")
+    to_stdout = args.out == "-"
+    if to_stdout and args.json:
+        raise _Fail("--json prints a summary on standard output; give --out FILE for the CSV")
+    out = None if to_stdout else _writable(args.out, "--out", args.force)
+    model = _read_model(model_path)
+
+    measured = None
+    if args.output is not None:
+        rec = _load(
+            input_path,
+            input=_column(args.input),
+            output=_column(args.output),
+            time=_column(args.time),
+            fs=fs if fs is not None or args.time is not None else 1.0,
+            dataset=args.dataset,
+        )
+        v, t, measured, columns = rec.input, rec.time, rec.output, rec.columns
+        fs_data = rec.fs if (fs is not None or t is not None) else None
+    else:
+        v, t, fs_time, columns = _read_input(input_path, _column(args.input), _column(args.time), args.dataset)
+        fs_data = fs if fs is not None else fs_time
+    n_all = v.size
+    a, b = _parse_range(args.rows, "--rows") if args.rows else (None, None)
+    a = 0 if a is None else a
+    b = n_all if b is None else b
+    if not 0 <= a < b <= n_all:
+        raise _Fail(f"--rows = '{args.rows}' must lie within the record's {n_all} samples and not be empty")
+    if args.lag < 0:
+        raise _Fail(f"--lag = {args.lag} must be >= 0")
+    if measured is not None:
+        if b + args.lag > n_all:
+            raise _Fail(
+                f"--lag = {args.lag}: output[{b - 1 + args.lag}] is beyond the record's {n_all} samples; "
+                f"end --rows earlier"
+            )
+        measured = measured[a + args.lag : b + args.lag]
+    v = v[a:b]
+    t = None if t is None else t[a:b]
+    if not 0 <= args.score_from < v.size:
+        raise _Fail(f"--score-from = {args.score_from} must be >= 0 and below the {v.size} simulated samples")
+    ts = _model_ts(model)
+    if ts is not None and fs_data is not None and abs(fs_data * ts - 1.0) > 1e-6:
+        name = "--fs" if args.fs is not None else "--time"
+        raise _Fail(
+            f"{name}: sample rate {fs_data:.9g} Hz disagrees with the model's sample time ts = {ts:.9g} s "
+            f"({1 / ts:.9g} Hz); simulate at the rate the model was identified at"
+        )
+    fs_used = fs_data if fs_data is not None else (None if ts is None else 1.0 / ts)
+    if t is None and fs_used is not None:
+        t = np.arange(v.size) / fs_used
+
+    t0 = time.perf_counter()
+    try:
+        y = model.simulate(v)
+    except (ValueError, TypeError) as e:
+        raise _Fail(f"INPUT = '{input_path}': {e}") from None
+    wall = time.perf_counter() - t0
+
+    cols = ([("time", t)] if t is not None else []) + [("input", v), ("output", y)]
+    lists = [np.asarray(c, dtype=np.float64).tolist() for _, c in cols]
+    lines = [",".join(name for name, _ in cols)]
+    lines += [
+        ",".join(map(repr, row)) for row in zip(*lists, strict=False)
+    ]  # repr: shortest text that reads back exactly
+    text = "\n".join(lines) + "\n"
+    if to_stdout:
+        sys.stdout.write(text)
+        return
+    write_atomic(out, text, overwrite=args.force, name="--out")
+
+    def stats(a):
+        return {"min": float(np.min(a)), "max": float(np.max(a)), "mean": float(np.mean(a)), "range": float(np.ptp(a))}
+
+    summary = {
+        "out": str(out),
+        "model": model.kind,
+        "model_file": str(model_path),
+        "input_file": str(input_path),
+        "columns": dict(columns),
+        "samples": int(v.size),
+        "fs": fs_used,
+        "wall_time_s": wall,
+        "input": stats(v),
+        "output": stats(y),
+        "rows": [a, b],
+        "lag": args.lag,
+        "score_from": args.score_from,
+        "error": None if measured is None else fit_metrics(y[args.score_from :], measured[args.score_from :]),
+    }
+    if args.json:
+        print(json.dumps(summary, indent=2, allow_nan=False))
+        return
+    print(f"{model.kind} simulated on {v.size} samples of {input_path.name} in {wall:.3g} s -> {out}")
+    print(f"  output {summary['output']['min']:.6g} .. {summary['output']['max']:.6g}")
+    if measured is not None:
+        e = summary["error"]
+        scored = f" (samples {a + args.score_from}:{b}" + (f", output lagged {args.lag}" if args.lag else "") + ")"
+        print(
+            f"  vs measured: RMSE {_pct(e['rmse_percent'])} of range, max error {_pct(e['max_error_percent'])}{scored}"
+        )

@@ -1,0 +1,219 @@
+"""Tracking and gain tuning by simulation (docs/spec.md §5, seed 1: the SMC gains are tuned with CSS
+on the identified model).
+
+:func:`track` runs one controller on a stage and returns the signals with the tracking
+metrics; :func:`tune` searches controller gains with any population optimizer of
+:mod:`piezohyst.optimize`, each population simulated in one Rust batch (rayon, no signals
+recorded), the objective being the closed-loop tracking RMSE on the plant given — the
+*identified* model, not the hardware.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .. import _core
+from .._validate import as_record, as_scalar
+from ..errors import ComputationError, ParameterError, ParameterTypeError
+from .controllers import is_controller
+from .simulation import ClosedLoopResult, _prepare, closed_loop, seed_from
+
+__all__ = ["TuningResult", "stage_from_model", "track", "tune"]
+
+
+def track(
+    controller, reference, *, stage=None, velocity=None, acceleration=None, rng=None, skip=0.0
+) -> ClosedLoopResult:
+    """Track ``reference`` (m per controller sample) with ``controller`` on ``stage`` (default:
+    the virtual stage). The result's ``metrics`` (RMSE, max error, % of range, linearity
+    error, seed-2-style normalized errors) leave out the first ``skip`` seconds.
+
+    Examples
+    --------
+    >>> import piezohyst as ph
+    >>> stage = ph.virtual_stage()
+    >>> t, ref = ph.sine(5, 5e-6, 0.4, 1 / stage.sample_time, offset=7e-6)
+    >>> res = ph.track(ph.PID(kp=2e6, ki=2e9), ref, stage=stage, rng=1, skip=0.2)
+    >>> bool(res.metrics["rmse"] < 0.1e-6)
+    True
+    """
+    from ..plant.stage import virtual_stage
+
+    stage = virtual_stage() if stage is None else stage
+    res = closed_loop(stage, controller, reference, velocity=velocity, acceleration=acceleration, rng=rng)
+    skip = as_scalar(skip, "skip", nonnegative=True)
+    first = round(skip / stage.sample_time)
+    if first >= res.reference.size - 1:
+        raise ParameterError(f"skip = {skip} s leaves fewer than 2 of the reference's {res.reference.size} samples")
+    object.__setattr__(res, "skip_samples", first)
+    return res
+
+
+def stage_from_model(stage, model):
+    """``stage`` (amplifier, sensor, loop rate) with its physics replaced by an identified
+    CEMF model (:class:`StageParameters`): the plant on which gains are tuned."""
+    return replace(stage, params=model)
+
+
+@dataclass(frozen=True)
+class TuningResult:
+    """A tuned controller and how it got there.
+
+    ``controller`` is the best configuration; ``rmse`` its tracking RMSE on the tuning plant
+    (m, averaged over the references); ``gains`` the tuned values by name; ``history`` the
+    optimizer's per-iteration history; ``wall_time`` in s. ``partial`` is ``True`` when
+    Ctrl-C stopped the search: the controller is the best found before it.
+    """
+
+    controller: object
+    gains: dict
+    rmse: float
+    history: dict
+    wall_time: float
+    nfev: int
+    partial: bool = False
+
+
+def tune(
+    controller,
+    gains,
+    references,
+    *,
+    stage=None,
+    method="css",
+    max_iterations=40,
+    population_size=None,
+    rng=None,
+    skip=0.1,
+    saturation_limit=0.01,
+    log_scale=True,
+    variants=None,
+    progress=False,
+    callback=None,
+) -> TuningResult:
+    """Tune ``gains`` of ``controller`` for the closed-loop tracking RMSE on ``stage``.
+
+    Parameters
+    ----------
+    controller : controller configuration
+        The template (e.g. ``SMC(model)``); its other fields stay as they are.
+    gains : dict of name -> (low, high)
+        Fields to tune and their search box.
+    references : array_like or list of array_like
+        Reference(s), m per sample; the cost is the mean RMSE over them.
+    stage : Stage, optional
+        The plant to tune on — normally :func:`stage_from_model` of the identified model.
+    method : {"css", "pso", "mpso", "de"}
+        Population optimizer (:func:`piezohyst.optimize.minimize`).
+    skip : float
+        Seconds left out of each RMSE (start-up transient).
+    saturation_limit : float
+        Candidates whose command sits on a limit for more than this fraction of the samples
+        are rejected (voltage-limit constraint); unstable sliding dynamics are rejected by the
+        controller's own validation (the cost is ``inf``).
+    log_scale : bool
+        Search ``log10`` of the gains (all bounds must then be > 0): gains span decades.
+    variants : list of dict, optional
+        Field overrides the same gains must serve, e.g. ``[{"cemf": False}, {"cemf": True}]``
+        (seed 1 compares its two cases with identical gains): the cost is the mean RMSE over
+        every variant and reference, and a candidate must satisfy the constraints in each.
+    """
+    from ..optimize.core import minimize
+    from ..plant.stage import virtual_stage
+
+    t0 = time.perf_counter()
+    stage = virtual_stage() if stage is None else stage
+    if not is_controller(controller):
+        raise ParameterTypeError(f"controller must be a piezohyst controller, got {type(controller).__name__}")
+    if not isinstance(gains, dict) or not gains:
+        raise ParameterError("gains must be a non-empty dict of name -> (low, high)")
+    names = list(gains)
+    fields = getattr(controller, "__dataclass_fields__", {})
+    box = []
+    for n in names:
+        if n not in fields:
+            raise ParameterError(f"gains: {type(controller).__name__} has no field {n!r}")
+        lo, hi = (as_scalar(b, f"gains[{n!r}]") for b in gains[n])
+        if not lo < hi:
+            raise ParameterError(f"gains[{n!r}] = ({lo}, {hi}): low must be < high")
+        if log_scale and not lo > 0:
+            raise ParameterError(f"gains[{n!r}] low = {lo} must be > 0 with log_scale=True")
+        box.append((math.log10(lo), math.log10(hi)) if log_scale else (lo, hi))
+    refs = [references] if np.ndim(references) == 1 else list(references)
+    refs = [as_record(r, f"references[{j}]", min_length=2) for j, r in enumerate(refs)]
+    first = round(as_scalar(skip, "skip", nonnegative=True) / stage.sample_time)
+    seeds = np.random.default_rng(seed_from(rng)).integers(0, 2**63 - 1, size=len(refs))
+    s = stage.sensor
+
+    variants = [{}] if variants is None else [dict(v) for v in variants]
+    for v in variants:
+        for n in v:
+            if n not in fields:
+                raise ParameterError(f"variants: {type(controller).__name__} has no field {n!r}")
+
+    def candidate(theta):
+        values = 10.0**theta if log_scale else theta
+        return replace(controller, **{n: float(v) for n, v in zip(names, values, strict=False)})
+
+    def cost(X):
+        scen, valid = [], []
+        for row in X:
+            try:
+                c = candidate(np.asarray(row))
+                specs = [
+                    (_prepare(stage, replace(c, **var), r, None, None), seed)
+                    for var in variants
+                    for r, seed in zip(refs, seeds, strict=False)
+                ]
+            except (ValueError, TypeError):
+                valid.append(False)
+                continue
+            valid.append(True)
+            scen.extend((spec, x, v, a, int(seed)) for (x, v, a, spec), seed in specs)
+        out = np.full(len(X), np.inf)
+        if scen:
+            m = _core.closed_loop_batch_tracking(
+                stage.core_params(),
+                stage.sample_time,
+                stage.substeps,
+                stage.tolerance,
+                s.quantization,
+                s.noise_std,
+                s.delay,
+                scen,
+                stage.rest_state(),
+                first,
+            )
+            m = m.reshape(-1, len(variants) * len(refs), 3)
+            rmse = m[:, :, 0].mean(axis=1)
+            rmse[(m[:, :, 2] > saturation_limit).any(axis=1)] = np.inf
+            out[np.flatnonzero(valid)] = rmse
+        return out
+
+    res = minimize(
+        cost,
+        box,
+        method=method,
+        max_iterations=max_iterations,
+        population_size=population_size,
+        rng=rng,
+        progress=progress,
+        callback=callback,
+    )
+    if res.x is None or not np.isfinite(res.fun):
+        raise ComputationError("tuning found no stable candidate within the gain bounds")
+    best = candidate(res.x)
+    values = 10.0**res.x if log_scale else res.x
+    return TuningResult(
+        best,
+        {n: float(v) for n, v in zip(names, values, strict=False)},
+        float(res.fun),
+        res.history,
+        time.perf_counter() - t0,
+        int(res.nfev),
+        partial=res.interrupted,
+    )

@@ -1,0 +1,380 @@
+"""The one entry point of identification, :func:`identify`: a registry of model kinds, each
+with its fitter — least squares for the linear families (:mod:`piezohyst.identify.core`),
+variable projection for their structure (:mod:`piezohyst.identify.varpro`), population
+optimizers for Bouc–Wen, seed 1's CEMF stage model and the Bouc–Wen benchmark system
+(:mod:`piezohyst.identify.boucwen_benchmark`).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .. import _core
+from .._validate import as_int, as_record, as_scalar
+from ..errors import ParameterError, ParameterTypeError
+from ..models.boucwen_benchmark import FS, UPSAMPLE
+from ..models.creep import Creep
+from ..models.differential import BoucWen
+from ..models.pi import RateDependentPI
+from ..optimize.core import minimize
+from .boucwen_benchmark import identify_boucwen_benchmark
+from .core import (
+    IdentificationResult,
+    _check_loss,
+    _default_thresholds,
+    fit_linear,
+    fit_metrics,
+    identify_cemf,
+    identify_mpi,
+    identify_pi,
+    identify_preisach,
+    minimize_huber,
+)
+from .varpro import identify_vp
+
+__all__ = ["KINDS", "STRUCTURES", "identify"]
+
+#: ``structure`` values of :func:`identify`: the default structure, or identified with it by
+#: variable projection.
+STRUCTURES = ("fixed", "fit")
+
+#: Keywords :func:`identify` passes on to :func:`piezohyst.varpro.identify_vp`.
+_VP_OPTIONS = ("envelope", "bounds", "polish", "starts")
+
+
+@dataclass(frozen=True)
+class _Call:
+    """One :func:`identify` call, checked, as the kind's fitter sees it."""
+
+    input: object
+    output: object
+    kind: str
+    fs: object
+    operators: object
+    levels: object
+    creep: int
+    loss: str
+    delta: object
+    validate: tuple | None
+    search: dict
+    options: dict
+    t0: float
+
+
+@dataclass(frozen=True)
+class _Kind:
+    """A registered model kind: its fitter, whether it takes ``**options``, whether variable
+    projection fits its structure, and its optimizer iterations by default."""
+
+    fit: Callable[[_Call], IdentificationResult]
+    options: bool = False
+    structure: bool = False
+    iterations: int = 200
+
+
+#: The model kinds :func:`identify` accepts, in the order of ``KINDS``.
+_REGISTRY: dict[str, _Kind] = {}
+
+
+def _register(kind: str, fit: Callable[[_Call], IdentificationResult], **spec) -> None:
+    _REGISTRY[kind] = _Kind(fit, **spec)
+
+
+def _boucwen_bounds(v, y):
+    """Search box for Bouc–Wen ``(a, beta, gamma, n = 1, d)`` from the data's scales."""
+    dv = float(np.ptp(v)) or 1.0
+    gain = float(np.ptp(y)) / dv
+    return [(0.0, 4 * gain), (1e-3 / dv, 50.0 / dv), (-50.0 / dv, 50.0 / dv), (1.0, 1.0), (0.0, 4 * gain)]
+
+
+def identify(
+    input,
+    output,
+    model="mpi",
+    *,
+    fs=None,
+    operators=9,
+    levels=12,
+    structure="fixed",
+    creep=0,
+    optimizer="ls",
+    rng=None,
+    max_iterations=None,
+    population_size=None,
+    validate=None,
+    progress=False,
+    callback=None,
+    loss="squared",
+    huber_delta=None,
+    **options,
+):
+    """Identify a hysteresis model from an input/output record (free-run simulation error).
+
+    One entry point for every model kind: the linear families by least squares, the
+    differential and stage models by a population optimizer, each population simulated in one
+    Rust batch call.
+
+    Parameters
+    ----------
+    input, output : array_like
+        The training record. For ``cemf``: the voltage across the stack (V) and the
+        displacement; for ``boucwen-benchmark``: force (N) and displacement (m).
+    model : str
+        One of ``KINDS``:
+
+        - ``pi``, ``gpi``/``mpi``, ``rdpi``, ``preisach``: least squares over the linear
+          parameters with a default structure (thresholds over half the input range; a grid
+          over the input range); with ``structure="fit"`` (not ``preisach``) the structure is
+          identified too, by variable projection (:func:`piezohyst.varpro.identify_vp`);
+        - ``boucwen``: a population optimizer over all its parameters (then L-BFGS-B);
+        - ``cemf``: seed 1's grey-box stage model, :func:`identify_cemf` (needs ``fs``);
+        - ``boucwen-benchmark``: the Noël–Schoukens oscillator,
+          :func:`piezohyst.boucwen_benchmark.identify_boucwen_benchmark` (``fs`` defaults to
+          the benchmark's 750 Hz).
+    fs : float, optional
+        Sample rate, Hz (needed by ``rdpi``, ``cemf`` and ``creep``).
+    operators, levels : int
+        Play operators (PI family) and Preisach grid size.
+    structure : {"fixed", "fit"}
+        PI family only. ``"fixed"`` (default): the default structure, weights by least squares.
+        ``"fit"``: variable projection — a population optimizer (``optimizer``, default DE)
+        over the nonlinear structure parameters (threshold spread; rising/falling envelopes
+        of ``gpi``/``mpi``; ``beta`` and ``filter_tau`` of ``rdpi``; creep time constants),
+        the weights solved exactly by bounded least squares for every candidate, the cost the
+        free-run RMSE; then a Gauss–Newton polish. Options ``envelope``, ``bounds``,
+        ``polish``, ``starts`` of :func:`piezohyst.varpro.identify_vp` are accepted then.
+    creep : int
+        PI family only: number of creep lags added to the model (needs ``fs``). Fixed
+        structure: time constants log-spaced over ``[2 Ts, T]`` (``T`` the record's duration),
+        one in the middle of each of ``creep`` equal decade bands; ``structure="fit"`` searches
+        each within its band.
+    optimizer : str
+        ``"ls"`` for the linear families; ``"css"``, ``"pso"``, ``"mpso"`` or ``"de"`` for the
+        others and for ``structure="fit"`` (``"ls"`` there means each kind's default:
+        ``"de"``, or ``"css"`` for ``cemf``).
+    rng, population_size, progress, callback
+        Passed to the population optimizer (:func:`piezohyst.optimize.minimize`).
+    max_iterations : int, optional
+        Optimizer iterations; by default 200 (``boucwen``), 150 (``cemf``), 30
+        (``boucwen-benchmark``), 60 (``structure="fit"``).
+    validate : tuple, optional
+        A held-out record ``(input, output)``; its metrics are reported, it is not fitted.
+    loss : {"squared", "huber"}
+        ``"squared"``: the RMSE of the free-run simulation. ``"huber"``: the robust Huber
+        cost, for records with glitches — iteratively reweighted least squares for the
+        linear families (:func:`fit_linear`), :func:`huber_cost` of the simulated residuals
+        for the population optimizers (``boucwen``, ``cemf``; not ``boucwen-benchmark``) by
+        :func:`minimize_huber`. The reported metrics stay RMSE and max error.
+    huber_delta : float, optional
+        Huber threshold in the output's unit; by default 1.345 times the MAD-based robust
+        sigma of the residuals (:func:`default_huber_delta`).
+    **options
+        Further keywords of :func:`identify_cemf` or of
+        :func:`~piezohyst.boucwen_benchmark.identify_boucwen_benchmark` (e.g. ``bounds``,
+        ``fit_range``), or of :func:`~piezohyst.varpro.identify_vp` with ``structure="fit"``
+        (``envelope``, ``bounds``, ``polish``, ``starts``); refused otherwise.
+
+    Returns
+    -------
+    IdentificationResult
+        ``method`` names the optimizer, with ``+huber`` for the Huber loss.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst import PI, identify
+    >>> v = 0.5 + 0.4 * np.sin(np.linspace(0, 30, 1500)) * np.linspace(1, 0.3, 1500)
+    >>> truth = PI(np.arange(1, 5) * np.ptp(v) / 10, [0.4, 0.2, 0.1, 0.05], p0=0.6)   # the default structure
+    >>> y = truth.simulate(v)
+    >>> y[::100] += 0.5                                   # glitches on 1 % of the samples
+    >>> fits = {loss: identify(v, y, "pi", operators=4, loss=loss) for loss in ("squared", "huber")}
+    >>> {k: round(float(np.sqrt(np.mean((f.model.simulate(v) - truth.simulate(v)) ** 2))), 4) for k, f in fits.items()}
+    {'squared': 0.005, 'huber': 0.0}
+    """
+    t0 = time.perf_counter()
+    if model not in KINDS:
+        raise ParameterError(f"model = {model!r} is unknown; expected one of {list(KINDS)}")
+    loss, delta = _check_loss(loss, huber_delta)
+    if structure not in STRUCTURES:
+        raise ParameterError(f"structure = {structure!r} is unknown; expected one of {list(STRUCTURES)}")
+    creep = as_int(creep, "creep")
+    kind = _REGISTRY[model]
+    if structure == "fit" and not kind.structure:
+        raise ParameterError(
+            f"structure = 'fit' applies to model = {' / '.join(repr(k) for k in _VP_KINDS)}; "
+            f"{model!r} has no fixed structure to fit (use structure = 'fixed')"
+        )
+    if creep and not kind.structure:
+        raise ParameterError(
+            f"creep = {creep} applies to model = {' / '.join(repr(k) for k in _VP_KINDS)}, not to {model!r}"
+        )
+    if structure == "fit":
+        unknown = sorted(set(options) - set(_VP_OPTIONS))
+        if unknown:
+            raise ParameterTypeError(
+                f"identify() got unexpected keyword arguments {unknown} for model = {model!r}, "
+                f"structure = 'fit' (accepted: {list(_VP_OPTIONS)})"
+            )
+        return identify_vp(
+            input,
+            output,
+            model,
+            fs=fs,
+            operators=operators,
+            creep=creep,
+            optimizer="de" if optimizer == "ls" else optimizer,
+            rng=rng,
+            max_iterations=max_iterations,
+            population_size=population_size,
+            validate=validate,
+            progress=progress,
+            callback=callback,
+            loss=loss,
+            huber_delta=delta,
+            **options,
+        )
+    if options and not kind.options:
+        raise ParameterTypeError(f"identify() got unexpected keyword arguments {sorted(options)} for model = {model!r}")
+    if max_iterations is None:
+        max_iterations = kind.iterations
+    search = dict(
+        optimizer=optimizer,
+        rng=rng,
+        max_iterations=max_iterations,
+        population_size=population_size,
+        validate=validate,
+        progress=progress,
+        callback=callback,
+    )
+    call = _Call(input, output, model, fs, operators, levels, creep, loss, delta, validate, search, options, t0)
+    return kind.fit(call)
+
+
+def _free_run(fit):
+    """A fitter for the kinds identified here on one record: ``fit(call, v, y)`` gives
+    ``(model, method, history, partial)``; the metrics are the fitted model's free run."""
+
+    def run(c: _Call) -> IdentificationResult:
+        v = as_record(c.input, "input", min_length=2)
+        y = as_record(c.output, "output", min_length=2)
+        if y.size != v.size:
+            raise ParameterError(f"output has {y.size} samples, input has {v.size}; they must match")
+        fitted, method, history, partial = fit(c, v, y)
+        if c.loss == "huber":
+            method += "+huber"
+        train = fit_metrics(fitted.simulate(v), y)
+        val = None
+        if c.validate is not None:
+            vv = as_record(c.validate[0], "validate input")
+            vy = as_record(c.validate[1], "validate output")
+            val = fit_metrics(fitted.simulate(vv), vy)
+        return IdentificationResult(fitted, train, val, method, time.perf_counter() - c.t0, history, partial=partial)
+
+    return run
+
+
+@_free_run
+def _fit_linear_kind(c, v, y):
+    return _identify_linear(c.kind, v, y, c.fs, c.operators, c.levels, c.loss, c.delta, c.creep), "ls", None, False
+
+
+@_free_run
+def _fit_boucwen(c, v, y):
+    return _identify_boucwen(v, y, c.loss, c.delta, c.search)
+
+
+def _fit_cemf(c):
+    if c.fs is None:
+        raise ParameterError("fs is required for model = 'cemf' (the stage is simulated at the sample time)")
+    return identify_cemf(c.input, c.output, c.fs, loss=c.loss, huber_delta=c.delta, **c.search, **c.options)
+
+
+def _fit_benchmark(c):
+    return _identify_benchmark(c.input, c.output, c.fs, c.loss, c.search, c.options)
+
+
+def _identify_linear(model, v, y, fs, operators, levels, loss, delta, creep=0):
+    """The least-squares kinds' fitted model."""
+    robust = {"loss": loss, "huber_delta": delta}
+    lags = _default_creep(v.size, fs, creep)
+    if model == "pi":
+        return identify_pi(v, y, operators=operators, creep=lags, **robust).model
+    if model in ("gpi", "mpi"):
+        return identify_mpi(v, y, operators=operators, creep=lags, **robust).model
+    if model == "preisach":
+        return identify_preisach(v, y, levels=levels, **robust).model
+    if fs is None:
+        raise ParameterError("fs is required for model = 'rdpi' (the rate needs the sample time)")
+    r = _default_thresholds(v, as_int(operators, "operators", minimum=1))
+    template = RateDependentPI(r, np.zeros(r.size), 1.0 / float(fs), 1.0, 0.0, creep=lags)
+    return fit_linear(template, v, y, **robust).model
+
+
+def _default_creep(n, fs, terms):
+    """``terms`` creep lags for a record of ``n`` samples at ``fs``: one time constant in the
+    middle (in decades) of each of ``terms`` equal bands of ``[2 Ts, n Ts]``; ``None`` for 0."""
+    if not terms:
+        return None
+    if fs is None:
+        raise ParameterError(f"fs is required with creep = {terms} (the lags need the sample time)")
+    fs = as_scalar(fs, "fs", positive=True)
+    lo, hi = np.log10(2.0 / fs), np.log10(n / fs)
+    w = (hi - lo) / terms
+    return Creep(1.0 / fs, 10.0 ** (lo + w * (np.arange(terms) + 0.5)), np.zeros(terms))
+
+
+def _identify_boucwen(v, y, loss, delta, search):
+    """Bouc–Wen by a population optimizer: ``(model, method, history)``."""
+    search = dict(search)
+    search.pop("validate")
+    optimizer = search.pop("optimizer")
+    method = "de" if optimizer == "ls" else optimizer
+    family = BoucWen(1.0, 1.0, 0.0).family
+    bounds = _boucwen_bounds(v, y)
+    if loss == "huber":
+        # the rows stay inside the box, where every Bouc-Wen row is valid (n = 1, finite)
+        def simulate(rows):
+            return _core.batch_simulate(family, [], np.ascontiguousarray(rows), v)
+
+        res = minimize_huber(simulate, y, bounds, delta, method=method, **search)
+    else:
+
+        def cost(rows):
+            return _core.batch_rmse(family, [], np.ascontiguousarray(rows), v, y, float("inf"))
+
+        res = minimize(cost, bounds, method=method, polish=True, **search)
+    return BoucWen(*res.x), method, res.history, res.interrupted
+
+
+def _identify_benchmark(u, y, fs, loss, search, options):
+    """Dispatch to :func:`piezohyst.identify.boucwen_benchmark.identify_boucwen_benchmark`."""
+    if loss != "squared":
+        # its cost is the RMSE computed inside the Rust batch call, with its own polish
+        raise ParameterError("loss = 'huber' is not available for model = 'boucwen-benchmark'; use loss = 'squared'")
+    search = dict(search)
+    if search["optimizer"] == "ls":
+        search["optimizer"] = "de"
+    fs = FS if fs is None else fs
+    res = identify_boucwen_benchmark(u, y, fs, **search, **options)
+    upsample, interpolation = options.get("upsample", UPSAMPLE), options.get("interpolation", "fft")
+    return replace(res, simulator=lambda u_: res.model.simulate(u_, fs, upsample, interpolation=interpolation))
+
+
+# The registry: one entry per model kind, in the order of KINDS.
+for _k in ("pi", "gpi", "mpi", "rdpi"):
+    _register(_k, _fit_linear_kind, structure=True)
+_register("preisach", _fit_linear_kind)
+_register("boucwen", _fit_boucwen, iterations=200)
+_register("cemf", _fit_cemf, options=True, iterations=150)
+_register("boucwen-benchmark", _fit_benchmark, options=True, iterations=30)
+del _k
+
+#: Model kinds :func:`identify` accepts.
+KINDS = tuple(_REGISTRY)
+
+#: Kinds whose structure variable projection identifies.
+_VP_KINDS = tuple(k for k, spec in _REGISTRY.items() if spec.structure)

@@ -1,0 +1,84 @@
+"""Creep: a bank of first-order lags with time constants spread over decades (docs/spec.md §2.4).
+
+``w_j(k) = w_j(k-1) + (1 - exp(-Ts/tau_j)) (v(k) - w_j(k-1))``, output ``sum_j c_j w_j``.
+Use it alone, or pass it as ``creep=`` to any PI-type model (Kuhnen's modified PI).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._validate import as_scalar, as_vector
+from ..errors import ParameterError, ParameterTypeError
+from .model import HysteresisModel, _register
+
+__all__ = ["Creep"]
+
+
+@_register
+class Creep(HysteresisModel):
+    """Creep operator bank.
+
+    Parameters
+    ----------
+    ts : float
+        Sample time, s.
+    taus : array_like
+        Lag time constants, s (> 0), typically one per decade.
+    weights : array_like
+        Output weight of each lag.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst import Creep
+    >>> c = Creep(ts=1e-3, taus=[0.1, 1.0, 10.0], weights=[0.01, 0.01, 0.01])
+    >>> y = c.simulate(np.ones(10_000))          # step response over 10 s
+    >>> bool(y[99] < y[999] < y[-1] < 0.03)      # keeps creeping, bounded by sum(weights)
+    True
+    """
+
+    kind = "creep"
+    family = "creep"
+
+    def __init__(self, ts, taus, weights, *, units=None):
+        self.ts = as_scalar(ts, "ts", positive=True)
+        self.taus = as_vector(taus, "taus")
+        self.weights = as_vector(weights, "weights", length=self.taus.size)
+        bad = np.flatnonzero(~(self.taus > 0))
+        if bad.size:
+            raise ParameterError(f"taus[{bad[0]}] = {self.taus[bad[0]]} must be > 0")
+        super().__init__([self.taus.size], self.tail(), units=units)
+
+    @classmethod
+    def log_spaced(cls, ts, tau_min, tau_max, terms, weight=0.0):
+        """Time constants log-spaced from ``tau_min`` to ``tau_max``, equal weights."""
+        taus = np.geomspace(
+            as_scalar(tau_min, "tau_min", positive=True), as_scalar(tau_max, "tau_max", positive=True), int(terms)
+        )
+        return cls(ts, taus, np.full(taus.size, float(weight)))
+
+    def tail(self) -> np.ndarray:
+        """The creep part of a flat row: ``[ts, taus..., weights...]``."""
+        return np.concatenate([[self.ts], self.taus, self.weights])
+
+    @property
+    def terms(self) -> int:
+        return self.taus.size
+
+    @property
+    def parameters(self) -> dict:
+        return {"ts": self.ts, "taus": self.taus.tolist(), "weights": self.weights.tolist()}
+
+
+def creep_parts(creep):
+    """``(terms, row tail)`` of an optional creep argument."""
+    if creep is None:
+        return 0, np.zeros(0)
+    if not isinstance(creep, Creep):
+        raise ParameterTypeError(f"creep must be a piezohyst.Creep or None, got {type(creep).__name__}")
+    return creep.terms, creep.tail()
+
+
+def creep_from(p):
+    return None if p is None else Creep(**p)

@@ -1,0 +1,93 @@
+"""The one shape of every fit, identification, tuning and optimization result.
+
+Each such result says how long it took (``wall_time``, s), how many candidate evaluations it
+spent (``evaluations``; a linear least-squares fit counts one), what happened per iteration
+(``history``: a dict of arrays, one row per iteration, empty when the method does not iterate)
+and whether it was stopped before its end (``partial``: Ctrl-C, a callback, a signal — the
+result is then the best found before the stop). :class:`RunReport` gives all of them the same
+``to_pandas()``, ``plot()`` and notebook display.
+"""
+
+from __future__ import annotations
+
+import html
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import numpy.typing as npt
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    import pandas as pd
+    from matplotlib.figure import Figure
+
+__all__ = ["RunReport"]
+
+
+class RunReport:
+    """Mixin of the result classes: subclasses provide ``wall_time``, ``evaluations``,
+    ``history`` and ``partial`` (as fields or properties) and a ``_headline()``."""
+
+    wall_time: float
+    evaluations: int
+    history: dict[str, Any] | None
+    partial: bool
+
+    def _headline(self) -> str:
+        return type(self).__name__
+
+    def _history_columns(self) -> dict[str, npt.NDArray[Any]]:
+        """Per-iteration columns of ``history``: 1-D arrays as they are, 2-D arrays (a
+        candidate per iteration) split into ``name[j]`` columns."""
+        cols: dict[str, npt.NDArray[Any]] = {}
+        for name, values in (self.history or {}).items():
+            a = np.asarray(values)
+            if a.ndim == 1:
+                cols[name] = a
+            elif a.ndim == 2:
+                for j in range(a.shape[1]):
+                    cols[f"{name}[{j}]"] = a[:, j]
+        lengths = {c.size for c in cols.values()}
+        if len(lengths) > 1:
+            # only the per-iteration series share a length; others (a final summary) are left out
+            n = max(lengths, key=lambda k: sum(c.size == k for c in cols.values()))
+            cols = {k: v for k, v in cols.items() if v.size == n}
+        return cols
+
+    def to_pandas(self) -> pd.DataFrame:
+        """The per-iteration history as a ``pandas.DataFrame`` indexed by iteration (needs
+        pandas); empty for a method that does not iterate."""
+        try:
+            import pandas as pd
+        except ImportError:
+            raise ImportError("to_pandas() needs pandas, which is not installed") from None
+        cols = self._history_columns()
+        n = next(iter(cols.values())).size if cols else 0
+        return pd.DataFrame(cols, index=pd.RangeIndex(1, n + 1, name="iteration"))
+
+    def plot(self, *, ax: Any = None) -> Figure:
+        """Convergence: the best cost so far against the iteration (log scale)."""
+        import matplotlib.pyplot as plt
+
+        cols = self._history_columns()
+        if "best_cost" not in cols:
+            raise ValueError(f"{type(self).__name__} has no per-iteration best_cost to plot (history: {list(cols)})")
+        if ax is None:
+            fig, ax = plt.subplots(figsize=(6, 3.5))
+        else:
+            fig = ax.figure
+        best = cols["best_cost"]
+        ax.semilogy(np.arange(1, best.size + 1), best, lw=1.2, label=self._headline())
+        ax.set_xlabel("iteration")
+        ax.set_ylabel("best cost")
+        ax.legend(loc="upper right")
+        return fig
+
+    def _repr_html_(self) -> str:
+        rows = [
+            ("wall time", f"{self.wall_time:.3g} s"),
+            ("evaluations", str(self.evaluations)),
+            ("iterations", str(len(next(iter(self._history_columns().values()), [])))),
+            ("partial", "yes (stopped early: best so far)" if self.partial else "no"),
+        ]
+        cells = "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>" for k, v in rows)
+        return f"<div><p>{html.escape(self._headline())}</p><table>{cells}</table></div>"

@@ -1,0 +1,520 @@
+"""``piezohyst bench``: run every benchmark in the source tree's ``bench/`` and summarize
+them in one JSON file and one Markdown table, each figure beside the baseline the same run
+measured (and the target it answers to).
+
+The benchmarks themselves are scripts in ``bench/`` (each writes its own detailed JSON to
+``bench/results/``); this module runs them in fresh subprocesses, one after the other (they
+time themselves and must not compete for the 2 cores), then reads their JSON and extracts
+the headline rows. ``--report-only`` skips the runs and summarizes the JSON already there;
+``--readme README.md`` replaces the text between ``<!-- bench:begin -->`` and ``<!--
+bench:end -->`` with the table.
+
+Examples
+--------
+>>> from piezohyst.benchmarks import BENCHMARKS
+>>> [b.name for b in BENCHMARKS]
+['pi_batch', 'closed_loop', 'identify_mpi', 'c_step', 'control', 'demo']
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import os
+import platform
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .._io import write_atomic
+from ..errors import DataError, ParameterError
+
+__all__ = ["BENCHMARKS", "Benchmark", "find_bench_dir", "run_suite", "summarize", "to_markdown", "update_readme"]
+
+BEGIN, END = "<!-- bench:begin -->", "<!-- bench:end -->"
+
+
+@dataclass(frozen=True)
+class Benchmark:
+    """One script in ``bench/``: how to run it (with its defaults, or with ``quick_args`` for
+    ``--quick``), where it writes its JSON, and how to read its headline rows from that JSON."""
+
+    name: str
+    script: str
+    what: str
+    quick_args: tuple[str, ...]
+    rows: Callable[[dict], list[dict]] = field(repr=False)
+
+    def result_path(self, results: Path) -> Path:
+        return results / f"{self.name}.json"
+
+
+def _row(figure, value, unit, baseline, baseline_value, *, ratio=None, ratio_label="", target=None, passed=None):
+    """One table row; ``ratio`` is how many times better than the baseline (None: not a
+    speed/accuracy ratio)."""
+    return {
+        "figure": figure,
+        "value": value,
+        "unit": unit,
+        "baseline": baseline,
+        "baseline_value": baseline_value,
+        "ratio": ratio,
+        "ratio_label": ratio_label,
+        "target": target,
+        "pass": passed,
+    }
+
+
+def _pi_batch_rows(d):
+    rows = []
+    for w in d["workloads"]:
+        p2 = w["piezohyst"]["2_thread"]["updates_per_s"]
+        sp = w["speedup"]
+        label = f"PI batch RMSE, {w['S']} sets × {w['n']} operators × {w['N']} samples, 2 threads"
+        t = w.get("targets", {})
+        rows.append(
+            _row(
+                label,
+                p2,
+                "updates/s",
+                "NumPy per-step (vectorized over sets and operators)",
+                w["numpy_per_step"]["updates_per_s"],
+                ratio=sp["2_thread_vs_numpy_per_step"],
+                ratio_label="faster",
+                target="≥ 1e9 updates/s and ≥ 100×" if w.get("headline") else None,
+                passed=(t.get("updates_per_s_2_thread_ge_1e9") and t.get("speedup_2_thread_vs_numpy_per_step_ge_100"))
+                if w.get("headline")
+                else None,
+            )
+        )
+        rows.append(
+            _row(
+                label,
+                p2,
+                "updates/s",
+                "NumPy tuned (blocked across time)",
+                w["numpy"]["updates_per_s"],
+                ratio=sp["2_thread_vs_numpy"],
+                ratio_label="faster",
+                target="≥ 100×" if w.get("headline") else None,
+                passed=t.get("speedup_2_thread_vs_numpy_ge_100") if w.get("headline") else None,
+            )
+        )
+    return rows
+
+
+def _closed_loop_rows(d):
+    rows = []
+    for name, e in d["closed_loop_rtf"].items():
+        rows.append(
+            _row(
+                f"closed-loop real-time factor, 10 kHz PID on the virtual stage, {name}, 1 thread (median; "
+                f"best {e['rtf_best']:.0f}×)",
+                e["rtf"],
+                "× real time",
+                "scipy solve_ivp plant + Python PID",
+                e["baseline_rtf"],
+                ratio=e["speedup_vs_baseline"],
+                ratio_label="faster",
+                target="≥ 1000×",
+                passed=e["rtf"] >= 1000,
+            )
+        )
+    b = d["batch"]
+    rows.append(
+        _row(
+            f"batch of {b['scenarios']} closed-loop scenarios × {b['seconds_each']:g} s, 2 threads",
+            b["2_thread"]["median_s"],
+            "s",
+            "the same batch on 1 thread",
+            b["1_thread"]["median_s"],
+            ratio=b["scaling_2T_over_1T"],
+            ratio_label="scaling",
+            target="≥ 1.8×",
+            passed=b["scaling_2T_over_1T"] >= 1.8,
+        )
+    )
+    for case, a in d["accuracy"].items():
+        run = a["piezohyst"].get("tol=0.01") or next(iter(a["piezohyst"].values()))
+        f = run["fastest_solve_ivp_at_least_as_accurate"]
+        if f is None:
+            continue
+        rows.append(
+            _row(
+                f"stage integration, {case}, tolerance 0.01 (max rel. error {run['max_rel_error']:.1e})",
+                run["median_s"],
+                "s",
+                f"fastest solve_ivp as accurate ({f['run']})",
+                f["median_s"],
+                ratio=f["speedup"],
+                ratio_label="faster",
+            )
+        )
+    return rows
+
+
+def _identify_mpi_rows(d):
+    h = d["headline"]
+    by_kind: dict[str, list] = {}
+    for r in d["runs"]:
+        by_kind.setdefault(r["method"], []).append(r)
+    rows = []
+    a = by_kind.get("a", [None])[0]
+    for kind, label in (("b", "MPSO alone (median over seeds)"), ("c", "pyswarms + NumPy")):
+        runs = by_kind.get(kind)
+        if not runs:
+            continue
+        times = sorted(r["time_to_target_s"] for r in runs if r["reached"])
+        if len(times) == len(runs):
+            base, ratio = times[len(times) // 2], times[len(times) // 2] / h["a_time_to_target_s"]
+        else:  # the time it was given, a lower bound of its time to the target
+            base, ratio = max(r.get("total_s") or 0.0 for r in runs), None
+            label += " — did not reach the target in this time"
+        rows.append(
+            _row(
+                "MPI identification, 10 000 samples: time to within 1 % of the best RMSE (least squares)",
+                a["time_to_target_s"] if a else None,
+                "s",
+                label,
+                base,
+                ratio=ratio,
+                ratio_label="faster",
+                target="≤ 1 s" if kind == "b" else None,
+                passed=h["pass"] if kind == "b" else None,
+            )
+        )
+    return rows
+
+
+def _c_step_rows(d):
+    rows = []
+    base = (d.get("rust_api_baseline") or {}).get("results", {})
+    # the C cases whose Rust-API counterpart has another name (the rest share theirs)
+    rust_name = {
+        "MPI inverse feedforward (open loop behind the inverse)": "PI-type inverse, 9 operators (MPI feedforward)",
+        "PI inverse, 9 operators (phs_model_inverse_step)": "PI inverse, 9 operators (inverse_step)",
+        "MPI inverse, 9 operators (phs_model_inverse_step)": "MPI inverse, 9 operators (inverse_step)",
+    }
+    target = d.get("target_ns", {})
+    for name, s in d["summary"].items():
+        b = base.get(rust_name.get(name, name), {}).get("mean")
+        t = target.get(name)
+        rows.append(
+            _row(
+                f"one step from C: {name} (worst of {d['steps_per_case']:.0e}: {s['worst_ns'] / 1e3:.0f} µs)",
+                s["mean_ns"],
+                "ns",
+                "the same step through the Rust API" if b else "—",
+                b,
+                ratio=(b / s["mean_ns"]) if b else None,
+                ratio_label="C / Rust speed",
+                target=f"≤ {t:.0f} ns" if t else None,
+                passed=(s["mean_ns"] <= t) if t else None,
+            )
+        )
+    return rows
+
+
+def _control_rows(d):
+    rows = []
+    s1 = d["seed1_table3"]
+    key = next(iter(s1["rmse_um"]))
+    for ref, r in s1["rmse_um"][key].items():
+        rows.append(
+            _row(
+                f"seed 1 Table 3, {ref}: tracking RMSE, SMC + CEMF ({key})",
+                r["SMC+CEMF"],
+                "µm",
+                "SMC without the CEMF model (same gains)",
+                r["SMC"],
+                ratio=r["SMC"] / r["SMC+CEMF"],
+                ratio_label="smaller error",
+            )
+        )
+    tw = s1["tuning_wall_s"]
+    worst = max(tw.values())
+    rows.append(
+        _row(
+            "gain tuning wall time (CSS on the identified model, slowest case)",
+            worst,
+            "s",
+            "—",
+            None,
+            target="≤ 60 s",
+            passed=worst <= 60,
+        )
+    )
+    s2 = d["seed2"]
+    for case, r in s2["table3_linearity_percent"].items():
+        none, ff = r["none"], r["feedforward"]
+        rows.append(
+            _row(
+                f"seed 2 Table 3, {case}: linearity error with MPI inverse feedforward",
+                ff,
+                "%",
+                "no compensation",
+                none,
+                ratio=none / ff,
+                ratio_label="smaller error",
+                target="≤ 1 %",
+                passed=ff <= 1.0,
+            )
+        )
+    for ref, r in s2["table4_80hz"].items():
+        ab, ff = r["feedforward+ABSMC"]["normalized_rms_error"], r["feedforward"]["normalized_rms_error"]
+        rows.append(
+            _row(
+                f"seed 2 Table 4, 80 Hz {ref} amplitude: normalized RMS error, feedforward + ABSMC",
+                ab,
+                "",
+                "feedforward alone",
+                ff,
+                ratio=ff / ab,
+                ratio_label="smaller error",
+                target="below feedforward alone",
+                passed=ab < ff,
+            )
+        )
+    return rows
+
+
+def _demo_rows(d):
+    rows = []
+    for mode, r in d["runs"].items():
+        rows.append(
+            _row(
+                f"`piezohyst demo{' --quick' if mode == 'quick' else ''}` wall time",
+                r["wall_s"],
+                "s",
+                "— (a wall-time target)",
+                None,
+                target=f"≤ {r['target_s']:.0f} s",
+                passed=r["pass"],
+            )
+        )
+    return rows
+
+
+BENCHMARKS: tuple[Benchmark, ...] = (
+    Benchmark(
+        "pi_batch",
+        "pi_batch.py",
+        "batch PI evaluation vs NumPy",
+        ("--rounds", "1", "--reps", "2", "--numpy-reps", "1", "--min-time", "0.05", "--max-reps", "3"),
+        _pi_batch_rows,
+    ),
+    Benchmark(
+        "closed_loop",
+        "closed_loop.py",
+        "closed-loop real-time factor, batch scaling, integration accuracy",
+        ("--rounds", "1", "--reps", "2", "--batch-reps", "1", "--min-time", "0.05", "--max-reps", "3"),
+        _closed_loop_rows,
+    ),
+    Benchmark(
+        "identify_mpi",
+        "identify_mpi.py",
+        "MPI identification: least squares vs MPSO vs pyswarms",
+        ("--reps", "2", "--iterations", "60", "--mpso-seeds", "0", "--vp-seeds", "0", "--cap", "5"),
+        _identify_mpi_rows,
+    ),
+    Benchmark("c_step", "c_step.py", "ns per step from C", ("--rounds", "1"), _c_step_rows),
+    Benchmark("control", "control.py", "seed 1 / seed 2 control tables, tuning time", ("--quick",), _control_rows),
+    Benchmark("demo", "demo.py", "wall time of piezohyst demo", ("--modes", "quick"), _demo_rows),
+)
+_BY_NAME = {b.name: b for b in BENCHMARKS}
+
+
+def find_bench_dir(explicit=None) -> Path:
+    """The ``bench/`` directory of the source tree this package was built from (or
+    ``explicit``)."""
+    if explicit is not None:
+        p = Path(explicit)
+        if not (p / "common.py").is_file():
+            raise ParameterError(f"--bench-dir = '{p}' is not piezohyst's bench/ directory (no common.py in it)")
+        return p
+    here = Path(__file__).resolve()
+    for parent in here.parents:
+        if (parent / "bench" / "common.py").is_file():
+            return parent / "bench"
+    raise ParameterError(
+        "the benchmarks live in the source tree's bench/ directory, which is not beside this "
+        f"installation ({here.parent}); pass --bench-dir"
+    )
+
+
+def select(only=None, skip=None) -> list[Benchmark]:
+    for arg, names in (("--only", only), ("--skip", skip)):
+        for n in names or ():
+            if n not in _BY_NAME:
+                raise ParameterError(f"{arg} {n!r} is not a benchmark; choose from {', '.join(_BY_NAME)}")
+    chosen = [b for b in BENCHMARKS if (not only or b.name in only) and b.name not in (skip or ())]
+    if not chosen:
+        raise ParameterError("--only/--skip leave no benchmark to run")
+    return chosen
+
+
+def run_suite(benchmarks, bench_dir: Path, results: Path, *, quick=False, print_fn=print) -> dict[str, dict]:
+    """Run each benchmark script in a fresh subprocess, writing its JSON to ``results``.
+    A failing script is recorded (exit code and the end of its stderr) and the others still
+    run. Returns ``{name: {"status", "wall_s", ...}}``."""
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", PYTHONUNBUFFERED="1")
+    status = {}
+    for i, b in enumerate(benchmarks, 1):
+        out = b.result_path(results)
+        cmd = [sys.executable, str(bench_dir / b.script), "--out", str(out), *(b.quick_args if quick else ())]
+        print_fn(f"[{i}/{len(benchmarks)}] {b.name}: {b.what} ...", flush=True)
+        t0 = time.perf_counter()
+        p = subprocess.run(cmd, cwd=bench_dir.parent, env=env, capture_output=True, text=True)
+        wall = time.perf_counter() - t0
+        if p.returncode == 0 and out.is_file():
+            status[b.name] = {"status": "ok", "wall_s": wall, "command": cmd[1:]}
+            print_fn(f"      done in {wall:.0f} s", flush=True)
+        else:
+            tail = "\n".join((p.stderr or p.stdout).strip().splitlines()[-15:])
+            status[b.name] = {
+                "status": "failed",
+                "wall_s": wall,
+                "command": cmd[1:],
+                "exit_code": p.returncode,
+                "stderr_tail": tail,
+            }
+            print_fn(
+                f"      FAILED (exit {p.returncode}): {tail.splitlines()[-1] if tail else 'no output'}", flush=True
+            )
+    return status
+
+
+def summarize(benchmarks, results: Path, run_status: dict | None = None) -> dict:
+    """One summary from the JSON files in ``results``: per benchmark its rows, the time
+    its JSON was written and the machine it ran on."""
+    out = {
+        "benchmark": "suite",
+        "timestamp_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "python": platform.python_version(),
+        "cpu_count": os.cpu_count(),
+        "results_dir": "bench/results"
+        if (results.name == "results" and results.parent.name == "bench")
+        else str(results),
+        "benchmarks": {},
+    }
+    for b in benchmarks:
+        entry = dict((run_status or {}).get(b.name, {}))
+        path = b.result_path(results)
+        if entry.get("status") == "failed":
+            out["benchmarks"][b.name] = entry
+            continue
+        if not path.is_file():
+            entry.update(status="missing", rows=[])
+            out["benchmarks"][b.name] = entry
+            continue
+        try:
+            d = json.loads(path.read_text())
+            rows = b.rows(d)
+        except (ValueError, KeyError, TypeError, IndexError, ZeroDivisionError) as e:
+            raise DataError(
+                f"{path}: not a result of bench/{b.script} this version reads ({type(e).__name__}: {e})"
+            ) from None
+        m = d.get("machine")
+        entry.update(
+            status=entry.get("status", "ok"),
+            result_file=path.name,
+            rows=rows,
+            written_utc=d.get("timestamp_utc", "undated"),
+            machine=(f"{m.get('cpu_model')}, {m.get('cpu_count')} CPUs" if isinstance(m, dict) else m),
+        )
+        out["benchmarks"][b.name] = entry
+    rows = [r for e in out["benchmarks"].values() for r in e.get("rows", [])]
+    judged = [r for r in rows if r["pass"] is not None]
+    out["targets"] = {
+        "met": sum(bool(r["pass"]) for r in judged),
+        "judged": len(judged),
+        "missed": [r["figure"] for r in judged if not r["pass"]],
+    }
+    return out
+
+
+def _num(x, unit="") -> str:
+    if x is None:
+        return "—"
+    if unit == "updates/s":
+        return f"{x / 1e9:.2f} G/s" if x >= 1e9 else f"{x / 1e6:.0f} M/s"
+    if unit == "s":
+        return f"{x * 1e3:.3g} ms" if x < 1 else f"{x:.3g} s"
+    if unit == "× real time":
+        return _times(x)
+    if unit == "ns":
+        return f"{x:.0f} ns"
+    if unit in ("µm", "%"):
+        return f"{x:.3g} {unit}"
+    return f"{x:.3g}"
+
+
+def _times(x) -> str:
+    return f"{x:.3g}×" if x < 100 else f"{x:.0f}×"
+
+
+def to_markdown(summary: dict) -> str:
+    """The summary as one Markdown table plus a provenance line per benchmark."""
+    lines = [
+        "| benchmark | figure | piezohyst | baseline (same run) | baseline | ratio | target |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    notes = []
+    for name, e in summary["benchmarks"].items():
+        if e.get("status") != "ok":
+            lines.append(f"| {name} | **{e.get('status')}** | — | — | — | — | — |")
+            continue
+        for r in e["rows"]:
+            ratio = "—" if r["ratio"] is None else f"{_times(r['ratio'])} {r['ratio_label']}".strip()
+            target = "—" if r["target"] is None else f"{r['target']}: {'**met**' if r['pass'] else '**missed**'}"
+            lines.append(
+                f"| {name} | {r['figure']} | {_num(r['value'], r['unit'])} | {r['baseline']} | "
+                f"{_num(r['baseline_value'], r['unit'])} | {ratio} | {target} |"
+            )
+        notes.append(
+            f"`{summary['results_dir']}/{e['result_file']}` {e.get('written_utc', '')}, {e.get('machine') or ''}"
+        )
+    t = summary["targets"]
+    lines += [
+        "",
+        f"Targets met: {t['met']} of {t['judged']}." + (f" Missed: {'; '.join(t['missed'])}." if t["missed"] else ""),
+    ]
+    lines += ["", "<sub>" + " · ".join(notes) + "</sub>"]
+    return "\n".join(lines) + "\n"
+
+
+def update_readme(readme: Path, markdown: str) -> None:
+    """Replace the text between the bench markers of ``readme`` (atomically)."""
+    text = readme.read_text(encoding="utf-8")
+    i, j = text.find(BEGIN), text.find(END)
+    if i < 0 or j < i:
+        raise DataError(f"--readme '{readme}' has no '{BEGIN}' ... '{END}' section to replace")
+    note = "<!-- generated by `piezohyst bench`; edits here are overwritten -->\n"
+    write_atomic(readme, text[: i + len(BEGIN)] + "\n" + note + markdown + text[j:])
+
+
+def main(args, print_fn=print) -> dict:
+    """The ``piezohyst bench`` command (``args`` from its parser)."""
+    bench_dir = find_bench_dir(args.bench_dir)
+    results = Path(args.results) if args.results else bench_dir / "results"
+    chosen = select(args.only, args.skip)
+    status = None
+    if args.report_only and not results.is_dir():
+        raise ParameterError(f"--results = '{results}' is not a directory of benchmark results")
+    if not args.report_only:
+        results.mkdir(parents=True, exist_ok=True)
+        status = run_suite(chosen, bench_dir, results, quick=args.quick, print_fn=print_fn)
+    summary = summarize(chosen, results, status)
+    summary["quick"] = bool(args.quick) and not args.report_only
+    md = to_markdown(summary)
+    write_atomic(results / "summary.json", json.dumps(summary, indent=1, default=float) + "\n")
+    write_atomic(results / "summary.md", md)
+    if args.readme:
+        update_readme(Path(args.readme), md)
+    print_fn(md)
+    failed = [n for n, e in summary["benchmarks"].items() if e.get("status") != "ok"]
+    summary["failed"] = failed
+    return summary

@@ -1,0 +1,22 @@
+"""The plant: the simulated nanopositioning stage (:mod:`.stage`), flexure-stage design
+(:mod:`.flexure`) and generic experiment helpers on a stage (:mod:`.experiment`)."""
+
+from .experiment import excitation, measure
+from .flexure import A7075_YOUNGS_MODULUS, CemfCoefficients, FlexureStage, LeafSpring
+from .stage import Amplifier, Sensor, Stage, StageInfo, StageParameters, StageResponse, virtual_stage
+
+__all__ = [
+    "A7075_YOUNGS_MODULUS",
+    "Amplifier",
+    "CemfCoefficients",
+    "FlexureStage",
+    "LeafSpring",
+    "Sensor",
+    "Stage",
+    "StageInfo",
+    "StageParameters",
+    "StageResponse",
+    "excitation",
+    "measure",
+    "virtual_stage",
+]

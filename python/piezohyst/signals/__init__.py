@@ -1,0 +1,26 @@
+"""Signals: measured records and their file readers (:mod:`.data`), reference trajectories
+(:mod:`.references`) and tracking/hysteresis metrics (:mod:`.metrics`) and :class:`.Response`, the result of every
+time simulation."""
+
+from .data import Record, load_record, load_yan9a_model_record
+from .metrics import hysteresis_percent, linearity_error, max_error, rmse, tracking_metrics
+from .references import chirp, multisine, sine, staircase, triangle, variable_amplitude_sine
+from .response import Response
+
+__all__ = [
+    "Record",
+    "Response",
+    "chirp",
+    "hysteresis_percent",
+    "linearity_error",
+    "load_record",
+    "load_yan9a_model_record",
+    "max_error",
+    "multisine",
+    "rmse",
+    "sine",
+    "staircase",
+    "tracking_metrics",
+    "triangle",
+    "variable_amplitude_sine",
+]

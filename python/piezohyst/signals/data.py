@@ -1,0 +1,888 @@
+"""Measured records: input/output signals with a sample rate, loaded from files.
+
+A :class:`Record` holds one measured experiment — the actuator input (voltage, force, ...)
+and the measured output (displacement, sensor reading, ...) sampled at ``fs`` Hz — and
+knows how to trim itself and split into training and validation parts by sample ranges.
+:func:`load_record` reads one from
+
+- delimited text (``.csv``, ``.tsv``, ``.txt``, ``.dat``, ``.asc``): comma, tab, semicolon
+  or whitespace separated, with or without a header line; columns by name or by 0-based
+  index;
+- NumPy ``.npz`` archives (arrays by key) and ``.npy`` matrices (columns by index);
+- MATLAB ``.mat`` files, v4/v5/v7 (through :func:`scipy.io.loadmat`) and v7.3 (HDF5 based,
+  through h5py when it is installed); variables by name, struct fields as ``"s.field"``;
+- HDF5 files (``.h5``, ``.hdf5``, ``.he5``) through h5py when it is installed; datasets
+  by path (``"run1/voltage"``).
+
+The sample rate comes from a time column (strictly increasing and uniform; a non-uniform
+time axis is an error, never a silent resample) or is given as ``fs``. Every problem —
+missing file, unknown column, bad cell, NaN, short record, non-uniform time — is an error
+that names the file, the argument and the value (docs/spec.md §10).
+
+Examples
+--------
+>>> import tempfile, pathlib
+>>> from piezohyst.data import load_record
+>>> folder = pathlib.Path(tempfile.mkdtemp())
+>>> text = "t,v,x\\n0.000,0.0,0.00\\n0.005,1.0,0.40\\n0.010,2.0,1.10\\n0.015,1.0,0.90\\n"
+>>> _ = (folder / "run.csv").write_text(text)
+>>> rec = load_record(folder / "run.csv", input="v", output="x", time="t")
+>>> rec.n, rec.fs, rec.columns
+(4, 200.0, {'input': 'v', 'output': 'x', 'time': 't'})
+>>> rec.trim(1, 3).input
+array([1., 2.])
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._validate import as_int, as_record, as_scalar
+from ..errors import DataError, ParameterError, ParameterTypeError
+
+__all__ = ["TIME_RTOL", "Record", "load_record", "load_yan9a_model_record"]
+
+#: Default relative tolerance on the time steps of a time column (of the median step).
+TIME_RTOL = 1e-6
+
+TEXT_SUFFIXES = (".csv", ".tsv", ".txt", ".dat", ".asc")
+NPZ_SUFFIXES = (".npz",)
+NPY_SUFFIXES = (".npy",)
+MAT_SUFFIXES = (".mat",)
+HDF5_SUFFIXES = (".h5", ".hdf5", ".he5")
+SUPPORTED_SUFFIXES = TEXT_SUFFIXES + NPZ_SUFFIXES + NPY_SUFFIXES + MAT_SUFFIXES + HDF5_SUFFIXES
+
+H5PY_HINT = "reading HDF5 / MATLAB v7.3 needs h5py: pip install h5py"
+
+_ROLES = ("input", "output", "time")
+
+
+# --------------------------------------------------------------------------------------
+# Record
+
+
+@dataclasses.dataclass(frozen=True, eq=False, repr=False)
+class Record:
+    """One measured record: ``input`` and ``output`` sampled at ``fs`` Hz.
+
+    Parameters
+    ----------
+    input, output : array_like
+        1-D finite signals of equal length, at least 2 samples (stored as read-only
+        float64 copies).
+    fs : float
+        Sample rate in Hz, > 0.
+    time : array_like, optional
+        The measured time axis in seconds (strictly increasing, same length), if the
+        source had one. :func:`load_record` also checks that it is uniform and agrees
+        with ``fs``.
+    source : str
+        Where the record came from (file path; ``[a:b]`` appended by :meth:`trim`).
+    columns : dict
+        The source columns used: ``{"input": ..., "output": ...[, "time": ...]}``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst.data import Record
+    >>> rec = Record(np.arange(10.0), 2 * np.arange(10.0), fs=100.0)
+    >>> rec.n, rec.duration
+    (10, 0.1)
+    >>> train, val = rec.split(train=(0, 6), validate=(6, 10))
+    >>> train.n, val.n, float(val.input[0]), val.source
+    (6, 4, 6.0, '[6:10]')
+    """
+
+    input: np.ndarray
+    output: np.ndarray
+    fs: float
+    time: np.ndarray | None = None
+    source: str = ""
+    columns: dict = dataclasses.field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        u = as_record(self.input, "input", min_length=2)
+        y = as_record(self.output, "output", min_length=2)
+        if y.size != u.size:
+            raise ParameterError(f"output has {y.size} samples, input has {u.size}: lengths must match")
+        fs = as_scalar(self.fs, "fs", positive=True)
+        t = None
+        if self.time is not None:
+            t = as_record(self.time, "time", min_length=2)
+            if t.size != u.size:
+                raise ParameterError(f"time has {t.size} samples, input has {u.size}: lengths must match")
+            _check_increasing(t, "time")
+            t.flags.writeable = False
+        if not isinstance(self.source, str):
+            raise ParameterTypeError(f"source must be a str, got {type(self.source).__name__}")
+        if not isinstance(self.columns, Mapping):
+            raise ParameterTypeError(
+                f"columns must be a mapping of role -> column name, got {type(self.columns).__name__}"
+            )
+        columns = {}
+        for k, v in self.columns.items():
+            if not isinstance(k, str) or not isinstance(v, str):
+                raise ParameterTypeError(f"columns must map str to str, got {k!r}: {v!r}")
+            columns[k] = v
+        u.flags.writeable = False
+        y.flags.writeable = False
+        object.__setattr__(self, "input", u)
+        object.__setattr__(self, "output", y)
+        object.__setattr__(self, "fs", fs)
+        object.__setattr__(self, "time", t)
+        object.__setattr__(self, "columns", columns)
+
+    @property
+    def n(self) -> int:
+        """Number of samples."""
+        return int(self.input.size)
+
+    @property
+    def duration(self) -> float:
+        """``n / fs`` in seconds (each sample spans one period ``1 / fs``)."""
+        return self.n / self.fs
+
+    def __len__(self) -> int:
+        return self.n
+
+    def __repr__(self) -> str:
+        return (
+            f"Record(n={self.n}, fs={self.fs:g} Hz, duration={self.duration:g} s, "
+            f"source={self.source!r}, columns={self.columns!r})"
+        )
+
+    def _span(self, start, stop, start_name: str, stop_name: str) -> tuple[int, int]:
+        a = as_int(start, start_name, minimum=0)
+        b = self.n if stop is None else as_int(stop, stop_name, minimum=0)
+        if b > self.n:
+            raise ParameterError(f"{stop_name} = {b} is beyond the end of the record ({self.n} samples)")
+        if b - a < 2:
+            raise ParameterError(
+                f"{start_name} = {a}, {stop_name} = {b} keep {max(b - a, 0)} samples, at least 2 needed"
+            )
+        return a, b
+
+    def _slice(self, a: int, b: int) -> Record:
+        return Record(
+            self.input[a:b],
+            self.output[a:b],
+            self.fs,
+            None if self.time is None else self.time[a:b],
+            f"{self.source}[{a}:{b}]",
+            dict(self.columns),
+        )
+
+    def trim(self, start: int = 0, stop: int | None = None) -> Record:
+        """Samples ``start`` (inclusive) to ``stop`` (exclusive; ``None``: the end), as a
+        new Record — the half-open range of Python slicing, 0-based sample indices.
+
+        Indices beyond the record and ranges of fewer than 2 samples are errors, never
+        silently clipped.
+        """
+        a, b = self._span(start, stop, "start", "stop")
+        return self._slice(a, b)
+
+    def split(self, train=None, validate=None) -> tuple[Record, Record]:
+        """Training and validation records from two sample ranges ``(start, stop)``.
+
+        Each range is half-open and 0-based like :meth:`trim` (``stop`` may be ``None``:
+        the end). The ranges may not overlap. With neither given, the first half trains
+        and the second half validates.
+
+        Returns
+        -------
+        train, validate : Record
+        """
+        if train is None and validate is None:
+            h = self.n // 2
+            train, validate = (0, h), (h, self.n)
+        elif train is None or validate is None:
+            raise ParameterError(f"train = {train!r}, validate = {validate!r}: give both ranges, or neither (halves)")
+        spans = []
+        for name, rng in (("train", train), ("validate", validate)):
+            if isinstance(rng, (str, bytes)) or not isinstance(rng, (tuple, list)) or len(rng) != 2:
+                raise ParameterTypeError(f"{name} must be a (start, stop) pair of sample indices, got {rng!r}")
+            spans.append(self._span(rng[0], rng[1], f"{name}[0]", f"{name}[1]"))
+        (a, b), (c, d) = spans
+        if a < d and c < b:
+            raise ParameterError(
+                f"train = ({a}, {b}) and validate = ({c}, {d}) overlap "
+                f"(samples {max(a, c)} to {min(b, d) - 1}); validation data must be held out"
+            )
+        return self._slice(a, b), self._slice(c, d)
+
+    def to_pandas(self):
+        """A :class:`pandas.DataFrame` with columns ``time`` (the measured time, or
+        ``arange(n) / fs``), ``input`` and ``output``. Needs pandas."""
+        try:
+            import pandas as pd
+        except ImportError:
+            raise ImportError("Record.to_pandas needs pandas: pip install pandas") from None
+        t = self.time if self.time is not None else np.arange(self.n) / self.fs
+        return pd.DataFrame({"time": np.array(t), "input": np.array(self.input), "output": np.array(self.output)})
+
+
+def _check_increasing(t: np.ndarray, name: str) -> np.ndarray:
+    d = np.diff(t)
+    bad = np.flatnonzero(~(d > 0))
+    if bad.size:
+        k = int(bad[0])
+        raise ParameterError(
+            f"{name} is not strictly increasing: {name}[{k + 1}] = {float(t[k + 1])!r} follows "
+            f"{name}[{k}] = {float(t[k])!r}"
+        )
+    return d
+
+
+def fs_from_time(t: np.ndarray, name: str, rtol: float) -> float:
+    """The sample rate of a strictly increasing, uniform time axis (seconds)."""
+    d = _check_increasing(t, name)
+    med = float(np.median(d))
+    dev = np.abs(d - med)
+    bad = np.flatnonzero(dev > rtol * med)
+    if bad.size:
+        k = int(bad[0])
+        raise ParameterError(
+            f"{name} is not uniformly sampled: the step at index {k} ({name}[{k + 1}] - {name}[{k}] = "
+            f"{d[k]:.9g} s) differs from the median step {med:.9g} s by {dev[k] / med:.3g} relative "
+            f"(time_rtol = {rtol:g}); resample the record first (it is not resampled silently), "
+            f"or raise time_rtol if the time stamps are merely rounded"
+        )
+    return (t.size - 1) / float(t[-1] - t[0])
+
+
+# --------------------------------------------------------------------------------------
+# Argument checks
+
+
+def _check_path(path) -> Path:
+    if isinstance(path, bytes) or not isinstance(path, (str, os.PathLike)):
+        raise ParameterTypeError(f"path must be a str or os.PathLike, got {type(path).__name__}")
+    p = Path(path)
+    if not p.exists():
+        raise FileNotFoundError(f"{p}: no such file")
+    if p.is_dir():
+        raise ParameterError(f"path = {str(p)!r} is a directory, not a data file")
+    return p
+
+
+def check_column_spec(spec, name: str):
+    if spec is None:
+        return None
+    if isinstance(spec, str):
+        if not spec.strip():
+            raise ParameterError(f"{name} = {spec!r}: a column name may not be empty")
+        return spec
+    if isinstance(spec, bool) or not isinstance(spec, (int, np.integer)):
+        raise ParameterTypeError(f"{name} must be a column name (str) or a 0-based column index (int), got {spec!r}")
+    if spec < 0:
+        raise ParameterError(f"{name} = {int(spec)}: column indices are 0-based and must be >= 0")
+    return int(spec)
+
+
+# --------------------------------------------------------------------------------------
+# Sources: a text table or a container of arrays. Each resolves a column spec to a key
+# (what identifies the column), a label (how to name it) and reads a 1-D float64 array.
+
+
+class TextTable:
+    kind = "text"
+
+    def __init__(self, path: Path, delimiter, header):
+        self.source = str(path)
+        raw = path.read_bytes()
+        if b"\x00" in raw:
+            raise DataError(f"{path}: contains NUL bytes: a binary file, not delimited text")
+        try:
+            text = raw.decode("utf-8-sig")
+        except UnicodeDecodeError:
+            text = raw.decode("latin-1")
+        lines = text.splitlines()
+        self.delimiter = delimiter
+        first = None  # index of the first non-comment, non-blank line
+        for i, line in enumerate(lines):
+            s = line.strip()
+            if s and s[0] not in "#%":
+                first = i
+                break
+        if first is None:
+            what = "is empty" if not text.strip() else "has no data lines (only comments)"
+            raise DataError(f"{path}: {what}")
+        if self.delimiter is None:
+            s = lines[first]
+            self.delimiter = "\t" if "\t" in s else "," if "," in s else ";" if ";" in s else " "
+        names = None
+        fields = self._split(lines[first])
+        numeric = all(_is_number(f) for f in fields)
+        data_start = first
+        if header is True or (header == "auto" and not numeric):
+            names = [_unquote(f) for f in fields]
+            data_start = first + 1
+        elif header == "auto" and first > 0 and lines[first - 1].strip()[:1] in ("#", "%"):
+            # a commented header right above the data, as numpy.savetxt(header=...) writes
+            candidate = self._split(lines[first - 1].strip().lstrip("#%"))
+            if len(candidate) == len(fields) and not all(_is_number(f) for f in candidate):
+                names = [_unquote(f) for f in candidate]
+        self.names = names
+        self.ncols = len(names) if names is not None else len(fields)
+        self.rows: list[list[str]] = []
+        self.line_numbers: list[int] = []
+        for i in range(data_start, len(lines)):
+            s = lines[i].strip()
+            if not s or s[0] in "#%":
+                continue
+            row = self._split(lines[i])
+            if len(row) != self.ncols:
+                where = "the header" if data_start > first else f"line {first + 1}"
+                raise DataError(
+                    f"{path}: line {i + 1} has {len(row)} fields, expected {self.ncols} as on {where} "
+                    f"(delimiter {self.delimiter!r})"
+                )
+            self.rows.append(row)
+            self.line_numbers.append(i + 1)
+        if not self.rows:
+            raise DataError(f"{path}: has no data rows")
+
+    def _split(self, line: str) -> list[str]:
+        if self.delimiter.isspace() and self.delimiter != "\t":
+            return line.split()
+        return [f.strip() for f in line.rstrip().split(self.delimiter)]
+
+    def columns(self) -> list[tuple[Any, str]]:
+        return [(j, self._label(j)) for j in range(self.ncols)]
+
+    def _label(self, j: int) -> str:
+        return self.names[j] if self.names is not None else f"column {j}"
+
+    def resolve(self, role: str, spec) -> tuple[Any, str]:
+        if isinstance(spec, int):
+            if spec >= self.ncols:
+                raise DataError(
+                    f"{self.source}: {role} = {spec} is out of range: the file has {self.ncols} columns "
+                    f"(0-based indices 0..{self.ncols - 1})"
+                )
+            return spec, self._label(spec)
+        if self.names is None:
+            raise DataError(
+                f"{self.source}: {role} = {spec!r} names a column, but the file has no header line; "
+                f"use a 0-based column index 0..{self.ncols - 1} (or header=True)"
+            )
+        hits = [j for j, n in enumerate(self.names) if n == spec]
+        if not hits:
+            raise DataError(f"{self.source}: {role} = {spec!r} is not a column; the columns are {self.names}")
+        if len(hits) > 1:
+            raise DataError(f"{self.source}: {role} = {spec!r} names columns {hits}; use a 0-based index")
+        return hits[0], spec
+
+    def read(self, role: str, key: int, label: str) -> np.ndarray:
+        cells = [row[key] for row in self.rows]
+        try:
+            values = np.fromiter(map(float, cells), dtype=np.float64, count=len(cells))
+        except ValueError:
+            values = np.empty(len(cells))
+            for i, c in enumerate(cells):
+                try:
+                    values[i] = float(_unquote(c))
+                except ValueError:
+                    raise DataError(
+                        f"{self.source}: line {self.line_numbers[i]} (sample {i}), {role} column "
+                        f"{label!r} (index {key}): {c!r} is not a number"
+                    ) from None
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            i = int(bad[0])
+            raise DataError(
+                f"{self.source}: {role}[{i}] = {values[i]} is not finite (line {self.line_numbers[i]}, "
+                f"column {label!r})"
+            )
+        return values
+
+
+def _unquote(s: str) -> str:
+    s = s.strip()
+    if len(s) >= 2 and s[0] == s[-1] and s[0] in "\"'":
+        return s[1:-1].strip()
+    return s
+
+
+def _is_number(s: str) -> bool:
+    try:
+        float(_unquote(s))
+    except ValueError:
+        return False
+    return True
+
+
+class _ContainerTable:
+    """Named arrays (NPZ, MAT, HDF5) and optionally one 2-D matrix whose columns are
+    addressed by index (``dataset``; rows are samples)."""
+
+    def __init__(self, source: str, kind: str, variables: dict, lookup, matrix_name: str | None):
+        self.source = source
+        self.kind = kind
+        self.variables = variables  # name -> shape, numeric arrays only (for listings)
+        self._lookup = lookup  # name -> np.ndarray (raises KeyError)
+        self.matrix = None
+        self.matrix_name = matrix_name
+        if matrix_name is not None:
+            m = self._get(matrix_name, "dataset")
+            if m.ndim != 2:
+                hint = f"; name it directly, e.g. input={matrix_name!r}" if m.ndim == 1 else ""
+                raise DataError(
+                    f"{source}: dataset = {matrix_name!r} has shape {m.shape}, expected a 2-D matrix "
+                    f"(samples x signals){hint}"
+                )
+            if m.shape[0] < m.shape[1]:
+                raise DataError(
+                    f"{source}: dataset = {matrix_name!r} has shape {m.shape}: fewer rows than columns, so it "
+                    f"looks transposed; rows must be samples and columns signals (transpose it when saving)"
+                )
+            self.matrix = m
+
+    def _available(self) -> str:
+        names = sorted(self.variables)
+        return f"the numeric {self.kind} variables are {names}" if names else "the file holds no numeric arrays"
+
+    def _get(self, name: str, role: str) -> np.ndarray:
+        try:
+            a = self._lookup(name)
+        except KeyError:
+            raise DataError(f"{self.source}: {role} = {name!r} is not in the file; {self._available()}") from None
+        if a.dtype.kind not in "fiu":
+            raise ParameterTypeError(f"{self.source}: {role} = {name!r} must hold real numbers, got dtype {a.dtype}")
+        return a
+
+    def columns(self) -> list[tuple[Any, str]]:
+        if self.matrix is not None:
+            return [(("col", j), f"{self.matrix_name}[:, {j}]") for j in range(self.matrix.shape[1])]
+        return [(("var", n), n) for n, shape in self.variables.items() if sum(s > 1 for s in shape) == 1]
+
+    def resolve(self, role: str, spec) -> tuple[Any, str]:
+        if isinstance(spec, int):
+            if self.matrix is None:
+                raise DataError(
+                    f"{self.source}: {role} = {spec} is a column index, which needs dataset = <name of a "
+                    f"2-D matrix>; or name the array ({self._available()})"
+                )
+            k = self.matrix.shape[1]
+            if spec >= k:
+                raise DataError(
+                    f"{self.source}: {role} = {spec} is out of range: dataset {self.matrix_name!r} has shape "
+                    f"{self.matrix.shape}, {k} columns (0-based indices 0..{k - 1})"
+                )
+            return ("col", spec), f"{self.matrix_name}[:, {spec}]"
+        return ("var", spec), spec
+
+    def read(self, role: str, key, label: str) -> np.ndarray:
+        if key[0] == "col":
+            a = self.matrix[:, key[1]]
+        else:
+            a = self._get(key[1], role)
+            if a.ndim == 0 or a.size == 1:
+                raise DataError(f"{self.source}: {role} = {label!r} is a scalar ({a.ravel()[:1]}), not a signal")
+            if sum(s > 1 for s in a.shape) > 1:
+                raise DataError(
+                    f"{self.source}: {role} = {label!r} has shape {a.shape}, not a 1-D signal; for a matrix "
+                    f"pass dataset={label!r} and {role}=<0-based column index>"
+                )
+            a = a.ravel()
+        a = np.asarray(a, dtype=np.float64)
+        bad = np.flatnonzero(~np.isfinite(a))
+        if bad.size:
+            i = int(bad[0])
+            raise DataError(f"{self.source}: {role}[{i}] = {a[i]} is not finite ({label!r})")
+        return a
+
+
+def _numeric_shapes(arrays: dict) -> dict:
+    return {
+        k: tuple(v.shape)
+        for k, v in arrays.items()
+        if isinstance(v, np.ndarray) and v.dtype.kind in "fiu" and v.size > 0
+    }
+
+
+def _dict_lookup(arrays: dict):
+    def lookup(name: str) -> np.ndarray:
+        return np.asarray(arrays[name])
+
+    return lookup
+
+
+def open_npz(path: Path, dataset):
+    try:
+        z = np.load(path, allow_pickle=False)
+        if isinstance(z, np.ndarray):
+            raise ParameterError("it holds a single array (.npy format), not an archive")
+        with z:
+            arrays = {k: np.asarray(z[k]) for k in z.files}
+    except Exception as e:  # a corrupt archive raises from zipfile, zlib, numpy.lib.format ...
+        raise DataError(f"{path}: not a readable NPZ archive ({type(e).__name__}: {e})") from None
+    return _ContainerTable(str(path), "NPZ", _numeric_shapes(arrays), _dict_lookup(arrays), dataset)
+
+
+def open_npy(path: Path, dataset):
+    if dataset is not None:
+        raise ParameterError(f"dataset = {dataset!r} does not apply to a .npy file (one matrix; columns by index)")
+    try:
+        a = np.load(path, allow_pickle=False)
+        if not isinstance(a, np.ndarray):
+            raise ParameterError("it is an NPZ archive, not a single array")
+    except Exception as e:
+        raise DataError(f"{path}: not a readable .npy array ({type(e).__name__}: {e})") from None
+    if a.dtype.kind not in "fiu":
+        raise ParameterTypeError(f"{path}: the array must hold real numbers, got dtype {a.dtype}")
+    arrays = {"array": a}
+    return _ContainerTable(str(path), "npy", {"array": a.shape}, _dict_lookup(arrays), "array")
+
+
+def _flatten_mat(d: Mapping, prefix: str, out: dict) -> None:
+    for k, v in d.items():
+        if not prefix and k.startswith("__"):
+            continue
+        name = f"{prefix}{k}"
+        if isinstance(v, Mapping):
+            _flatten_mat(v, f"{name}.", out)
+        elif isinstance(v, np.ndarray) or (isinstance(v, (int, float)) and not isinstance(v, bool)):
+            out[name] = np.asarray(v)
+
+
+def open_mat(path: Path, dataset):
+    from scipy.io import loadmat
+    from scipy.io.matlab import matfile_version
+
+    try:
+        major, _ = matfile_version(str(path))
+    except Exception as e:
+        raise DataError(f"{path}: not a MATLAB .mat file ({type(e).__name__}: {e})") from None
+    if major == 2:
+        return open_hdf5(path, dataset, matlab=True)
+    try:
+        d = loadmat(str(path), simplify_cells=True)
+    except Exception as e:
+        raise DataError(
+            f"{path}: not a readable MATLAB v{4 if major == 0 else 5} file ({type(e).__name__}: {e})"
+        ) from None
+    arrays: dict = {}
+    _flatten_mat(d, "", arrays)
+
+    def lookup(name: str) -> np.ndarray:
+        return _dict_lookup(arrays)(name.replace("/", "."))
+
+    return _ContainerTable(str(path), "MAT", _numeric_shapes(arrays), lookup, dataset)
+
+
+def _import_h5py():
+    try:
+        import h5py
+    except ImportError:
+        raise ImportError(H5PY_HINT) from None
+    return h5py
+
+
+class _Hdf5Source:
+    """An open HDF5 file (closed by the caller) exposing numeric datasets by path."""
+
+    def __init__(self, path: Path, matlab: bool):
+        h5py = _import_h5py()
+        self.kind = "MATLAB v7.3" if matlab else "HDF5"
+        try:
+            self.file = h5py.File(path, "r")
+        except Exception as e:
+            raise DataError(f"{path}: not a readable {self.kind} file ({type(e).__name__}: {e})") from None
+        self.matlab = matlab
+        self.h5py = h5py
+        shapes: dict = {}
+
+        def visit(name, obj):
+            if any(part.startswith("#") for part in name.split("/")):
+                return  # MATLAB's #refs# / #subsystem# internals
+            if isinstance(obj, h5py.Dataset) and obj.dtype.kind in "fiu" and obj.size > 0:
+                if matlab and obj.attrs.get("MATLAB_class", b"") in (b"char", "char"):
+                    return
+                shape = tuple(obj.shape)
+                if matlab:  # MATLAB's view: struct fields as s.field, arrays transposed
+                    shapes[name.replace("/", ".")] = shape[::-1]
+                else:
+                    shapes[name] = shape
+
+        try:
+            self.file.visititems(visit)
+        except Exception as e:
+            self.file.close()
+            raise DataError(f"{path}: not a readable {self.kind} file ({type(e).__name__}: {e})") from None
+        self.shapes = shapes
+
+    def lookup(self, name: str) -> np.ndarray:
+        key = name.replace(".", "/") if self.matlab else name
+        try:
+            obj = self.file[key]
+        except (KeyError, ValueError):
+            raise KeyError(name) from None
+        if not isinstance(obj, self.h5py.Dataset):
+            raise KeyError(name)
+        try:
+            a = np.asarray(obj[()])
+        except Exception as e:
+            raise DataError(f"{self.file.filename}: cannot read {name!r} ({type(e).__name__}: {e})") from None
+        if self.matlab:
+            cls = obj.attrs.get("MATLAB_class", b"")
+            cls = cls.decode(errors="replace") if isinstance(cls, bytes) else str(cls)
+            if cls == "char":
+                return np.array([f"<MATLAB char array {name}>"])  # rejected as not numeric by the caller
+            return a.T
+        return a
+
+
+def open_hdf5(path: Path, dataset, matlab: bool = False):
+    src = _Hdf5Source(path, matlab)
+    try:
+        table = _ContainerTable(str(path), src.kind, src.shapes, src.lookup, dataset)
+    except BaseException:
+        src.file.close()
+        raise
+    table.close = src.file.close
+    return table
+
+
+# --------------------------------------------------------------------------------------
+# load_record
+
+
+def load_record(
+    path,
+    *,
+    input=None,
+    output=None,
+    time=None,
+    fs=None,
+    delimiter=None,
+    header="auto",
+    dataset=None,
+    time_rtol: float = TIME_RTOL,
+) -> Record:
+    """Load a measured record (input, output, sample rate) from a file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file; its extension selects the reader: ``.csv .tsv .txt .dat .asc`` (delimited
+        text), ``.npz``, ``.npy``, ``.mat`` (v4/v5/v7, or v7.3 with h5py), ``.h5 .hdf5 .he5``
+        (with h5py).
+    input, output, time : str or int, optional
+        The columns to use. A **str** names a column: a header name of a text file, a key
+        of an NPZ archive, a MATLAB variable (struct fields as ``"s.field"``), an HDF5
+        dataset path (``"run1/voltage"``). An **int** is a **0-based** column index: of a
+        text file, of a ``.npy`` matrix, or of the 2-D matrix named by ``dataset``. (Data
+        READMEs often number columns from 1: "column 5" is ``4`` here.) ``input`` and
+        ``output`` default to the columns named ``"input"`` and ``"output"``, else — when
+        the source has exactly two columns (besides ``time``) — to those two, in order.
+        ``time`` (seconds) is only used when given.
+    fs : float, optional
+        Sample rate in Hz. Either ``fs`` or ``time`` is required; with both, they must
+        agree to ``time_rtol`` (relative) and ``fs`` is used.
+    delimiter : str, optional
+        Text files: the field separator; by default the first data line decides: tab,
+        else comma, else semicolon, else runs of whitespace (also ``delimiter=" "``).
+    header : {"auto", True, False}
+        Text files: whether the first non-comment line holds column names. ``"auto"``:
+        yes if any of its fields is not a number; a ``#`` comment line right above the
+        data with one name per column (as ``numpy.savetxt(header=...)`` writes) also
+        names the columns. Lines starting with ``#`` or ``%`` and blank lines are skipped.
+    dataset : str, optional
+        NPZ/MAT/HDF5: a 2-D matrix (rows are samples; MATLAB's orientation for ``.mat``
+        files, also v7.3) whose columns integer ``input``/``output``/``time`` address.
+    time_rtol : float
+        Relative tolerance of the time steps against their median step (default 1e-6).
+
+    Returns
+    -------
+    Record
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    ValueError, TypeError
+        Anything wrong with the arguments or the data — unknown column (the available
+        ones are listed), index out of range, a cell that is not a number (line and
+        column named), NaN/Inf (sample named), fewer than 2 samples, mismatched lengths,
+        non-increasing or non-uniform time (index and steps named), ``fs`` missing,
+        ``fs <= 0`` or disagreeing with ``time``, unsupported extension, corrupt file.
+    ImportError
+        An HDF5 or MATLAB v7.3 file without h5py installed.
+
+    Examples
+    --------
+    The piezo micromanipulator record of ``../shared/data/piezo`` (tab-separated, no
+    header, 200 Hz; its README's "column 1" (voltage) and "column 5" (sensor) are 0 and 4):
+
+    >>> rec = load_record("../shared/data/piezo/yan9a_model_1hz.dat",
+    ...                   input=0, output=4, fs=200)  # doctest: +SKIP
+    >>> rec.n, rec.fs  # doctest: +SKIP
+    (8027, 200.0)
+
+    A CSV file with a header and a time column:
+
+    >>> import tempfile, pathlib
+    >>> f = pathlib.Path(tempfile.mkdtemp()) / "a.csv"
+    >>> _ = f.write_text("time,u,y\\n0.0,0,0\\n0.5,1,2\\n1.0,2,3\\n")
+    >>> load_record(f, input="u", output="y", time="time").fs
+    2.0
+    >>> load_record(f, input="v", output="y", fs=2.0)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    piezohyst.errors.DataError: ...a.csv: input = 'v' is not a column; the columns are ['time', 'u', 'y']
+    """
+    p = _check_path(path)
+    specs = {
+        "input": check_column_spec(input, "input"),
+        "output": check_column_spec(output, "output"),
+        "time": check_column_spec(time, "time"),
+    }
+    fs_given = None if fs is None else as_scalar(fs, "fs", positive=True)
+    rtol = as_scalar(time_rtol, "time_rtol", positive=True)
+    if delimiter is not None:
+        if not isinstance(delimiter, str):
+            raise ParameterTypeError(f"delimiter must be a str, got {delimiter!r}")
+        if not delimiter or "\n" in delimiter or "\r" in delimiter:
+            raise ParameterError(f"delimiter = {delimiter!r} must be a non-empty separator without line breaks")
+    if not (header is True or header is False or header == "auto"):
+        if isinstance(header, str):
+            raise ParameterError(f"header = {header!r} must be 'auto', True or False")
+        raise ParameterTypeError(f"header must be 'auto', True or False, got {header!r}")
+    if dataset is not None:
+        if not isinstance(dataset, str):
+            raise ParameterTypeError(f"dataset must be a str (a variable / dataset name), got {dataset!r}")
+        if not dataset.strip():
+            raise ParameterError(f"dataset = {dataset!r} may not be empty")
+    if specs["time"] is None and fs_given is None:
+        raise DataError(f"{p}: the sample rate is unknown: pass fs=<Hz> or time=<time column>")
+
+    suffix = p.suffix.lower()
+    if suffix in TEXT_SUFFIXES:
+        if dataset is not None:
+            raise ParameterError(f"dataset = {dataset!r} applies to NPZ/MAT/HDF5 files; {p} is a text file")
+        table = TextTable(p, delimiter, header)
+    else:
+        if suffix not in SUPPORTED_SUFFIXES:
+            raise DataError(f"{p}: unsupported file extension {p.suffix!r}; supported: {' '.join(SUPPORTED_SUFFIXES)}")
+        if delimiter is not None or header != "auto":
+            raise ParameterError(
+                f"delimiter = {delimiter!r}, header = {header!r}: these apply to text files only, not {p.suffix!r}"
+            )
+        if suffix in NPZ_SUFFIXES:
+            table = open_npz(p, dataset)
+        elif suffix in NPY_SUFFIXES:
+            table = open_npy(p, dataset)
+        elif suffix in MAT_SUFFIXES:
+            table = open_mat(p, dataset)
+        else:
+            table = open_hdf5(p, dataset)
+    try:
+        return _assemble(table, specs, fs_given, rtol)
+    finally:
+        close = getattr(table, "close", None)
+        if close is not None:
+            close()
+
+
+def _assemble(table, specs: dict, fs_given, rtol: float) -> Record:
+    src = table.source
+    resolved: dict = {}
+    for role in _ROLES:
+        if specs[role] is not None:
+            resolved[role] = table.resolve(role, specs[role])
+    missing = [r for r in ("input", "output") if r not in resolved]
+    if missing:
+        cols = table.columns()
+        labels = [lab for _, lab in cols]
+        for r in list(missing):
+            hit = [(k, lab) for k, lab in cols if lab == r]
+            if len(hit) == 1 and hit[0][0] not in {k for k, _ in resolved.values()}:
+                resolved[r] = hit[0]
+                missing.remove(r)
+        if missing:
+            used = {k for k, _ in resolved.values()}
+            free = [(k, lab) for k, lab in cols if k not in used]
+            if len(free) != len(missing):
+                raise DataError(
+                    f"{src}: {missing[0]} not given and not inferable from the {len(cols)} columns "
+                    f"{labels}; pass {missing[0]}= a column name or 0-based index"
+                )
+            for r, c in zip(missing, free, strict=False):
+                resolved[r] = c
+    seen: dict = {}
+    for role in _ROLES:
+        if role in resolved:
+            key, label = resolved[role]
+            if key in seen:
+                raise DataError(f"{src}: {seen[key]} and {role} are the same column {label!r}")
+            seen[key] = role
+    arrays = {role: table.read(role, *resolved[role]) for role in _ROLES if role in resolved}
+    n = arrays["input"].size
+    for role in ("output", "time"):
+        if role in arrays and arrays[role].size != n:
+            raise DataError(
+                f"{src}: {role} ({resolved[role][1]!r}) has {arrays[role].size} samples, input "
+                f"({resolved['input'][1]!r}) has {n}: lengths must match"
+            )
+    if n < 2:
+        raise DataError(f"{src}: input has {n} samples, at least 2 needed")
+    fs = fs_given
+    if "time" in arrays:
+        try:
+            fs_time = fs_from_time(arrays["time"], "time", rtol)
+        except ValueError as e:
+            raise DataError(f"{src}: {e}") from None
+        if fs_given is not None and abs(fs_time - fs_given) > rtol * fs_given:
+            raise DataError(
+                f"{src}: fs = {fs_given:g} Hz disagrees with the time column {resolved['time'][1]!r}, which gives "
+                f"{fs_time:.9g} Hz (relative difference {abs(fs_time - fs_given) / fs_given:.3g} > time_rtol = "
+                f"{rtol:g}); pass only one of them, or fix the other"
+            )
+        if fs is None:
+            fs = fs_time
+    columns = {role: resolved[role][1] for role in _ROLES if role in resolved}
+    try:
+        return Record(arrays["input"], arrays["output"], fs, arrays.get("time"), src, columns)
+    except (ValueError, TypeError) as e:
+        raise type(e)(f"{src}: {e}") from None
+
+
+def load_yan9a_model_record(path) -> Record:
+    """The measured 1 Hz record of a piezoelectric micromanipulator, ``yan9a_model_1hz.dat``.
+
+    Provenance (``../shared/data/README.md``): MIT License, (c) 2019 Yan Naing Aye; from the
+    public repository yan9a/DiscreteBacklashOperator (MatLabCode/DiscreteBacklashModel/,
+    originally ``Model_Vi_Do.dat``), data of Y. N. Aye and W. T. Ang, "A Discrete Backlash
+    Operator for Identification and Compensation of Hysteresis and Non-linearity for
+    Piezoelectric Micromanipulator", 2018. Tab-separated text without header, 8027 x 7,
+    sampled at 200 Hz; the README's column 1 (actuator input voltage, 0 ... 3.6 V, 1 Hz
+    sine) is ``input`` (index 0) and its column 5 (capacitive displacement sensor, raw
+    units, -123 ... -74, lower = plates closer) is ``output`` (index 4); the other columns
+    are constant. The original scripts identify on one cycle starting at row 3152.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file, e.g. ``../shared/data/piezo/yan9a_model_1hz.dat``.
+
+    Returns
+    -------
+    Record
+        ``fs = 200`` Hz, input in V, output in raw sensor units.
+
+    Examples
+    --------
+    >>> rec = load_yan9a_model_record("../shared/data/piezo/yan9a_model_1hz.dat")  # doctest: +SKIP
+    >>> rec.n, rec.fs, float(rec.input.min()), float(rec.input.max())  # doctest: +SKIP
+    (8027, 200.0, 0.0, 3.6)
+    """
+    return load_record(path, input=0, output=4, fs=200.0, delimiter="\t", header=False)

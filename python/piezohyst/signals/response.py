@@ -1,0 +1,230 @@
+"""One result object for every time simulation: a hysteresis model run, an open-loop stage run
+and a closed-loop run all return a :class:`Response` (python-control's ``TimeResponseData`` is
+the model).
+
+A response holds a time base, named signals of the same length (each with a unit and a role:
+input or output), the state the run ended in, and a title. Signals are read by name
+(``response.position`` or ``response["position"]``); ``inputs`` and ``outputs`` stack them as
+``(n_signals, n_time)`` arrays, never squeezed.
+
+Examples
+--------
+>>> import numpy as np
+>>> from piezohyst.signals import Response
+>>> r = Response(np.arange(3) * 1e-3, {"voltage": [0.0, 1.0, 2.0], "position": [0.0, 1e-6, 2e-6]},
+...              inputs=["voltage"], units={"voltage": "V", "position": "m"})
+>>> r.position
+array([0.e+00, 1.e-06, 2.e-06])
+>>> r.outputs.shape
+(1, 3)
+>>> r.to_pandas().columns.tolist()  # doctest: +SKIP
+['voltage', 'position']
+"""
+
+from __future__ import annotations
+
+import html
+from collections.abc import Iterable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ..errors import ParameterError
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    import pandas as pd
+    from matplotlib.figure import Figure
+
+FloatArray = npt.NDArray[np.float64]
+
+__all__ = ["Response"]
+
+
+class Response:
+    """Named signals of one time simulation, one value per sample.
+
+    Parameters
+    ----------
+    time : array_like, shape (N,)
+        Sample instants, s; finite and strictly increasing.
+    signals : mapping of str to array_like, shape (N,)
+        The signals in display order.
+    inputs : sequence of str, optional
+        Names of the signals that drove the run (the rest are outputs).
+    units : mapping of str to str, optional
+        Unit of each signal (``"m"``, ``"V"``, ``""`` for unitless); missing ones are ``""``.
+    final_state : array_like, optional
+        The state the run ended in; pass it as the next run's initial state to continue.
+    title : str, optional
+        What ran (a model family, a controller name, ...).
+
+    Attributes
+    ----------
+    time : ndarray, shape (N,)
+    signals : dict of str to ndarray, shape (N,)
+    input_names, output_names : tuple of str
+    units : dict of str to str
+    final_state : ndarray or None
+    title : str
+    """
+
+    time: FloatArray
+    signals: dict[str, FloatArray]
+    input_names: tuple[str, ...]
+    output_names: tuple[str, ...]
+    units: dict[str, str]
+    final_state: FloatArray | None
+    title: str
+
+    def __init__(
+        self,
+        time: npt.ArrayLike,
+        signals: Mapping[str, npt.ArrayLike],
+        *,
+        inputs: Iterable[str] = (),
+        units: Mapping[str, str] | None = None,
+        final_state: npt.ArrayLike | None = None,
+        title: str = "",
+    ) -> None:
+        t = np.asarray(time, dtype=np.float64)
+        if t.ndim != 1:
+            raise ParameterError(f"time must be 1-D, got shape {t.shape}")
+        if t.size > 1 and not np.all(np.diff(t) > 0):
+            raise ParameterError("time must be strictly increasing")
+        sig: dict[str, FloatArray] = {}
+        for name, values in signals.items():
+            a = np.asarray(values, dtype=np.float64)
+            if a.shape != t.shape:
+                raise ParameterError(f"signal {name!r} has shape {a.shape}, the time base {t.shape}")
+            sig[name] = a
+        input_names = tuple(inputs)
+        for name in input_names:
+            if name not in sig:
+                raise ParameterError(f"inputs names {name!r}, which is not a signal (signals: {list(sig)})")
+        unit_map = dict(units or {})
+        for name in unit_map:
+            if name not in sig:
+                raise ParameterError(f"units names {name!r}, which is not a signal (signals: {list(sig)})")
+        object.__setattr__(self, "time", t)
+        object.__setattr__(self, "signals", sig)
+        object.__setattr__(self, "input_names", input_names)
+        object.__setattr__(self, "output_names", tuple(n for n in sig if n not in input_names))
+        object.__setattr__(self, "units", {n: unit_map.get(n, "") for n in sig})
+        object.__setattr__(
+            self, "final_state", None if final_state is None else np.asarray(final_state, dtype=np.float64)
+        )
+        object.__setattr__(self, "title", str(title))
+
+    # A response is a record of what happened: it is not edited after the run. Derived values
+    # (metrics) are cached in ``__dict__`` by subclasses through functools.cached_property.
+    def __setattr__(self, name: str, value: object) -> None:
+        raise AttributeError(f"{type(self).__name__} is read-only (cannot set {name!r})")
+
+    def __delattr__(self, name: str) -> None:
+        raise AttributeError(f"{type(self).__name__} is read-only (cannot delete {name!r})")
+
+    def __getattr__(self, name: str) -> FloatArray:
+        # called only when normal lookup fails: signals read as attributes
+        signals = self.__dict__.get("signals")
+        if signals is not None and name in signals:
+            return signals[name]  # type: ignore[no-any-return]
+        raise AttributeError(f"{type(self).__name__} has no attribute or signal {name!r}")
+
+    def __getitem__(self, name: str) -> FloatArray:
+        try:
+            return self.signals[name]
+        except KeyError:
+            raise KeyError(f"no signal {name!r} (signals: {list(self.signals)})") from None
+
+    def __len__(self) -> int:
+        return int(self.time.size)
+
+    def __dir__(self) -> list[str]:
+        return sorted(set(super().__dir__()) | set(self.signals))
+
+    @property
+    def n_time(self) -> int:
+        """Number of samples."""
+        return int(self.time.size)
+
+    @property
+    def inputs(self) -> FloatArray:
+        """Input signals stacked, shape ``(n_inputs, N)``."""
+        return self._stack(self.input_names)
+
+    @property
+    def outputs(self) -> FloatArray:
+        """Output signals stacked, shape ``(n_outputs, N)``."""
+        return self._stack(self.output_names)
+
+    def _stack(self, names: Sequence[str]) -> FloatArray:
+        if not names:
+            return np.empty((0, self.time.size))
+        return np.vstack([self.signals[n] for n in names])
+
+    def to_pandas(self) -> pd.DataFrame:
+        """The signals as a ``pandas.DataFrame`` indexed by time (needs pandas)."""
+        try:
+            import pandas as pd
+        except ImportError:
+            raise ImportError("to_pandas() needs pandas, which is not installed") from None
+        return pd.DataFrame(dict(self.signals), index=pd.Index(self.time, name="time"))
+
+    def plot(self, signals: Sequence[str] | None = None, *, ax: Any = None) -> Figure:
+        """One panel per unit: the named ``signals`` (default all) against time.
+
+        Returns the matplotlib figure.
+        """
+        import matplotlib.pyplot as plt
+
+        names = list(self.signals) if signals is None else list(signals)
+        for n in names:
+            self[n]
+        groups: dict[str, list[str]] = {}
+        for n in names:
+            groups.setdefault(self.units[n], []).append(n)
+        if ax is None:
+            fig, axes = plt.subplots(len(groups), 1, sharex=True, squeeze=False, figsize=(8, 2.4 * len(groups)))
+            ax_list = list(axes[:, 0])
+        else:
+            ax_list = list(np.atleast_1d(ax))
+            if len(ax_list) != len(groups):
+                raise ParameterError(f"ax has {len(ax_list)} axes; this plot needs {len(groups)} (one per unit)")
+            fig = ax_list[0].figure
+        for a, (unit, members) in zip(ax_list, groups.items(), strict=True):
+            for n in members:
+                a.plot(self.time, self.signals[n], lw=1, label=n)
+            a.set_ylabel(f"({unit})" if unit else "")
+            a.legend(loc="upper right")
+        ax_list[-1].set_xlabel("time (s)")
+        if self.title:
+            ax_list[0].set_title(self.title)
+        return fig
+
+    def _summary_rows(self) -> list[tuple[str, str, str, str, str, str]]:
+        rows = []
+        for n, a in self.signals.items():
+            role = "input" if n in self.input_names else "output"
+            lo, hi = (float(a.min()), float(a.max())) if a.size else (float("nan"), float("nan"))
+            rms = float(np.sqrt(np.mean(a * a))) if a.size else float("nan")
+            rows.append((n, role, self.units[n], f"{lo:.4g}", f"{hi:.4g}", f"{rms:.4g}"))
+        return rows
+
+    def _duration(self) -> float:
+        return float(self.time[-1] - self.time[0]) if self.time.size > 1 else 0.0
+
+    def __repr__(self) -> str:
+        title = f"{self.title}: " if self.title else ""
+        names = ", ".join(self.signals)
+        return f"{type(self).__name__}({title}{self.n_time} samples over {self._duration():.4g} s; signals {names})"
+
+    def _repr_html_(self) -> str:
+        head = html.escape(repr(self))
+        cells = "".join(
+            "<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in row) + "</tr>" for row in self._summary_rows()
+        )
+        return (
+            f"<div><p>{head}</p><table><thead><tr><th>signal</th><th>role</th><th>unit</th>"
+            f"<th>min</th><th>max</th><th>rms</th></tr></thead><tbody>{cells}</tbody></table></div>"
+        )

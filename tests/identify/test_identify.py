@@ -1,0 +1,126 @@
+"""Least squares over the linear parameters: exact recovery on simulated data, and a real
+record fitted to the accuracy it supports."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import piezohyst as ph
+from piezohyst import _core
+
+SHARED = Path(__file__).resolve().parents[2].parent / "shared" / "data"
+
+
+def drive(n=3000, seed=0):
+    rng = np.random.default_rng(seed)
+    return np.clip(0.5 + 0.45 * np.sin(np.linspace(0, 25, n)) * np.linspace(1, 0.2, n) + rng.normal(0, 0.01, n), 0, 1)
+
+
+@pytest.mark.parametrize(
+    "model",
+    [
+        ph.papers.mpi_seed2(),
+        ph.PI([0.05, 0.15, 0.3], [0.4, 0.2, 0.1], p0=0.7),
+        ph.PI([0.05, 0.15], [0.4, 0.2], p0=0.7, creep=ph.Creep(1e-3, [0.01, 0.1], [0.05, 0.03])),
+        ph.RateDependentPI([0.05, 0.2], [0.4, 0.2], ts=1e-3, p0=0.6, beta=1e-4, rate_weights=[1e-3, -5e-4]),
+        ph.Preisach(5, (0.0, 1.0), np.linspace(0.05, 1.0, 15), offset=0.1, slope=0.3),
+    ],
+    ids=["mpi", "pi", "pi+creep", "rdpi", "preisach"],
+)
+def test_regressors_reproduce_the_output_and_least_squares_recovers_the_parameters(model):
+    v = drive()
+    y = model.simulate(v)
+    A = _core.regressors(model.family, list(model.dims), model.to_row(), v)
+    assert A.shape[0] == v.size and np.linalg.matrix_rank(A) == A.shape[1]
+    fit = ph.fit_linear(model, v, y)
+    assert fit.metrics["rmse_percent"] < 1e-8
+    np.testing.assert_allclose(fit.model.simulate(v), y, rtol=0, atol=1e-10)
+
+
+def test_weights_are_recovered_exactly_when_the_structure_is_right():
+    truth = ph.papers.mpi_seed2()
+    v = drive()
+    template = ph.GeneralizedPI(truth.thresholds, np.zeros(9), (0, 0, 0, 0), input_range=(0, 1))
+    fit = ph.fit_linear(template, v, truth.simulate(v))
+    np.testing.assert_allclose(fit.model.weights, truth.weights, atol=1e-9)
+    np.testing.assert_allclose(fit.model.polynomial, truth.polynomial, atol=1e-9)
+
+
+def test_play_weights_stay_non_negative_under_noise():
+    truth = ph.PI([0.05, 0.15, 0.3], [0.4, 0.0, 0.1], p0=0.7)
+    v = drive()
+    y = truth.simulate(v) + np.random.default_rng(1).normal(0, 0.01, v.size)
+    fit = ph.fit_linear(ph.PI(truth.thresholds, np.ones(3), 1.0), v, y)
+    assert np.all(fit.model.weights >= 0) and fit.model.p0 >= 0
+    assert fit.metrics["rmse"] < 0.0105  # the noise level, not more
+
+
+def test_bad_input():
+    with pytest.raises(TypeError, match="model must be"):
+        ph.fit_linear(ph.BoucWen(1, 1, 0), [0.0, 1.0], [0.0, 1.0])
+    with pytest.raises(ValueError, match="output has 3 samples, input has 2"):
+        ph.fit_linear(ph.PI([0.1], [1.0]), [0.0, 1.0], [0.0, 1.0, 2.0])
+    with pytest.raises(ValueError, match="input is constant"):
+        ph.identify_pi(np.ones(10), np.arange(10.0))
+
+
+@pytest.mark.skipif(not (SHARED / "piezo" / "yan9a_model_1hz.dat").exists(), reason="shared data not present")
+def test_real_record_one_cycle():
+    # the original scripts identify on one 1 Hz cycle (200 samples/s) from row 3152
+    rec = ph.load_yan9a_model_record(SHARED / "piezo" / "yan9a_model_1hz.dat")
+    seg = slice(3152, 3152 + 1000)
+    v, y = rec.input[seg], rec.output[seg]
+    pre = ph.identify_preisach(v, y, levels=10)
+    mpi = ph.identify_mpi(v, y)
+    assert pre.metrics["rmse_percent"] < 0.3 and pre.metrics["max_error_percent"] < 1.0  # measured 0.25 / 0.93
+    assert mpi.metrics["rmse_percent"] < 1.6  # measured 1.45
+
+
+@pytest.mark.parametrize("method", ["de", "css"])
+def test_identify_bouc_wen_recovers_the_parameters(method):
+    truth = ph.BoucWen(1.2, 3.0, 1.0, d=2.0)
+    v = 1.5 * np.sin(np.linspace(0, 30, 3000)) * np.linspace(1, 0.3, 3000)
+    res = ph.identify(v, truth.simulate(v), "boucwen", optimizer=method, rng=1, max_iterations=150)
+    m = res.model
+    np.testing.assert_allclose([m.a, m.beta, m.gamma, m.d], [1.2, 3.0, 1.0, 2.0], rtol=1e-3)
+    assert res.train["rmse_percent"] < 1e-3 and res.history["best_cost"].size >= 1
+    # same seed, same result
+    again = ph.identify(v, truth.simulate(v), "boucwen", optimizer=method, rng=1, max_iterations=150)
+    assert again.model == res.model
+
+
+def test_identify_reports_validation_metrics():
+    truth = ph.papers.mpi_seed2()
+    v_train, v_val = drive(2000, 1), drive(1500, 2)
+    res = ph.identify(v_train, truth.simulate(v_train), "mpi", validate=(v_val, truth.simulate(v_val)))
+    assert res.train["rmse_percent"] < 0.5 and res.validation["rmse_percent"] < 0.5
+    assert set(res.to_dict()) == {"method", "wall_time_s", "train", "validation", "partial"}
+    assert res.to_dict()["partial"] is False
+
+
+def test_identify_bad_input():
+    with pytest.raises(ValueError, match="model = 'spline' is unknown"):
+        ph.identify([0.0, 1.0], [0.0, 1.0], "spline")
+    with pytest.raises(ValueError, match="fs is required"):
+        ph.identify(drive(100), drive(100), "rdpi")
+
+
+def test_identify_cemf_stage_from_simulated_measurements():
+    # data from the virtual stage (creep, electrostriction, amplifier dynamics: more physics than
+    # the CEMF model being fitted), voltage = amplifier output, position = true position
+    stage = ph.virtual_stage()
+    fs = 1.0 / stage.sample_time
+    _, u = ph.variable_amplitude_sine(5, 70, 0.6, fs, offset=75)
+    r = stage.simulate(u)
+    va, x = np.r_[0.0, r.voltage[:-1]], r.position
+    res = ph.identify_cemf(va, x, fs, optimizer="de", rng=1, max_iterations=100)
+    assert res.train["rmse_percent"] < 0.5  # measured 0.28 %
+    p = res.model
+    k_true = stage.params.stiffness / stage.params.tem
+    assert abs(p.stiffness / p.tem - k_true) / k_true < 0.1  # K = k/Tem within 10 % (measured 6 %)
+    assert res.history["best_cost"][-1] <= res.history["best_cost"][0]
+    with pytest.raises(ValueError, match="position has 3 samples, voltage has 2"):
+        ph.identify_cemf([0.0, 1.0], [0.0, 1.0, 2.0], fs)
+    with pytest.raises(ValueError, match="fs = -1.0 must be > 0"):
+        ph.identify_cemf([0.0, 1.0], [0.0, 1.0], -1.0)
