@@ -695,6 +695,7 @@ pub unsafe extern "C" fn phs_model_sizes(
         let family = family_of(spec)?;
         for (p, v) in [(n_params, family.param_len()), (n_state, family.state_len()), (n_scratch, family.scratch_len())]
         {
+            // SAFETY: API contract: each size pointer is NULL or valid for one write
             if let Some(p) = unsafe { p.as_mut() } {
                 *p = v;
             }
@@ -1031,6 +1032,7 @@ pub unsafe extern "C" fn phs_controller_reset(
 /// `controller` points to a `PhsController`; `state` to `n_state` writable values that do
 /// not overlap any buffer the controller borrows; `u_out` to a writable double.
 #[no_mangle]
+// the published C signature (users' real-time loops call it): kept flat rather than a struct
 #[allow(clippy::too_many_arguments)]
 pub unsafe extern "C" fn phs_controller_step(
     controller: *const PhsController,

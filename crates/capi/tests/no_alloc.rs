@@ -2,6 +2,9 @@
 //! kind (init, reset, step; behind an inverse model, with ILC) runs under a counting global
 //! allocator, and the count on this thread stays 0 — including on error paths, whose
 //! messages are formatted into a fixed per-thread buffer.
+// Every unsafe block here calls the C ABI with pointers to the test's own live buffers (or
+// deliberately NULL ones): the safety argument is the same for each and lives in this comment.
+#![allow(clippy::undocumented_unsafe_blocks)]
 mod common;
 
 use common::*;

@@ -163,7 +163,19 @@ impl Family {
                 crate::error::check_finite("weights", w)?;
                 row_prefix(levels, w, pre_scratch);
                 let prefix: &'a [f64] = pre_scratch;
-                Base::Preisach(Preisach::new(head[0], head[1], levels, w, prefix, head[2], head[3], memory)?)
+                Base::Preisach(
+                    Preisach {
+                        lo: head[0],
+                        hi: head[1],
+                        levels,
+                        weights: w,
+                        prefix,
+                        offset: head[2],
+                        slope: head[3],
+                        memory,
+                    }
+                    .validated()?,
+                )
             }
             Family::BoucWen => Base::BoucWen(BoucWen::new(head[0], head[1], head[2], head[3], head[4])?),
             Family::Duhem => Base::Duhem(Duhem::new(

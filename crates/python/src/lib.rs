@@ -20,6 +20,7 @@ mod util;
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     // purge freed pages after 1 s rather than mimalloc's default 10 ms (option 15 is
     // mi_option_purge_delay in the bundled mimalloc v2 header)
+    // SAFETY: mi_option_set stores one integer option; it takes no pointers
     unsafe { libmimalloc_sys::mi_option_set(15, 1000) };
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     models::register(m)?;

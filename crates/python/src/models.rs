@@ -165,6 +165,7 @@ fn inverse<'py>(
 /// A hysteresis model built once from its family name, dims and parameter row, validated
 /// at construction (immutable; states are the caller's arrays).
 #[pyclass(frozen, module = "piezohyst._core")]
+#[derive(Debug)]
 pub struct Model {
     pub(crate) fam: Family,
     pub(crate) name: String,

@@ -119,6 +119,7 @@ fn checked_spec(spec: ControllerSpec) -> PyResult<ControllerSpec> {
 /// optionally behind the exact inverse of a model (`inverse = (model, u_min, u_max)`)
 /// and/or with learning (`ilc = (period, gain, forgetting, lead, delay)`).
 #[pyclass(frozen, module = "piezohyst._core")]
+#[derive(Debug)]
 pub struct Controller {
     pub(crate) spec: ControllerSpec,
     state_len: usize,
@@ -190,6 +191,7 @@ impl Controller {
 /// One closed-loop scenario: a controller, the reference (position, velocity and
 /// acceleration; empty derivatives stand for zeros) and the sensor noise seed.
 #[pyclass(frozen, module = "piezohyst._core")]
+#[derive(Debug)]
 pub struct Scenario {
     controller: ControllerSpec,
     reference: Vec<f64>,
@@ -270,6 +272,7 @@ fn runs<'a>(py: Python<'_>, scenarios: &'a [ScenarioArg<'_>]) -> PyResult<Vec<Ru
 /// A stage with its sensor, built once: the stage parameters (`STAGE_PARAM_LEN` values),
 /// the control period `ts`, the integration settings and the sensor.
 #[pyclass(frozen, module = "piezohyst._core")]
+#[derive(Debug)]
 pub struct Stage {
     stage: CoreStage,
     sensor: Sensor,
@@ -729,9 +732,9 @@ fn tracking<'py>(
                     c.reset(&mut cst, ss.x);
                     let t = run_tracking(
                         Loop {
-                            stage: &st,
+                            stage: st,
                             stage_state: &mut ss,
-                            sensor: &se,
+                            sensor: se,
                             sensor_state: &mut sst,
                             controller: c,
                             controller_state: &mut cst,

@@ -70,22 +70,6 @@ pub fn row_prefix(levels: usize, weights: &[f64], prefix: &mut [f64]) {
 }
 
 impl<'a> Preisach<'a> {
-    /// [`Preisach::validated`] of the configuration with these fields, in declaration order.
-    // positional form kept for spec.rs, which another change rewrites (issue 18)
-    #[allow(clippy::too_many_arguments)]
-    pub fn new(
-        lo: f64,
-        hi: f64,
-        levels: usize,
-        weights: &'a [f64],
-        prefix: &'a [f64],
-        offset: f64,
-        slope: f64,
-        memory: usize,
-    ) -> Result<Self, ModelError> {
-        Preisach { lo, hi, levels, weights, prefix, offset, slope, memory }.validated()
-    }
-
     /// Validate a configuration built as a struct literal; returns it unchanged. `prefix`
     /// must have been filled by [`row_prefix`].
     pub fn validated(self) -> Result<Self, ModelError> {
