@@ -108,7 +108,7 @@ from .models import (
     load_model,
     model_from_dict,
 )
-from .optimize import CSS, DE, MPSO, PSO, IntermediateResult, Optimizer, OptimizeResult, minimize
+from .optimize import CSS, DE, MPSO, PSO, IntermediateResult, Optimizer, OptimizeResult, RunReport, minimize
 from .papers.boucwen_benchmark import load_train_multisine
 from .plant import (
     A7075_YOUNGS_MODULUS,
@@ -125,6 +125,7 @@ from .plant import (
 )
 from .signals import (
     Record,
+    Response,
     chirp,
     hysteresis_percent,
     linearity_error,
@@ -187,6 +188,8 @@ __all__ = [
     "Preisach",
     "RateDependentPI",
     "Record",
+    "Response",
+    "RunReport",
     "Sensor",
     "Stage",
     "StageInfo",

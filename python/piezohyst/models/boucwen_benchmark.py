@@ -360,6 +360,10 @@ class BoucWenBenchmark:
         """Output of the benchmark system for the force record ``u`` sampled at ``fs``, as
         the official generator: upsample by ``upsample``, integrate, FIR-decimate back.
 
+        The fast path: it returns the arrays only. :meth:`response` runs the same simulation
+        and returns the full :class:`~piezohyst.signals.Response` (time base, ``u``, ``y`` and
+        ``z`` with their units, final state).
+
         Parameters
         ----------
         u : array_like
