@@ -38,9 +38,12 @@ True
 
 import importlib
 import importlib.abc
+import importlib.machinery
 import importlib.util
 import sys
 import warnings
+from collections.abc import Sequence
+from types import ModuleType
 
 from . import _core
 from .control import (
@@ -105,7 +108,7 @@ from .models import (
     load_model,
     model_from_dict,
 )
-from .optimize import CSS, DE, MPSO, PSO, IntermediateResult, Optimizer, OptimizeResult, minimize
+from .optimize import CSS, DE, MPSO, PSO, IntermediateResult, Optimizer, OptimizeResult, RunReport, minimize
 from .papers.boucwen_benchmark import load_train_multisine
 from .plant import (
     A7075_YOUNGS_MODULUS,
@@ -122,6 +125,7 @@ from .plant import (
 )
 from .signals import (
     Record,
+    Response,
     chirp,
     hysteresis_percent,
     linearity_error,
@@ -184,6 +188,8 @@ __all__ = [
     "Preisach",
     "RateDependentPI",
     "Record",
+    "Response",
+    "RunReport",
     "Sensor",
     "Stage",
     "StageInfo",
@@ -266,25 +272,29 @@ class _MovedModules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
 
     _prefix = __name__ + "."
 
-    def find_spec(self, fullname, path=None, target=None):
+    def find_spec(
+        self, fullname: str, path: Sequence[str] | None = None, target: ModuleType | None = None
+    ) -> importlib.machinery.ModuleSpec | None:
         if fullname.startswith(self._prefix) and fullname[len(self._prefix) :] in _MOVED:
             return importlib.util.spec_from_loader(fullname, self)
         return None
 
-    def create_module(self, spec):
+    def create_module(self, spec: importlib.machinery.ModuleSpec) -> ModuleType:
         module = importlib.import_module(f"{__name__}.{_MOVED[spec.name[len(self._prefix) :]]}")
         spec.loader_state = module.__spec__  # the import system sets module.__spec__ to the alias's
         return module
 
-    def exec_module(self, module):
-        module.__spec__ = module.__spec__.loader_state or module.__spec__
+    def exec_module(self, module: ModuleType) -> None:
+        spec = module.__spec__
+        if spec is not None and spec.loader_state:
+            module.__spec__ = spec.loader_state
 
 
 if not any(isinstance(f, _MovedModules) for f in sys.meta_path):
     sys.meta_path.append(_MovedModules())
 
 
-def __getattr__(name):
+def __getattr__(name: str) -> object:
     if name in _DEPRECATED:
         home = _DEPRECATED[name]
         warnings.warn(

@@ -13,10 +13,16 @@ import contextlib
 import json
 import os
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any, TypeVar
 
 from .errors import DataError, OutputExistsError, ParameterError, PiezohystError
+
+_T = TypeVar("_T")
+
+#: What a file path argument may be.
+PathLike = str | os.PathLike[str]
 
 
 def _umask() -> int:
@@ -26,7 +32,7 @@ def _umask() -> int:
 
 
 def write_atomic(
-    path,
+    path: PathLike,
     data: str | bytes | None = None,
     *,
     writer: Callable[[str], None] | None = None,
@@ -41,14 +47,15 @@ def write_atomic(
     """
     if (data is None) == (writer is None):
         raise TypeError("write_atomic needs exactly one of data and writer")
-    path = Path(path)
-    if not overwrite and path.exists():
-        raise OutputExistsError(f"{name} = '{path}' exists; pass --force (or overwrite=True) to replace it")
-    parent = path.parent if str(path.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(dir=parent, prefix=f".{path.name}.", suffix=".tmp")
+    target = Path(path)
+    if not overwrite and target.exists():
+        raise OutputExistsError(f"{name} = '{target}' exists; pass --force (or overwrite=True) to replace it")
+    parent = target.parent if str(target.parent) else Path(".")
+    fd, tmp = tempfile.mkstemp(dir=parent, prefix=f".{target.name}.", suffix=".tmp")
     try:
         os.fchmod(fd, 0o666 & ~_umask())
         if writer is None:
+            assert data is not None  # exactly one of data and writer, checked above
             raw = data.encode("utf-8") if isinstance(data, str) else bytes(data)
             with os.fdopen(fd, "wb") as f:
                 f.write(raw)
@@ -57,15 +64,15 @@ def write_atomic(
         else:
             os.close(fd)
             writer(tmp)
-        os.replace(tmp, path)
+        os.replace(tmp, target)
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
-    return path
+    return target
 
 
-def load_json_file(path, what: str, build: Callable[[object], object]):
+def load_json_file(path: PathLike, what: str, build: Callable[[Any], _T]) -> _T:
     """Read the JSON file ``path`` and turn it into an object with ``build(parsed)``.
 
     A missing file is ``FileNotFoundError``; anything else wrong with the file — not text,
@@ -97,7 +104,7 @@ def load_json_file(path, what: str, build: Callable[[object], object]):
 
 
 @contextlib.contextmanager
-def malformed_as(what: str):
+def malformed_as(what: str) -> Iterator[None]:
     """Inside a builder of objects from parsed JSON: a ``KeyError``/``TypeError``/
     ``AttributeError``/``IndexError`` (a missing key, a list where an object belongs) becomes a
     :class:`ParameterError` naming ``what``; piezohyst's own errors pass through."""

@@ -3,13 +3,17 @@
 from __future__ import annotations
 
 import numbers
+from collections.abc import Iterable, Sized
 
 import numpy as np
+import numpy.typing as npt
 
 from .errors import ParameterError, ParameterTypeError
 
+FloatArray = npt.NDArray[np.float64]
 
-def as_record(x, name: str, *, min_length: int = 1, copy: bool = True, finite: bool = True) -> np.ndarray:
+
+def as_record(x: object, name: str, *, min_length: int = 1, copy: bool = True, finite: bool = True) -> FloatArray:
     """A finite 1-D float64 record: a copy the caller may keep, or (``copy=False``) a
     read-only view when the data is already float64. ``finite=False`` leaves the
     NaN/Inf check to the Rust core, which reports it with the same wording."""
@@ -37,7 +41,7 @@ def as_record(x, name: str, *, min_length: int = 1, copy: bool = True, finite: b
     return a
 
 
-def as_vector(x, name: str, *, length: int | None = None, allow_empty: bool = True) -> np.ndarray:
+def as_vector(x: object, name: str, *, length: int | None = None, allow_empty: bool = True) -> FloatArray:
     """A finite 1-D float64 parameter vector."""
     a = as_record(x, name, min_length=0 if allow_empty else 1)
     if length is not None and a.size != length:
@@ -46,7 +50,7 @@ def as_vector(x, name: str, *, length: int | None = None, allow_empty: bool = Tr
 
 
 def as_scalar(
-    x, name: str, *, positive: bool = False, nonnegative: bool = False, allow_infinite: bool = False
+    x: object, name: str, *, positive: bool = False, nonnegative: bool = False, allow_infinite: bool = False
 ) -> float:
     """A finite real scalar (``allow_infinite``: also +-inf, never NaN)."""
     if isinstance(x, bool) or not isinstance(x, (numbers.Real, np.floating, np.integer)):
@@ -61,7 +65,7 @@ def as_scalar(
     return v
 
 
-def as_int(x, name: str, *, minimum: int = 0) -> int:
+def as_int(x: object, name: str, *, minimum: int = 0) -> int:
     """An integer >= minimum."""
     if isinstance(x, bool) or not isinstance(x, (numbers.Integral, np.integer)):
         raise ParameterTypeError(f"{name} must be an integer, got {x!r}")
@@ -71,17 +75,18 @@ def as_int(x, name: str, *, minimum: int = 0) -> int:
     return v
 
 
-def as_interval(x, name: str) -> tuple[float, float]:
+def as_interval(x: object, name: str) -> tuple[float, float]:
     """A pair ``(lower, upper)`` of real numbers (infinite allowed, NaN not) with lower < upper."""
-    if isinstance(x, (str, bytes, dict)) or not hasattr(x, "__len__"):
+    if isinstance(x, (str, bytes, dict)) or not isinstance(x, Sized) or not isinstance(x, Iterable):
         raise ParameterTypeError(f"{name} must be a pair (lower, upper), got {x!r}")
     if len(x) != 2:
         raise ParameterError(f"{name} must be a pair (lower, upper), got {len(x)} values: {list(x)!r}")
-    lo, hi = x
-    for i, v in enumerate((lo, hi)):
+    ends: list[float] = []
+    for i, v in enumerate(x):
         if isinstance(v, bool) or not isinstance(v, (numbers.Real, np.floating, np.integer)):
             raise ParameterTypeError(f"{name}[{i}] must be a real number, got {v!r}")
-    lo, hi = float(lo), float(hi)
+        ends.append(float(v))
+    lo, hi = ends
     if not lo < hi:
         raise ParameterError(f"{name} = ({lo}, {hi}) must have lower < upper")
     return lo, hi

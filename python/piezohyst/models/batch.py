@@ -19,26 +19,30 @@ Examples
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 import numpy as np
+import numpy.typing as npt
 
 from .. import _core
 from .._validate import as_int, as_record
 from ..errors import ParameterError, ParameterTypeError
+from .model import FloatArray, HysteresisModel
 
 __all__ = ["batch_rmse", "batch_simulate"]
 
 
-def _family(model_or_family, dims):
+def _family(model_or_family: HysteresisModel | str, dims: Iterable[int] | None) -> tuple[str, list[int]]:
     if isinstance(model_or_family, str):
         if dims is None:
             raise ParameterTypeError("dims is required when the family is given by name")
-        if isinstance(dims, (str, bytes)) or not hasattr(dims, "__iter__"):
+        if isinstance(dims, (str, bytes)) or not isinstance(dims, Iterable):
             raise ParameterTypeError(f"dims must be a list of integers, got {dims!r}")
         return model_or_family, [as_int(d, f"dims[{i}]") for i, d in enumerate(dims)]
     return model_or_family.family, list(model_or_family.dims)
 
 
-def _params(params, width):
+def _params(params: npt.ArrayLike, width: int) -> FloatArray:
     try:
         p = np.ascontiguousarray(params, dtype=np.float64)
     except (TypeError, ValueError) as e:
@@ -50,7 +54,13 @@ def _params(params, width):
     return p
 
 
-def batch_simulate(model, params, input, *, dims=None):
+def batch_simulate(
+    model: HysteresisModel | str,
+    params: npt.ArrayLike,
+    input: npt.ArrayLike,
+    *,
+    dims: Iterable[int] | None = None,
+) -> FloatArray:
     """Outputs of ``S`` parameter sets driven by one input record.
 
     Parameters
@@ -72,7 +82,15 @@ def batch_simulate(model, params, input, *, dims=None):
     return _core.batch_simulate(family, d, _params(params, width), v)
 
 
-def batch_rmse(model, params, input, target, *, dims=None, invalid_cost=None):
+def batch_rmse(
+    model: HysteresisModel | str,
+    params: npt.ArrayLike,
+    input: npt.ArrayLike,
+    target: npt.ArrayLike,
+    *,
+    dims: Iterable[int] | None = None,
+    invalid_cost: float | None = None,
+) -> FloatArray:
     """Root-mean-square error of ``S`` parameter sets against a target output.
 
     Parameters

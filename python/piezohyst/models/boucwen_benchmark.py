@@ -69,11 +69,17 @@ Examples
 
 from __future__ import annotations
 
+from typing import Literal, overload
+
 import numpy as np
+import numpy.typing as npt
 
 from .. import _core
 from .._validate import as_int, as_record, as_scalar, as_vector
 from ..errors import ParameterError
+from ..signals.response import Response
+
+FloatArray = npt.NDArray[np.float64]
 
 __all__ = ["FS", "INTERPOLATIONS", "UPSAMPLE", "BoucWenBenchmark", "decimate", "upsample"]
 
@@ -84,7 +90,7 @@ UPSAMPLE = 20
 INTERPOLATIONS = ("fft", "linear", "zoh")
 
 
-def upsample(u, factor: int, interpolation: str = "fft") -> np.ndarray:
+def upsample(u: npt.ArrayLike, factor: int, interpolation: str = "fft") -> FloatArray:
     """The record ``u`` at ``factor`` times its rate, ``len(u) * factor`` samples.
 
     Sample ``factor * k`` of the result is ``u[k]``.
@@ -114,31 +120,32 @@ def upsample(u, factor: int, interpolation: str = "fft") -> np.ndarray:
     >>> bool(np.allclose(fine, np.sin(2 * np.pi * np.arange(64) / 64)))
     True
     """
-    u = as_record(u, "u")
+    x = as_record(u, "u")
     r = as_int(factor, "factor", minimum=1)
     if interpolation not in INTERPOLATIONS:
         raise ParameterError(
             f"interpolation = {interpolation!r} is unknown; expected one of {', '.join(INTERPOLATIONS)}"
         )
     if r == 1:
-        return u
-    n = u.size
+        return x
+    n = x.size
     if interpolation == "zoh":
-        return np.repeat(u, r)
+        return np.repeat(x, r)
     if interpolation == "linear":
-        return np.interp(np.arange(n * r) / r, np.arange(n), u)
-    spec = np.fft.rfft(u)
+        return np.interp(np.arange(n * r) / r, np.arange(n), x)
+    spec = np.fft.rfft(x)
     padded = np.zeros(n * r // 2 + 1, dtype=complex)
     padded[: spec.size] = spec
     if n % 2 == 0 and n > 0:
         padded[n // 2] *= 0.5  # the Nyquist line splits evenly between +-fs/2
-    return np.fft.irfft(padded, n * r) * r
+    fine: FloatArray = np.fft.irfft(padded, n * r) * r
+    return fine
 
 
 _upsample = upsample  # BoucWenBenchmark.simulate's argument `upsample` shadows it
 
 
-def decimate(y, factor: int) -> np.ndarray:
+def decimate(y: npt.ArrayLike, factor: int) -> FloatArray:
     """MATLAB ``decimate(y, p, 'fir')`` for each prime factor ``p`` of ``factor``
     (increasing), as the official benchmark generator; ``ceil(len(y) / factor)`` samples.
 
@@ -151,9 +158,9 @@ def decimate(y, factor: int) -> np.ndarray:
     >>> bool(np.allclose(slow, np.sin(2 * np.pi * 50 * t[::20]), atol=1e-3))
     True
     """
-    y = as_record(y, "y", copy=False)
+    x = as_record(y, "y", copy=False)
     r = as_int(factor, "factor", minimum=1)
-    return _core.boucwen_benchmark_decimate(y, r)
+    return _core.boucwen_benchmark_decimate(x, r)
 
 
 class BoucWenBenchmark:
@@ -193,15 +200,15 @@ class BoucWenBenchmark:
 
     def __init__(
         self,
-        mass=2.0,
-        damping=10.0,
-        stiffness=5e4,
-        alpha=5e4,
-        beta=1e3,
-        gamma=0.8,
-        delta=-1.1,
-        nu=1.0,
-    ):
+        mass: float = 2.0,
+        damping: float = 10.0,
+        stiffness: float = 5e4,
+        alpha: float = 5e4,
+        beta: float = 1e3,
+        gamma: float = 0.8,
+        delta: float = -1.1,
+        nu: float = 1.0,
+    ) -> None:
         self.mass = as_scalar(mass, "mass", positive=True)
         self.damping = as_scalar(damping, "damping", nonnegative=True)
         self.stiffness = as_scalar(stiffness, "stiffness", nonnegative=True)
@@ -214,7 +221,7 @@ class BoucWenBenchmark:
             raise ParameterError(f"nu = {self.nu} must be >= 1")
 
     @property
-    def parameters(self) -> dict:
+    def parameters(self) -> dict[str, float]:
         """The parameters by name."""
         return {
             "mass": self.mass,
@@ -227,7 +234,7 @@ class BoucWenBenchmark:
             "nu": self.nu,
         }
 
-    def params(self) -> np.ndarray:
+    def params(self) -> FloatArray:
         """``[mass, damping, stiffness, alpha, beta, gamma, delta, nu]`` for the core."""
         return np.array(list(self.parameters.values()), dtype=np.float64)
 
@@ -235,7 +242,7 @@ class BoucWenBenchmark:
         args = ", ".join(f"{k}={v!r}" for k, v in self.parameters.items())
         return f"BoucWenBenchmark({args})"
 
-    def initial_state(self, initial_state=None, u0: float = 0.0) -> np.ndarray:
+    def initial_state(self, initial_state: npt.ArrayLike | None = None, u0: float = 0.0) -> FloatArray:
         """The core's state ``[y, y', y'', z]`` from ``initial_state = (y0, dy0, z0)``
         (m, m/s, N; default at rest) under the input ``u0`` (N)."""
         if initial_state is None:
@@ -245,7 +252,26 @@ class BoucWenBenchmark:
         a0 = (u0 - self.damping * dy0 - self.stiffness * y0 - z0) / self.mass
         return np.array([y0, dy0, a0, z0], dtype=np.float64)
 
-    def integrate(self, u, h, initial_state=None, *, return_z: bool = False):
+    @overload
+    def integrate(
+        self,
+        u: npt.ArrayLike,
+        h: float,
+        initial_state: npt.ArrayLike | None = None,
+        *,
+        return_z: Literal[False] = False,
+    ) -> FloatArray: ...
+    @overload
+    def integrate(
+        self, u: npt.ArrayLike, h: float, initial_state: npt.ArrayLike | None = None, *, return_z: Literal[True]
+    ) -> tuple[FloatArray, FloatArray]: ...
+    @overload
+    def integrate(
+        self, u: npt.ArrayLike, h: float, initial_state: npt.ArrayLike | None = None, *, return_z: bool
+    ) -> FloatArray | tuple[FloatArray, FloatArray]: ...
+    def integrate(
+        self, u: npt.ArrayLike, h: float, initial_state: npt.ArrayLike | None = None, *, return_z: bool = False
+    ) -> FloatArray | tuple[FloatArray, FloatArray]:
         """Integrate at the step ``h`` with no resampling: ``u[k]`` is the force (N) at
         ``t = k h`` and ``y[k]`` (m) the displacement there; ``y[0]`` is the initial one.
 
@@ -273,28 +299,70 @@ class BoucWenBenchmark:
         >>> bool(abs(5e4 * y[-1] + z[-1] - 10.0) < 0.01)   # at rest again: kL y + z = u
         True
         """
-        u = as_record(u, "u")
-        h = as_scalar(h, "h", positive=True)
+        y, z, _ = self._integrate(as_record(u, "u"), as_scalar(h, "h", positive=True), initial_state)
+        if return_z:
+            return y, z
+        return y
+
+    def _integrate(
+        self, u: FloatArray, h: float, initial_state: npt.ArrayLike | None
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """``(y, z, state)``: the integrated displacement and hysteretic force at ``t = k h`` and
+        the core's state ``[y, y', y'', z]`` at the last sample."""
         state = self.initial_state(initial_state, float(u[0]))
         y0, z0 = state[0], state[3]
         y, z = _core.boucwen_benchmark_integrate(self.params(), u[1:], h, state)
-        y = np.concatenate([[y0], y])
-        if return_z:
-            return y, np.concatenate([[z0], z])
-        return y
+        return np.concatenate([[y0], y]), np.concatenate([[z0], z]), state
 
+    @overload
     def simulate(
         self,
-        u,
-        fs=FS,
-        upsample=UPSAMPLE,
-        initial_state=None,
+        u: npt.ArrayLike,
+        fs: float = FS,
+        upsample: int = UPSAMPLE,
+        initial_state: npt.ArrayLike | None = None,
+        *,
+        interpolation: str = "fft",
+        return_z: Literal[False] = False,
+    ) -> FloatArray: ...
+    @overload
+    def simulate(
+        self,
+        u: npt.ArrayLike,
+        fs: float = FS,
+        upsample: int = UPSAMPLE,
+        initial_state: npt.ArrayLike | None = None,
+        *,
+        interpolation: str = "fft",
+        return_z: Literal[True],
+    ) -> tuple[FloatArray, FloatArray]: ...
+    @overload
+    def simulate(
+        self,
+        u: npt.ArrayLike,
+        fs: float = FS,
+        upsample: int = UPSAMPLE,
+        initial_state: npt.ArrayLike | None = None,
+        *,
+        interpolation: str = "fft",
+        return_z: bool,
+    ) -> FloatArray | tuple[FloatArray, FloatArray]: ...
+    def simulate(
+        self,
+        u: npt.ArrayLike,
+        fs: float = FS,
+        upsample: int = UPSAMPLE,
+        initial_state: npt.ArrayLike | None = None,
         *,
         interpolation: str = "fft",
         return_z: bool = False,
-    ):
+    ) -> FloatArray | tuple[FloatArray, FloatArray]:
         """Output of the benchmark system for the force record ``u`` sampled at ``fs``, as
         the official generator: upsample by ``upsample``, integrate, FIR-decimate back.
+
+        The fast path: it returns the arrays only. :meth:`response` runs the same simulation
+        and returns the full :class:`~piezohyst.signals.Response` (time base, ``u``, ``y`` and
+        ``z`` with their units, final state).
 
         Parameters
         ----------
@@ -332,16 +400,89 @@ class BoucWenBenchmark:
         >>> bool(np.abs(y[2 * n:] - y[n:2 * n]).max() < 1e-3 * np.abs(y).max())   # steady state
         True
         """
-        u = as_record(u, "u")
-        fs = as_scalar(fs, "fs", positive=True)
+        _, y, z, _ = self._run(u, fs, upsample, initial_state, interpolation, with_z=return_z)
+        if return_z:
+            assert z is not None
+            return y, z
+        return y
+
+    def response(
+        self,
+        u: npt.ArrayLike,
+        fs: float = FS,
+        upsample: int = UPSAMPLE,
+        initial_state: npt.ArrayLike | None = None,
+        *,
+        interpolation: str = "fft",
+    ) -> Response:
+        """The run of :meth:`simulate` as a :class:`~piezohyst.signals.Response`: the force, the
+        displacement and the hysteretic force on one time base.
+
+        Parameters
+        ----------
+        u, fs, upsample, initial_state, interpolation
+            As in :meth:`simulate`.
+
+        Returns
+        -------
+        Response
+            Signals ``u`` (force, N, role input), ``y`` (displacement, m) and ``z`` (hysteretic
+            force, N), ``len(u)`` samples at ``k / fs`` s; ``y`` and ``z`` are the arrays
+            ``simulate(..., return_z=True)`` returns, bit for bit. ``final_state`` is
+            ``(y, y', z)`` (m, m/s, N, the layout ``initial_state`` takes) at the last
+            integration step, ``t = (len(u) upsample - 1) / (upsample fs)``; a run started from
+            it continues this one closely but not bit for bit, since the upsampling and the
+            zero-phase decimation each look at the whole record.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.models import BoucWenBenchmark
+        >>> u = 50 * np.sin(2 * np.pi * 5 * np.arange(750) / 750.0)
+        >>> r = BoucWenBenchmark().response(u)
+        >>> r.input_names, r.output_names, r.units
+        (('u',), ('y', 'z'), {'u': 'N', 'y': 'm', 'z': 'N'})
+        >>> r.outputs.shape, float(r.time[-1])
+        ((2, 750), 0.9986666666666667)
+        >>> y, z = BoucWenBenchmark().simulate(u, return_z=True)
+        >>> bool(np.array_equal(r.y, y) and np.array_equal(r.z, z))
+        True
+        """
+        x, y, z, state = self._run(u, fs, upsample, initial_state, interpolation, with_z=True)
+        assert z is not None
+        rate = as_scalar(fs, "fs", positive=True)
+        return Response(
+            np.arange(x.size, dtype=np.float64) / rate,
+            {"u": x, "y": y, "z": z},
+            inputs=["u"],
+            units={"u": "N", "y": "m", "z": "N"},
+            final_state=state[[0, 1, 3]],
+            title="Bouc–Wen benchmark",
+        )
+
+    def _run(
+        self,
+        u: npt.ArrayLike,
+        fs: float,
+        upsample: int,
+        initial_state: npt.ArrayLike | None,
+        interpolation: str,
+        *,
+        with_z: bool,
+    ) -> tuple[FloatArray, FloatArray, FloatArray | None, FloatArray]:
+        """``(u, y, z, state)`` of :meth:`simulate`: the checked input, the decimated outputs
+        (``z`` only ``with_z``) and the core's state at the last integration step."""
+        x = as_record(u, "u")
+        rate = as_scalar(fs, "fs", positive=True)
         r = as_int(upsample, "upsample", minimum=1)
         if interpolation not in INTERPOLATIONS:
             raise ParameterError(
                 f"interpolation = {interpolation!r} is unknown; expected one of {', '.join(INTERPOLATIONS)}"
             )
-        fine = _upsample(u, r, interpolation)
-        y, z = self.integrate(fine, 1.0 / (r * fs), initial_state, return_z=True)
+        fine = _upsample(x, r, interpolation)
+        # the checks integrate() makes on the high-rate record and the step
+        y, z, state = self._integrate(
+            as_record(fine, "u"), as_scalar(1.0 / (r * rate), "h", positive=True), initial_state
+        )
         y = _core.boucwen_benchmark_decimate(y, r)
-        if return_z:
-            return y, _core.boucwen_benchmark_decimate(z, r)
-        return y
+        return x, y, _core.boucwen_benchmark_decimate(z, r) if with_z else None, state

@@ -6,11 +6,14 @@ Use it alone, or pass it as ``creep=`` to any PI-type model (Kuhnen's modified P
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
+import numpy.typing as npt
 
 from .._validate import as_scalar, as_vector
 from ..errors import ParameterError, ParameterTypeError
-from .model import HysteresisModel, _register
+from .model import FloatArray, HysteresisModel, JSONDict, _register
 
 __all__ = ["Creep"]
 
@@ -41,7 +44,9 @@ class Creep(HysteresisModel):
     kind = "creep"
     family = "creep"
 
-    def __init__(self, ts, taus, weights, *, units=None):
+    def __init__(
+        self, ts: float, taus: npt.ArrayLike, weights: npt.ArrayLike, *, units: Mapping[str, str] | None = None
+    ) -> None:
         self.ts = as_scalar(ts, "ts", positive=True)
         self.taus = as_vector(taus, "taus")
         self.weights = as_vector(weights, "weights", length=self.taus.size)
@@ -51,14 +56,14 @@ class Creep(HysteresisModel):
         super().__init__([self.taus.size], self.tail(), units=units)
 
     @classmethod
-    def log_spaced(cls, ts, tau_min, tau_max, terms, weight=0.0):
+    def log_spaced(cls, ts: float, tau_min: float, tau_max: float, terms: int, weight: float = 0.0) -> Creep:
         """Time constants log-spaced from ``tau_min`` to ``tau_max``, equal weights."""
         taus = np.geomspace(
             as_scalar(tau_min, "tau_min", positive=True), as_scalar(tau_max, "tau_max", positive=True), int(terms)
         )
         return cls(ts, taus, np.full(taus.size, float(weight)))
 
-    def tail(self) -> np.ndarray:
+    def tail(self) -> FloatArray:
         """The creep part of a flat row: ``[ts, taus..., weights...]``."""
         return np.concatenate([[self.ts], self.taus, self.weights])
 
@@ -67,11 +72,11 @@ class Creep(HysteresisModel):
         return self.taus.size
 
     @property
-    def parameters(self) -> dict:
+    def parameters(self) -> JSONDict:
         return {"ts": self.ts, "taus": self.taus.tolist(), "weights": self.weights.tolist()}
 
 
-def creep_parts(creep):
+def creep_parts(creep: object) -> tuple[int, FloatArray]:
     """``(terms, row tail)`` of an optional creep argument."""
     if creep is None:
         return 0, np.zeros(0)
@@ -80,5 +85,5 @@ def creep_parts(creep):
     return creep.terms, creep.tail()
 
 
-def creep_from(p):
+def creep_from(p: JSONDict | None) -> Creep | None:
     return None if p is None else Creep(**p)

@@ -6,9 +6,13 @@ remove step-size error (Bouc–Wen n = 1, Duhem with cubic f and g, Dahl for any
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
+import numpy.typing as npt
+
 from .._validate import as_scalar, as_vector
 from ..errors import ParameterError
-from .model import HysteresisModel, _register
+from .model import HysteresisModel, JSONDict, _register
 
 __all__ = ["BoucWen", "Dahl", "Duhem"]
 
@@ -34,7 +38,16 @@ class BoucWen(HysteresisModel):
     kind = "boucwen"
     family = "boucwen"
 
-    def __init__(self, a, beta, gamma, n=1.0, d=0.0, *, units=None):
+    def __init__(
+        self,
+        a: float,
+        beta: float,
+        gamma: float,
+        n: float = 1.0,
+        d: float = 0.0,
+        *,
+        units: Mapping[str, str] | None = None,
+    ) -> None:
         self.a = as_scalar(a, "a")
         self.beta = as_scalar(beta, "beta")
         self.gamma = as_scalar(gamma, "gamma")
@@ -45,13 +58,13 @@ class BoucWen(HysteresisModel):
         super().__init__([], [self.a, self.beta, self.gamma, self.n, self.d], units=units)
 
     @classmethod
-    def from_benchmark(cls, alpha, beta, gamma, delta, nu=1.0):
+    def from_benchmark(cls, alpha: float, beta: float, gamma: float, delta: float, nu: float = 1.0) -> BoucWen:
         """The Noël–Schoukens benchmark form ``z' = alpha y' - beta (gamma |y'| |z|^(nu-1) z
         + delta y' |z|^nu)``; the returned model outputs ``-z`` (``d = 0``)."""
         return cls(alpha, beta * gamma, beta * delta, nu, 0.0)
 
     @property
-    def parameters(self) -> dict:
+    def parameters(self) -> JSONDict:
         return {"a": self.a, "beta": self.beta, "gamma": self.gamma, "n": self.n, "d": self.d}
 
 
@@ -63,14 +76,16 @@ class Duhem(HysteresisModel):
     kind = "duhem"
     family = "duhem"
 
-    def __init__(self, alpha, f, g, *, units=None):
+    def __init__(
+        self, alpha: float, f: npt.ArrayLike, g: npt.ArrayLike, *, units: Mapping[str, str] | None = None
+    ) -> None:
         self.alpha = as_scalar(alpha, "alpha", nonnegative=True)
         self.f = tuple(float(x) for x in as_vector(f, "f", length=4))
         self.g = tuple(float(x) for x in as_vector(g, "g", length=4))
         super().__init__([], [self.alpha, *self.f, *self.g], units=units)
 
     @property
-    def parameters(self) -> dict:
+    def parameters(self) -> JSONDict:
         return {"alpha": self.alpha, "f": list(self.f), "g": list(self.g)}
 
 
@@ -84,12 +99,12 @@ class Dahl(HysteresisModel):
     kind = "dahl"
     family = "dahl"
 
-    def __init__(self, sigma, h_c, a=1.0, *, units=None):
+    def __init__(self, sigma: float, h_c: float, a: float = 1.0, *, units: Mapping[str, str] | None = None) -> None:
         self.sigma = as_scalar(sigma, "sigma", positive=True)
         self.h_c = as_scalar(h_c, "h_c", positive=True)
         self.a = as_scalar(a, "a", positive=True)
         super().__init__([], [self.sigma, self.h_c, self.a], units=units)
 
     @property
-    def parameters(self) -> dict:
+    def parameters(self) -> JSONDict:
         return {"sigma": self.sigma, "h_c": self.h_c, "a": self.a}

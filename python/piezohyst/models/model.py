@@ -9,24 +9,34 @@ samples run in the Rust core.
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable, Mapping
 from pathlib import Path
+from typing import Any, Self, TypeVar
 
 import numpy as np
+import numpy.typing as npt
 
 from .. import _core
-from .._io import load_json_file, malformed_as, write_atomic
+from .._io import PathLike, load_json_file, malformed_as, write_atomic
 from .._validate import as_record, as_scalar
 from ..errors import ParameterError, ParameterTypeError
+from ..signals.response import Response
 
 __all__ = ["SCHEMA_VERSION", "HysteresisModel", "Inverse", "load_model", "model_from_dict"]
+
+FloatArray = npt.NDArray[np.float64]
+#: A JSON object: a model description as written to or parsed from a model file.
+JSONDict = dict[str, Any]
 
 #: Version of the model-file layout written by :meth:`HysteresisModel.save`.
 SCHEMA_VERSION = 1
 
-_REGISTRY: dict[str, type] = {}
+_REGISTRY: dict[str, type[HysteresisModel]] = {}
+
+_ModelType = TypeVar("_ModelType", bound="type[HysteresisModel]")
 
 
-def _register(cls):
+def _register(cls: _ModelType) -> _ModelType:
     _REGISTRY[cls.kind] = cls
     return cls
 
@@ -41,7 +51,7 @@ class HysteresisModel:
     kind: str = ""
     family: str = ""
 
-    def __init__(self, dims, row, *, units=None):
+    def __init__(self, dims: Iterable[int], row: npt.ArrayLike, *, units: Mapping[str, str] | None = None) -> None:
         self.dims = tuple(int(d) for d in dims)
         self._row = np.ascontiguousarray(row, dtype=np.float64)
         _core.validate(self.family, list(self.dims), self._row)
@@ -50,30 +60,30 @@ class HysteresisModel:
         self._state = self.initial_state()
 
     # -- parameters -----------------------------------------------------------------
-    def to_row(self) -> np.ndarray:
+    def to_row(self) -> FloatArray:
         """The flat parameter row (a copy) in the core's layout for this family."""
         return self._row.copy()
 
     @property
-    def parameters(self) -> dict:
+    def parameters(self) -> JSONDict:
         """Named parameters (JSON-ready)."""
         raise NotImplementedError
 
     # -- state ------------------------------------------------------------------------
-    def initial_state(self) -> np.ndarray:
+    def initial_state(self) -> FloatArray:
         """The relaxed initial state (input and memory at zero; Preisach: all relays down)."""
         return _core.initial_state(self.family, list(self.dims), self._row)
 
     @property
-    def state(self) -> np.ndarray:
+    def state(self) -> FloatArray:
         """A copy of the internal state used by :meth:`step`."""
         return self._state.copy()
 
     @state.setter
-    def state(self, value) -> None:
+    def state(self, value: npt.ArrayLike) -> None:
         self._state = self._checked_state(value, "state")
 
-    def _checked_state(self, value, name) -> np.ndarray:
+    def _checked_state(self, value: object, name: str) -> FloatArray:
         s = as_record(value, name, min_length=0)
         if s.size != self._state.size:
             raise ParameterError(f"{name} has length {s.size}, expected {self._state.size} for this model")
@@ -84,8 +94,12 @@ class HysteresisModel:
         self._state = self.initial_state()
 
     # -- simulation -----------------------------------------------------------------
-    def simulate(self, input, *, initial_state=None) -> np.ndarray:
+    def simulate(self, input: npt.ArrayLike, *, initial_state: npt.ArrayLike | None = None) -> FloatArray:
         """Output for an input record, from ``initial_state`` (default: relaxed).
+
+        The fast path: it returns the output samples only. :meth:`response` runs the same
+        simulation and returns the full :class:`~piezohyst.signals.Response` (time base, input
+        and output with their units, final state).
 
         The internal state used by :meth:`step` is not changed.
 
@@ -104,6 +118,66 @@ class HysteresisModel:
         st = self.initial_state() if initial_state is None else self._checked_state(initial_state, "initial_state")
         return _core.simulate(self.family, list(self.dims), self._row, v, st)
 
+    def response(
+        self,
+        input: npt.ArrayLike,
+        *,
+        fs: float | None = None,
+        time: npt.ArrayLike | None = None,
+        initial_state: npt.ArrayLike | None = None,
+    ) -> Response:
+        """Run the model over an input record and return the whole run as a :class:`~piezohyst.signals.Response`.
+
+        The output is the one :meth:`simulate` returns, bit for bit; the internal state used
+        by :meth:`step` is not changed.
+
+        Parameters
+        ----------
+        input : array_like, shape (N,)
+            Finite input samples.
+        fs : float, optional
+            Sampling rate, Hz (> 0): sample ``k`` is at ``k / fs``. Without ``fs`` and ``time``
+            the time base is the sample index (``fs = 1``).
+        time : array_like, shape (N,), optional
+            Sample instants, s: finite and strictly increasing. Give ``fs`` or ``time``, not both.
+        initial_state : array_like, optional
+            State to start from (default: relaxed), e.g. ``model.state`` or the ``final_state``
+            of a previous response to continue that run.
+
+        Returns
+        -------
+        Response
+            Signals ``input`` (role input) and ``output``, with the model's units (``""`` when
+            it has none); ``final_state`` is the model state after the last sample; ``title``
+            is the model family.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst import PI
+        >>> model = PI(thresholds=[0.5], weights=[1.0], p0=1.0, units={"input": "V", "output": "um"})
+        >>> r = model.response([0.0, 1.0, 2.0, 1.0], fs=1000.0)
+        >>> r.output.tolist(), r.time.tolist()
+        ([0.0, 1.5, 3.5, 2.5], [0.0, 0.001, 0.002, 0.003])
+        >>> r.units, r.title
+        ({'input': 'V', 'output': 'um'}, 'pi')
+        >>> rest = model.response([0.0], initial_state=r.final_state)   # continue the run
+        >>> float(rest.output[0]) == float(model.simulate([0.0, 1.0, 2.0, 1.0, 0.0])[-1])
+        True
+        """
+        v = as_record(input, "input")
+        t = _time_base(v.size, fs, time)
+        st = self.initial_state() if initial_state is None else self._checked_state(initial_state, "initial_state")
+        y = _core.simulate(self.family, list(self.dims), self._row, v, st)
+        return Response(
+            t,
+            {"input": v, "output": y},
+            inputs=["input"],
+            units={"input": self.units.get("input", ""), "output": self.units.get("output", "")},
+            final_state=st,
+            title=self.family,
+        )
+
     def step(self, value: float) -> float:
         """Apply one input sample, advance the internal state, return the output."""
         v = np.array([as_scalar(value, "value")])
@@ -117,9 +191,9 @@ class HysteresisModel:
         return Inverse(self)
 
     # -- files ----------------------------------------------------------------------
-    def to_dict(self, *, include_state: bool = False) -> dict:
+    def to_dict(self, *, include_state: bool = False) -> JSONDict:
         """JSON-ready description: ``schema_version``, ``kind``, ``parameters``, ``units``."""
-        d = {
+        d: JSONDict = {
             "schema_version": SCHEMA_VERSION,
             "kind": self.kind,
             "parameters": self.parameters,
@@ -133,26 +207,52 @@ class HysteresisModel:
         """The model as a JSON string (floats round-trip exactly)."""
         return json.dumps(self.to_dict(include_state=include_state), indent=2, allow_nan=False)
 
-    def save(self, path, *, overwrite: bool = False, include_state: bool = False) -> Path:
+    def save(self, path: PathLike, *, overwrite: bool = False, include_state: bool = False) -> Path:
         """Write the model file atomically; an existing file is kept unless ``overwrite``."""
         text = self.to_json(include_state=include_state)
         return write_atomic(path, text, overwrite=overwrite)
 
     @classmethod
-    def _from_parameters(cls, p: dict, units):
+    def _from_parameters(cls, p: JSONDict, units: Any) -> Self:
         return cls(**p, units=units)
 
-    def __eq__(self, other):
-        return type(self) is type(other) and self.dims == other.dims and np.array_equal(self._row, other._row)
+    def __eq__(self, other: object) -> bool:
+        return (
+            isinstance(other, HysteresisModel)
+            and type(self) is type(other)
+            and self.dims == other.dims
+            and np.array_equal(self._row, other._row)
+        )
 
-    __hash__ = None
+    # models compare by parameters and carry a mutable state: not hashable
+    __hash__ = None  # type: ignore[assignment]
 
     def __repr__(self) -> str:
         args = ", ".join(f"{k}={_short(v)}" for k, v in self.parameters.items())
         return f"{type(self).__name__}({args})"
 
 
-def _short(v):
+def _time_base(n: int, fs: object, time: object) -> FloatArray:
+    """The time base of an ``n``-sample run: ``time`` as given (checked), else ``k / fs``
+    (``fs`` defaults to 1: the sample index)."""
+    if fs is not None and time is not None:
+        raise ParameterError("fs and time are both given; pass one of them")
+    if time is not None:
+        t = as_record(time, "time")
+        if t.size != n:
+            raise ParameterError(f"time has {t.size} samples, the record {n}")
+        bad = np.flatnonzero(~(np.diff(t) > 0))
+        if bad.size:
+            k = int(bad[0]) + 1
+            raise ParameterError(
+                f"time must be strictly increasing: time[{k}] = {t[k]} after time[{k - 1}] = {t[k - 1]}"
+            )
+        return t
+    rate = 1.0 if fs is None else as_scalar(fs, "fs", positive=True)
+    return np.arange(n, dtype=np.float64) / rate
+
+
+def _short(v: object) -> str:
     if isinstance(v, list) and len(v) > 6:
         return f"[{', '.join(f'{x:.4g}' for x in v[:3])}, ... ({len(v)} values)]"
     if isinstance(v, float):
@@ -160,7 +260,7 @@ def _short(v):
     return repr(v)
 
 
-def _units(units) -> dict:
+def _units(units: object) -> dict[str, str]:
     """A model's units: a mapping of names to strings (``None``: unitless)."""
     if not units:
         return {"input": "", "output": ""}
@@ -169,13 +269,13 @@ def _units(units) -> dict:
     return dict(units)
 
 
-def model_from_dict(d: dict) -> HysteresisModel:
+def model_from_dict(d: JSONDict) -> HysteresisModel:
     """Rebuild a model from :meth:`HysteresisModel.to_dict` output."""
     with malformed_as("the model description"):
         return _model_from_dict(d)
 
 
-def _model_from_dict(d: dict) -> HysteresisModel:
+def _model_from_dict(d: object) -> HysteresisModel:
     if not isinstance(d, dict):
         raise ParameterTypeError(f"a model description must be a JSON object, got {type(d).__name__}")
     version = d.get("schema_version")
@@ -196,7 +296,7 @@ def _model_from_dict(d: dict) -> HysteresisModel:
     return model
 
 
-def load_model(path) -> HysteresisModel:
+def load_model(path: PathLike) -> HysteresisModel:
     """Read a model file written by :meth:`HysteresisModel.save` (``DataError`` naming the
     file if it is not one)."""
     return load_json_file(path, "model file", model_from_dict)
@@ -220,18 +320,18 @@ class Inverse:
     True
     """
 
-    def __init__(self, model: HysteresisModel):
+    def __init__(self, model: HysteresisModel) -> None:
         self.model = model
         self._state = model.initial_state()
         self._last_input = 0.0
 
     @property
-    def state(self) -> np.ndarray:
+    def state(self) -> FloatArray:
         """The forward model's state the inverse tracks (a copy)."""
         return self._state.copy()
 
     @state.setter
-    def state(self, value) -> None:
+    def state(self, value: npt.ArrayLike) -> None:
         self._state = self.model._checked_state(value, "state")
 
     def reset(self) -> None:
@@ -239,8 +339,11 @@ class Inverse:
         self._state = self.model.initial_state()
         self._last_input = 0.0
 
-    def simulate(self, desired, *, initial_state=None) -> np.ndarray:
+    def simulate(self, desired: npt.ArrayLike, *, initial_state: npt.ArrayLike | None = None) -> FloatArray:
         """Inputs that make the model follow ``desired`` exactly, from ``initial_state``.
+
+        The fast path: it returns the inputs only; :meth:`response` runs the same inversion
+        and returns the full :class:`~piezohyst.signals.Response`.
 
         Raises ``ValueError`` naming the sample if a desired value cannot be reached.
         """
@@ -248,6 +351,65 @@ class Inverse:
         m = self.model
         st = m.initial_state() if initial_state is None else m._checked_state(initial_state, "initial_state")
         return _core.inverse(m.family, list(m.dims), m._row, yd, st, 0.0)
+
+    def response(
+        self,
+        desired: npt.ArrayLike,
+        *,
+        fs: float | None = None,
+        time: npt.ArrayLike | None = None,
+        initial_state: npt.ArrayLike | None = None,
+    ) -> Response:
+        """Invert a desired output record and return the whole run as a :class:`~piezohyst.signals.Response`.
+
+        The inputs are the ones :meth:`simulate` returns, bit for bit; the tracked state used
+        by :meth:`step` is not changed.
+
+        Parameters
+        ----------
+        desired : array_like, shape (N,)
+            Finite desired outputs of the model.
+        fs : float, optional
+            Sampling rate, Hz (> 0): sample ``k`` is at ``k / fs``. Without ``fs`` and ``time``
+            the time base is the sample index (``fs = 1``).
+        time : array_like, shape (N,), optional
+            Sample instants, s: finite and strictly increasing. Give ``fs`` or ``time``, not both.
+        initial_state : array_like, optional
+            Forward model state to start from (default: relaxed), e.g. the ``final_state`` of a
+            previous response.
+
+        Returns
+        -------
+        Response
+            Signals ``desired`` (role input, in the model's output unit) and ``input`` (the
+            model input that produces it, in the model's input unit); ``final_state`` is the
+            forward model's state after the last sample; ``title`` is the model family
+            followed by ``" inverse"``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst import PI
+        >>> model = PI(thresholds=[0.1, 0.3], weights=[0.5, 0.2], p0=1.0)
+        >>> r = model.inverse().response(np.sin(np.linspace(0, 6, 50)), fs=100.0)
+        >>> r.input_names, r.output_names, r.title
+        (('desired',), ('input',), 'pi inverse')
+        >>> bool(np.max(np.abs(model.simulate(r.input) - r.desired)) < 1e-12)
+        True
+        """
+        yd = as_record(desired, "desired")
+        t = _time_base(yd.size, fs, time)
+        m = self.model
+        st = m.initial_state() if initial_state is None else m._checked_state(initial_state, "initial_state")
+        v = _core.inverse(m.family, list(m.dims), m._row, yd, st, 0.0)
+        return Response(
+            t,
+            {"desired": yd, "input": v},
+            inputs=["desired"],
+            units={"desired": m.units.get("output", ""), "input": m.units.get("input", "")},
+            final_state=st,
+            title=f"{m.family} inverse",
+        )
 
     def step(self, desired: float) -> float:
         """Input for one desired output; advances the tracked forward state."""

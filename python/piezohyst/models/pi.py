@@ -8,15 +8,18 @@ See docs/spec.md §2.1–§2.3. The classical play is
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any, Self
 
 import numpy as np
+import numpy.typing as npt
 
 from .. import _core
 from .._validate import as_interval, as_record, as_scalar, as_vector
 from ..errors import ParameterError, ParameterTypeError
-from .creep import creep_from, creep_parts
-from .model import HysteresisModel, _register
+from .creep import Creep, creep_from, creep_parts
+from .model import FloatArray, HysteresisModel, JSONDict, _register
 
 __all__ = [
     "PI",
@@ -30,13 +33,13 @@ __all__ = [
 ]
 
 
-def _pi_vectors(thresholds, weights):
+def _pi_vectors(thresholds: npt.ArrayLike, weights: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
     r = as_vector(thresholds, "thresholds")
     w = as_vector(weights, "weights", length=r.size)
     return r, w
 
 
-def _with_creep(d, creep):
+def _with_creep(d: JSONDict, creep: Creep | None) -> JSONDict:
     if creep is not None:
         d["creep"] = creep.parameters
     return d
@@ -69,7 +72,15 @@ class PI(HysteresisModel):
     kind = "pi"
     family = "pi"
 
-    def __init__(self, thresholds, weights, p0=1.0, *, creep=None, units=None):
+    def __init__(
+        self,
+        thresholds: npt.ArrayLike,
+        weights: npt.ArrayLike,
+        p0: float = 1.0,
+        *,
+        creep: Creep | None = None,
+        units: Mapping[str, str] | None = None,
+    ) -> None:
         self.thresholds, self.weights = _pi_vectors(thresholds, weights)
         self.p0 = as_scalar(p0, "p0")
         self.creep = creep
@@ -78,19 +89,20 @@ class PI(HysteresisModel):
         super().__init__([self.thresholds.size, m], row, units=units)
 
     @property
-    def parameters(self) -> dict:
-        d = {"thresholds": self.thresholds.tolist(), "weights": self.weights.tolist(), "p0": self.p0}
+    def parameters(self) -> JSONDict:
+        d: JSONDict = {"thresholds": self.thresholds.tolist(), "weights": self.weights.tolist(), "p0": self.p0}
         return _with_creep(d, self.creep)
 
     @classmethod
-    def _from_parameters(cls, p, units):
+    def _from_parameters(cls, p: JSONDict, units: Any) -> Self:
         p = dict(p)
         return cls(**{**p, "creep": creep_from(p.get("creep"))}, units=units)
 
-    def loading_curve(self, s) -> np.ndarray:
+    def loading_curve(self, s: npt.ArrayLike) -> FloatArray:
         """Initial loading curve ``phi(s) = p0 s + sum_i w_i max(s - r_i, 0)``."""
-        s = as_record(np.atleast_1d(s), "s", min_length=0)
-        return self.p0 * s + np.maximum(s[:, None] - self.thresholds[None, :], 0.0) @ self.weights
+        x = as_record(np.atleast_1d(s), "s", min_length=0)
+        played: FloatArray = np.maximum(x[:, None] - self.thresholds[None, :], 0.0) @ self.weights
+        return self.p0 * x + played
 
     def analytic_inverse(self) -> PI:
         """The inverse PI model (docs/spec.md §2.1): driving it with ``y_d`` gives ``v``.
@@ -116,7 +128,7 @@ class PlayOperator(PI):
 
     kind = "play"
 
-    def __init__(self, threshold, *, units=None):
+    def __init__(self, threshold: float, *, units: Mapping[str, str] | None = None) -> None:
         super().__init__([as_scalar(threshold, "threshold", nonnegative=True)], [1.0], 0.0, units=units)
 
     @property
@@ -124,11 +136,11 @@ class PlayOperator(PI):
         return float(self.thresholds[0])
 
     @property
-    def parameters(self) -> dict:
+    def parameters(self) -> JSONDict:
         return {"threshold": self.threshold}
 
     @classmethod
-    def _from_parameters(cls, p, units):
+    def _from_parameters(cls, p: JSONDict, units: Any) -> Self:
         return cls(**p, units=units)
 
 
@@ -137,7 +149,7 @@ _register(PlayOperator)
 _ENVELOPE_CODES = {"identity": 0, "polynomial": 1, "tanh": 2}
 
 
-def _interval_from_json(x):
+def _interval_from_json(x: object) -> object:
     """A model file's input_range: ``null`` ends are infinite."""
     if isinstance(x, (list, tuple)) and len(x) == 2:
         return (-np.inf if x[0] is None else x[0], np.inf if x[1] is None else x[1])
@@ -154,44 +166,44 @@ class Envelope:
     """
 
     kind: str = "identity"
-    coefficients: tuple = (0.0, 0.0, 0.0, 0.0)
+    coefficients: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.kind not in _ENVELOPE_CODES:
             raise ParameterError(f"kind = {self.kind!r} is not an envelope; expected one of {list(_ENVELOPE_CODES)}")
         c = as_vector(self.coefficients, "coefficients", length=4)
         object.__setattr__(self, "coefficients", tuple(float(x) for x in c))
 
     @classmethod
-    def identity(cls):
+    def identity(cls) -> Self:
         return cls("identity")
 
     @classmethod
-    def polynomial(cls, c0, c1, c2=0.0, c3=0.0):
+    def polynomial(cls, c0: float, c1: float, c2: float = 0.0, c3: float = 0.0) -> Self:
         return cls("polynomial", (c0, c1, c2, c3))
 
     @classmethod
-    def tanh(cls, a0, a1, a2=0.0, a3=0.0):
+    def tanh(cls, a0: float, a1: float, a2: float = 0.0, a3: float = 0.0) -> Self:
         return cls("tanh", (a0, a1, a2, a3))
 
     @property
     def code(self) -> int:
         return _ENVELOPE_CODES[self.kind]
 
-    def __call__(self, v) -> np.ndarray:
+    def __call__(self, v: npt.ArrayLike) -> FloatArray:
         return _core.envelope_eval(self.code, list(self.coefficients), as_record(np.atleast_1d(v), "v", min_length=0))
 
-    def inverse(self, y) -> np.ndarray:
+    def inverse(self, y: npt.ArrayLike) -> FloatArray:
         """``g^{-1}(y)``; raises ``ValueError`` outside the envelope's range."""
         return _core.envelope_inverse(
             self.code, list(self.coefficients), as_record(np.atleast_1d(y), "y", min_length=0)
         )
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> JSONDict:
         return {"kind": self.kind, "coefficients": list(self.coefficients)}
 
     @classmethod
-    def from_any(cls, e, name):
+    def from_any(cls, e: object, name: str) -> Envelope:
         if isinstance(e, Envelope):
             return e
         if isinstance(e, dict):
@@ -235,16 +247,16 @@ class GeneralizedPI(HysteresisModel):
 
     def __init__(
         self,
-        thresholds,
-        weights,
-        polynomial=(0.0, 0.0, 0.0, 0.0),
-        rising=None,
-        falling=None,
-        input_range=(-np.inf, np.inf),
+        thresholds: npt.ArrayLike,
+        weights: npt.ArrayLike,
+        polynomial: npt.ArrayLike = (0.0, 0.0, 0.0, 0.0),
+        rising: Envelope | Mapping[str, Any] | None = None,
+        falling: Envelope | Mapping[str, Any] | None = None,
+        input_range: Sequence[float] = (-np.inf, np.inf),
         *,
-        creep=None,
-        units=None,
-    ):
+        creep: Creep | None = None,
+        units: Mapping[str, str] | None = None,
+    ) -> None:
         self.thresholds, self.weights = _pi_vectors(thresholds, weights)
         self.polynomial = tuple(float(x) for x in as_vector(polynomial, "polynomial", length=4))
         self.rising = Envelope.from_any(rising, "rising")
@@ -267,9 +279,9 @@ class GeneralizedPI(HysteresisModel):
         super().__init__([self.thresholds.size, self.rising.code, self.falling.code, m], row, units=units)
 
     @property
-    def parameters(self) -> dict:
+    def parameters(self) -> JSONDict:
         lo, hi = self.input_range
-        d = {
+        d: JSONDict = {
             "thresholds": self.thresholds.tolist(),
             "weights": self.weights.tolist(),
             "polynomial": list(self.polynomial),
@@ -280,7 +292,7 @@ class GeneralizedPI(HysteresisModel):
         return _with_creep(d, self.creep)
 
     @classmethod
-    def _from_parameters(cls, p, units):
+    def _from_parameters(cls, p: JSONDict, units: Any) -> Self:
         p = dict(p)
         p["input_range"] = _interval_from_json(p.pop("input_range", [None, None]))
         p["creep"] = creep_from(p.get("creep"))
@@ -306,11 +318,11 @@ class GeneralizedPI(HysteresisModel):
 class EnvelopeInverse:
     """Analytic inverse of an equal-envelope GPI: an inverse PI followed by ``g^{-1}``."""
 
-    def __init__(self, pi_inverse: PI, envelope: Envelope):
+    def __init__(self, pi_inverse: PI, envelope: Envelope) -> None:
         self.pi_inverse = pi_inverse
         self.envelope = envelope
 
-    def simulate(self, desired) -> np.ndarray:
+    def simulate(self, desired: npt.ArrayLike) -> FloatArray:
         """Inputs for a desired output record, from the relaxed state."""
         return self.envelope.inverse(self.pi_inverse.simulate(desired))
 
@@ -320,7 +332,15 @@ class GeneralizedPlay(GeneralizedPI):
 
     kind = "generalized_play"
 
-    def __init__(self, threshold, rising=None, falling=None, input_range=(-np.inf, np.inf), *, units=None):
+    def __init__(
+        self,
+        threshold: float,
+        rising: Envelope | Mapping[str, Any] | None = None,
+        falling: Envelope | Mapping[str, Any] | None = None,
+        input_range: Sequence[float] = (-np.inf, np.inf),
+        *,
+        units: Mapping[str, str] | None = None,
+    ) -> None:
         super().__init__(
             [as_scalar(threshold, "threshold", nonnegative=True)],
             [1.0],
@@ -332,7 +352,7 @@ class GeneralizedPlay(GeneralizedPI):
         )
 
     @property
-    def parameters(self) -> dict:
+    def parameters(self) -> JSONDict:
         d = super().parameters
         return {
             "threshold": d["thresholds"][0],
@@ -342,7 +362,7 @@ class GeneralizedPlay(GeneralizedPI):
         }
 
     @classmethod
-    def _from_parameters(cls, p, units):
+    def _from_parameters(cls, p: JSONDict, units: Any) -> Self:
         p = dict(p)
         p["input_range"] = _interval_from_json(p.pop("input_range", [None, None]))
         return cls(**p, units=units)
@@ -360,7 +380,9 @@ SEED2_TABLE1 = {
 }
 
 
-def mpi_seed2(rising=None, falling=None) -> GeneralizedPI:
+def mpi_seed2(
+    rising: Envelope | Mapping[str, Any] | None = None, falling: Envelope | Mapping[str, Any] | None = None
+) -> GeneralizedPI:
     """The seed-2 Table 1 MPI model (normalized input in [0, 1]) as a reference set.
 
     ``P(v) = 0.2547 v - 0.00358 v^2 + 0.7123 v^3``; identity envelopes unless given.
@@ -406,8 +428,18 @@ class RateDependentPI(HysteresisModel):
     family = "rdpi"
 
     def __init__(
-        self, thresholds, weights, ts, p0=1.0, beta=0.0, rate_weights=None, filter_tau=0.0, *, creep=None, units=None
-    ):
+        self,
+        thresholds: npt.ArrayLike,
+        weights: npt.ArrayLike,
+        ts: float,
+        p0: float = 1.0,
+        beta: float = 0.0,
+        rate_weights: npt.ArrayLike | None = None,
+        filter_tau: float = 0.0,
+        *,
+        creep: Creep | None = None,
+        units: Mapping[str, str] | None = None,
+    ) -> None:
         self.thresholds, self.weights = _pi_vectors(thresholds, weights)
         self.ts = as_scalar(ts, "ts", positive=True)
         self.p0 = as_scalar(p0, "p0")
@@ -423,8 +455,8 @@ class RateDependentPI(HysteresisModel):
         super().__init__([n, m], row, units=units)
 
     @property
-    def parameters(self) -> dict:
-        d = {
+    def parameters(self) -> JSONDict:
+        d: JSONDict = {
             "thresholds": self.thresholds.tolist(),
             "weights": self.weights.tolist(),
             "ts": self.ts,
@@ -436,7 +468,7 @@ class RateDependentPI(HysteresisModel):
         return _with_creep(d, self.creep)
 
     @classmethod
-    def _from_parameters(cls, p, units):
+    def _from_parameters(cls, p: JSONDict, units: Any) -> Self:
         p = dict(p)
         p["creep"] = creep_from(p.get("creep"))
         return cls(**p, units=units)

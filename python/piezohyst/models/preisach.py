@@ -9,11 +9,14 @@ up``, computed exactly from the memory of dominant input extrema, so it is conti
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+
 import numpy as np
+import numpy.typing as npt
 
 from .._validate import as_int, as_interval, as_scalar, as_vector
 from ..errors import ParameterError, ParameterTypeError
-from .model import HysteresisModel, _register
+from .model import FloatArray, HysteresisModel, JSONDict, _register
 
 __all__ = ["Preisach"]
 
@@ -50,7 +53,17 @@ class Preisach(HysteresisModel):
     kind = "preisach"
     family = "preisach"
 
-    def __init__(self, levels, input_range, weights, offset=0.0, slope=0.0, memory=64, *, units=None):
+    def __init__(
+        self,
+        levels: int,
+        input_range: Sequence[float],
+        weights: npt.ArrayLike,
+        offset: float = 0.0,
+        slope: float = 0.0,
+        memory: int = 64,
+        *,
+        units: Mapping[str, str] | None = None,
+    ) -> None:
         self.levels = as_int(levels, "levels", minimum=1)
         lo, hi = as_interval(input_range, "input_range")
         if not (np.isfinite(lo) and np.isfinite(hi)):
@@ -74,14 +87,14 @@ class Preisach(HysteresisModel):
         row = np.concatenate([[lo, hi, self.offset, self.slope], self.weights])
         super().__init__([self.levels, self.memory], row, units=units)
 
-    def weight_matrix(self) -> np.ndarray:
+    def weight_matrix(self) -> FloatArray:
         """Weights as an ``(L, L)`` lower-triangular array (alpha rows, beta columns)."""
         m = np.zeros((self.levels, self.levels))
         m[np.tril_indices(self.levels)] = self.weights
         return m
 
     @property
-    def parameters(self) -> dict:
+    def parameters(self) -> JSONDict:
         return {
             "levels": self.levels,
             "input_range": list(self.input_range),

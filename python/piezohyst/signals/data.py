@@ -37,14 +37,23 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Hashable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from types import ModuleType
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 import numpy as np
+import numpy.typing as npt
 
 from .._validate import as_int, as_record, as_scalar
 from ..errors import DataError, ParameterError, ParameterTypeError
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    import pandas as pd
+
+FloatArray = npt.NDArray[np.float64]
+#: A column of a source: a name (str), a 0-based index (int), or not given.
+ColumnSpec = str | int | None
 
 __all__ = ["TIME_RTOL", "Record", "load_record", "load_yan9a_model_record"]
 
@@ -99,12 +108,12 @@ class Record:
     (6, 4, 6.0, '[6:10]')
     """
 
-    input: np.ndarray
-    output: np.ndarray
+    input: FloatArray
+    output: FloatArray
     fs: float
-    time: np.ndarray | None = None
+    time: FloatArray | None = None
     source: str = ""
-    columns: dict = dataclasses.field(default_factory=dict)
+    columns: dict[str, str] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self) -> None:
         u = as_record(self.input, "input", min_length=2)
@@ -125,7 +134,7 @@ class Record:
             raise ParameterTypeError(
                 f"columns must be a mapping of role -> column name, got {type(self.columns).__name__}"
             )
-        columns = {}
+        columns: dict[str, str] = {}
         for k, v in self.columns.items():
             if not isinstance(k, str) or not isinstance(v, str):
                 raise ParameterTypeError(f"columns must map str to str, got {k!r}: {v!r}")
@@ -157,7 +166,7 @@ class Record:
             f"source={self.source!r}, columns={self.columns!r})"
         )
 
-    def _span(self, start, stop, start_name: str, stop_name: str) -> tuple[int, int]:
+    def _span(self, start: object, stop: object, start_name: str, stop_name: str) -> tuple[int, int]:
         a = as_int(start, start_name, minimum=0)
         b = self.n if stop is None else as_int(stop, stop_name, minimum=0)
         if b > self.n:
@@ -188,7 +197,9 @@ class Record:
         a, b = self._span(start, stop, "start", "stop")
         return self._slice(a, b)
 
-    def split(self, train=None, validate=None) -> tuple[Record, Record]:
+    def split(
+        self, train: Sequence[int | None] | None = None, validate: Sequence[int | None] | None = None
+    ) -> tuple[Record, Record]:
         """Training and validation records from two sample ranges ``(start, stop)``.
 
         Each range is half-open and 0-based like :meth:`trim` (``stop`` may be ``None``:
@@ -204,7 +215,7 @@ class Record:
             train, validate = (0, h), (h, self.n)
         elif train is None or validate is None:
             raise ParameterError(f"train = {train!r}, validate = {validate!r}: give both ranges, or neither (halves)")
-        spans = []
+        spans: list[tuple[int, int]] = []
         for name, rng in (("train", train), ("validate", validate)):
             if isinstance(rng, (str, bytes)) or not isinstance(rng, (tuple, list)) or len(rng) != 2:
                 raise ParameterTypeError(f"{name} must be a (start, stop) pair of sample indices, got {rng!r}")
@@ -217,7 +228,7 @@ class Record:
             )
         return self._slice(a, b), self._slice(c, d)
 
-    def to_pandas(self):
+    def to_pandas(self) -> pd.DataFrame:
         """A :class:`pandas.DataFrame` with columns ``time`` (the measured time, or
         ``arange(n) / fs``), ``input`` and ``output``. Needs pandas."""
         try:
@@ -228,7 +239,7 @@ class Record:
         return pd.DataFrame({"time": np.array(t), "input": np.array(self.input), "output": np.array(self.output)})
 
 
-def _check_increasing(t: np.ndarray, name: str) -> np.ndarray:
+def _check_increasing(t: FloatArray, name: str) -> FloatArray:
     d = np.diff(t)
     bad = np.flatnonzero(~(d > 0))
     if bad.size:
@@ -240,7 +251,7 @@ def _check_increasing(t: np.ndarray, name: str) -> np.ndarray:
     return d
 
 
-def fs_from_time(t: np.ndarray, name: str, rtol: float) -> float:
+def fs_from_time(t: FloatArray, name: str, rtol: float) -> float:
     """The sample rate of a strictly increasing, uniform time axis (seconds)."""
     d = _check_increasing(t, name)
     med = float(np.median(d))
@@ -261,7 +272,7 @@ def fs_from_time(t: np.ndarray, name: str, rtol: float) -> float:
 # Argument checks
 
 
-def _check_path(path) -> Path:
+def _check_path(path: object) -> Path:
     if isinstance(path, bytes) or not isinstance(path, (str, os.PathLike)):
         raise ParameterTypeError(f"path must be a str or os.PathLike, got {type(path).__name__}")
     p = Path(path)
@@ -272,7 +283,7 @@ def _check_path(path) -> Path:
     return p
 
 
-def check_column_spec(spec, name: str):
+def check_column_spec(spec: object, name: str) -> ColumnSpec:
     if spec is None:
         return None
     if isinstance(spec, str):
@@ -290,11 +301,37 @@ def check_column_spec(spec, name: str):
 # Sources: a text table or a container of arrays. Each resolves a column spec to a key
 # (what identifies the column), a label (how to name it) and reads a 1-D float64 array.
 
+_Key = TypeVar("_Key", bound=Hashable)
+
+
+class ColumnSource(Protocol[_Key]):
+    """What :func:`load_record` reads columns from: a :class:`TextTable` (keys are column
+    indices) or a table of named arrays from :func:`open_npz`, :func:`open_npy`,
+    :func:`open_mat`, :func:`open_hdf5` (keys are matrix column indices or array names)."""
+
+    source: str
+
+    def columns(self) -> list[tuple[_Key, str]]:
+        """``(key, label)`` of every column that could be a signal."""
+        ...
+
+    def resolve(self, role: str, spec: str | int) -> tuple[_Key, str]:
+        """``(key, label)`` of the column ``spec`` names for ``role``."""
+        ...
+
+    def read(self, role: str, key: _Key, label: str) -> FloatArray:
+        """The column as a finite 1-D float64 array."""
+        ...
+
+    def close(self) -> None:
+        """Release the file (a no-op for sources read into memory)."""
+        ...
+
 
 class TextTable:
     kind = "text"
 
-    def __init__(self, path: Path, delimiter, header):
+    def __init__(self, path: Path, delimiter: str | None, header: bool | str) -> None:
         self.source = str(path)
         raw = path.read_bytes()
         if b"\x00" in raw:
@@ -304,7 +341,6 @@ class TextTable:
         except UnicodeDecodeError:
             text = raw.decode("latin-1")
         lines = text.splitlines()
-        self.delimiter = delimiter
         first = None  # index of the first non-comment, non-blank line
         for i, line in enumerate(lines):
             s = line.strip()
@@ -314,9 +350,10 @@ class TextTable:
         if first is None:
             what = "is empty" if not text.strip() else "has no data lines (only comments)"
             raise DataError(f"{path}: {what}")
-        if self.delimiter is None:
+        if delimiter is None:
             s = lines[first]
-            self.delimiter = "\t" if "\t" in s else "," if "," in s else ";" if ";" in s else " "
+            delimiter = "\t" if "\t" in s else "," if "," in s else ";" if ";" in s else " "
+        self.delimiter: str = delimiter
         names = None
         fields = self._split(lines[first])
         numeric = all(_is_number(f) for f in fields)
@@ -354,13 +391,13 @@ class TextTable:
             return line.split()
         return [f.strip() for f in line.rstrip().split(self.delimiter)]
 
-    def columns(self) -> list[tuple[Any, str]]:
+    def columns(self) -> list[tuple[int, str]]:
         return [(j, self._label(j)) for j in range(self.ncols)]
 
     def _label(self, j: int) -> str:
         return self.names[j] if self.names is not None else f"column {j}"
 
-    def resolve(self, role: str, spec) -> tuple[Any, str]:
+    def resolve(self, role: str, spec: str | int) -> tuple[int, str]:
         if isinstance(spec, int):
             if spec >= self.ncols:
                 raise DataError(
@@ -380,7 +417,7 @@ class TextTable:
             raise DataError(f"{self.source}: {role} = {spec!r} names columns {hits}; use a 0-based index")
         return hits[0], spec
 
-    def read(self, role: str, key: int, label: str) -> np.ndarray:
+    def read(self, role: str, key: int, label: str) -> FloatArray:
         cells = [row[key] for row in self.rows]
         try:
             values = np.fromiter(map(float, cells), dtype=np.float64, count=len(cells))
@@ -403,6 +440,9 @@ class TextTable:
             )
         return values
 
+    def close(self) -> None:
+        """Nothing to release: the file was read whole."""
+
 
 def _unquote(s: str) -> str:
     s = s.strip()
@@ -419,16 +459,30 @@ def _is_number(s: str) -> bool:
     return True
 
 
+#: Any numeric array read from a container (float, int or unsigned dtype).
+AnyArray = npt.NDArray[Any]
+
+
 class _ContainerTable:
     """Named arrays (NPZ, MAT, HDF5) and optionally one 2-D matrix whose columns are
-    addressed by index (``dataset``; rows are samples)."""
+    addressed by index (``dataset``; rows are samples). A column's key is its index (int) in
+    the matrix or the array's name (str)."""
 
-    def __init__(self, source: str, kind: str, variables: dict, lookup, matrix_name: str | None):
+    def __init__(
+        self,
+        source: str,
+        kind: str,
+        variables: dict[str, tuple[int, ...]],
+        lookup: Callable[[str], AnyArray],
+        matrix_name: str | None,
+        close: Callable[[], None] | None = None,
+    ) -> None:
         self.source = source
         self.kind = kind
         self.variables = variables  # name -> shape, numeric arrays only (for listings)
         self._lookup = lookup  # name -> np.ndarray (raises KeyError)
-        self.matrix = None
+        self._close = close
+        self.matrix: AnyArray | None = None
         self.matrix_name = matrix_name
         if matrix_name is not None:
             m = self._get(matrix_name, "dataset")
@@ -449,7 +503,12 @@ class _ContainerTable:
         names = sorted(self.variables)
         return f"the numeric {self.kind} variables are {names}" if names else "the file holds no numeric arrays"
 
-    def _get(self, name: str, role: str) -> np.ndarray:
+    def close(self) -> None:
+        """Close the file the arrays are read from (HDF5); a no-op for archives read whole."""
+        if self._close is not None:
+            self._close()
+
+    def _get(self, name: str, role: str) -> AnyArray:
         try:
             a = self._lookup(name)
         except KeyError:
@@ -458,12 +517,12 @@ class _ContainerTable:
             raise ParameterTypeError(f"{self.source}: {role} = {name!r} must hold real numbers, got dtype {a.dtype}")
         return a
 
-    def columns(self) -> list[tuple[Any, str]]:
+    def columns(self) -> list[tuple[int | str, str]]:
         if self.matrix is not None:
-            return [(("col", j), f"{self.matrix_name}[:, {j}]") for j in range(self.matrix.shape[1])]
-        return [(("var", n), n) for n, shape in self.variables.items() if sum(s > 1 for s in shape) == 1]
+            return [(j, f"{self.matrix_name}[:, {j}]") for j in range(self.matrix.shape[1])]
+        return [(n, n) for n, shape in self.variables.items() if sum(s > 1 for s in shape) == 1]
 
-    def resolve(self, role: str, spec) -> tuple[Any, str]:
+    def resolve(self, role: str, spec: str | int) -> tuple[int | str, str]:
         if isinstance(spec, int):
             if self.matrix is None:
                 raise DataError(
@@ -476,14 +535,15 @@ class _ContainerTable:
                     f"{self.source}: {role} = {spec} is out of range: dataset {self.matrix_name!r} has shape "
                     f"{self.matrix.shape}, {k} columns (0-based indices 0..{k - 1})"
                 )
-            return ("col", spec), f"{self.matrix_name}[:, {spec}]"
-        return ("var", spec), spec
+            return spec, f"{self.matrix_name}[:, {spec}]"
+        return spec, spec
 
-    def read(self, role: str, key, label: str) -> np.ndarray:
-        if key[0] == "col":
-            a = self.matrix[:, key[1]]
+    def read(self, role: str, key: int | str, label: str) -> FloatArray:
+        if isinstance(key, int):
+            assert self.matrix is not None  # resolve() gives column indices only with a matrix
+            a = self.matrix[:, key]
         else:
-            a = self._get(key[1], role)
+            a = self._get(key, role)
             if a.ndim == 0 or a.size == 1:
                 raise DataError(f"{self.source}: {role} = {label!r} is a scalar ({a.ravel()[:1]}), not a signal")
             if sum(s > 1 for s in a.shape) > 1:
@@ -492,15 +552,15 @@ class _ContainerTable:
                     f"pass dataset={label!r} and {role}=<0-based column index>"
                 )
             a = a.ravel()
-        a = np.asarray(a, dtype=np.float64)
-        bad = np.flatnonzero(~np.isfinite(a))
+        x = np.asarray(a, dtype=np.float64)
+        bad = np.flatnonzero(~np.isfinite(x))
         if bad.size:
             i = int(bad[0])
-            raise DataError(f"{self.source}: {role}[{i}] = {a[i]} is not finite ({label!r})")
-        return a
+            raise DataError(f"{self.source}: {role}[{i}] = {x[i]} is not finite ({label!r})")
+        return x
 
 
-def _numeric_shapes(arrays: dict) -> dict:
+def _numeric_shapes(arrays: Mapping[str, object]) -> dict[str, tuple[int, ...]]:
     return {
         k: tuple(v.shape)
         for k, v in arrays.items()
@@ -508,14 +568,14 @@ def _numeric_shapes(arrays: dict) -> dict:
     }
 
 
-def _dict_lookup(arrays: dict):
-    def lookup(name: str) -> np.ndarray:
+def _dict_lookup(arrays: Mapping[str, object]) -> Callable[[str], AnyArray]:
+    def lookup(name: str) -> AnyArray:
         return np.asarray(arrays[name])
 
     return lookup
 
 
-def open_npz(path: Path, dataset):
+def open_npz(path: Path, dataset: str | None) -> _ContainerTable:
     try:
         z = np.load(path, allow_pickle=False)
         if isinstance(z, np.ndarray):
@@ -527,7 +587,7 @@ def open_npz(path: Path, dataset):
     return _ContainerTable(str(path), "NPZ", _numeric_shapes(arrays), _dict_lookup(arrays), dataset)
 
 
-def open_npy(path: Path, dataset):
+def open_npy(path: Path, dataset: str | None) -> _ContainerTable:
     if dataset is not None:
         raise ParameterError(f"dataset = {dataset!r} does not apply to a .npy file (one matrix; columns by index)")
     try:
@@ -542,7 +602,7 @@ def open_npy(path: Path, dataset):
     return _ContainerTable(str(path), "npy", {"array": a.shape}, _dict_lookup(arrays), "array")
 
 
-def _flatten_mat(d: Mapping, prefix: str, out: dict) -> None:
+def _flatten_mat(d: Mapping[str, object], prefix: str, out: dict[str, AnyArray]) -> None:
     for k, v in d.items():
         if not prefix and k.startswith("__"):
             continue
@@ -553,7 +613,7 @@ def _flatten_mat(d: Mapping, prefix: str, out: dict) -> None:
             out[name] = np.asarray(v)
 
 
-def open_mat(path: Path, dataset):
+def open_mat(path: Path, dataset: str | None) -> _ContainerTable:
     from scipy.io import loadmat
     from scipy.io.matlab import matfile_version
 
@@ -569,27 +629,28 @@ def open_mat(path: Path, dataset):
         raise DataError(
             f"{path}: not a readable MATLAB v{4 if major == 0 else 5} file ({type(e).__name__}: {e})"
         ) from None
-    arrays: dict = {}
+    arrays: dict[str, AnyArray] = {}
     _flatten_mat(d, "", arrays)
 
-    def lookup(name: str) -> np.ndarray:
+    def lookup(name: str) -> AnyArray:
         return _dict_lookup(arrays)(name.replace("/", "."))
 
     return _ContainerTable(str(path), "MAT", _numeric_shapes(arrays), lookup, dataset)
 
 
-def _import_h5py():
+def _import_h5py() -> ModuleType:
     try:
         import h5py
     except ImportError:
         raise ImportError(H5PY_HINT) from None
-    return h5py
+    module: ModuleType = h5py  # h5py ships no type information
+    return module
 
 
 class _Hdf5Source:
     """An open HDF5 file (closed by the caller) exposing numeric datasets by path."""
 
-    def __init__(self, path: Path, matlab: bool):
+    def __init__(self, path: Path, matlab: bool) -> None:
         h5py = _import_h5py()
         self.kind = "MATLAB v7.3" if matlab else "HDF5"
         try:
@@ -598,9 +659,9 @@ class _Hdf5Source:
             raise DataError(f"{path}: not a readable {self.kind} file ({type(e).__name__}: {e})") from None
         self.matlab = matlab
         self.h5py = h5py
-        shapes: dict = {}
+        shapes: dict[str, tuple[int, ...]] = {}
 
-        def visit(name, obj):
+        def visit(name: str, obj: object) -> None:
             if any(part.startswith("#") for part in name.split("/")):
                 return  # MATLAB's #refs# / #subsystem# internals
             if isinstance(obj, h5py.Dataset) and obj.dtype.kind in "fiu" and obj.size > 0:
@@ -619,7 +680,7 @@ class _Hdf5Source:
             raise DataError(f"{path}: not a readable {self.kind} file ({type(e).__name__}: {e})") from None
         self.shapes = shapes
 
-    def lookup(self, name: str) -> np.ndarray:
+    def lookup(self, name: str) -> AnyArray:
         key = name.replace(".", "/") if self.matlab else name
         try:
             obj = self.file[key]
@@ -640,15 +701,13 @@ class _Hdf5Source:
         return a
 
 
-def open_hdf5(path: Path, dataset, matlab: bool = False):
+def open_hdf5(path: Path, dataset: str | None, matlab: bool = False) -> _ContainerTable:
     src = _Hdf5Source(path, matlab)
     try:
-        table = _ContainerTable(str(path), src.kind, src.shapes, src.lookup, dataset)
+        return _ContainerTable(str(path), src.kind, src.shapes, src.lookup, dataset, close=src.file.close)
     except BaseException:
         src.file.close()
         raise
-    table.close = src.file.close
-    return table
 
 
 # --------------------------------------------------------------------------------------
@@ -656,15 +715,15 @@ def open_hdf5(path: Path, dataset, matlab: bool = False):
 
 
 def load_record(
-    path,
+    path: str | os.PathLike[str],
     *,
-    input=None,
-    output=None,
-    time=None,
-    fs=None,
-    delimiter=None,
-    header="auto",
-    dataset=None,
+    input: str | int | None = None,
+    output: str | int | None = None,
+    time: str | int | None = None,
+    fs: float | None = None,
+    delimiter: str | None = None,
+    header: bool | str = "auto",
+    dataset: str | None = None,
     time_rtol: float = TIME_RTOL,
 ) -> Record:
     """Load a measured record (input, output, sample rate) from a file.
@@ -769,7 +828,7 @@ def load_record(
     if suffix in TEXT_SUFFIXES:
         if dataset is not None:
             raise ParameterError(f"dataset = {dataset!r} applies to NPZ/MAT/HDF5 files; {p} is a text file")
-        table = TextTable(p, delimiter, header)
+        return _assemble(TextTable(p, delimiter, header), specs, fs_given, rtol)
     else:
         if suffix not in SUPPORTED_SUFFIXES:
             raise DataError(f"{p}: unsupported file extension {p.suffix!r}; supported: {' '.join(SUPPORTED_SUFFIXES)}")
@@ -788,17 +847,18 @@ def load_record(
     try:
         return _assemble(table, specs, fs_given, rtol)
     finally:
-        close = getattr(table, "close", None)
-        if close is not None:
-            close()
+        table.close()
 
 
-def _assemble(table, specs: dict, fs_given, rtol: float) -> Record:
+def _assemble(
+    table: ColumnSource[_Key], specs: Mapping[str, ColumnSpec], fs_given: float | None, rtol: float
+) -> Record:
     src = table.source
-    resolved: dict = {}
+    resolved: dict[str, tuple[_Key, str]] = {}
     for role in _ROLES:
-        if specs[role] is not None:
-            resolved[role] = table.resolve(role, specs[role])
+        spec = specs[role]
+        if spec is not None:
+            resolved[role] = table.resolve(role, spec)
     missing = [r for r in ("input", "output") if r not in resolved]
     if missing:
         cols = table.columns()
@@ -818,7 +878,7 @@ def _assemble(table, specs: dict, fs_given, rtol: float) -> Record:
                 )
             for r, c in zip(missing, free, strict=False):
                 resolved[r] = c
-    seen: dict = {}
+    seen: dict[_Key, str] = {}
     for role in _ROLES:
         if role in resolved:
             key, label = resolved[role]
@@ -849,6 +909,8 @@ def _assemble(table, specs: dict, fs_given, rtol: float) -> Record:
             )
         if fs is None:
             fs = fs_time
+    if fs is None:  # load_record asks for fs or a time column first
+        raise DataError(f"{src}: the sample rate is unknown: pass fs=<Hz> or time=<time column>")
     columns = {role: resolved[role][1] for role in _ROLES if role in resolved}
     try:
         return Record(arrays["input"], arrays["output"], fs, arrays.get("time"), src, columns)
@@ -856,7 +918,7 @@ def _assemble(table, specs: dict, fs_given, rtol: float) -> Record:
         raise type(e)(f"{src}: {e}") from None
 
 
-def load_yan9a_model_record(path) -> Record:
+def load_yan9a_model_record(path: str | os.PathLike[str]) -> Record:
     """The measured 1 Hz record of a piezoelectric micromanipulator, ``yan9a_model_1hz.dat``.
 
     Provenance (``../shared/data/README.md``): MIT License, (c) 2019 Yan Naing Aye; from the

@@ -28,14 +28,19 @@ Examples
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 
 from .._validate import as_int, as_record
 from ..errors import ParameterError
 
+FloatArray = npt.NDArray[np.float64]
+
 __all__ = ["hysteresis_percent", "linearity_error", "max_error", "rmse", "tracking_metrics"]
 
 
-def _pair(a, b, name_a, name_b, min_length=1):
+def _pair(
+    a: npt.ArrayLike, b: npt.ArrayLike, name_a: str, name_b: str, min_length: int = 1
+) -> tuple[FloatArray, FloatArray]:
     """Two finite 1-D float64 records of the same length."""
     x = as_record(a, name_a, min_length=min_length, copy=False)
     y = as_record(b, name_b, min_length=min_length, copy=False)
@@ -44,7 +49,7 @@ def _pair(a, b, name_a, name_b, min_length=1):
     return x, y
 
 
-def _span(x, name):
+def _span(x: FloatArray, name: str) -> float:
     """The range of ``x``; a metric that divides by it is undefined when it is zero."""
     span = float(np.ptp(x))
     if not span > 0:
@@ -54,7 +59,7 @@ def _span(x, name):
     return span
 
 
-def rmse(reference, output) -> float:
+def rmse(reference: npt.ArrayLike, output: npt.ArrayLike) -> float:
     """Root-mean-square error ``sqrt(mean((output - reference)**2))``.
 
     Parameters
@@ -76,7 +81,7 @@ def rmse(reference, output) -> float:
     return float(np.sqrt(np.mean((y - r) ** 2)))
 
 
-def max_error(reference, output) -> float:
+def max_error(reference: npt.ArrayLike, output: npt.ArrayLike) -> float:
     """Maximum absolute error ``max|output - reference|``.
 
     Parameters
@@ -98,7 +103,7 @@ def max_error(reference, output) -> float:
     return float(np.max(np.abs(y - r)))
 
 
-def linearity_error(desired, output) -> float:
+def linearity_error(desired: npt.ArrayLike, output: npt.ArrayLike) -> float:
     """Linearity error, percent: ``100 max|y - (a x_d + b)| / (max y - min y)``, with
     ``(a, b)`` the least-squares line of the output ``y`` against the desired ``x_d``
     (docs/spec.md §6; seed 2, Table 3).
@@ -132,7 +137,7 @@ def linearity_error(desired, output) -> float:
     return float(100.0 * np.max(np.abs(deviation)) / span)
 
 
-def _envelopes(x, y, levels):
+def _envelopes(x: FloatArray, y: FloatArray, levels: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Upper and lower envelopes of the piecewise-linear path ``(x, y)`` at ``levels``
     (increasing): for each level, the max and min of ``y`` interpolated on every sample
     interval that crosses it; NaN where no interval does.
@@ -165,7 +170,7 @@ def _envelopes(x, y, levels):
     return upper, lower
 
 
-def hysteresis_percent(input, output, *, levels=200) -> float:
+def hysteresis_percent(input: npt.ArrayLike, output: npt.ArrayLike, *, levels: int = 200) -> float:
     """Hysteresis, percent: the widest vertical extent of the loop over the input, relative to
     the output range (docs/spec.md §6).
 
@@ -218,7 +223,7 @@ def hysteresis_percent(input, output, *, levels=200) -> float:
     return float(100.0 * np.nanmax(upper - lower) / span)
 
 
-def tracking_metrics(reference, output) -> dict:
+def tracking_metrics(reference: npt.ArrayLike, output: npt.ArrayLike) -> dict[str, float]:
     """Tracking metrics of one run of ``output`` following ``reference``.
 
     Parameters

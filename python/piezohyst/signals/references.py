@@ -35,9 +35,14 @@ from __future__ import annotations
 import numbers
 
 import numpy as np
+import numpy.typing as npt
 
 from .._validate import as_int, as_scalar, as_vector
 from ..errors import ParameterError, ParameterTypeError
+
+FloatArray = npt.NDArray[np.float64]
+#: What every generator returns: the sample times and the signal.
+Reference = tuple[FloatArray, FloatArray]
 
 __all__ = ["chirp", "multisine", "sine", "staircase", "triangle", "variable_amplitude_sine"]
 
@@ -50,7 +55,7 @@ __all__ = ["chirp", "multisine", "sine", "staircase", "triangle", "variable_ampl
 MAX_SAMPLES = 2**31
 
 
-def _n_samples(duration, fs, name="duration"):
+def _n_samples(duration: float, fs: float, name: str = "duration") -> tuple[int, float]:
     duration = as_scalar(duration, name, positive=True)
     fs = as_scalar(fs, "fs", positive=True)
     n = duration * fs
@@ -61,12 +66,12 @@ def _n_samples(duration, fs, name="duration"):
     return round(n), fs
 
 
-def _time(duration, fs):
+def _time(duration: float, fs: float) -> tuple[FloatArray, float]:
     n, fs = _n_samples(duration, fs)
     return np.arange(n) / fs, fs
 
 
-def _frequency(value, name, fs):
+def _frequency(value: float, name: str, fs: float) -> float:
     """A positive frequency not above the Nyquist frequency ``fs / 2``."""
     f = as_scalar(value, name, positive=True)
     if f > fs / 2:
@@ -74,7 +79,7 @@ def _frequency(value, name, fs):
     return f
 
 
-def _rng(rng):
+def _rng(rng: object) -> np.random.Generator:
     if rng is None or isinstance(rng, np.random.Generator):
         return np.random.default_rng(rng)
     if isinstance(rng, bool) or not isinstance(rng, (numbers.Integral, np.integer)):
@@ -84,7 +89,7 @@ def _rng(rng):
     return np.random.default_rng(int(rng))
 
 
-def _choice(value, name, options):
+def _choice(value: object, name: str, options: tuple[str, ...]) -> str:
     if not isinstance(value, str):
         raise ParameterTypeError(f"{name} must be one of {options}, got {value!r}")
     if value not in options:
@@ -95,7 +100,9 @@ def _choice(value, name, options):
 # --------------------------------------------------------------------------- periodic
 
 
-def sine(freq, amplitude, duration, fs, offset=0.0, phase=-np.pi / 2):
+def sine(
+    freq: float, amplitude: float, duration: float, fs: float, offset: float = 0.0, phase: float = -np.pi / 2
+) -> Reference:
     """Sine wave ``offset + amplitude * sin(2 pi freq t + phase)``.
 
     Parameters
@@ -133,7 +140,15 @@ def sine(freq, amplitude, duration, fs, offset=0.0, phase=-np.pi / 2):
     return t, c + a * np.sin(2 * np.pi * f * t + p)
 
 
-def triangle(freq, amplitude, duration, fs, offset=0.0, phase=-np.pi / 2, rounding=0.0):
+def triangle(
+    freq: float,
+    amplitude: float,
+    duration: float,
+    fs: float,
+    offset: float = 0.0,
+    phase: float = -np.pi / 2,
+    rounding: float = 0.0,
+) -> Reference:
     """Triangle wave, optionally with smooth (rounded) turn-arounds.
 
     The wave is the triangular counterpart of :func:`sine` with the same ``phase``: it has
@@ -214,7 +229,15 @@ def triangle(freq, amplitude, duration, fs, offset=0.0, phase=-np.pi / 2, roundi
     return t, c + a * g
 
 
-def variable_amplitude_sine(freq, amplitude, duration, fs, offset=0.0, final_fraction=0.2, envelope="linear"):
+def variable_amplitude_sine(
+    freq: float,
+    amplitude: float,
+    duration: float,
+    fs: float,
+    offset: float = 0.0,
+    final_fraction: float = 0.2,
+    envelope: str = "linear",
+) -> Reference:
     """Sine under a decaying envelope: nested minor loops, as in seed 2's experiments.
 
     ``x = offset + amplitude * e(t) * sin(2 pi freq t)`` with ``e(0) = 1`` and
@@ -273,7 +296,18 @@ def variable_amplitude_sine(freq, amplitude, duration, fs, offset=0.0, final_fra
 # --------------------------------------------------------------------------- broadband
 
 
-def multisine(f_min, f_max, amplitude, period, fs, *, periods=1, scale="rms", offset=0.0, rng=None):
+def multisine(
+    f_min: float,
+    f_max: float,
+    amplitude: float,
+    period: float,
+    fs: float,
+    *,
+    periods: int = 1,
+    scale: str = "rms",
+    offset: float = 0.0,
+    rng: int | np.random.Generator | None = None,
+) -> Reference:
     """Random-phase multisine with a flat amplitude spectrum over ``[f_min, f_max]``.
 
     One period has ``N = round(period * fs)`` samples, so the frequency resolution is
@@ -358,7 +392,17 @@ def multisine(f_min, f_max, amplitude, period, fs, *, periods=1, scale="rms", of
     return np.arange(n * m) / fs, c + np.tile(one, m)
 
 
-def chirp(f_start, f_end, amplitude, duration, fs, *, method="linear", offset=0.0, phase=-np.pi / 2):
+def chirp(
+    f_start: float,
+    f_end: float,
+    amplitude: float,
+    duration: float,
+    fs: float,
+    *,
+    method: str = "linear",
+    offset: float = 0.0,
+    phase: float = -np.pi / 2,
+) -> Reference:
     """Frequency sweep from ``f_start`` at ``t = 0`` to ``f_end`` at the last sample.
 
     ``x = offset + amplitude * sin(phi(t) + phase)`` with ``phi(0) = 0`` and the
@@ -418,7 +462,7 @@ def chirp(f_start, f_end, amplitude, duration, fs, *, method="linear", offset=0.
 # --------------------------------------------------------------------------- steps
 
 
-def staircase(levels, dwell, fs, offset=0.0):
+def staircase(levels: npt.ArrayLike, dwell: npt.ArrayLike, fs: float, offset: float = 0.0) -> Reference:
     """Piecewise-constant reference: ``offset + levels[i]`` held for ``dwell`` seconds each.
 
     Level ``i`` occupies ``round(dwell_i * fs)`` consecutive samples (at least 1), in order;

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import html
 from collections.abc import Iterable, Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -34,6 +34,7 @@ from ..errors import ParameterError
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import pandas as pd
+    from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
 FloatArray = npt.NDArray[np.float64]
@@ -90,6 +91,9 @@ class Response:
         t = np.asarray(time, dtype=np.float64)
         if t.ndim != 1:
             raise ParameterError(f"time must be 1-D, got shape {t.shape}")
+        bad = np.flatnonzero(~np.isfinite(t))
+        if bad.size:
+            raise ParameterError(f"time[{bad[0]}] = {t[bad[0]]} is not finite")
         if t.size > 1 and not np.all(np.diff(t) > 0):
             raise ParameterError("time must be strictly increasing")
         sig: dict[str, FloatArray] = {}
@@ -126,9 +130,9 @@ class Response:
 
     def __getattr__(self, name: str) -> FloatArray:
         # called only when normal lookup fails: signals read as attributes
-        signals = self.__dict__.get("signals")
+        signals: dict[str, FloatArray] | None = self.__dict__.get("signals")
         if signals is not None and name in signals:
-            return signals[name]  # type: ignore[no-any-return]
+            return signals[name]
         raise AttributeError(f"{type(self).__name__} has no attribute or signal {name!r}")
 
     def __getitem__(self, name: str) -> FloatArray:
@@ -171,12 +175,14 @@ class Response:
             raise ImportError("to_pandas() needs pandas, which is not installed") from None
         return pd.DataFrame(dict(self.signals), index=pd.Index(self.time, name="time"))
 
-    def plot(self, signals: Sequence[str] | None = None, *, ax: Any = None) -> Figure:
+    def plot(self, signals: Sequence[str] | None = None, *, ax: Axes | Iterable[Axes] | None = None) -> Figure:
         """One panel per unit: the named ``signals`` (default all) against time.
 
-        Returns the matplotlib figure.
+        ``ax``: the axes to draw on, one per unit (in the order the units first appear);
+        by default a new figure. Returns the matplotlib figure.
         """
         import matplotlib.pyplot as plt
+        from matplotlib.axes import Axes
 
         names = list(self.signals) if signals is None else list(signals)
         for n in names:
@@ -184,14 +190,18 @@ class Response:
         groups: dict[str, list[str]] = {}
         for n in names:
             groups.setdefault(self.units[n], []).append(n)
+        ax_list: list[Axes]
         if ax is None:
             fig, axes = plt.subplots(len(groups), 1, sharex=True, squeeze=False, figsize=(8, 2.4 * len(groups)))
             ax_list = list(axes[:, 0])
         else:
-            ax_list = list(np.atleast_1d(ax))
+            ax_list = [ax] if isinstance(ax, Axes) else list(np.ravel(np.asarray(ax, dtype=object)))
             if len(ax_list) != len(groups):
                 raise ParameterError(f"ax has {len(ax_list)} axes; this plot needs {len(groups)} (one per unit)")
-            fig = ax_list[0].figure
+            root = ax_list[0].get_figure(root=True)
+            if root is None:
+                raise ParameterError("ax is not part of a figure")
+            fig = root
         for a, (unit, members) in zip(ax_list, groups.items(), strict=True):
             for n in members:
                 a.plot(self.time, self.signals[n], lw=1, label=n)
