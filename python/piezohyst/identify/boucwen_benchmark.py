@@ -8,15 +8,21 @@ benchmark's dataset reader in :mod:`piezohyst.papers.boucwen_benchmark`.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from .. import _core
 from .._validate import as_int, as_record, as_scalar
 from ..errors import ParameterError, ParameterTypeError
 from ..models.boucwen_benchmark import FS, INTERPOLATIONS, UPSAMPLE, BoucWenBenchmark
 from ..models.boucwen_benchmark import upsample as _upsample  # the argument `upsample` shadows it
-from .core import IdentificationResult, fit_metrics
+from .core import FloatArray, IdentificationResult, Metrics, _fit_metrics
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from .core import Callback, RngLike
 
 __all__ = ["DEFAULT_BOUNDS", "IDENTIFY_PARAMETERS", "identify_boucwen_benchmark"]
 
@@ -29,7 +35,7 @@ __all__ = ["DEFAULT_BOUNDS", "IDENTIFY_PARAMETERS", "identify_boucwen_benchmark"
 IDENTIFY_PARAMETERS = ("mass", "damping", "stiffness", "alpha", "beta_gamma", "beta_delta", "nu")
 
 #: Default search box of :func:`identify_boucwen_benchmark` (a number fixes the parameter).
-DEFAULT_BOUNDS = {
+DEFAULT_BOUNDS: dict[str, tuple[float, float] | float] = {
     "mass": (0.5, 8.0),  # kg
     "damping": (0.0, 50.0),  # N s/m
     "stiffness": (1e4, 2e5),  # N/m
@@ -44,11 +50,13 @@ DEFAULT_BOUNDS = {
 _TAIL = 8
 
 
-def _search_box(bounds):
+def _search_box(
+    bounds: Mapping[str, Any] | None,
+) -> tuple[tuple[str, ...], FloatArray, FloatArray, dict[str, float]]:
     """``(names, lower, upper, fixed)`` of the free parameters from ``bounds`` (``None``, or a
     mapping of names in :data:`IDENTIFY_PARAMETERS` to ``(lower, upper)`` or a fixed number,
     overriding :data:`DEFAULT_BOUNDS`)."""
-    box = dict(DEFAULT_BOUNDS)
+    box: dict[str, Any] = dict(DEFAULT_BOUNDS)
     if bounds is not None:
         if not hasattr(bounds, "items"):
             raise ParameterTypeError(
@@ -61,7 +69,10 @@ def _search_box(bounds):
                     f"bounds: unknown parameter {name!r}; expected names from {list(IDENTIFY_PARAMETERS)}"
                 )
             box[name] = b
-    names, lower, upper, fixed = [], [], [], {}
+    names: list[str] = []
+    lower: list[float] = []
+    upper: list[float] = []
+    fixed: dict[str, float] = {}
     minimum = {
         "mass": (0.0, False),
         "damping": (0.0, True),
@@ -95,13 +106,13 @@ def _search_box(bounds):
     return tuple(names), np.array(lower), np.array(upper), fixed
 
 
-def _as_range(r, n, name, minimum):
+def _as_range(r: object, n: int, name: str, minimum: int) -> tuple[int, int]:
     """``(start, stop)`` sample indices inside a record of ``n`` samples."""
     if r is None:
         start, stop = 0, n
     else:
         try:
-            start, stop = r
+            start, stop = r  # type: ignore[misc]  # any pair: unpacking is the check
         except (TypeError, ValueError):
             raise ParameterTypeError(f"{name} must be a (start, stop) pair of sample indices, got {r!r}") from None
         start, stop = as_int(start, f"{name} start"), as_int(stop, f"{name} stop")
@@ -117,21 +128,28 @@ class _Problem:
     the upsampled input of the range with ``warmup`` samples before it and up to ``_TAIL``
     after it, simulated from rest in one Rust batch call."""
 
-    def __init__(self, fine, r, h, y, start, stop, warmup):
+    def __init__(self, fine: FloatArray, r: int, h: float, y: FloatArray, start: int, stop: int, warmup: int):
         w = min(warmup, start)
         tail = min(_TAIL, y.size - stop)
         self.input = np.ascontiguousarray(fine[(start - w) * r : (stop + tail) * r])
         self.target = np.ascontiguousarray(y[start:stop])
         self.skip, self.r, self.h = w, r, h
 
-    def rmse(self, rows):
+    def rmse(self, rows: FloatArray) -> FloatArray:
         return _core.boucwen_benchmark_batch_rmse(rows, self.input, self.h, self.r, self.target, self.skip, np.inf)
 
-    def simulate(self, rows):
+    def simulate(self, rows: FloatArray) -> FloatArray:
         return _core.boucwen_benchmark_batch_simulate(rows, self.input, self.h, self.r, self.skip, self.target.size)
 
 
-def _least_squares_polish(problem, to_rows, x0, lower, upper, options):
+def _least_squares_polish(
+    problem: _Problem,
+    to_rows: Callable[[FloatArray], FloatArray],
+    x0: FloatArray,
+    lower: FloatArray,
+    upper: FloatArray,
+    options: Mapping[str, Any],
+) -> tuple[FloatArray, float, int, str]:
     """Trust-region least squares (SciPy ``least_squares``, ``trf``, within the bounds) on
     the residual of ``problem`` from ``x0``; Jacobian by central differences, all ``2 D``
     perturbed rows in one batch call. Returns ``(x, rmse, nfev, message)``: the better of
@@ -142,13 +160,13 @@ def _least_squares_polish(problem, to_rows, x0, lower, upper, options):
     span = upper - lower
     nfev = 0
 
-    def fun(x):
+    def fun(x: FloatArray) -> FloatArray:
         nonlocal nfev
         nfev += 1
-        out = problem.simulate(to_rows(x[None, :]))[0]
+        out: FloatArray = problem.simulate(to_rows(x[None, :]))[0]
         return out - problem.target  # NaN (a failed run) makes the trust region shrink
 
-    def jac(x):
+    def jac(x: FloatArray) -> FloatArray:
         nonlocal nfev
         step = 1e-6 * np.maximum(np.abs(x), 1e-3 * span)
         X = np.repeat(x[None, :], 2 * D, axis=0)
@@ -172,7 +190,7 @@ def _least_squares_polish(problem, to_rows, x0, lower, upper, options):
                     J[:, d] = (out[k] - f0) / (X[k, d] - x[d])
         return J
 
-    opts = {"xtol": 1e-12, "ftol": 1e-12, "gtol": 1e-12, "max_nfev": 100}
+    opts: dict[str, Any] = {"xtol": 1e-12, "ftol": 1e-12, "gtol": 1e-12, "max_nfev": 100}
     opts.update(options)
     x0 = np.clip(x0, lower, upper)
     f0 = float(problem.rmse(to_rows(x0[None, :]))[0])
@@ -185,15 +203,16 @@ def _least_squares_polish(problem, to_rows, x0, lower, upper, options):
     f1 = float(problem.rmse(to_rows(x1[None, :]))[0])
     nfev += 1
     if not f1 < f0:
-        return x0, f0, nfev, res.message
-    return x1, f1, nfev, res.message
+        return x0, f0, nfev, str(res.message)
+    return x1, f1, nfev, str(res.message)
 
 
-def _starts(X, f, lower, upper, count):
+def _starts(X: FloatArray, f: FloatArray, lower: FloatArray, upper: FloatArray, count: int) -> list[FloatArray]:
     """Up to ``count`` of the evaluated candidates ``X`` (costs ``f``), best first, no two
     within 10 % of the box's span of each other in every coordinate."""
     span = upper - lower
-    chosen, picked = [], []
+    chosen: list[FloatArray] = []
+    picked: list[FloatArray] = []
     for i in np.argsort(f, kind="stable"):
         if len(chosen) >= count or not np.isfinite(f[i]):
             break
@@ -204,40 +223,48 @@ def _starts(X, f, lower, upper, count):
     return chosen
 
 
-def _box_centre(lower, upper):
+def _box_centre(lower: FloatArray, upper: FloatArray) -> FloatArray:
     """The box's centre: geometric for a positive range (a scale parameter), else arithmetic."""
     pos = lower > 0
     return np.where(pos, np.sqrt(np.where(pos, lower * upper, 1.0)), 0.5 * (lower + upper))
 
 
-def _scored(model, u, y, fs, r, interpolation, rng_):
-    """Free-run metrics of ``model`` on samples ``rng_`` of a record simulated whole."""
+def _scored(
+    model: BoucWenBenchmark,
+    u: FloatArray,
+    y: FloatArray,
+    fs: float,
+    r: int,
+    interpolation: str,
+    rng_: tuple[int, int],
+) -> Metrics:
+    """Free-run metrics of ``model`` on samples ``rng_`` of a validated record simulated whole."""
     start, stop = rng_
-    out = model.simulate(u, fs=fs, upsample=r, interpolation=interpolation)
-    return fit_metrics(out[start:stop], y[start:stop])
+    out = np.asarray(model.simulate(u, fs=fs, upsample=r, interpolation=interpolation))
+    return _fit_metrics(out[start:stop], y[start:stop])
 
 
 def identify_boucwen_benchmark(
-    u,
-    y,
-    fs=FS,
+    u: npt.ArrayLike,
+    y: npt.ArrayLike,
+    fs: float = FS,
     *,
-    upsample=UPSAMPLE,
-    fit_range=None,
-    warmup=1024,
-    search_samples=2048,
-    beta=1e3,
-    bounds=None,
-    optimizer="de",
-    rng=None,
-    max_iterations=30,
-    population_size=None,
-    polish=True,
-    starts=3,
-    validate=None,
-    interpolation="fft",
-    progress=False,
-    callback=None,
+    upsample: int = UPSAMPLE,
+    fit_range: tuple[int, int] | None = None,
+    warmup: int = 1024,
+    search_samples: int | None = 2048,
+    beta: float = 1e3,
+    bounds: Mapping[str, tuple[float, float] | float] | None = None,
+    optimizer: str = "de",
+    rng: RngLike = None,
+    max_iterations: int = 30,
+    population_size: int | None = None,
+    polish: bool | dict[str, Any] = True,
+    starts: int = 3,
+    validate: Sequence[Any] | None = None,
+    interpolation: str = "fft",
+    progress: bool = False,
+    callback: Callback | None = None,
 ) -> IdentificationResult:
     """Identify the benchmark's Bouc–Wen oscillator (mass, damping, stiffness, alpha, beta,
     gamma, delta, nu) from a force record ``u`` (N) and a displacement record ``y`` (m) by
@@ -333,7 +360,8 @@ def identify_boucwen_benchmark(
     Returns
     -------
     IdentificationResult
-        ``model`` is a :class:`BoucWenBenchmark`; ``train`` holds the metrics of the whole
+        ``model`` is a :class:`BoucWenBenchmark`; ``evaluations`` counts the rows simulated
+        (search, screening and polish); ``train`` holds the metrics of the whole
         record ``u`` simulated from rest, on ``fit_range``; ``history`` the optimizer's
         per-iteration history plus ``"parameters"`` (the names searched) and, when
         polished, ``"polish"``: the screened RMSEs (``"screened"``, one per start, the
@@ -358,13 +386,13 @@ def identify_boucwen_benchmark(
     from ..optimize.core import minimize
 
     t0 = time.perf_counter()
-    u = as_record(u, "u", min_length=2)
-    y = as_record(y, "y", min_length=2)
-    if y.size != u.size:
-        raise ParameterError(f"y has {y.size} samples, u has {u.size}; they must match")
-    if not np.ptp(u) > 0:
+    u_ = as_record(u, "u", min_length=2)
+    y_ = as_record(y, "y", min_length=2)
+    if y_.size != u_.size:
+        raise ParameterError(f"y has {y_.size} samples, u has {u_.size}; they must match")
+    if not np.ptp(u_) > 0:
         raise ParameterError("u is constant: the record does not excite the system")
-    if not np.ptp(y) > 0:
+    if not np.ptp(y_) > 0:
         raise ParameterError("y is constant: there is no response to identify")
     fs = as_scalar(fs, "fs", positive=True)
     r = as_int(upsample, "upsample", minimum=1)
@@ -374,7 +402,7 @@ def identify_boucwen_benchmark(
         )
     beta = as_scalar(beta, "beta", positive=True)
     names, lower, upper, fixed = _search_box(bounds)
-    start, stop = _as_range(fit_range, u.size, "fit_range", minimum=2 * len(names))
+    start, stop = _as_range(fit_range, u_.size, "fit_range", minimum=2 * len(names))
     warmup = as_int(warmup, "warmup")
     search = stop - start if search_samples is None else as_int(search_samples, "search_samples", minimum=1)
     search = min(max(search, 2 * len(names)), stop - start)
@@ -393,7 +421,7 @@ def identify_boucwen_benchmark(
     columns = [IDENTIFY_PARAMETERS.index(n) for n in names]
     template = np.array([fixed.get(n, 0.0) for n in IDENTIFY_PARAMETERS])
 
-    def to_rows(X):
+    def to_rows(X: FloatArray) -> FloatArray:
         """Search vectors (S, D) -> core rows [mass, damping, stiffness, alpha, beta, gamma, delta, nu]."""
         P = np.repeat(template[None, :], X.shape[0], axis=0)
         P[:, columns] = X
@@ -405,14 +433,15 @@ def identify_boucwen_benchmark(
         rows[:, 7] = P[:, 6]
         return rows
 
-    fine = _upsample(u, r, interpolation)
+    fine = _upsample(u_, r, interpolation)
     h = 1.0 / (r * fs)
-    search_problem = _Problem(fine, r, h, y, start, start + search, warmup)
-    full_problem = _Problem(fine, r, h, y, start, stop, warmup)
+    search_problem = _Problem(fine, r, h, y_, start, start + search, warmup)
+    full_problem = _Problem(fine, r, h, y_, start, stop, warmup)
 
-    seen_x, seen_f = [], []
+    seen_x: list[FloatArray] = []
+    seen_f: list[FloatArray] = []
 
-    def cost(X):
+    def cost(X: FloatArray) -> FloatArray:
         f = search_problem.rmse(to_rows(X))
         seen_x.append(np.array(X, dtype=np.float64))
         seen_f.append(f)
@@ -433,24 +462,29 @@ def identify_boucwen_benchmark(
             "every simulated candidate failed or diverged: check the units of u (N) and y (m), fs and the bounds"
         )
     x = np.asarray(res.x, dtype=np.float64)
-    history = dict(res.history)
+    history: dict[str, Any] = dict(res.history)
     history["parameters"] = names
     method = res.method or str(optimizer)
+    evaluations = int(res.nfev)
     if polish is not False and res.message != "interrupted":
         candidates = _starts(np.concatenate(seen_x), np.concatenate(seen_f), lower, upper, starts)
         candidates.append(_box_centre(lower, upper))
-        nfev, screened, best = 0, [], None
+        nfev = 0
+        screened: list[float] = []
+        best: tuple[FloatArray, float] | None = None
         for x0 in candidates:
             xs, fx, n, _ = _least_squares_polish(search_problem, to_rows, x0, lower, upper, {"max_nfev": 20})
             nfev += n
             screened.append(fx)
             if best is None or fx < best[1]:
                 best = (xs, fx)
+        assert best is not None  # candidates holds the box's centre at least
         before = float(full_problem.rmse(to_rows(x[None, :]))[0])
         x1, f1, n, message = _least_squares_polish(
             full_problem, to_rows, best[0], lower, upper, polish if isinstance(polish, dict) else {}
         )
         nfev += n + 1
+        evaluations += nfev
         if f1 < before:
             x = x1
         history["polish"] = {
@@ -462,8 +496,17 @@ def identify_boucwen_benchmark(
         }
         method += "+least_squares"
     model = BoucWenBenchmark(*to_rows(x[None, :])[0])
-    train = _scored(model, u, y, fs, r, interpolation, (start, stop))
+    train = _scored(model, u_, y_, fs, r, interpolation, (start, stop))
     val = None
     if validate is not None:
         val = _scored(model, vu, vy, fs, r, interpolation, v_range)
-    return IdentificationResult(model, train, val, method, time.perf_counter() - t0, history, partial=res.interrupted)
+    return IdentificationResult(
+        model,
+        train,
+        val,
+        method,
+        time.perf_counter() - t0,
+        history,
+        partial=res.interrupted,
+        evaluations=evaluations,
+    )

@@ -7,21 +7,33 @@ from the Rust core in one pass; the weights come from a bounded least-squares so
 (``scipy.optimize.lsq_linear``), non-negative where the model needs it (play and Preisach
 weights). This is the inner, exact step of variable projection; the metaheuristics of
 :mod:`piezohyst.optimize` search the few nonlinear parameters around it.
+
+Inputs are validated once, by the public functions; the private helpers (leading
+underscore) take records already validated (finite 1-D float64 arrays of checked lengths).
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Protocol, TypeAlias, runtime_checkable
 
 import numpy as np
+import numpy.typing as npt
 
 from .. import _core
 from .._validate import as_int, as_record, as_scalar
 from ..errors import ParameterError, ParameterTypeError
 from ..models.creep import Creep
-from ..models.pi import PI, GeneralizedPI, RateDependentPI
+from ..models.pi import PI, Envelope, GeneralizedPI, RateDependentPI
 from ..models.preisach import Preisach
+from ..optimize.report import RunReport
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from matplotlib.figure import Figure
+
+    from ..optimize.core import IntermediateResult, OptimizeResult
 
 __all__ = [
     "CEMF_PARAMETERS",
@@ -39,14 +51,41 @@ __all__ = [
     "minimize_huber",
 ]
 
+FloatArray: TypeAlias = npt.NDArray[np.float64]
+#: Free-run metrics: ``rmse``, ``max_error``, ``rmse_percent``, ``max_error_percent``.
+Metrics: TypeAlias = dict[str, float]
+#: The models :func:`fit_linear` fits.
+LinearModel: TypeAlias = PI | GeneralizedPI | RateDependentPI | Preisach
+#: Play thresholds given by the caller.
+Thresholds: TypeAlias = Sequence[float] | npt.NDArray[Any]
+#: Seeds the population optimizers take (:func:`piezohyst.optimize.minimize`).
+RngLike: TypeAlias = int | np.integer[Any] | np.random.Generator | np.random.SeedSequence | None
+#: ``callback(intermediate_result)`` of the population optimizers.
+Callback: TypeAlias = "Callable[[IntermediateResult], object]"
+#: A bounded linear least-squares solver ``(A, y, (lower, upper)) -> z``.
+BoundedSolver: TypeAlias = Callable[[FloatArray, FloatArray, tuple[FloatArray, FloatArray]], FloatArray]
 
-@dataclass(frozen=True)
-class FitResult:
-    """A fitted model with its free-run error on the data it was fitted to."""
 
-    model: object
-    metrics: dict
+@runtime_checkable
+class _Simulates(Protocol):
+    def simulate(self, input: npt.ArrayLike, /) -> FloatArray: ...
+
+
+@dataclass(frozen=True, repr=False)
+class FitResult(RunReport):
+    """A fitted model with its free-run error on the data it was fitted to.
+
+    As every :class:`~piezohyst.optimize.RunReport`: ``wall_time`` (s), ``evaluations`` (the
+    bounded least-squares solves: 1, or 1 plus the reweighted solves of the Huber loss),
+    ``history`` (empty: a linear fit does not iterate over candidates) and ``partial``
+    (always ``False``: a linear fit is not interrupted halfway)."""
+
+    model: LinearModel
+    metrics: Metrics
     wall_time: float
+    evaluations: int = 1
+    history: dict[str, Any] = field(default_factory=dict)
+    partial: bool = False
 
     def __repr__(self) -> str:
         m = self.metrics
@@ -55,14 +94,28 @@ class FitResult:
             f"max_error={m['max_error']:.4g} ({m['max_error_percent']:.3g} %), {self.wall_time * 1e3:.1f} ms)"
         )
 
+    def _headline(self) -> str:
+        m = self.metrics
+        return (
+            f"{type(self.model).__name__} fitted by least squares: rmse {m['rmse']:.4g} "
+            f"({m['rmse_percent']:.3g} % of range), max error {m['max_error']:.4g} ({m['max_error_percent']:.3g} %)"
+        )
 
-def fit_metrics(predicted, measured) -> dict:
+
+def fit_metrics(predicted: npt.ArrayLike, measured: npt.ArrayLike) -> Metrics:
     """RMSE and max error of the free-run simulation, also in % of the measured range."""
-    predicted = as_record(predicted, "predicted", copy=False)
-    measured = as_record(measured, "measured", copy=False)
-    if predicted.size != measured.size:
-        raise ParameterError(f"predicted has {predicted.size} samples, measured has {measured.size}; they must match")
-    e = predicted - measured
+    p = as_record(predicted, "predicted", copy=False)
+    m = as_record(measured, "measured", copy=False)
+    return _fit_metrics(p, m)
+
+
+def _fit_metrics(predicted: npt.ArrayLike, measured: FloatArray) -> Metrics:
+    """:func:`fit_metrics` of a model's output against an already validated record: the
+    prediction (not an input of the caller's) is still checked finite, with the same message."""
+    p = as_record(predicted, "predicted", copy=False)
+    if p.size != measured.size:
+        raise ParameterError(f"predicted has {p.size} samples, measured has {measured.size}; they must match")
+    e = p - measured
     span = float(np.ptp(measured)) or 1.0
     rmse = float(np.sqrt(np.mean(e**2)))
     emax = float(np.max(np.abs(e)))
@@ -79,7 +132,7 @@ HUBER_K = 1.345
 _MAD_TO_SIGMA = 1.4826
 
 
-def default_huber_delta(residuals) -> np.ndarray:
+def default_huber_delta(residuals: npt.ArrayLike) -> FloatArray:
     """Default Huber threshold of residual records: ``1.345 sigma`` with the robust
     ``sigma = 1.4826 median(|r - median(r)|)``, along the last axis.
 
@@ -92,11 +145,11 @@ def default_huber_delta(residuals) -> np.ndarray:
     1.994097
     """
     r = np.asarray(residuals, dtype=np.float64)
-    mad = np.median(np.abs(r - np.median(r, axis=-1, keepdims=True)), axis=-1)
+    mad: FloatArray = np.median(np.abs(r - np.median(r, axis=-1, keepdims=True)), axis=-1)
     return HUBER_K * _MAD_TO_SIGMA * mad
 
 
-def huber_cost(residuals, delta=None) -> np.ndarray:
+def huber_cost(residuals: npt.ArrayLike, delta: npt.ArrayLike | None = None) -> FloatArray:
     """Huber cost of residual records, in the residuals' unit: ``sqrt(2 mean(rho(r)))`` with
     ``rho(r) = r**2 / 2`` for ``|r| <= delta`` and ``delta (|r| - delta / 2)`` beyond, along
     the last axis (one value per row of an ``(S, N)`` array).
@@ -127,22 +180,23 @@ def huber_cost(residuals, delta=None) -> np.ndarray:
     return np.where(np.all(np.isfinite(r), axis=-1), cost, np.inf)
 
 
-def _check_loss(loss, delta):
+def _check_loss(loss: object, delta: object) -> tuple[str, float | None]:
     """``(loss, delta)`` checked: delta ``None`` (the MAD default) or a positive number."""
     if loss not in LOSSES:
         raise ParameterError(f"loss = {loss!r} is unknown; expected one of {list(LOSSES)}")
+    name = LOSSES[LOSSES.index(loss)]
     if delta is None:
-        return loss, None
+        return name, None
     if loss != "huber":
         raise ParameterError(f"huber_delta = {delta!r} is only used with loss = 'huber', got loss = {loss!r}")
-    return loss, as_scalar(delta, "huber_delta", positive=True)
+    return name, as_scalar(delta, "huber_delta", positive=True)
 
 
 #: Linear slots (names of the core's layout table) that fits keep non-negative.
 _NONNEGATIVE = frozenset({"p0", "w", "b", "slope", "creep_c"})
 
 
-def _linear_slots(model):
+def _linear_slots(model: LinearModel) -> list[tuple[str, int]]:
     """``(name, length)`` of the model's linear slots in regressor-column order (the core's
     layout table, ``_core.family_layout``)."""
     layout = _core.family_layout(model.family, list(model.dims))
@@ -150,7 +204,7 @@ def _linear_slots(model):
     return [(name, length[name]) for name in layout["linear"]]
 
 
-def _layout(model):
+def _layout(model: LinearModel) -> tuple[FloatArray, FloatArray, Callable[[FloatArray], LinearModel]]:
     """Column bounds ``(lb, ub)`` of the regressors and a function mapping the solution back
     to a model of the same structure."""
     inf = np.inf
@@ -162,16 +216,16 @@ def _layout(model):
     slots = _linear_slots(model)
     lb = np.concatenate([np.full(size, 0.0 if name in _NONNEGATIVE else -inf) for name, size in slots])
 
-    def parts(t):
+    def parts(t: FloatArray) -> dict[str, FloatArray]:
         ends = np.cumsum([size for _, size in slots])
         return {name: t[end - size : end] for (name, size), end in zip(slots, ends, strict=True)}
 
-    def with_creep(theta_tail):
+    def with_creep(theta_tail: FloatArray) -> Creep | None:
         return None if creep is None else Creep(creep.ts, creep.taus, theta_tail)
 
     if isinstance(model, RateDependentPI):
 
-        def build(t):
+        def build(t: FloatArray) -> LinearModel:
             p = parts(t)
             return RateDependentPI(
                 model.thresholds,
@@ -186,7 +240,7 @@ def _layout(model):
             )
     elif isinstance(model, GeneralizedPI):
 
-        def build(t):
+        def build(t: FloatArray) -> LinearModel:
             p = parts(t)
             return GeneralizedPI(
                 model.thresholds,
@@ -200,12 +254,12 @@ def _layout(model):
             )
     elif isinstance(model, PI):
 
-        def build(t):
+        def build(t: FloatArray) -> LinearModel:
             p = parts(t)
             return PI(model.thresholds, p["w"], p["p0"][0], creep=with_creep(p["creep_c"]), units=model.units)
     else:
 
-        def build(t):
+        def build(t: FloatArray) -> LinearModel:
             p = parts(t)
             return Preisach(
                 model.levels, model.input_range, p["w"], p["offset"][0], p["slope"][0], model.memory, units=model.units
@@ -214,7 +268,14 @@ def _layout(model):
     return lb, np.full(lb.size, inf), build
 
 
-def fit_linear(model, input, output, *, loss="squared", huber_delta=None) -> FitResult:
+def fit_linear(
+    model: LinearModel,
+    input: npt.ArrayLike,
+    output: npt.ArrayLike,
+    *,
+    loss: str = "squared",
+    huber_delta: float | None = None,
+) -> FitResult:
     """Fit the linear parameters of ``model`` (its weights, linear term / polynomial, creep
     weights; Preisach offset, slope and cell weights) to a record, keeping its structure.
 
@@ -253,28 +314,61 @@ def fit_linear(model, input, output, *, loss="squared", huber_delta=None) -> Fit
     >>> bool(np.max(np.abs(robust.model.weights - truth.weights)) < 1e-6)
     True
     """
-    from scipy.optimize import lsq_linear  # imported on use: keeps the command line quick to start
-
     t0 = time.perf_counter()
-    loss, delta = _check_loss(loss, huber_delta)
+    name, delta = _check_loss(loss, huber_delta)
     v = as_record(input, "input", min_length=2)
+    return _fit_output(model, v, output, name, delta, t0)
+
+
+def _fit_output(
+    model: LinearModel, v: FloatArray, output: npt.ArrayLike, loss: str, delta: float | None, t0: float
+) -> FitResult:
+    """:func:`fit_linear` from a validated input and checked loss: validates ``output``."""
     y = as_record(output, "output", min_length=2)
     if y.size != v.size:
         raise ParameterError(f"output has {y.size} samples, input has {v.size}; they must match")
+    return _fit_linear(model, v, y, loss, delta, t0)
+
+
+def _bvls(A: FloatArray, y: FloatArray, bounds: tuple[FloatArray, FloatArray]) -> FloatArray:
+    """SciPy's bounded-variable least squares ``argmin ||A z - y||`` within ``bounds``."""
+    from scipy.optimize import lsq_linear  # imported on use: keeps the command line quick to start
+
+    x: FloatArray = lsq_linear(A, y, bounds=bounds, method="bvls", lsmr_tol=None).x
+    return x
+
+
+def _fit_linear(
+    model: LinearModel, v: FloatArray, y: FloatArray, loss: str, delta: float | None, t0: float | None = None
+) -> FitResult:
+    """:func:`fit_linear` of validated records (equal lengths) with a checked loss."""
+    t0 = time.perf_counter() if t0 is None else t0
     lb, ub, build = _layout(model)
     A = _core.regressors(model.family, list(model.dims), model.to_row(), v)
     scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-300)  # equilibrate the columns
     A = A / scale
     bounds = (lb * scale, ub * scale)
-    z = np.clip(lsq_linear(A, y, bounds=bounds, method="bvls", lsmr_tol=None).x, *bounds)
+    z = np.clip(_bvls(A, y, bounds), *bounds)
+    solves = 1
     if loss == "huber":
-        z = _irls_huber(A, y, bounds, z, delta, lsq_linear)
+        z, k = _irls_huber(A, y, bounds, z, delta, _bvls)
+        solves += k
     fitted = build(z / scale)
-    return FitResult(fitted, fit_metrics(fitted.simulate(v), y), time.perf_counter() - t0)
+    return FitResult(fitted, _fit_metrics(fitted.simulate(v), y), time.perf_counter() - t0, solves)
 
 
-def _irls_huber(A, y, bounds, z, delta, lsq_linear, max_iterations=100, rtol=1e-9):
-    """Huber M-estimate by iteratively reweighted bounded least squares from ``z``.
+def _irls_huber(
+    A: FloatArray,
+    y: FloatArray,
+    bounds: tuple[FloatArray, FloatArray],
+    z: FloatArray,
+    delta: float | None,
+    solve: BoundedSolver,
+    max_iterations: int = 100,
+    rtol: float = 1e-9,
+) -> tuple[FloatArray, int]:
+    """Huber M-estimate by iteratively reweighted bounded least squares from ``z``:
+    ``(z, solves)``, the solves being the reweighted problems ``solve`` was given.
 
     Stops when an iteration moves the fitted output by less than ``rtol`` times the output's
     range (RMS): the parameters of correlated regressors creep on long after the fit has
@@ -283,103 +377,160 @@ def _irls_huber(A, y, bounds, z, delta, lsq_linear, max_iterations=100, rtol=1e-
     span = float(np.ptp(y)) or 1.0
     tiny = 1e-15 * span  # a zero MAD (an exact majority) still weighs
     fit = A @ z
+    solves = 0
     for _ in range(max_iterations):
         r = fit - y
         d = max(float(default_huber_delta(r)) if delta is None else delta, tiny)
         w = np.sqrt(np.minimum(1.0, d / np.maximum(np.abs(r), tiny)))
-        sol = lsq_linear(A * w[:, None], y * w, bounds=bounds, method="bvls", lsmr_tol=None)
-        z = np.clip(sol.x, lower, upper)  # bvls may overstep a bound by an ulp
+        z = np.clip(solve(A * w[:, None], y * w, bounds), lower, upper)  # bvls may overstep a bound by an ulp
+        solves += 1
         new_fit = A @ z
         moved = float(np.sqrt(np.mean((new_fit - fit) ** 2)))
         fit = new_fit
         if moved <= rtol * span:
             break
-    return z
+    return z, solves
 
 
-def _default_thresholds(v, n):
+def _default_thresholds(v: FloatArray, n: int) -> FloatArray:
     span = float(np.ptp(v))
     if not span > 0:
         raise ParameterError("input is constant: there is no hysteresis to identify")
-    return np.arange(1, n + 1) * span / (2.0 * (n + 1))
+    return np.arange(1, n + 1, dtype=np.float64) * span / (2.0 * (n + 1))
 
 
 def identify_pi(
-    input, output, *, operators=9, thresholds=None, creep=None, loss="squared", huber_delta=None
+    input: npt.ArrayLike,
+    output: npt.ArrayLike,
+    *,
+    operators: int = 9,
+    thresholds: Thresholds | None = None,
+    creep: Creep | None = None,
+    loss: str = "squared",
+    huber_delta: float | None = None,
 ) -> FitResult:
     """Classical PI with ``operators`` thresholds spread over half the input range (or the
     given ones), weights and linear term by non-negative least squares (``loss``,
     ``huber_delta``: see :func:`fit_linear`)."""
+    t0 = time.perf_counter()
     v = as_record(input, "input", min_length=2)
     r = _default_thresholds(v, as_int(operators, "operators", minimum=1)) if thresholds is None else thresholds
-    return fit_linear(PI(r, np.zeros(len(r)), 1.0, creep=creep), v, output, loss=loss, huber_delta=huber_delta)
+    model = PI(r, np.zeros(len(r)), 1.0, creep=creep)
+    name, delta = _check_loss(loss, huber_delta)
+    return _fit_output(model, v, output, name, delta, t0)
 
 
 def identify_mpi(
-    input,
-    output,
+    input: npt.ArrayLike,
+    output: npt.ArrayLike,
     *,
-    operators=9,
-    thresholds=None,
-    rising=None,
-    falling=None,
-    creep=None,
-    loss="squared",
-    huber_delta=None,
+    operators: int = 9,
+    thresholds: Thresholds | None = None,
+    rising: Envelope | None = None,
+    falling: Envelope | None = None,
+    creep: Creep | None = None,
+    loss: str = "squared",
+    huber_delta: float | None = None,
 ) -> FitResult:
     """Seed 2's MPI (cubic input polynomial + generalized plays) with the envelopes given
     (identity by default); polynomial and weights by bounded least squares (``loss``,
     ``huber_delta``: see :func:`fit_linear`)."""
+    t0 = time.perf_counter()
     v = as_record(input, "input", min_length=2)
     r = _default_thresholds(v, as_int(operators, "operators", minimum=1)) if thresholds is None else thresholds
+    model = _mpi_template(v, r, rising, falling, creep)
+    name, delta = _check_loss(loss, huber_delta)
+    return _fit_output(model, v, output, name, delta, t0)
+
+
+def _mpi_template(
+    v: FloatArray, r: Thresholds, rising: Envelope | None, falling: Envelope | None, creep: Creep | None
+) -> GeneralizedPI:
+    """MPI of thresholds ``r`` and the envelopes given over the input range padded by half its span."""
     lo, hi = float(v.min()), float(v.max())
     pad = 0.5 * (hi - lo)
-    model = GeneralizedPI(r, np.zeros(len(r)), (0.0, 0.0, 0.0, 0.0), rising, falling, (lo - pad, hi + pad), creep=creep)
-    return fit_linear(model, v, output, loss=loss, huber_delta=huber_delta)
+    return GeneralizedPI(r, np.zeros(len(r)), (0.0, 0.0, 0.0, 0.0), rising, falling, (lo - pad, hi + pad), creep=creep)
 
 
 def identify_preisach(
-    input, output, *, levels=12, input_range=None, memory=64, loss="squared", huber_delta=None
+    input: npt.ArrayLike,
+    output: npt.ArrayLike,
+    *,
+    levels: int = 12,
+    input_range: tuple[float, float] | None = None,
+    memory: int = 64,
+    loss: str = "squared",
+    huber_delta: float | None = None,
 ) -> FitResult:
     """Discretized Preisach on a ``levels x levels`` grid over the input range; offset, slope
     and cell weights (non-negative) by least squares (``loss``, ``huber_delta``: see
     :func:`fit_linear`)."""
+    t0 = time.perf_counter()
     v = as_record(input, "input", min_length=2)
+    model = _preisach_template(v, levels, input_range, memory)
+    name, delta = _check_loss(loss, huber_delta)
+    return _fit_output(model, v, output, name, delta, t0)
+
+
+def _preisach_template(v: FloatArray, levels: int, input_range: tuple[float, float] | None, memory: int) -> Preisach:
     lo, hi = (float(v.min()), float(v.max())) if input_range is None else input_range
     n = as_int(levels, "levels", minimum=1)
-    model = Preisach(n, (lo, hi), np.zeros(n * (n + 1) // 2), memory=memory)
-    return fit_linear(model, v, output, loss=loss, huber_delta=huber_delta)
+    return Preisach(n, (lo, hi), np.zeros(n * (n + 1) // 2), memory=memory)
 
 
 @dataclass(frozen=True)
-class IdentificationResult:
+class IdentificationResult(RunReport):
     """What :func:`identify` returns: the model, its free-run metrics on the training record
-    (and the validation record when given), the optimizer history and the wall time."""
+    (and the validation record when given), the optimizer history and the wall time.
+
+    As every :class:`~piezohyst.optimize.RunReport`: ``wall_time`` (s), ``evaluations``
+    (the candidate evaluations the fit spent: the optimizer's ``nfev`` plus the polish's, or
+    the least-squares solves of a linear fit), ``history`` (the optimizer's per-iteration
+    history with the method's extras; empty for a linear fit) and ``partial`` (Ctrl-C
+    stopped the optimizer: the model is the best found before it)."""
 
     model: object
-    train: dict
-    validation: dict | None
+    train: Metrics
+    validation: Metrics | None
     method: str
     wall_time: float
-    history: dict | None = None
+    #: ``None`` is taken as ``{}`` (no iterations).
+    history: dict[str, Any] = field(default_factory=dict)
     #: How :meth:`simulate` predicts the output for models without a ``simulate(input)`` of their
     #: own (the CEMF stage's parameters); ``None``: ``model.simulate``.
-    simulator: object = field(default=None, repr=False, compare=False)
+    simulator: Callable[[FloatArray], FloatArray] | None = field(default=None, repr=False, compare=False)
     #: ``True`` when Ctrl-C stopped the optimizer: the model is the best found before it.
     partial: bool = False
+    evaluations: int = 0
 
-    def simulate(self, input) -> np.ndarray:
+    def __post_init__(self) -> None:
+        if not self.history:  # None from callers of the former signature
+            object.__setattr__(self, "history", {})
+
+    def _headline(self) -> str:
+        t = self.train
+        text = (
+            f"{type(self.model).__name__} identified by {self.method}: rmse {t['rmse']:.4g} "
+            f"({t['rmse_percent']:.3g} % of range)"
+        )
+        if self.validation is not None:
+            text += f", validation rmse {self.validation['rmse']:.4g} ({self.validation['rmse_percent']:.3g} %)"
+        return text + (" (partial)" if self.partial else "")
+
+    def simulate(self, input: npt.ArrayLike) -> FloatArray:
         """The identified model's free-run output for an input record (for ``cemf``: positions
         from voltages, the stage simulated as it was identified)."""
         if self.simulator is not None:
             return np.asarray(self.simulator(as_record(input, "input")))
+        if not isinstance(self.model, _Simulates):
+            raise ParameterTypeError(f"{type(self.model).__name__} has no simulate(input) and no simulator was given")
         return self.model.simulate(input)
 
     @property
-    def metrics(self) -> dict:
+    def metrics(self) -> dict[str, Metrics | None]:
         return {"train": self.train, "validation": self.validation}
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         """JSON-ready report (the model file's ``fit`` section)."""
         return {
             "method": self.method,
@@ -389,28 +540,41 @@ class IdentificationResult:
             "partial": self.partial,
         }
 
-    def plot(self, input, output):
-        """Loop, fit and residual for a record (matplotlib figure)."""
+    def plot(
+        self, input: npt.ArrayLike | None = None, output: npt.ArrayLike | None = None, *, ax: Any = None
+    ) -> Figure:
+        """Loop, fit and residual for a record ``(input, output)`` (matplotlib figure); without
+        a record, the optimizer's convergence (:meth:`RunReport.plot`, on ``ax`` if given)."""
+        if input is None and output is None:
+            return super().plot(ax=ax)
+        if input is None or output is None:
+            raise ParameterTypeError("plot() needs both input and output (or neither, for the convergence plot)")
         import matplotlib.pyplot as plt
 
         v = as_record(input, "input")
         y = as_record(output, "output")
         yp = self.simulate(v)
-        fig, ax = plt.subplots(1, 3, figsize=(13, 3.8))
-        ax[0].plot(v, y, lw=0.8, label="measured")
-        ax[0].plot(v, yp, lw=0.8, label="model")
-        ax[0].set(xlabel="input", ylabel="output", title="hysteresis loop")
-        ax[0].legend()
-        ax[1].plot(y, lw=0.8, label="measured")
-        ax[1].plot(yp, lw=0.8, label="model")
-        ax[1].set(xlabel="sample", title="fit")
-        ax[2].plot(yp - y, lw=0.8)
-        ax[2].set(xlabel="sample", title="residual")
+        fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
+        axes[0].plot(v, y, lw=0.8, label="measured")
+        axes[0].plot(v, yp, lw=0.8, label="model")
+        axes[0].set(xlabel="input", ylabel="output", title="hysteresis loop")
+        axes[0].legend()
+        axes[1].plot(y, lw=0.8, label="measured")
+        axes[1].plot(yp, lw=0.8, label="model")
+        axes[1].set(xlabel="sample", title="fit")
+        axes[2].plot(yp - y, lw=0.8)
+        axes[2].set(xlabel="sample", title="residual")
         fig.tight_layout()
         return fig
 
 
-def minimize_huber(simulate, target, bounds, delta=None, **search):
+def minimize_huber(
+    simulate: Callable[[FloatArray], FloatArray],
+    target: FloatArray,
+    bounds: Sequence[tuple[float, float]],
+    delta: float | None = None,
+    **search: Any,
+) -> OptimizeResult:
     """Minimize the Huber cost of ``simulate(X) - target`` over a box with a population
     optimizer, then L-BFGS-B.
 
@@ -437,7 +601,7 @@ def minimize_huber(simulate, target, bounds, delta=None, **search):
 
     from ..optimize.core import minimize, polish_lbfgsb
 
-    def fixed(X):
+    def fixed(X: FloatArray) -> FloatArray:
         return huber_cost(simulate(X) - target, delta)
 
     if delta is not None:
@@ -449,12 +613,13 @@ def minimize_huber(simulate, target, bounds, delta=None, **search):
     if res.message == "interrupted" or not np.all(np.isfinite(r0)):
         return replace(res, history={**res.history, "huber_delta": float("nan")})
     tiny = 1e-15 * (float(np.max(np.abs(target))) or 1.0)  # an exact majority leaves MAD = 0
-    delta = max(float(default_huber_delta(r0)), tiny)
+    threshold = max(float(default_huber_delta(r0)), tiny)
+    delta = threshold
     lower, upper = np.array(bounds, dtype=np.float64).T
     x, f, n = polish_lbfgsb(fixed, x0, float(fixed(x0[None, :])[0]), lower, upper, {})
-    message = f"{res.message}; Huber threshold {delta:.6g} from the MAD, then L-BFGS-B to {f:.6g}"
+    message = f"{res.message}; Huber threshold {threshold:.6g} from the MAD, then L-BFGS-B to {f:.6g}"
     return replace(
-        res, x=x, fun=f, nfev=res.nfev + n + 1, message=message, history={**res.history, "huber_delta": delta}
+        res, x=x, fun=f, nfev=res.nfev + n + 1, message=message, history={**res.history, "huber_delta": threshold}
     )
 
 
@@ -463,24 +628,24 @@ CEMF_PARAMETERS = ("M", "B", "K", "tem", "alpha", "beta", "gamma")
 
 
 def identify_cemf(
-    voltage,
-    position,
-    fs,
+    voltage: npt.ArrayLike,
+    position: npt.ArrayLike,
+    fs: float,
     *,
-    capacitance=1.8e-6,
-    bounds=None,
-    optimizer="css",
-    rng=None,
-    max_iterations=150,
-    population_size=None,
-    substeps=1,
-    tolerance=0.05,
-    validate=None,
-    progress=False,
-    callback=None,
-    loss="squared",
-    huber_delta=None,
-    polish=False,
+    capacitance: float = 1.8e-6,
+    bounds: Sequence[tuple[float, float]] | None = None,
+    optimizer: str = "css",
+    rng: RngLike = None,
+    max_iterations: int = 150,
+    population_size: int | None = None,
+    substeps: int = 1,
+    tolerance: float = 0.05,
+    validate: tuple[npt.ArrayLike, npt.ArrayLike] | None = None,
+    progress: bool = False,
+    callback: Callback | None = None,
+    loss: str = "squared",
+    huber_delta: float | None = None,
+    polish: bool = False,
 ) -> IdentificationResult:
     """Grey-box identification of the CEMF stage model (seed 1) from the applied voltage and
     the measured displacement: ``M x'' + B x' + K x = Vin - Vh`` (``M = m/Tem``, ...) with
@@ -505,13 +670,14 @@ def identify_cemf(
     ``beta``, ``gamma`` with ``Cz K + Tem``.
 
     Returns an :class:`IdentificationResult` whose ``model`` is a :class:`piezohyst.StageParameters`;
-    its ``simulate`` predicts positions from voltages with the identified stage.
+    its ``simulate`` predicts positions from voltages with the identified stage; ``evaluations``
+    counts the search's simulations and the polish's.
     """
     from ..optimize.core import minimize
     from ..plant.stage import Amplifier, Stage, StageParameters
 
     t0 = time.perf_counter()
-    loss, delta = _check_loss(loss, huber_delta)
+    name, delta = _check_loss(loss, huber_delta)
     u = as_record(voltage, "voltage", min_length=2)
     x = as_record(position, "position", min_length=2)
     if x.size != u.size:
@@ -528,18 +694,18 @@ def identify_cemf(
         q = capacitance * float(np.ptp(u))  # charge scale, C
         bounds = [
             (k_lo / w_hi**2, k_hi / w_lo**2),
-            (0.0, 0.4 * np.sqrt(k_hi * k_hi / w_lo**2)),
+            (0.0, float(0.4 * np.sqrt(k_hi * k_hi / w_lo**2))),
             (k_lo, k_hi),
             (1.0, 50.0),
             (0.0, 4.0 / capacitance),
             (0.0, 30.0 / q),
             (-30.0 / q, 30.0 / q),
         ]
-    bounds = [(float(lo), float(hi)) for lo, hi in bounds]
-    if len(bounds) != len(CEMF_PARAMETERS):
-        raise ParameterError(f"bounds has {len(bounds)} pairs, expected {len(CEMF_PARAMETERS)} ({CEMF_PARAMETERS})")
+    box = [(float(lo), float(hi)) for lo, hi in bounds]
+    if len(box) != len(CEMF_PARAMETERS):
+        raise ParameterError(f"bounds has {len(box)} pairs, expected {len(CEMF_PARAMETERS)} ({CEMF_PARAMETERS})")
     wide = Amplifier(-1e9, 1e9)
-    template = Stage(
+    template: FloatArray = Stage(
         StageParameters(1.0, 0.0, 1.0, 1.0, capacitance),
         wide,
         sample_time=1.0 / fs,
@@ -547,7 +713,7 @@ def identify_cemf(
         tolerance=tolerance,
     ).core_params()
 
-    def rows(theta):
+    def rows(theta: FloatArray) -> FloatArray:
         theta = np.atleast_2d(theta)
         out = np.repeat(template[None, :], theta.shape[0], axis=0)
         M, B, K, tem = theta[:, 0], theta[:, 1], theta[:, 2], theta[:, 3]
@@ -555,24 +721,24 @@ def identify_cemf(
         out[:, 5], out[:, 6], out[:, 7] = theta[:, 4], theta[:, 5], theta[:, 6]
         return np.ascontiguousarray(out)
 
-    def unbounded(theta):
+    def unbounded(theta: FloatArray) -> npt.NDArray[np.bool_]:
         # Bouc-Wen (n = 1) keeps Vh bounded for every input only if beta >= |gamma|; a model
         # outside that may fit the record yet run away on another drive (or in an observer)
         theta = np.atleast_2d(theta)
         return theta[:, 5] < np.abs(theta[:, 6])
 
-    def cost(theta):
+    def cost(theta: FloatArray) -> FloatArray:
         c = _core.stage_batch_rmse(rows(theta), 1.0 / fs, substeps, tolerance, u, x, float("inf"))
         c[unbounded(theta)] = np.inf
         return c
 
-    def simulate(theta):
+    def simulate(theta: FloatArray) -> FloatArray:
         out = _stage_positions(rows(theta), 1.0 / fs, substeps, tolerance, u)
         out[unbounded(theta)] = np.nan
         return out
 
     method = "css" if optimizer == "ls" else optimizer
-    search = dict(
+    search: dict[str, Any] = dict(
         method=method,
         rng=rng,
         max_iterations=max_iterations,
@@ -582,26 +748,34 @@ def identify_cemf(
     )
     if not isinstance(polish, bool):
         raise ParameterTypeError(f"polish must be True or False, got {polish!r}")
-    if loss == "squared":
-        res = minimize(cost, bounds, **search)
+    if name == "squared":
+        res = minimize(cost, box, **search)
     else:
-        res = minimize_huber(simulate, x, bounds, delta, **search)
-    theta, history = np.array(res.x, dtype=np.float64), res.history
-    if polish and loss == "squared" and res.message != "interrupted" and np.isfinite(res.fun):
-        theta, info = _polish_simulation(simulate, x, theta, bounds)
-        history = {**res.history, "polish": info}
+        res = minimize_huber(simulate, x, box, delta, **search)
+    theta: FloatArray = np.array(res.x, dtype=np.float64)
+    history: dict[str, Any] = dict(res.history)
+    evaluations = int(res.nfev)
+    if polish and name == "squared" and res.message != "interrupted" and np.isfinite(res.fun):
+        theta, info = _polish_simulation(simulate, x, theta, box)
+        history["polish"] = info
+        evaluations += int(info["nfev"])
         method += "+least_squares"
-    M, B, K, tem, alpha, beta, gamma = theta
+    M, B, K, tem, alpha, beta, gamma = (float(t) for t in theta)
     params = StageParameters(M * tem, B * tem, K * tem, tem, capacitance, alpha, beta, gamma)
     stage = Stage(params, wide, sample_time=1.0 / fs, substeps=substeps, tolerance=tolerance)
-    train = fit_metrics(stage.simulate(u).position, x)
+    train = _fit_metrics(stage.simulate(u).position, x)
     val = None
     if validate is not None:
         vu = as_record(validate[0], "validate voltage")
         vx = as_record(validate[1], "validate position")
-        val = fit_metrics(stage.simulate(vu).position, vx)
-    if loss == "huber":
+        val = _fit_metrics(stage.simulate(vu).position, vx)
+    if name == "huber":
         method += "+huber"
+
+    def positions(u_: FloatArray) -> FloatArray:
+        p: FloatArray = stage.simulate(u_).position
+        return p
+
     return IdentificationResult(
         params,
         train,
@@ -609,12 +783,19 @@ def identify_cemf(
         method,
         time.perf_counter() - t0,
         history,
-        simulator=lambda u_: stage.simulate(u_).position,
+        simulator=positions,
         partial=res.interrupted,
+        evaluations=evaluations,
     )
 
 
-def _polish_simulation(simulate, target, x0, bounds, max_nfev=None):
+def _polish_simulation(
+    simulate: Callable[[FloatArray], FloatArray],
+    target: FloatArray,
+    x0: FloatArray,
+    bounds: Sequence[tuple[float, float]],
+    max_nfev: int | None = None,
+) -> tuple[FloatArray, dict[str, Any]]:
     """SciPy ``least_squares`` (``trf`` within ``bounds``, forward-difference Jacobian,
     ``x_scale="jac"``) on ``simulate(theta[None])[0] - target`` from ``x0``; a failed
     simulation (NaN row) returns a large constant residual. Returns ``(theta, info)`` with the
@@ -626,13 +807,13 @@ def _polish_simulation(simulate, target, x0, bounds, max_nfev=None):
     wall = np.full(target.size, 10.0)
     calls = 0
 
-    def fun(theta):
+    def fun(theta: FloatArray) -> FloatArray:
         nonlocal calls
         calls += 1
         r = (simulate(theta[None, :])[0] - target) / span
         return r if np.all(np.isfinite(r)) else wall
 
-    def rmse(theta):
+    def rmse(theta: FloatArray) -> float:
         return float(np.sqrt(np.mean(fun(theta) ** 2))) * span
 
     width = upper - lower
@@ -644,7 +825,7 @@ def _polish_simulation(simulate, target, x0, bounds, max_nfev=None):
         bounds=(lower, upper),
         method="trf",
         x_scale="jac",
-        diff_step=1e-6,
+        diff_step=np.full(start.size, 1e-6),  # one relative step per parameter (a scalar, broadcast)
         xtol=1e-12,
         ftol=1e-12,
         gtol=1e-12,
@@ -656,7 +837,7 @@ def _polish_simulation(simulate, target, x0, bounds, max_nfev=None):
     return (x1 if after < before else np.array(x0, dtype=np.float64)), info
 
 
-def _stage_positions(rows, ts, substeps, tolerance, u):
+def _stage_positions(rows: FloatArray, ts: float, substeps: int, tolerance: float, u: FloatArray) -> FloatArray:
     """``(S, N)`` open-loop positions of stage rows from rest, as ``stage_batch_rmse`` scores
     them; a NaN row where the core refuses the row or the run fails."""
     out = np.full((rows.shape[0], u.size), np.nan)

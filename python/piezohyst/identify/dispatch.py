@@ -10,28 +10,34 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import Any, TypeAlias
 
 import numpy as np
+import numpy.typing as npt
 
 from .. import _core
 from .._validate import as_int, as_record, as_scalar
 from ..errors import ParameterError, ParameterTypeError
-from ..models.boucwen_benchmark import FS, UPSAMPLE
+from ..models.boucwen_benchmark import FS, UPSAMPLE, BoucWenBenchmark
 from ..models.creep import Creep
 from ..models.differential import BoucWen
-from ..models.pi import RateDependentPI
+from ..models.pi import PI, RateDependentPI
 from ..optimize.core import minimize
 from .boucwen_benchmark import identify_boucwen_benchmark
 from .core import (
+    Callback,
+    FitResult,
+    FloatArray,
     IdentificationResult,
+    LinearModel,
+    RngLike,
     _check_loss,
     _default_thresholds,
-    fit_linear,
-    fit_metrics,
+    _fit_linear,
+    _fit_metrics,
+    _mpi_template,
+    _preisach_template,
     identify_cemf,
-    identify_mpi,
-    identify_pi,
-    identify_preisach,
     minimize_huber,
 )
 from .varpro import identify_vp
@@ -50,18 +56,18 @@ _VP_OPTIONS = ("envelope", "bounds", "polish", "starts")
 class _Call:
     """One :func:`identify` call, checked, as the kind's fitter sees it."""
 
-    input: object
-    output: object
+    input: npt.ArrayLike
+    output: npt.ArrayLike
     kind: str
-    fs: object
-    operators: object
-    levels: object
+    fs: float | None
+    operators: int
+    levels: int
     creep: int
     loss: str
-    delta: object
-    validate: tuple | None
-    search: dict
-    options: dict
+    delta: float | None
+    validate: tuple[npt.ArrayLike, npt.ArrayLike] | None
+    search: dict[str, Any]
+    options: dict[str, Any]
     t0: float
 
 
@@ -80,11 +86,18 @@ class _Kind:
 _REGISTRY: dict[str, _Kind] = {}
 
 
-def _register(kind: str, fit: Callable[[_Call], IdentificationResult], **spec) -> None:
-    _REGISTRY[kind] = _Kind(fit, **spec)
+def _register(
+    kind: str,
+    fit: Callable[[_Call], IdentificationResult],
+    *,
+    options: bool = False,
+    structure: bool = False,
+    iterations: int = 200,
+) -> None:
+    _REGISTRY[kind] = _Kind(fit, options, structure, iterations)
 
 
-def _boucwen_bounds(v, y):
+def _boucwen_bounds(v: FloatArray, y: FloatArray) -> list[tuple[float, float]]:
     """Search box for Bouc–Wen ``(a, beta, gamma, n = 1, d)`` from the data's scales."""
     dv = float(np.ptp(v)) or 1.0
     gain = float(np.ptp(y)) / dv
@@ -92,26 +105,26 @@ def _boucwen_bounds(v, y):
 
 
 def identify(
-    input,
-    output,
-    model="mpi",
+    input: npt.ArrayLike,
+    output: npt.ArrayLike,
+    model: str = "mpi",
     *,
-    fs=None,
-    operators=9,
-    levels=12,
-    structure="fixed",
-    creep=0,
-    optimizer="ls",
-    rng=None,
-    max_iterations=None,
-    population_size=None,
-    validate=None,
-    progress=False,
-    callback=None,
-    loss="squared",
-    huber_delta=None,
-    **options,
-):
+    fs: float | None = None,
+    operators: int = 9,
+    levels: int = 12,
+    structure: str = "fixed",
+    creep: int = 0,
+    optimizer: str = "ls",
+    rng: RngLike = None,
+    max_iterations: int | None = None,
+    population_size: int | None = None,
+    validate: tuple[npt.ArrayLike, npt.ArrayLike] | None = None,
+    progress: bool = False,
+    callback: Callback | None = None,
+    loss: str = "squared",
+    huber_delta: float | None = None,
+    **options: Any,
+) -> IdentificationResult:
     """Identify a hysteresis model from an input/output record (free-run simulation error).
 
     One entry point for every model kind: the linear families by least squares, the
@@ -241,7 +254,7 @@ def identify(
         raise ParameterTypeError(f"identify() got unexpected keyword arguments {sorted(options)} for model = {model!r}")
     if max_iterations is None:
         max_iterations = kind.iterations
-    search = dict(
+    search: dict[str, Any] = dict(
         optimizer=optimizer,
         rng=rng,
         max_iterations=max_iterations,
@@ -254,67 +267,97 @@ def identify(
     return kind.fit(call)
 
 
-def _free_run(fit):
+#: What a fitter of :func:`_free_run` returns: ``(model, method, history, partial, evaluations)``.
+_Fitted: TypeAlias = tuple[Any, str, dict[str, Any], bool, int]
+
+
+def _free_run(fit: Callable[[_Call, FloatArray, FloatArray], _Fitted]) -> Callable[[_Call], IdentificationResult]:
     """A fitter for the kinds identified here on one record: ``fit(call, v, y)`` gives
-    ``(model, method, history, partial)``; the metrics are the fitted model's free run."""
+    ``(model, method, history, partial, evaluations)`` from the validated record; the metrics
+    are the fitted model's free run. The records are validated here, once."""
 
     def run(c: _Call) -> IdentificationResult:
         v = as_record(c.input, "input", min_length=2)
         y = as_record(c.output, "output", min_length=2)
         if y.size != v.size:
             raise ParameterError(f"output has {y.size} samples, input has {v.size}; they must match")
-        fitted, method, history, partial = fit(c, v, y)
+        fitted, method, history, partial, evaluations = fit(c, v, y)
         if c.loss == "huber":
             method += "+huber"
-        train = fit_metrics(fitted.simulate(v), y)
+        train = _fit_metrics(fitted.simulate(v), y)
         val = None
         if c.validate is not None:
             vv = as_record(c.validate[0], "validate input")
             vy = as_record(c.validate[1], "validate output")
-            val = fit_metrics(fitted.simulate(vv), vy)
-        return IdentificationResult(fitted, train, val, method, time.perf_counter() - c.t0, history, partial=partial)
+            val = _fit_metrics(fitted.simulate(vv), vy)
+        return IdentificationResult(
+            fitted,
+            train,
+            val,
+            method,
+            time.perf_counter() - c.t0,
+            history,
+            partial=partial,
+            evaluations=evaluations,
+        )
 
     return run
 
 
 @_free_run
-def _fit_linear_kind(c, v, y):
-    return _identify_linear(c.kind, v, y, c.fs, c.operators, c.levels, c.loss, c.delta, c.creep), "ls", None, False
+def _fit_linear_kind(c: _Call, v: FloatArray, y: FloatArray) -> _Fitted:
+    fit = _identify_linear(c.kind, v, y, c.fs, c.operators, c.levels, c.loss, c.delta, c.creep)
+    return fit.model, "ls", {}, False, fit.evaluations
 
 
 @_free_run
-def _fit_boucwen(c, v, y):
+def _fit_boucwen(c: _Call, v: FloatArray, y: FloatArray) -> _Fitted:
     return _identify_boucwen(v, y, c.loss, c.delta, c.search)
 
 
-def _fit_cemf(c):
+def _fit_cemf(c: _Call) -> IdentificationResult:
     if c.fs is None:
         raise ParameterError("fs is required for model = 'cemf' (the stage is simulated at the sample time)")
     return identify_cemf(c.input, c.output, c.fs, loss=c.loss, huber_delta=c.delta, **c.search, **c.options)
 
 
-def _fit_benchmark(c):
+def _fit_benchmark(c: _Call) -> IdentificationResult:
     return _identify_benchmark(c.input, c.output, c.fs, c.loss, c.search, c.options)
 
 
-def _identify_linear(model, v, y, fs, operators, levels, loss, delta, creep=0):
-    """The least-squares kinds' fitted model."""
-    robust = {"loss": loss, "huber_delta": delta}
+def _identify_linear(
+    model: str,
+    v: FloatArray,
+    y: FloatArray,
+    fs: float | None,
+    operators: int,
+    levels: int,
+    loss: str,
+    delta: float | None,
+    creep: int = 0,
+) -> FitResult:
+    """The least-squares kinds' fit, from the validated record (the checks and their order
+    are those of :func:`identify_pi`, :func:`identify_mpi`, :func:`identify_preisach` and
+    :func:`fit_linear`, without validating the record again)."""
     lags = _default_creep(v.size, fs, creep)
+    template: LinearModel
     if model == "pi":
-        return identify_pi(v, y, operators=operators, creep=lags, **robust).model
-    if model in ("gpi", "mpi"):
-        return identify_mpi(v, y, operators=operators, creep=lags, **robust).model
-    if model == "preisach":
-        return identify_preisach(v, y, levels=levels, **robust).model
-    if fs is None:
-        raise ParameterError("fs is required for model = 'rdpi' (the rate needs the sample time)")
-    r = _default_thresholds(v, as_int(operators, "operators", minimum=1))
-    template = RateDependentPI(r, np.zeros(r.size), 1.0 / float(fs), 1.0, 0.0, creep=lags)
-    return fit_linear(template, v, y, **robust).model
+        r = _default_thresholds(v, as_int(operators, "operators", minimum=1))
+        template = PI(r, np.zeros(len(r)), 1.0, creep=lags)
+    elif model in ("gpi", "mpi"):
+        r = _default_thresholds(v, as_int(operators, "operators", minimum=1))
+        template = _mpi_template(v, r, None, None, lags)
+    elif model == "preisach":
+        template = _preisach_template(v, levels, None, 64)
+    else:
+        if fs is None:
+            raise ParameterError("fs is required for model = 'rdpi' (the rate needs the sample time)")
+        r = _default_thresholds(v, as_int(operators, "operators", minimum=1))
+        template = RateDependentPI(r, np.zeros(r.size), 1.0 / float(fs), 1.0, 0.0, creep=lags)
+    return _fit_linear(template, v, y, loss, delta)
 
 
-def _default_creep(n, fs, terms):
+def _default_creep(n: int, fs: float | None, terms: int) -> Creep | None:
     """``terms`` creep lags for a record of ``n`` samples at ``fs``: one time constant in the
     middle (in decades) of each of ``terms`` equal bands of ``[2 Ts, n Ts]``; ``None`` for 0."""
     if not terms:
@@ -327,8 +370,8 @@ def _default_creep(n, fs, terms):
     return Creep(1.0 / fs, 10.0 ** (lo + w * (np.arange(terms) + 0.5)), np.zeros(terms))
 
 
-def _identify_boucwen(v, y, loss, delta, search):
-    """Bouc–Wen by a population optimizer: ``(model, method, history)``."""
+def _identify_boucwen(v: FloatArray, y: FloatArray, loss: str, delta: float | None, search: dict[str, Any]) -> _Fitted:
+    """Bouc–Wen by a population optimizer: ``(model, method, history, partial, evaluations)``."""
     search = dict(search)
     search.pop("validate")
     optimizer = search.pop("optimizer")
@@ -337,20 +380,27 @@ def _identify_boucwen(v, y, loss, delta, search):
     bounds = _boucwen_bounds(v, y)
     if loss == "huber":
         # the rows stay inside the box, where every Bouc-Wen row is valid (n = 1, finite)
-        def simulate(rows):
+        def simulate(rows: FloatArray) -> FloatArray:
             return _core.batch_simulate(family, [], np.ascontiguousarray(rows), v)
 
         res = minimize_huber(simulate, y, bounds, delta, method=method, **search)
     else:
 
-        def cost(rows):
+        def cost(rows: FloatArray) -> FloatArray:
             return _core.batch_rmse(family, [], np.ascontiguousarray(rows), v, y, float("inf"))
 
         res = minimize(cost, bounds, method=method, polish=True, **search)
-    return BoucWen(*res.x), method, res.history, res.interrupted
+    return BoucWen(*np.asarray(res.x, dtype=np.float64)), method, dict(res.history), res.interrupted, int(res.nfev)
 
 
-def _identify_benchmark(u, y, fs, loss, search, options):
+def _identify_benchmark(
+    u: npt.ArrayLike,
+    y: npt.ArrayLike,
+    fs: float | None,
+    loss: str,
+    search: dict[str, Any],
+    options: dict[str, Any],
+) -> IdentificationResult:
     """Dispatch to :func:`piezohyst.identify.boucwen_benchmark.identify_boucwen_benchmark`."""
     if loss != "squared":
         # its cost is the RMSE computed inside the Rust batch call, with its own polish
@@ -358,10 +408,17 @@ def _identify_benchmark(u, y, fs, loss, search, options):
     search = dict(search)
     if search["optimizer"] == "ls":
         search["optimizer"] = "de"
-    fs = FS if fs is None else fs
-    res = identify_boucwen_benchmark(u, y, fs, **search, **options)
+    rate = FS if fs is None else fs
+    res = identify_boucwen_benchmark(u, y, rate, **search, **options)
     upsample, interpolation = options.get("upsample", UPSAMPLE), options.get("interpolation", "fft")
-    return replace(res, simulator=lambda u_: res.model.simulate(u_, fs, upsample, interpolation=interpolation))
+    model = res.model
+    assert isinstance(model, BoucWenBenchmark)  # what identify_boucwen_benchmark identifies
+
+    def simulator(u_: FloatArray) -> FloatArray:
+        out: FloatArray = model.simulate(u_, rate, upsample, interpolation=interpolation)
+        return out
+
+    return replace(res, simulator=simulator)
 
 
 # The registry: one entry per model kind, in the order of KINDS.

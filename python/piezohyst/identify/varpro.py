@@ -53,14 +53,20 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
+import numpy.typing as npt
 
 from .. import _core
 from .._validate import as_int, as_record, as_scalar
 from ..errors import ParameterError, ParameterTypeError
 from ..models.creep import Creep
 from ..models.pi import PI, Envelope, GeneralizedPI, RateDependentPI
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from .core import Callback, IdentificationResult, LinearModel, RngLike
 
 __all__ = ["ENVELOPES", "VP_KINDS", "identify_vp", "vp_parameters"]
 
@@ -76,17 +82,25 @@ PAD = 0.1
 #: Population iterations when ``max_iterations`` is not given.
 DEFAULT_ITERATIONS = 60
 
+FloatArray: TypeAlias = npt.NDArray[np.float64]
+#: A parameter's hard domain ``(lo, hi, lo_open)``, ``None`` for the whole real line.
+_Domain: TypeAlias = tuple[float, float, bool] | None
+#: A row of the parameter table: ``(name, default lower, default upper, domain)``.
+_Row: TypeAlias = tuple[str, float, float, _Domain]
+#: Bounds the caller gives: ``{name: (lower, upper) or value}``.
+BoundsSpec: TypeAlias = Mapping[str, Any]
+
 # (name, default lower, default upper, hard domain (lo, hi, lo_open)) per parameter group
-_SPREAD = [("spread", 0.1, 1.0, (0.0, math.inf, True))]
-_POLY_RISING = [("rising_q2", -0.5, 0.5, None), ("rising_q3", -0.5, 0.5, None)]
-_POLY_FALLING = [
+_SPREAD: list[_Row] = [("spread", 0.1, 1.0, (0.0, math.inf, True))]
+_POLY_RISING: list[_Row] = [("rising_q2", -0.5, 0.5, None), ("rising_q3", -0.5, 0.5, None)]
+_POLY_FALLING: list[_Row] = [
     ("falling_offset", -0.3, 0.3, None),
     ("falling_scale", 0.7, 1.3, (0.0, math.inf, True)),
     ("falling_q2", -0.5, 0.5, None),
     ("falling_q3", -0.5, 0.5, None),
 ]
-_TANH_RISING = [("rising_steepness", 0.05, 3.0, (0.0, math.inf, True)), ("rising_center", -1.5, 1.5, None)]
-_TANH_FALLING = [
+_TANH_RISING: list[_Row] = [("rising_steepness", 0.05, 3.0, (0.0, math.inf, True)), ("rising_center", -1.5, 1.5, None)]
+_TANH_FALLING: list[_Row] = [
     ("falling_offset", -0.3, 0.3, None),
     ("falling_scale", 0.7, 1.3, (0.0, math.inf, True)),
     ("falling_steepness", 0.05, 3.0, (0.0, math.inf, True)),
@@ -94,7 +108,9 @@ _TANH_FALLING = [
 ]
 
 
-def _tanh_shape_coefficients(a, b, offset, scale, c, h):
+def _tanh_shape_coefficients(
+    a: float, b: float, offset: float, scale: float, c: float, h: float
+) -> tuple[float, float, float, float]:
     """``Envelope.tanh`` coefficients of ``g(v) = c + h (offset + scale s(u))``, ``u = (v - c) / h``,
     ``s(u) = -1 + 2 (tanh(a u + b) - t0) / (t1 - t0)``, ``t0 = tanh(b - a)``, ``t1 = tanh(a + b)``."""
     t0, t1 = math.tanh(b - a), math.tanh(a + b)
@@ -105,7 +121,9 @@ def _tanh_shape_coefficients(a, b, offset, scale, c, h):
     return (k, a / h, b - a * c / h, c + h * (offset - scale) - k * t0)
 
 
-def _poly_shape_coefficients(q2, q3, offset, scale, c, h):
+def _poly_shape_coefficients(
+    q2: float, q3: float, offset: float, scale: float, c: float, h: float
+) -> tuple[float, float, float, float]:
     """``Envelope.polynomial`` coefficients of ``g(v) = c + h (offset + scale (u + q2 (u^2 - 1) +
     q3 (u^3 - u)))`` with ``u = (v - c) / h``, expanded in ``v``."""
     e0, e1, e2, e3 = offset - scale * q2, scale * (1.0 - q3), scale * q2, scale * q3
@@ -118,7 +136,7 @@ def _poly_shape_coefficients(q2, q3, offset, scale, c, h):
     )
 
 
-def vp_parameters(model="mpi", *, envelope="polynomial", creep=0) -> tuple:
+def vp_parameters(model: str = "mpi", *, envelope: str = "polynomial", creep: int = 0) -> tuple[str, ...]:
     """Names of the nonlinear parameters :func:`identify_vp` searches, in order.
 
     Examples
@@ -132,7 +150,7 @@ def vp_parameters(model="mpi", *, envelope="polynomial", creep=0) -> tuple:
     return tuple(p[0] for p in _groups(model, envelope, creep, None))
 
 
-def _groups(model, envelope, creep, scales):
+def _groups(model: str, envelope: str, creep: int, scales: dict[str, float] | None) -> list[_Row]:
     """The parameter table ``[(name, lower, upper, domain)]`` with data-scaled defaults."""
     if model not in VP_KINDS:
         raise ParameterError(
@@ -156,13 +174,15 @@ def _groups(model, envelope, creep, scales):
     return table
 
 
-def _search_box(table, bounds):
+def _search_box(
+    table: list[_Row], bounds: BoundsSpec | None
+) -> tuple[list[str], FloatArray, FloatArray, dict[str, float]]:
     """``(names, lower, upper, fixed)`` from the default table and the user's ``bounds``
     mapping ``{name: (lower, upper) or value}``, checked with messages naming the entry."""
     names = [t[0] for t in table]
     lower = {t[0]: t[1] for t in table}
     upper = {t[0]: t[2] for t in table}
-    fixed = {}
+    fixed: dict[str, float] = {}
     if bounds is not None:
         if not isinstance(bounds, dict):
             raise ParameterTypeError(
@@ -210,7 +230,18 @@ def _search_box(table, bounds):
 class _Problem:
     """The projected problem: candidate structure -> template model -> regressors -> weights."""
 
-    def __init__(self, model, v, y, fs, operators, envelope, creep, loss, delta):
+    def __init__(
+        self,
+        model: str,
+        v: FloatArray,
+        y: FloatArray,
+        fs: float | None,
+        operators: int,
+        envelope: str,
+        creep: int,
+        loss: str,
+        delta: float | None,
+    ):
         self.model, self.v, self.y, self.envelope, self.creep = model, v, y, envelope, creep
         self.loss, self.delta = loss, delta
         self.n = operators
@@ -234,10 +265,10 @@ class _Problem:
         self.table = _groups(model, envelope, creep, scales)
         self.names = [t[0] for t in self.table]
 
-    def template(self, p: dict):
+    def template(self, p: dict[str, float]) -> LinearModel:
         """The model of structure ``p`` (a dict of every parameter) with zero linear part;
         ``ValueError`` when the structure is invalid."""
-        r = np.arange(1, self.n + 1) * (p["spread"] * self.span / self.n)
+        r = np.arange(1, self.n + 1, dtype=np.float64) * (p["spread"] * self.span / self.n)
         creep = None
         if self.creep:
             taus = 10.0 ** np.array([p[f"log10_tau_{j + 1}"] for j in range(self.creep)])
@@ -266,7 +297,7 @@ class _Problem:
             rising = falling = None
         return GeneralizedPI(r, zeros, (0.0, 0.0, 0.0, 0.0), rising, falling, self.input_range, creep=creep)
 
-    def solve(self, template):
+    def solve(self, template: LinearModel) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """``(z, scale, A_scaled, fit)``: the bounded least-squares weights (equilibrated
         columns) of ``template`` and the fitted free-run output ``A z``."""
         from .core import _irls_huber, _layout
@@ -278,10 +309,10 @@ class _Problem:
         lbs, ubs = lb * scale, ub * scale
         z = _small_bounded_lstsq(A, self.y, lbs, ubs)
         if self.loss == "huber":
-            z = _irls_huber(A, self.y, (lbs, ubs), z, self.delta, _SmallSolver())
+            z, _ = _irls_huber(A, self.y, (lbs, ubs), z, self.delta, _small_solve)
         return z, scale, A, A @ z
 
-    def residual(self, p: dict):
+    def residual(self, p: dict[str, float]) -> FloatArray | None:
         """Free-run residual of the projected candidate, or ``None`` if it is invalid."""
         try:
             template = self.template(p)
@@ -291,7 +322,7 @@ class _Problem:
         r = fit - self.y
         return r if np.all(np.isfinite(r)) else None
 
-    def cost(self, p: dict) -> float:
+    def cost(self, p: dict[str, float]) -> float:
         from .core import huber_cost
 
         r = self.residual(p)
@@ -302,7 +333,7 @@ class _Problem:
         return float(np.sqrt(np.mean(r * r)))
 
 
-def _small_bounded_lstsq(A, y, lb, ub):
+def _small_bounded_lstsq(A: FloatArray, y: FloatArray, lb: FloatArray, ub: FloatArray) -> FloatArray:
     """``argmin ||A z - y||`` within ``lb <= z <= ub`` through the ``p x p`` triangle of the
     Gram matrix: ``A^T A = R^T R``, ``R^T d = A^T y`` turn it into ``min ||R z - d||`` (same
     minimizer), solved unconstrained when that respects the bounds, else by BVLS on the small
@@ -329,20 +360,14 @@ def _small_bounded_lstsq(A, y, lb, ub):
     return np.clip(lsq_linear(R, d, bounds=(lb, ub), method="bvls", lsmr_tol=None).x, lb, ub)
 
 
-class _SmallSolver:
-    """A stand-in for ``scipy.optimize.lsq_linear`` in :func:`piezohyst.identify._irls_huber`
-    (same call, ``.x`` on the result) that solves each reweighted problem through
-    :func:`_small_bounded_lstsq`: the IRLS of the Huber loss at the cost of ``p x p`` solves."""
-
-    class _Result:
-        def __init__(self, x):
-            self.x = x
-
-    def __call__(self, A, y, bounds, **_):
-        return self._Result(_small_bounded_lstsq(A, y, bounds[0], bounds[1]))
+def _small_solve(A: FloatArray, y: FloatArray, bounds: tuple[FloatArray, FloatArray]) -> FloatArray:
+    """The bounded solver of :func:`piezohyst.identify.core._irls_huber` that solves each
+    reweighted problem through :func:`_small_bounded_lstsq`: the IRLS of the Huber loss at the
+    cost of ``p x p`` solves."""
+    return _small_bounded_lstsq(A, y, bounds[0], bounds[1])
 
 
-def _mixed_nnls(R, d, free):
+def _mixed_nnls(R: FloatArray, d: FloatArray, free: npt.NDArray[np.bool_]) -> FloatArray:
     """``argmin ||R z - d||`` with ``z[~free] >= 0`` and ``z[free]`` unbounded: the free
     columns are projected out (QR), the rest is SciPy's NNLS, then the free part by back
     substitution. Exact, and much cheaper than BVLS for the small systems of the search."""
@@ -364,27 +389,27 @@ def _mixed_nnls(R, d, free):
 
 
 def identify_vp(
-    input,
-    output,
-    model="mpi",
+    input: npt.ArrayLike,
+    output: npt.ArrayLike,
+    model: str = "mpi",
     *,
-    fs=None,
-    operators=9,
-    envelope="polynomial",
-    creep=0,
-    bounds=None,
-    optimizer="de",
-    rng=None,
-    max_iterations=None,
-    population_size=None,
-    polish=True,
-    starts=3,
-    validate=None,
-    progress=False,
-    callback=None,
-    loss="squared",
-    huber_delta=None,
-):
+    fs: float | None = None,
+    operators: int = 9,
+    envelope: str = "polynomial",
+    creep: int = 0,
+    bounds: BoundsSpec | None = None,
+    optimizer: str = "de",
+    rng: RngLike = None,
+    max_iterations: int | None = None,
+    population_size: int | None = None,
+    polish: bool = True,
+    starts: int = 3,
+    validate: tuple[npt.ArrayLike, npt.ArrayLike] | None = None,
+    progress: bool = False,
+    callback: Callback | None = None,
+    loss: str = "squared",
+    huber_delta: float | None = None,
+) -> IdentificationResult:
     """Identify a PI-family model with its structure by variable projection (docs/spec.md §4).
 
     A population optimizer (:func:`piezohyst.optimize.minimize`) searches the nonlinear
@@ -435,7 +460,8 @@ def identify_vp(
     Returns
     -------
     IdentificationResult
-        ``method`` is ``"vp-<optimizer>"`` (``+polish``, ``+huber``); ``history`` holds the
+        ``method`` is ``"vp-<optimizer>"`` (``+polish``, ``+huber``); ``evaluations`` counts
+        the candidate structures evaluated (search and polish); ``history`` holds the
         optimizer's per-iteration history plus ``"parameters"`` (the searched names),
         ``"structure"`` (every structure parameter of the result by name) and, when polished,
         ``"polish"`` (costs before and after, evaluations, SciPy's message, the screened
@@ -451,7 +477,7 @@ def identify_vp(
     ('vp-de+polish', True)
     """
     from ..optimize.core import minimize, polish_lbfgsb
-    from .core import IdentificationResult, _check_loss, fit_linear, fit_metrics
+    from .core import IdentificationResult, _check_loss, _fit_linear, _fit_metrics
 
     t0 = time.perf_counter()
     loss, delta = _check_loss(loss, huber_delta)
@@ -493,14 +519,17 @@ def identify_vp(
     if max_iterations is None:
         max_iterations = DEFAULT_ITERATIONS
 
-    def full(x):
+    def full(x: FloatArray) -> dict[str, float]:
         p = dict(fixed)
         p.update(zip(names, (float(t) for t in x), strict=False))
         return p
 
-    seen_x, seen_f = [], []
+    seen_x: list[FloatArray] = []
+    seen_f: list[FloatArray] = []
 
-    def cost_batch(X):  # the population: a loop over candidates, each one Rust pass + a small solve
+    def cost_batch(
+        X: FloatArray,
+    ) -> FloatArray:  # the population: a loop over candidates, each one Rust pass + a small solve
         X = np.atleast_2d(X)
         f = np.array([problem.cost(full(x)) for x in X])
         seen_x.append(np.array(X, dtype=np.float64))
@@ -523,9 +552,10 @@ def identify_vp(
             "range): check the bounds"
         )
     x = np.array(res.x, dtype=np.float64)
-    history = dict(res.history)
+    history: dict[str, Any] = dict(res.history)
     history["parameters"] = tuple(names)
     method = "vp-" + (res.method or str(optimizer))
+    evaluations = int(res.nfev)
     if polish and res.message != "interrupted":
         before = float(res.fun)
         if loss == "squared":
@@ -534,7 +564,9 @@ def identify_vp(
             default = np.array([_default_value(problem, name, n) for name in names])
             candidates = _distinct(np.concatenate(seen_x), np.concatenate(seen_f), lower, upper, starts)
             candidates.append(np.clip(default, lower, upper))
-            screened, nfev, best = [], 0, None
+            screened: list[float] = []
+            nfev = 0
+            best: tuple[FloatArray, float] | None = None
             for x0 in candidates:
                 xs, k, _ = _gauss_newton(problem, full, x0, lower, upper, max_nfev=10 * (len(names) + 1))
                 fs_ = problem.cost(full(xs))
@@ -542,13 +574,15 @@ def identify_vp(
                 screened.append(fs_)
                 if best is None or fs_ < best[1]:
                     best = (xs, fs_)
+            assert best is not None  # candidates holds the default structure at least
             x1, k, message = _gauss_newton(problem, full, best[0], lower, upper)
             f1 = problem.cost(full(x1))
             nfev += k + 1
-            extra = {"screened": np.array(screened)}
+            extra: dict[str, Any] = {"screened": np.array(screened)}
         else:
             x1, f1, nfev = polish_lbfgsb(cost_batch, x, before, lower, upper, {})
             message, extra = "L-BFGS-B on the Huber cost", {}
+        evaluations += nfev
         if f1 < before:
             x = x1
         history["polish"] = {
@@ -561,8 +595,10 @@ def identify_vp(
         method += "+polish"
     structure = full(x)
     history["structure"] = structure
-    fitted = fit_linear(problem.template(structure), v, y, loss=loss, huber_delta=delta).model
-    train = fit_metrics(fitted.simulate(v), y)
+    final = _fit_linear(problem.template(structure), v, y, loss, delta)
+    fitted = final.model
+    evaluations += final.evaluations
+    train = _fit_metrics(fitted.simulate(v), y)
     val = None
     if validate is not None:
         vv = as_record(validate[0], "validate input")
@@ -571,13 +607,22 @@ def identify_vp(
             raise ParameterError(
                 f"validate output has {vy.size} samples, validate input has {vv.size}; they must match"
             )
-        val = fit_metrics(fitted.simulate(vv), vy)
+        val = _fit_metrics(fitted.simulate(vv), vy)
     if loss == "huber":
         method += "+huber"
-    return IdentificationResult(fitted, train, val, method, time.perf_counter() - t0, history, partial=res.interrupted)
+    return IdentificationResult(
+        fitted,
+        train,
+        val,
+        method,
+        time.perf_counter() - t0,
+        history,
+        partial=res.interrupted,
+        evaluations=evaluations,
+    )
 
 
-def _default_value(problem, name, n):
+def _default_value(problem: _Problem, name: str, n: int) -> float:
     """The fixed default structure's value of a parameter (identity envelopes, thresholds
     over half the span, no rate terms, creep lags in the middle of their bands)."""
     if name == "spread":
@@ -592,11 +637,12 @@ def _default_value(problem, name, n):
     return 0.0
 
 
-def _distinct(X, f, lower, upper, count):
+def _distinct(X: FloatArray, f: FloatArray, lower: FloatArray, upper: FloatArray, count: int) -> list[FloatArray]:
     """Up to ``count`` of the evaluated candidates ``X`` (costs ``f``), best first, no two
     within 10 % of the box's span of each other in every coordinate."""
     span = np.where(upper > lower, upper - lower, 1.0)
-    chosen, picked = [], []
+    chosen: list[FloatArray] = []
+    picked: list[FloatArray] = []
     for i in np.argsort(f, kind="stable"):
         if len(chosen) >= count or not np.isfinite(f[i]):
             break
@@ -607,7 +653,14 @@ def _distinct(X, f, lower, upper, count):
     return chosen
 
 
-def _gauss_newton(problem, full, x0, lower, upper, max_nfev=None):
+def _gauss_newton(
+    problem: _Problem,
+    full: Callable[[FloatArray], dict[str, float]],
+    x0: FloatArray,
+    lower: FloatArray,
+    upper: FloatArray,
+    max_nfev: int | None = None,
+) -> tuple[FloatArray, int, str]:
     """SciPy ``least_squares`` (``trf``, 2-point Jacobian, within the bounds) on the
     projected residual. An invalid structure returns a large constant residual, a wall the
     trust region backs off from. Returns ``(x, nfev, message)``."""
@@ -616,7 +669,7 @@ def _gauss_newton(problem, full, x0, lower, upper, max_nfev=None):
     wall = np.full(problem.y.size, 10.0 * problem.yspan)
     n_calls = 0
 
-    def fun(x):
+    def fun(x: FloatArray) -> FloatArray:
         nonlocal n_calls
         n_calls += 1
         r = problem.residual(full(x))
@@ -631,7 +684,7 @@ def _gauss_newton(problem, full, x0, lower, upper, max_nfev=None):
         bounds=(lower, upper),
         method="trf",
         x_scale=np.where(span > 0, span, 1.0),
-        diff_step=1e-7,
+        diff_step=np.full(x0.size, 1e-7),  # one relative step per parameter (a scalar, broadcast)
         xtol=1e-12,
         ftol=1e-12,
         gtol=1e-12,
