@@ -5,21 +5,45 @@ sub-steps, sensor with noise, quantization and delay. The loop runs in the Rust 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from functools import lru_cache
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import Field
+from functools import cached_property, lru_cache
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol, TypeAlias
 
 import numpy as np
+import numpy.typing as npt
 
 from .. import _core
 from .._validate import as_record
 from ..errors import ParameterError, ParameterTypeError
 from ..signals.metrics import tracking_metrics
+from ..signals.response import Response
 from .controllers import is_controller
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    import pandas as pd
+    from matplotlib.figure import Figure
+
+    from ..plant.stage import Stage
+
+FloatArray: TypeAlias = npt.NDArray[np.float64]
+RngLike: TypeAlias = int | np.integer[Any] | np.random.Generator | None
+"""A noise seed: a non-negative int, a NumPy ``Generator`` or ``None`` (seed 0)."""
+
+
+class ControllerLike(Protocol):
+    """What the closed loop runs: a controller configuration (a frozen dataclass such as
+    :class:`~piezohyst.PID`) that packs itself for the core."""
+
+    __dataclass_fields__: ClassVar[dict[str, Field[Any]]]
+
+    def core(self, stage: Stage) -> _core.ControllerSpec: ...
+
 
 __all__ = ["ClosedLoopResult", "closed_loop", "closed_loop_batch", "seed_from"]
 
 
-def seed_from(rng) -> int:
+def seed_from(rng: RngLike) -> int:
     """A 63-bit seed for the core's noise generator from an int, a Generator or None (0)."""
     if rng is None:
         return 0
@@ -38,49 +62,128 @@ def _seed_of_int(rng: int) -> int:
     return int(np.random.default_rng(rng).integers(0, 2**63 - 1))
 
 
-@dataclass(frozen=True)
-class ClosedLoopResult:
-    """Signals of one closed-loop run, one value per controller sample.
+class ClosedLoopResult(Response):
+    """Signals of one closed-loop run, one value per controller sample: a
+    :class:`~piezohyst.signals.Response` whose input is ``reference``.
 
     ``position`` is the true position at ``time``; ``measured`` the sensor reading the
     controller used at that sample; ``command`` the controller output; ``voltage`` the
-    amplifier output at the end of the period; ``terms`` the controller's internal terms.
+    amplifier output at the end of the period; ``terms`` the controller's internal terms
+    (also signals ``term_<name>``). ``skip_samples`` is the number of first samples the
+    ``metrics`` leave out (set by :func:`piezohyst.track`). The title is ``controller``.
+
+    Parameters
+    ----------
+    sample_time : float
+        Controller period, s.
+    reference, command, voltage, position, measured : array_like, shape (N,)
+    terms : mapping of str to array_like, shape (N,)
+    final_state : array_like
+        Stage state at the end ``[va, x, v, vh, creep[8]]``.
+    controller : str
+        Name of the controller that ran.
+    skip_samples : int
+        First samples left out of ``metrics`` (default 0).
     """
 
     sample_time: float
-    reference: np.ndarray
-    command: np.ndarray
-    voltage: np.ndarray
-    position: np.ndarray
-    measured: np.ndarray
-    terms: dict
-    final_state: np.ndarray
-    controller: str = ""
+    terms: dict[str, FloatArray]
+    final_state: FloatArray
+    controller: str
+    skip_samples: int
+
+    def __init__(
+        self,
+        sample_time: float,
+        reference: npt.ArrayLike,
+        command: npt.ArrayLike,
+        voltage: npt.ArrayLike,
+        position: npt.ArrayLike,
+        measured: npt.ArrayLike,
+        terms: Mapping[str, npt.ArrayLike],
+        final_state: npt.ArrayLike,
+        controller: str = "",
+        skip_samples: int = 0,
+    ) -> None:
+        ts = float(sample_time)
+        ref = np.asarray(reference, dtype=np.float64)
+        signals: dict[str, npt.ArrayLike] = {
+            "reference": ref,
+            "command": command,
+            "voltage": voltage,
+            "position": position,
+            "measured": measured,
+        }
+        signals.update({f"term_{k}": v for k, v in terms.items()})
+        super().__init__(
+            np.arange(ref.size) * ts,
+            signals,
+            inputs=["reference"],
+            units={"reference": "m", "command": "V", "voltage": "V", "position": "m", "measured": "m"},
+            final_state=final_state,
+            title=controller,
+        )
+        object.__setattr__(self, "sample_time", ts)
+        object.__setattr__(self, "terms", {k: self.signals[f"term_{k}"] for k in terms})
+        object.__setattr__(self, "controller", str(controller))
+        object.__setattr__(self, "skip_samples", int(skip_samples))
+
+    # the signals, typed (Response also reads them by name)
+    @property
+    def reference(self) -> FloatArray:
+        """Desired position per sample, m."""
+        return self.signals["reference"]
 
     @property
-    def time(self) -> np.ndarray:
-        """Sample instants, s."""
-        return np.arange(self.reference.size) * self.sample_time
+    def command(self) -> FloatArray:
+        """Controller output per sample, V."""
+        return self.signals["command"]
 
     @property
-    def metrics(self) -> dict:
+    def voltage(self) -> FloatArray:
+        """Amplifier output at the end of each period, V."""
+        return self.signals["voltage"]
+
+    @property
+    def position(self) -> FloatArray:
+        """True position at ``time``, m."""
+        return self.signals["position"]
+
+    @property
+    def measured(self) -> FloatArray:
+        """Sensor reading the controller used at each sample, m."""
+        return self.signals["measured"]
+
+    def _with_skip(self, k: int) -> ClosedLoopResult:
+        """The same run with ``metrics`` leaving out the first ``k`` samples."""
+        return type(self)(
+            self.sample_time,
+            self.reference,
+            self.command,
+            self.voltage,
+            self.position,
+            self.measured,
+            self.terms,
+            self.final_state,
+            self.controller,
+            k,
+        )
+
+    @cached_property
+    def metrics(self) -> dict[str, float]:
         """Tracking metrics of ``position`` against ``reference`` (see
         :func:`piezohyst.metrics.tracking_metrics`): RMSE and max error (m, and % of the
         reference range), seed-2-style normalized errors and the linearity error; from sample
         ``skip_samples`` on (set by :func:`piezohyst.track`); computed on first use."""
-        cached = self.__dict__.get("_metrics")
-        if cached is None:
-            k = self.__dict__.get("skip_samples", 0)
-            cached = tracking_metrics(self.reference[k:], self.position[k:])
-            object.__setattr__(self, "_metrics", cached)
-        return cached
+        k = self.skip_samples
+        return tracking_metrics(self.reference[k:], self.position[k:])
 
     @property
-    def error(self) -> np.ndarray:
+    def error(self) -> FloatArray:
         """Tracking error ``reference - position``, m."""
         return self.reference - self.position
 
-    def to_pandas(self):
+    def to_pandas(self) -> pd.DataFrame:
         """The signals as a ``pandas.DataFrame`` indexed by time (needs pandas)."""
         try:
             import pandas as pd
@@ -97,8 +200,14 @@ class ClosedLoopResult:
         cols.update({f"term_{k}": v for k, v in self.terms.items()})
         return pd.DataFrame(cols, index=pd.Index(self.time, name="time"))
 
-    def plot(self, *, zoom=None, ax=None):
-        """Tracking (µm) with the error below; ``zoom=(t0, t1)`` adds an inset window."""
+    def plot(
+        self, signals: Sequence[str] | None = None, *, zoom: tuple[float, float] | None = None, ax: Any = None
+    ) -> Figure:
+        """Tracking (µm) with the error below; ``zoom=(t0, t1)`` adds an inset window.
+
+        Naming ``signals`` gives :meth:`Response.plot`'s panels (one per unit) instead."""
+        if signals is not None:
+            return super().plot(signals, ax=ax)
         import matplotlib.pyplot as plt
 
         if ax is None:
@@ -122,7 +231,9 @@ class ClosedLoopResult:
         return fig
 
 
-def _derivatives(x, ts, velocity, acceleration, needed):
+def _derivatives(
+    x: FloatArray, ts: float, velocity: npt.ArrayLike | None, acceleration: npt.ArrayLike | None, needed: bool
+) -> tuple[FloatArray, FloatArray]:
     """Reference velocity and acceleration: given, or central differences when the controller
     uses them, or empty (the core reads zeros) when it does not."""
     if velocity is not None:
@@ -138,10 +249,10 @@ def _derivatives(x, ts, velocity, acceleration, needed):
     return v, a
 
 
-_EMPTY = np.zeros(0)
+_EMPTY: FloatArray = np.zeros(0)
 
 
-def _check_reference(stage, x):
+def _check_reference(stage: Stage, x: FloatArray) -> None:
     """Finite and within the stroke (two reductions over ``x``; the error names the first
     offending sample: a non-finite one before one beyond the stroke, as before)."""
     lowest, highest = x.min(), x.max()
@@ -159,7 +270,13 @@ def _check_reference(stage, x):
         )
 
 
-def _prepare(stage, controller, reference, velocity, acceleration):
+def _prepare(
+    stage: Stage,
+    controller: ControllerLike,
+    reference: npt.ArrayLike,
+    velocity: npt.ArrayLike | None,
+    acceleration: npt.ArrayLike | None,
+) -> tuple[FloatArray, FloatArray, FloatArray, _core.ControllerSpec]:
     if not is_controller(controller):
         raise ParameterTypeError(
             f"controller must be a piezohyst controller (OpenLoop, PID, ...), got {type(controller).__name__}"
@@ -176,7 +293,7 @@ def _prepare(stage, controller, reference, velocity, acceleration):
     return x, v, a, controller.core(stage)
 
 
-def _result(stage, x, d, controller) -> ClosedLoopResult:
+def _result(stage: Stage, d: Mapping[str, Any], controller: ControllerLike) -> ClosedLoopResult:
     names = list(d["term_names"])
     terms = {n: d["terms"][:, i] for i, n in enumerate(names)}
     return ClosedLoopResult(
@@ -193,7 +310,14 @@ def _result(stage, x, d, controller) -> ClosedLoopResult:
 
 
 def closed_loop(
-    stage, controller, reference, *, velocity=None, acceleration=None, rng=None, initial_state=None
+    stage: Stage,
+    controller: ControllerLike,
+    reference: npt.ArrayLike,
+    *,
+    velocity: npt.ArrayLike | None = None,
+    acceleration: npt.ArrayLike | None = None,
+    rng: RngLike = None,
+    initial_state: npt.ArrayLike | None = None,
 ) -> ClosedLoopResult:
     """Run ``controller`` on ``stage`` tracking ``reference`` (m, one value per sample).
 
@@ -240,10 +364,16 @@ def closed_loop(
         init,
         seed_from(rng),
     )
-    return _result(stage, x, d, controller)
+    return _result(stage, d, controller)
 
 
-def closed_loop_batch(stage, scenarios, *, rng=None, initial_state=None) -> list:
+def closed_loop_batch(
+    stage: Stage,
+    scenarios: Iterable[tuple[ControllerLike, npt.ArrayLike]],
+    *,
+    rng: RngLike = None,
+    initial_state: npt.ArrayLike | None = None,
+) -> list[ClosedLoopResult]:
     """Run many ``(controller, reference)`` scenarios in parallel on one stage.
 
     Each scenario gets its own noise seed drawn from ``rng``; results are identical whatever
@@ -251,7 +381,8 @@ def closed_loop_batch(stage, scenarios, *, rng=None, initial_state=None) -> list
     """
     seeds_rng = np.random.default_rng(seed_from(rng))
     init = stage.rest_state() if initial_state is None else as_record(initial_state, "initial_state")
-    prepared, core = [], []
+    prepared: list[ControllerLike] = []
+    core: list[tuple[_core.ControllerSpec, FloatArray, FloatArray, FloatArray, int]] = []
     for j, item in enumerate(scenarios):
         try:
             controller, reference = item
@@ -261,7 +392,7 @@ def closed_loop_batch(stage, scenarios, *, rng=None, initial_state=None) -> list
             x, v, a, spec = _prepare(stage, controller, reference, None, None)
         except (ValueError, TypeError) as e:
             raise type(e)(f"scenarios[{j}]: {e}") from None
-        prepared.append((x, controller))
+        prepared.append(controller)
         core.append((spec, x, v, a, int(seeds_rng.integers(0, 2**63 - 1))))
     s = stage.sensor
     out = _core.closed_loop_batch(
@@ -275,4 +406,4 @@ def closed_loop_batch(stage, scenarios, *, rng=None, initial_state=None) -> list
         core,
         init,
     )
-    return [_result(stage, x, d, c) for (x, c), d in zip(prepared, out, strict=False)]
+    return [_result(stage, d, c) for c, d in zip(prepared, out, strict=False)]

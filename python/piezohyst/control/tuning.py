@@ -12,21 +12,37 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from .. import _core
 from .._validate import as_record, as_scalar
 from ..errors import ComputationError, ParameterError, ParameterTypeError
+from ..optimize.report import RunReport
 from .controllers import is_controller
-from .simulation import ClosedLoopResult, _prepare, closed_loop, seed_from
+from .simulation import ClosedLoopResult, ControllerLike, FloatArray, RngLike, _prepare, closed_loop, seed_from
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from ..optimize.core import IntermediateResult, Optimizer
+    from ..plant.stage import Stage, StageParameters
+
 
 __all__ = ["TuningResult", "stage_from_model", "track", "tune"]
 
 
 def track(
-    controller, reference, *, stage=None, velocity=None, acceleration=None, rng=None, skip=0.0
+    controller: ControllerLike,
+    reference: npt.ArrayLike,
+    *,
+    stage: Stage | None = None,
+    velocity: npt.ArrayLike | None = None,
+    acceleration: npt.ArrayLike | None = None,
+    rng: RngLike = None,
+    skip: float = 0.0,
 ) -> ClosedLoopResult:
     """Track ``reference`` (m per controller sample) with ``controller`` on ``stage`` (default:
     the virtual stage). The result's ``metrics`` (RMSE, max error, % of range, linearity
@@ -49,51 +65,59 @@ def track(
     first = round(skip / stage.sample_time)
     if first >= res.reference.size - 1:
         raise ParameterError(f"skip = {skip} s leaves fewer than 2 of the reference's {res.reference.size} samples")
-    object.__setattr__(res, "skip_samples", first)
-    return res
+    return res._with_skip(first)
 
 
-def stage_from_model(stage, model):
+def stage_from_model(stage: Stage, model: StageParameters) -> Stage:
     """``stage`` (amplifier, sensor, loop rate) with its physics replaced by an identified
     CEMF model (:class:`StageParameters`): the plant on which gains are tuned."""
     return replace(stage, params=model)
 
 
 @dataclass(frozen=True)
-class TuningResult:
+class TuningResult(RunReport):
     """A tuned controller and how it got there.
 
     ``controller`` is the best configuration; ``rmse`` its tracking RMSE on the tuning plant
     (m, averaged over the references); ``gains`` the tuned values by name; ``history`` the
     optimizer's per-iteration history; ``wall_time`` in s. ``partial`` is ``True`` when
-    Ctrl-C stopped the search: the controller is the best found before it.
+    Ctrl-C stopped the search: the controller is the best found before it. As a
+    :class:`~piezohyst.optimize.RunReport`, ``evaluations`` is ``nfev``.
     """
 
-    controller: object
-    gains: dict
+    controller: ControllerLike
+    gains: dict[str, float]
     rmse: float
-    history: dict
+    history: dict[str, npt.NDArray[Any]]
     wall_time: float
     nfev: int
     partial: bool = False
 
+    @property
+    def evaluations(self) -> int:
+        """Candidate configurations simulated (``nfev``)."""
+        return self.nfev
+
+    def _headline(self) -> str:
+        return f"{type(self.controller).__name__} tuned: RMSE {self.rmse:.4g} m"
+
 
 def tune(
-    controller,
-    gains,
-    references,
+    controller: ControllerLike,
+    gains: dict[str, Sequence[float]],
+    references: npt.ArrayLike,
     *,
-    stage=None,
-    method="css",
-    max_iterations=40,
-    population_size=None,
-    rng=None,
-    skip=0.1,
-    saturation_limit=0.01,
-    log_scale=True,
-    variants=None,
-    progress=False,
-    callback=None,
+    stage: Stage | None = None,
+    method: str | type[Optimizer] = "css",
+    max_iterations: int = 40,
+    population_size: int | None = None,
+    rng: RngLike = None,
+    skip: float = 0.1,
+    saturation_limit: float = 0.01,
+    log_scale: bool = True,
+    variants: Iterable[Mapping[str, object]] | None = None,
+    progress: bool = False,
+    callback: Callable[[IntermediateResult], object] | None = None,
 ) -> TuningResult:
     """Tune ``gains`` of ``controller`` for the closed-loop tracking RMSE on ``stage``.
 
@@ -143,8 +167,14 @@ def tune(
         if log_scale and not lo > 0:
             raise ParameterError(f"gains[{n!r}] low = {lo} must be > 0 with log_scale=True")
         box.append((math.log10(lo), math.log10(hi)) if log_scale else (lo, hi))
-    refs = [references] if np.ndim(references) == 1 else list(references)
-    refs = [as_record(r, f"references[{j}]", min_length=2) for j, r in enumerate(refs)]
+    items: list[npt.ArrayLike]
+    if np.ndim(references) == 1:
+        items = [references]
+    elif isinstance(references, Iterable):
+        items = list(references)
+    else:
+        raise ParameterTypeError(f"references must be an array or a list of arrays, got {type(references).__name__}")
+    refs = [as_record(r, f"references[{j}]", min_length=2) for j, r in enumerate(items)]
     first = round(as_scalar(skip, "skip", nonnegative=True) / stage.sample_time)
     seeds = np.random.default_rng(seed_from(rng)).integers(0, 2**63 - 1, size=len(refs))
     s = stage.sensor
@@ -155,12 +185,13 @@ def tune(
             if n not in fields:
                 raise ParameterError(f"variants: {type(controller).__name__} has no field {n!r}")
 
-    def candidate(theta):
+    def candidate(theta: FloatArray) -> ControllerLike:
         values = 10.0**theta if log_scale else theta
         return replace(controller, **{n: float(v) for n, v in zip(names, values, strict=False)})
 
-    def cost(X):
-        scen, valid = [], []
+    def cost(X: FloatArray) -> FloatArray:
+        scen: list[tuple[_core.ControllerSpec, FloatArray, FloatArray, FloatArray, int]] = []
+        valid: list[bool] = []
         for row in X:
             try:
                 c = candidate(np.asarray(row))

@@ -40,15 +40,23 @@ True
 
 from __future__ import annotations
 
+import math
 import numbers
 import sys
 import time
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
+from typing import IO, TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
+import numpy.typing as npt
 
 from .._validate import as_int, as_scalar
 from ..errors import ComputationError, ParameterError, ParameterTypeError
+from .report import RunReport
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from scipy.optimize import Bounds
 
 __all__ = [
     "CSS",
@@ -65,10 +73,21 @@ __all__ = [
 ]
 
 
+FloatArray: TypeAlias = npt.NDArray[np.float64]
+BoundsLike: TypeAlias = "npt.ArrayLike | Bounds[Any, Any]"
+"""``(D, 2)`` pairs of ``(lower, upper)`` or a :class:`scipy.optimize.Bounds`."""
+RngLike: TypeAlias = int | np.integer[Any] | np.random.Generator | np.random.SeedSequence | None
+"""An int seed, a NumPy ``Generator`` (or ``SeedSequence``), or ``None`` for fresh entropy."""
+BatchObjective: TypeAlias = Callable[[FloatArray], npt.ArrayLike]
+"""``fun_batch(X) -> costs``: ``(S, D)`` candidates to ``(S,)`` costs."""
+Callback: TypeAlias = "Callable[[IntermediateResult], object]"
+"""``callback(intermediate_result)``; a true return value stops the run."""
+
+
 # --------------------------------------------------------------------------------------------
 # argument helpers
 # --------------------------------------------------------------------------------------------
-def _as_bounds(bounds) -> tuple[np.ndarray, np.ndarray]:
+def _as_bounds(bounds: BoundsLike) -> tuple[FloatArray, FloatArray]:
     """``(lower, upper)`` float arrays from ``(D, 2)`` pairs or a ``scipy.optimize.Bounds``."""
     if hasattr(bounds, "lb") and hasattr(bounds, "ub"):  # scipy.optimize.Bounds
         lo = np.atleast_1d(np.asarray(bounds.lb, dtype=np.float64))
@@ -104,7 +123,7 @@ def _as_bounds(bounds) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
-def _as_rng(rng) -> np.random.Generator:
+def _as_rng(rng: RngLike) -> np.random.Generator:
     if rng is None or isinstance(rng, (np.random.Generator, np.random.SeedSequence)):
         return np.random.default_rng(rng)
     if isinstance(rng, bool) or not isinstance(rng, (numbers.Integral, np.integer)):
@@ -114,7 +133,7 @@ def _as_rng(rng) -> np.random.Generator:
     return np.random.default_rng(int(rng))
 
 
-def _as_fraction(x, name: str, *, low: float = 0.0, high: float = 1.0, open_low: bool = False) -> float:
+def _as_fraction(x: object, name: str, *, low: float = 0.0, high: float = 1.0, open_low: bool = False) -> float:
     v = as_scalar(x, name)
     if v > high or v < low or (open_low and v == low):
         lo_br = "(" if open_low else "["
@@ -122,17 +141,17 @@ def _as_fraction(x, name: str, *, low: float = 0.0, high: float = 1.0, open_low:
     return v
 
 
-def _readonly(a: np.ndarray) -> np.ndarray:
-    a = np.array(a, copy=True)
-    a.setflags(write=False)
-    return a
+def _readonly(a: npt.ArrayLike) -> FloatArray:
+    out: FloatArray = np.array(a, copy=True)
+    out.setflags(write=False)
+    return out
 
 
 # --------------------------------------------------------------------------------------------
 # results
 # --------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
-class OptimizeResult:
+class OptimizeResult(RunReport):
     """The outcome of a run (modelled on :class:`scipy.optimize.OptimizeResult`).
 
     Attributes
@@ -161,17 +180,35 @@ class OptimizeResult:
         :meth:`Optimizer.result` from the first ``ask()`` to the last ``tell()``.
     method : str
         The optimizer's name.
+
+    As a :class:`~piezohyst.optimize.RunReport`: ``evaluations`` is ``nfev`` and ``partial``
+    is ``True`` when the run was interrupted or stopped by the callback (``x`` is then the
+    best point found before the stop).
     """
 
-    x: np.ndarray | None
+    x: FloatArray | None
     fun: float
     nit: int
     nfev: int
-    history: dict = field(repr=False)
+    history: dict[str, npt.NDArray[Any]] = field(repr=False)
     message: str
     success: bool
     wall_time: float
     method: str = ""
+
+    @property
+    def evaluations(self) -> int:
+        """Evaluated candidates (``nfev``)."""
+        return self.nfev
+
+    @property
+    def partial(self) -> bool:
+        """Stopped before its end: interrupted (Ctrl-C) or stopped by the callback."""
+        return self.interrupted or self.message.startswith("stopped by callback")
+
+    def _headline(self) -> str:
+        fun = "none" if self.x is None else f"{self.fun:.6g}"
+        return f"{self.method or 'optimizer'}: fun {fun} after {self.nit} iterations ({self.message})"
 
     @property
     def interrupted(self) -> bool:
@@ -198,7 +235,7 @@ class IntermediateResult:
         Mean of the finite costs of the last population (``inf`` if none was finite).
     """
 
-    x: np.ndarray
+    x: FloatArray | None
     fun: float
     nit: int
     nfev: int
@@ -238,7 +275,15 @@ class Optimizer:
     name = "optimizer"
     min_population = 4
 
-    def __init__(self, bounds, population_size=None, rng=None, max_iterations=200, *, init="lhs"):
+    def __init__(
+        self,
+        bounds: BoundsLike,
+        population_size: int | None = None,
+        rng: RngLike = None,
+        max_iterations: int = 200,
+        *,
+        init: str | npt.ArrayLike = "lhs",
+    ) -> None:
         self._lower, self._upper = _as_bounds(bounds)
         self._range = self._upper - self._lower
         D = self._lower.size
@@ -280,12 +325,12 @@ class Optimizer:
         self._asked = False
         self._iteration = 0
         self._nfev = 0
-        self._best_x: np.ndarray | None = None
+        self._best_x: FloatArray | None = None
         self._best_cost = np.inf
-        self._last_costs: np.ndarray | None = None
+        self._last_costs: FloatArray | None = None
         self._h_best: list[float] = []
         self._h_mean: list[float] = []
-        self._h_x: list[np.ndarray] = []
+        self._h_x: list[FloatArray] = []
         self._h_finite: list[int] = []
         self._h_nfev: list[int] = []
         self._t_start: float | None = None
@@ -293,7 +338,7 @@ class Optimizer:
 
     # -- properties ---------------------------------------------------------------------------
     @property
-    def bounds(self) -> np.ndarray:
+    def bounds(self) -> FloatArray:
         """``(D, 2)`` array of ``(lower, upper)``."""
         return np.stack([self._lower, self._upper], axis=1)
 
@@ -317,7 +362,7 @@ class Optimizer:
         return self._iteration >= self.max_iterations
 
     @property
-    def best_x(self) -> np.ndarray | None:
+    def best_x(self) -> FloatArray | None:
         """Best candidate so far (a copy), ``None`` before the first :meth:`tell`."""
         return None if self._best_x is None else self._best_x.copy()
 
@@ -327,12 +372,12 @@ class Optimizer:
         return float(self._best_cost)
 
     @property
-    def last_costs(self) -> np.ndarray | None:
+    def last_costs(self) -> FloatArray | None:
         """Costs of the last evaluated population (a copy)."""
         return None if self._last_costs is None else self._last_costs.copy()
 
     @property
-    def history(self) -> dict:
+    def history(self) -> dict[str, npt.NDArray[Any]]:
         """Per-iteration records as arrays (see :class:`OptimizeResult`)."""
         D = self.dimension
         return {
@@ -344,7 +389,7 @@ class Optimizer:
         }
 
     # -- ask / tell ---------------------------------------------------------------------------
-    def ask(self) -> np.ndarray:
+    def ask(self) -> FloatArray:
         """The population to evaluate next, shape ``(S, D)``, inside the bounds.
 
         Calling it again before :meth:`tell` returns the same population. Raises
@@ -360,7 +405,7 @@ class Optimizer:
         self._asked = True
         return self._pending.copy()
 
-    def tell(self, costs) -> None:
+    def tell(self, costs: npt.ArrayLike) -> None:
         """Report the costs of the population returned by the last :meth:`ask`.
 
         Parameters
@@ -389,9 +434,10 @@ class Optimizer:
         self._h_finite.append(n_finite)
         self._h_nfev.append(self._nfev)
         self._pending = self._clip(self._tell(X, f))
-        self._elapsed = time.perf_counter() - self._t_start
+        # ask() set the start before the first tell() (tell() needs a pending ask())
+        self._elapsed = time.perf_counter() - (self._t_start or 0.0)
 
-    def _check_costs(self, costs, name: str) -> np.ndarray:
+    def _check_costs(self, costs: npt.ArrayLike, name: str) -> FloatArray:
         try:
             f = np.array(costs, dtype=np.float64)
         except (TypeError, ValueError) as e:
@@ -456,10 +502,10 @@ class Optimizer:
         )
 
     # -- for subclasses -----------------------------------------------------------------------
-    def _clip(self, X):
+    def _clip(self, X: FloatArray) -> FloatArray:
         return np.clip(X, self._lower, self._upper)
 
-    def _tell(self, X: np.ndarray, f: np.ndarray) -> np.ndarray:  # pragma: no cover - abstract
+    def _tell(self, X: FloatArray, f: FloatArray) -> FloatArray:  # pragma: no cover - abstract
         raise NotImplementedError
 
     @property
@@ -471,7 +517,7 @@ class Optimizer:
 # --------------------------------------------------------------------------------------------
 # CSS
 # --------------------------------------------------------------------------------------------
-def css_charges(costs) -> np.ndarray:
+def css_charges(costs: npt.ArrayLike) -> FloatArray:
     """CSS charges ``q_i = (f_i - f_worst) / (f_best - f_worst)`` (Kaveh & Talatahari 2010).
 
     ``f_best`` and ``f_worst`` are the best and worst *finite* costs of the population.
@@ -497,7 +543,9 @@ def css_charges(costs) -> np.ndarray:
     return q
 
 
-def css_forces(positions, costs, *, a: float, eps: float, rand) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def css_forces(
+    positions: npt.ArrayLike, costs: npt.ArrayLike, *, a: float, eps: float, rand: npt.ArrayLike
+) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Charges, attraction matrix and resultant forces of one CSS step (docs/spec.md §4).
 
     With ``X_best`` the position of the best (finite) cost of the population:
@@ -637,18 +685,18 @@ class CSS(Optimizer):
 
     def __init__(
         self,
-        bounds,
-        population_size=None,
-        rng=None,
-        max_iterations=200,
+        bounds: BoundsLike,
+        population_size: int | None = None,
+        rng: RngLike = None,
+        max_iterations: int = 200,
         *,
-        cmcr=0.95,
-        par=0.1,
-        bandwidth=0.01,
-        eps=None,
-        init="lhs",
-        normalize=True,
-    ):
+        cmcr: float = 0.95,
+        par: float = 0.1,
+        bandwidth: float = 0.01,
+        eps: float | None = None,
+        init: str | npt.ArrayLike = "lhs",
+        normalize: bool = True,
+    ) -> None:
         super().__init__(bounds, population_size, rng, max_iterations, init=init)
         self.cmcr = _as_fraction(cmcr, "cmcr")
         self.par = _as_fraction(par, "par")
@@ -665,11 +713,11 @@ class CSS(Optimizer):
         self._cm_f = np.empty(0)
 
     @property
-    def charged_memory(self) -> tuple[np.ndarray, np.ndarray]:
+    def charged_memory(self) -> tuple[FloatArray, FloatArray]:
         """``(positions (M, D), costs (M,))`` of the charged memory, best first."""
         return self._cm_x.copy(), self._cm_f.copy()
 
-    def _update_memory(self, X, f):
+    def _update_memory(self, X: FloatArray, f: FloatArray) -> None:
         finite = np.isfinite(f)
         xs = np.concatenate([self._cm_x, X[finite]])
         fs = np.concatenate([self._cm_f, f[finite]])
@@ -679,7 +727,7 @@ class CSS(Optimizer):
         keep = np.sort(first)[: self.memory_size]
         self._cm_x, self._cm_f = xs[keep], fs[keep]
 
-    def _tell(self, X, f):
+    def _tell(self, X: FloatArray, f: FloatArray) -> FloatArray:
         N, D = X.shape
         rng = self._rng
         self._update_memory(X, f)
@@ -699,7 +747,7 @@ class CSS(Optimizer):
         self._V = (Xn - X) / scale
         return Xn
 
-    def _harmony_bounds(self, Xn):
+    def _harmony_bounds(self, Xn: FloatArray) -> FloatArray:
         out = ~((Xn >= self._lower) & (Xn <= self._upper))  # also catches non-finite
         j, d = np.nonzero(out)
         if j.size == 0:
@@ -765,17 +813,17 @@ class PSO(Optimizer):
 
     def __init__(
         self,
-        bounds,
-        population_size=None,
-        rng=None,
-        max_iterations=200,
+        bounds: BoundsLike,
+        population_size: int | None = None,
+        rng: RngLike = None,
+        max_iterations: int = 200,
         *,
-        w=0.7298,
-        c1=1.49618,
-        c2=1.49618,
-        vmax=0.2,
-        init="lhs",
-    ):
+        w: float = 0.7298,
+        c1: float = 1.49618,
+        c2: float = 1.49618,
+        vmax: float = 0.2,
+        init: str | npt.ArrayLike = "lhs",
+    ) -> None:
         super().__init__(bounds, population_size, rng, max_iterations, init=init)
         self.w = as_scalar(w, "w", nonnegative=True)
         self.c1 = as_scalar(c1, "c1", nonnegative=True)
@@ -783,11 +831,11 @@ class PSO(Optimizer):
         self.vmax = _as_fraction(vmax, "vmax", open_low=True)
         self._vlim = self.vmax * self._range
         self._V = (2.0 * self._rng.random((self.population_size, self.dimension)) - 1.0) * self._vlim
-        self._P = None
-        self._Pf = None
+        self._P: FloatArray | None = None
+        self._Pf: FloatArray | None = None
 
     @property
-    def velocities(self) -> np.ndarray:
+    def velocities(self) -> FloatArray:
         """Current velocities ``(S, D)`` (those that produced the pending population)."""
         return self._V.copy()
 
@@ -795,28 +843,29 @@ class PSO(Optimizer):
         """Inertia weight used after evaluating population ``it`` (0-based): constant ``w``."""
         return self.w
 
-    def _update_bests(self, X, f):
-        if self._P is None:
+    def _update_bests(self, X: FloatArray, f: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Update the personal bests; returns them and the global best."""
+        if self._P is None or self._Pf is None:
             self._P, self._Pf = X.copy(), f.copy()
         else:
             better = f < self._Pf
             self._P[better] = X[better]
             self._Pf[better] = f[better]
         g = int(np.argmin(self._Pf))
-        return self._P[g]
+        return self._P, self._P[g]
 
-    def _random_particle_term(self, X):
+    def _random_particle_term(self, X: FloatArray) -> FloatArray | float:
         return 0.0
 
-    def _tell(self, X, f):
-        G = self._update_bests(X, f)
+    def _tell(self, X: FloatArray, f: FloatArray) -> FloatArray:
+        P, G = self._update_bests(X, f)
         S, D = X.shape
         rng = self._rng
         r1 = rng.random((S, D))
         r2 = rng.random((S, D))
         V = (
             self.inertia(self._iteration - 1) * self._V
-            + self.c1 * r1 * (self._P - X)
+            + self.c1 * r1 * (P - X)
             + self.c2 * r2 * (G - X)
             + self._random_particle_term(X)
         )
@@ -864,19 +913,19 @@ class MPSO(PSO):
 
     def __init__(
         self,
-        bounds,
-        population_size=None,
-        rng=None,
-        max_iterations=200,
+        bounds: BoundsLike,
+        population_size: int | None = None,
+        rng: RngLike = None,
+        max_iterations: int = 200,
         *,
-        w_max=0.9,
-        w_min=0.4,
-        c1=1.5,
-        c2=1.5,
-        c3=0.5,
-        vmax=0.2,
-        init="lhs",
-    ):
+        w_max: float = 0.9,
+        w_min: float = 0.4,
+        c1: float = 1.5,
+        c2: float = 1.5,
+        c3: float = 0.5,
+        vmax: float = 0.2,
+        init: str | npt.ArrayLike = "lhs",
+    ) -> None:
         super().__init__(bounds, population_size, rng, max_iterations, w=w_max, c1=c1, c2=c2, vmax=vmax, init=init)
         self.w_max = as_scalar(w_max, "w_max", nonnegative=True)
         self.w_min = as_scalar(w_min, "w_min", nonnegative=True)
@@ -888,11 +937,14 @@ class MPSO(PSO):
         """``w(t) = w_min + (w_max - w_min) (1 - t/T)^2``, ``T = max_iterations``."""
         return self.w_min + (self.w_max - self.w_min) * (1.0 - it / self.max_iterations) ** 2
 
-    def _random_particle_term(self, X):
+    def _random_particle_term(self, X: FloatArray) -> FloatArray | float:
+        if self._P is None:  # pragma: no cover - _update_bests runs first
+            raise ComputationError("mpso: no personal bests yet")
         S, D = X.shape
         k = (np.arange(S) + self._rng.integers(1, S, size=S)) % S  # uniform over the others
         r3 = self._rng.random((S, D))
-        return self.c3 * r3 * (self._P[k] - X)
+        term: FloatArray = self.c3 * r3 * (self._P[k] - X)
+        return term
 
 
 # --------------------------------------------------------------------------------------------
@@ -935,7 +987,17 @@ class DE(Optimizer):
 
     name = "de"
 
-    def __init__(self, bounds, population_size=None, rng=None, max_iterations=200, *, F=0.7, CR=0.9, init="lhs"):
+    def __init__(
+        self,
+        bounds: BoundsLike,
+        population_size: int | None = None,
+        rng: RngLike = None,
+        max_iterations: int = 200,
+        *,
+        F: float | tuple[float, float] | list[float] | npt.NDArray[np.float64] = 0.7,
+        CR: float = 0.9,
+        init: str | npt.ArrayLike = "lhs",
+    ) -> None:
         super().__init__(bounds, population_size, rng, max_iterations, init=init)
         if isinstance(F, (tuple, list, np.ndarray)):
             if len(F) != 2:
@@ -944,21 +1006,23 @@ class DE(Optimizer):
             hi = _as_fraction(F[1], "F[1]", high=2.0, open_low=True)
             if lo > hi:
                 raise ParameterError(f"F = {tuple(F)}: lo > hi")
-            self.F = (lo, hi)
+            self.F: float | tuple[float, float] = (lo, hi)
         else:
             self.F = _as_fraction(F, "F", high=2.0, open_low=True)
         self.CR = _as_fraction(CR, "CR")
-        self._pop = None
-        self._popf = None
+        self._pop: FloatArray | None = None
+        self._popf: FloatArray | None = None
 
     @property
-    def population(self) -> tuple[np.ndarray, np.ndarray] | None:
+    def population(self) -> tuple[FloatArray, FloatArray] | None:
         """``(targets (S, D), costs (S,))`` of the current generation, ``None`` before the first ``tell``."""
-        return None if self._pop is None else (self._pop.copy(), self._popf.copy())
+        if self._pop is None or self._popf is None:
+            return None
+        return self._pop.copy(), self._popf.copy()
 
-    def _tell(self, X, f):
+    def _tell(self, X: FloatArray, f: FloatArray) -> FloatArray:
         rng = self._rng
-        if self._pop is None:
+        if self._pop is None or self._popf is None:
             self._pop, self._popf = X.copy(), f.copy()
         else:
             keep = f <= self._popf
@@ -981,7 +1045,7 @@ class DE(Optimizer):
         return np.where(cross, V, P)
 
 
-METHODS = {"css": CSS, "pso": PSO, "mpso": MPSO, "de": DE}
+METHODS: dict[str, type[Optimizer]] = {"css": CSS, "pso": PSO, "mpso": MPSO, "de": DE}
 """Method names accepted by :func:`minimize` and their classes."""
 
 
@@ -991,13 +1055,13 @@ METHODS = {"css": CSS, "pso": PSO, "mpso": MPSO, "de": DE}
 class _ProgressBar:
     """A dependency-free progress line on stderr, rewritten with ``\\r`` at most ~10 times/s."""
 
-    def __init__(self, name, total, stream=None, width=30):
+    def __init__(self, name: str, total: int, stream: IO[str] | None = None, width: int = 30) -> None:
         self.name, self.total, self.width = name, total, width
         self.stream = sys.stderr if stream is None else stream
-        self._last = -np.inf
+        self._last = -math.inf
         self._shown = False
 
-    def update(self, it, best, force=False):
+    def update(self, it: int, best: float, force: bool = False) -> None:
         now = time.perf_counter()
         if not force and now - self._last < 0.1 and it < self.total:
             return
@@ -1008,13 +1072,13 @@ class _ProgressBar:
         self.stream.flush()
         self._shown = True
 
-    def close(self):
+    def close(self) -> None:
         if self._shown:
             self.stream.write("\n")
             self.stream.flush()
 
 
-def _method_class(method):
+def _method_class(method: str | type[Optimizer]) -> type[Optimizer]:
     if isinstance(method, type) and issubclass(method, Optimizer):
         return method
     if isinstance(method, str) and method.lower() in METHODS:
@@ -1022,7 +1086,7 @@ def _method_class(method):
     raise ParameterError(f"method = {method!r} is not one of {sorted(METHODS)} (or an Optimizer subclass)")
 
 
-def _evaluate(fun_batch, X):
+def _evaluate(fun_batch: BatchObjective, X: FloatArray) -> FloatArray:
     out = fun_batch(X)
     try:
         f = np.array(out, dtype=np.float64)
@@ -1042,7 +1106,14 @@ def _evaluate(fun_batch, X):
     return f
 
 
-def polish_lbfgsb(fun_batch, x0, f0, lower, upper, options):
+def polish_lbfgsb(
+    fun_batch: BatchObjective,
+    x0: FloatArray,
+    f0: float,
+    lower: FloatArray,
+    upper: FloatArray,
+    options: Mapping[str, Any],
+) -> tuple[FloatArray, float, int]:
     """L-BFGS-B from ``x0`` with central-difference gradients, each value+gradient one batch
     call of ``2 D + 1`` rows. Returns ``(x, f, nfev)``."""
     from scipy.optimize import minimize as sp_minimize
@@ -1052,7 +1123,7 @@ def polish_lbfgsb(fun_batch, x0, f0, lower, upper, options):
     free = rng_ > 0
     nfev = 0
 
-    def fg(x):
+    def fg(x: FloatArray) -> tuple[float, FloatArray]:
         nonlocal nfev
         x = np.clip(x, lower, upper)
         h = np.cbrt(np.finfo(float).eps) * np.maximum(np.abs(x), 0.01 * rng_)
@@ -1078,8 +1149,8 @@ def polish_lbfgsb(fun_batch, x0, f0, lower, upper, options):
             return 1e300, g
         return fx, g
 
-    opts = {"maxiter": 200}
-    opts.update(options)
+    # the caller's L-BFGS-B options are free-form (SciPy checks them at run time)
+    opts: Any = {"maxiter": 200, **options}
     res = sp_minimize(fg, x0, jac=True, method="L-BFGS-B", bounds=list(zip(lower, upper, strict=False)), options=opts)
     x1 = np.clip(res.x, lower, upper)
     f1 = _evaluate(fun_batch, x1[None, :])[0]
@@ -1090,19 +1161,19 @@ def polish_lbfgsb(fun_batch, x0, f0, lower, upper, options):
 
 
 def minimize(
-    fun_batch,
-    bounds,
-    method="css",
+    fun_batch: BatchObjective,
+    bounds: BoundsLike,
+    method: str | type[Optimizer] = "css",
     *,
-    population_size=None,
-    max_iterations=200,
-    rng=None,
-    callback=None,
-    progress=False,
-    polish=False,
-    tol=None,
-    atol=0.0,
-    **options,
+    population_size: int | None = None,
+    max_iterations: int = 200,
+    rng: RngLike = None,
+    callback: Callback | None = None,
+    progress: bool = False,
+    polish: bool | Mapping[str, Any] = False,
+    tol: float | None = None,
+    atol: float = 0.0,
+    **options: Any,
 ) -> OptimizeResult:
     """Minimize a batch objective over a box with a population method.
 
@@ -1208,13 +1279,20 @@ def minimize(
             bar.update(opt.iteration, opt.best_cost, force=True)
             bar.close()
     res = opt.result(message=message, success=success)
-    if polish is not False and polish is not None and message != "interrupted" and np.isfinite(res.fun):
+    x0 = res.x  # not None once a finite cost was found
+    if (
+        polish is not False
+        and polish is not None
+        and message != "interrupted"
+        and np.isfinite(res.fun)
+        and x0 is not None
+    ):
         try:
             x, f, n = polish_lbfgsb(
-                fun_batch, res.x, res.fun, opt._lower, opt._upper, polish if isinstance(polish, dict) else {}
+                fun_batch, x0, res.fun, opt._lower, opt._upper, polish if isinstance(polish, Mapping) else {}
             )
         except KeyboardInterrupt:
-            x, f, n = res.x, res.fun, 0
+            x, f, n = x0, res.fun, 0
         note = (
             f"; L-BFGS-B polish improved fun from {res.fun:.6g} to {f:.6g}"
             if f < res.fun

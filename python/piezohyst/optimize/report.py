@@ -11,6 +11,7 @@ result is then the best found before the stop). :class:`RunReport` gives all of 
 from __future__ import annotations
 
 import html
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -27,10 +28,21 @@ class RunReport:
     """Mixin of the result classes: subclasses provide ``wall_time``, ``evaluations``,
     ``history`` and ``partial`` (as fields or properties) and a ``_headline()``."""
 
-    wall_time: float
-    evaluations: int
-    history: dict[str, Any] | None
-    partial: bool
+    # Declared as read-only properties for the type checker only: a subclass provides each as a
+    # dataclass field or as a property (a real property here would become a dataclass default).
+    if TYPE_CHECKING:  # pragma: no cover - typing only
+
+        @property
+        def wall_time(self) -> float: ...
+
+        @property
+        def evaluations(self) -> int: ...
+
+        @property
+        def history(self) -> Mapping[str, Any] | None: ...
+
+        @property
+        def partial(self) -> bool: ...
 
     def _headline(self) -> str:
         return type(self).__name__

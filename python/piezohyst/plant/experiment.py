@@ -6,12 +6,19 @@ stage (:func:`measure`), and an identification excitation with nested minor loop
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+import numpy.typing as npt
+
+from .stage import Stage
+
+FloatArray = npt.NDArray[np.float64]
 
 __all__ = ["excitation", "measure"]
 
 
-def measure(stage, command, rng):
+def measure(stage: Stage, command: npt.ArrayLike, rng: np.random.Generator) -> tuple[npt.NDArray[Any], FloatArray]:
     """What a lab records when it drives ``stage`` with ``command`` (V per sample): the
     command and the sensor reading (noise, quantization). The reading at ``k + 1`` shows the
     position the command at ``k`` produced, so the pair returned is aligned:
@@ -23,7 +30,9 @@ def measure(stage, command, rng):
     return np.asarray(command)[:-1], y[1:]
 
 
-def excitation(fs, seconds=2.0, freq=5.0, v_max=150.0, hold=0.4):
+def excitation(
+    fs: float, seconds: float = 2.0, freq: float = 5.0, v_max: float = 150.0, hold: float = 0.4
+) -> FloatArray:
     """Full-range sine from 0 V (``hold`` s of major loop), then a decaying envelope (nested
     minor loops) down to 20 %."""
     t = np.arange(round(seconds * fs)) / fs

@@ -36,7 +36,7 @@ __all__ = ["A7075_YOUNGS_MODULUS", "CemfCoefficients", "FlexureStage", "LeafSpri
 A7075_YOUNGS_MODULUS = 7.2e10
 
 
-def _set(obj, name, value):
+def _set(obj: object, name: str, value: object) -> None:
     object.__setattr__(obj, name, value)
 
 
@@ -79,7 +79,7 @@ class LeafSpring:
     length: float
     count: int = 4
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name in ("youngs_modulus", "width", "thickness", "length"):
             _set(self, name, as_scalar(getattr(self, name), name, positive=True))
         _set(self, "count", as_int(self.count, "count", minimum=1))
@@ -176,7 +176,7 @@ class FlexureStage:
     stage_mass: float
     zeta: float = 0.03
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name in ("actuator_stiffness", "flexure_stiffness", "zeta"):
             _set(self, name, as_scalar(getattr(self, name), name, nonnegative=True))
         for name in ("actuator_mass", "stage_mass"):
@@ -189,7 +189,7 @@ class FlexureStage:
 
     @classmethod
     def from_leaf_spring(
-        cls, leaf: LeafSpring, actuator_stiffness, actuator_mass, stage_mass, zeta=0.03
+        cls, leaf: LeafSpring, actuator_stiffness: float, actuator_mass: float, stage_mass: float, zeta: float = 0.03
     ) -> FlexureStage:
         """Stage guided by ``leaf`` (a :class:`LeafSpring`); ``k_f = leaf.stiffness``."""
         if not isinstance(leaf, LeafSpring):
@@ -197,7 +197,7 @@ class FlexureStage:
         return cls(actuator_stiffness, leaf.stiffness, actuator_mass, stage_mass, zeta)
 
     @classmethod
-    def seed1(cls, zeta=0.03) -> FlexureStage:
+    def seed1(cls, zeta: float = 0.03) -> FlexureStage:
         """Seed 1's stage: :meth:`LeafSpring.seed1` flexure (k_f = 1.333e7 N/m), PSt 150/5x5/20
         stack (k_z = 6e7 N/m), m_z = 0.0044 kg, m_f = 0.067 kg → keq = 7.333e7 N/m,
         meq = 0.0714 kg, f_n ≈ 5.1 kHz.
@@ -235,7 +235,7 @@ class FlexureStage:
         """Undamped natural frequency ``sqrt(keq / meq) / (2 pi)`` [Hz]."""
         return self.omega_n / (2.0 * math.pi)
 
-    def cemf_coefficients(self, tem) -> CemfCoefficients:
+    def cemf_coefficients(self, tem: float) -> CemfCoefficients:
         """CEMF-normalized plant ``M = meq/Tem, B = beq/Tem, K = keq/Tem`` (docs/spec.md §2.6).
 
         Parameters
@@ -258,7 +258,7 @@ class FlexureStage:
         return CemfCoefficients(self.meq / tem, self.beq / tem, self.keq / tem)
 
 
-def seed1_stage(zeta=0.03) -> FlexureStage:
+def seed1_stage(zeta: float = 0.03) -> FlexureStage:
     """Seed 1's flexure stage; same as :meth:`FlexureStage.seed1`.
 
     >>> f"{seed1_stage().f_n:.4g} Hz"

@@ -19,13 +19,19 @@ import json
 import math
 from dataclasses import dataclass, field, replace
 from importlib import resources
+from os import PathLike
+from typing import Any, TypeAlias
 
 import numpy as np
+import numpy.typing as npt
 
 from .. import _core
 from .._io import load_json_file, malformed_as
 from .._validate import as_int, as_record, as_scalar, as_vector
 from ..errors import ParameterError, ParameterTypeError
+from ..signals.response import Response
+
+FloatArray: TypeAlias = npt.NDArray[np.float64]
 
 __all__ = ["Amplifier", "Sensor", "Stage", "StageInfo", "StageParameters", "StageResponse", "virtual_stage"]
 
@@ -42,7 +48,7 @@ class Amplifier:
     bandwidth: float = math.inf
     slew_rate: float = math.inf
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         lo = as_scalar(self.v_min, "v_min")
         hi = as_scalar(self.v_max, "v_max")
         if not hi > lo:
@@ -62,7 +68,7 @@ class Sensor:
     noise_std: float = 0.0
     delay: int = 0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         as_scalar(self.quantization, "quantization", nonnegative=True)
         as_scalar(self.noise_std, "noise_std", nonnegative=True)
         d = as_int(self.delay, "delay")
@@ -88,10 +94,10 @@ class StageParameters:
     hyst_gamma: float = 0.0
     hyst_drive: str = "charge"
     electrostriction: float = 0.0
-    creep_taus: tuple = ()
-    creep_weights: tuple = ()
+    creep_taus: tuple[float, ...] = ()
+    creep_weights: tuple[float, ...] = ()
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name in ("mass", "stiffness", "tem", "capacitance"):
             as_scalar(getattr(self, name), name, positive=True)
         as_scalar(self.damping, "damping", nonnegative=True)
@@ -126,16 +132,64 @@ class StageParameters:
         return self.tem / self.stiffness
 
 
-@dataclass(frozen=True)
-class StageResponse:
-    """Open-loop response: signals per controller sample."""
+class StageResponse(Response):
+    """Open-loop response, one value per controller sample: a
+    :class:`~piezohyst.signals.Response` with the input ``command`` (V) and the outputs
+    ``voltage`` (amplifier, V), ``position`` (m) and ``cemf`` (CEMF voltage, V).
 
-    time: np.ndarray
-    command: np.ndarray
-    voltage: np.ndarray
-    position: np.ndarray
-    cemf: np.ndarray
-    final_state: np.ndarray
+    Parameters
+    ----------
+    time : array_like, shape (N,)
+        Sample instants, s.
+    command, voltage, position, cemf : array_like, shape (N,)
+    final_state : array_like
+        Stage state at the end ``[va, x, v, vh, creep[8]]``: pass it as the next run's
+        ``initial_state`` to continue.
+    title : str, optional
+        The stage's name.
+    """
+
+    final_state: FloatArray
+
+    def __init__(
+        self,
+        time: npt.ArrayLike,
+        command: npt.ArrayLike,
+        voltage: npt.ArrayLike,
+        position: npt.ArrayLike,
+        cemf: npt.ArrayLike,
+        final_state: npt.ArrayLike,
+        *,
+        title: str = "",
+    ) -> None:
+        super().__init__(
+            time,
+            {"command": command, "voltage": voltage, "position": position, "cemf": cemf},
+            inputs=["command"],
+            units={"command": "V", "voltage": "V", "position": "m", "cemf": "V"},
+            final_state=final_state,
+            title=title,
+        )
+
+    @property
+    def command(self) -> FloatArray:
+        """Voltage command held over each sample, V."""
+        return self.signals["command"]
+
+    @property
+    def voltage(self) -> FloatArray:
+        """Amplifier voltage at the end of each period, V."""
+        return self.signals["voltage"]
+
+    @property
+    def position(self) -> FloatArray:
+        """Position at each sample instant (before that sample's command acts), m."""
+        return self.signals["position"]
+
+    @property
+    def cemf(self) -> FloatArray:
+        """CEMF (hysteresis) voltage at the end of each period, V."""
+        return self.signals["cemf"]
 
 
 @dataclass(frozen=True)
@@ -148,9 +202,9 @@ class StageInfo:
     creep_percent_per_decade: float
     natural_frequency: float
     damping_ratio: float
-    details: dict = field(default_factory=dict)
+    details: dict[str, Any] = field(default_factory=dict)
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         return {
             "stroke_um": self.stroke * 1e6,
             "hysteresis_percent_1hz_full_range": self.hysteresis_percent,
@@ -185,7 +239,7 @@ class Stage:
     tolerance: float = 0.05
     name: str = ""
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         as_scalar(self.sample_time, "sample_time", positive=True)
         n = as_int(self.substeps, "substeps", minimum=1)
         if n > 10_000:
@@ -198,8 +252,9 @@ class Stage:
 
     # -- files --------------------------------------------------------------------------
     @classmethod
-    def from_dict(cls, d: dict) -> Stage:
-        """Build from the stage-file layout (see ``presets/virtual_stage.json``)."""
+    def from_dict(cls, d: object) -> Stage:
+        """Build from the stage-file layout (see ``presets/virtual_stage.json``): ``d`` is
+        the parsed JSON object (a dict; anything else raises ``ValueError``)."""
         if not isinstance(d, dict):
             raise ParameterError(f"a stage description must be a JSON object, got {type(d).__name__}")
         with malformed_as("the stage description"):
@@ -243,11 +298,11 @@ class Stage:
             )
 
     @classmethod
-    def from_file(cls, path) -> Stage:
+    def from_file(cls, path: str | PathLike[str]) -> Stage:
         """Read a stage file (JSON, the layout of the packaged virtual stage)."""
         return load_json_file(path, "stage file", cls.from_dict)
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         p = self.params
         return {
             "schema_version": 1,
@@ -281,12 +336,12 @@ class Stage:
             },
         }
 
-    def with_(self, **changes) -> Stage:
+    def with_(self, **changes: Any) -> Stage:
         """A copy with some fields replaced (``params``, ``amplifier``, ``sensor``, ...)."""
         return replace(self, **changes)
 
     # -- core layout ----------------------------------------------------------------------
-    def core_params(self) -> np.ndarray:
+    def core_params(self) -> FloatArray:
         """The flat parameter array of the Rust core (``StageParams::from_slice``)."""
         p, a = self.params, self.amplifier
         taus = list(p.creep_taus) + [1.0] * (MAX_CREEP - len(p.creep_taus))
@@ -311,13 +366,19 @@ class Stage:
         return np.array(head + taus + weights, dtype=np.float64)
 
     @staticmethod
-    def rest_state() -> np.ndarray:
+    def rest_state() -> FloatArray:
         """The state at rest: ``[va, x, v, vh, creep[8]]`` all zero."""
         return np.zeros(_core.STAGE_STATE_LEN)
 
     # -- simulation -----------------------------------------------------------------------
     def simulate(
-        self, command, *, initial_state=None, sample_time=None, substeps=None, tolerance=None
+        self,
+        command: npt.ArrayLike,
+        *,
+        initial_state: npt.ArrayLike | None = None,
+        sample_time: float | None = None,
+        substeps: int | None = None,
+        tolerance: float | None = None,
     ) -> StageResponse:
         """Open-loop response to a voltage command held over each sample.
 
@@ -334,9 +395,9 @@ class Stage:
         st = self.rest_state() if initial_state is None else as_record(initial_state, "initial_state")
         st = st.copy()
         x, va, vh = _core.stage_simulate(self.core_params(), ts, m, tol, u, st)
-        return StageResponse(np.arange(u.size) * ts, u, va, x, vh, st)
+        return StageResponse(np.arange(u.size) * ts, u, va, x, vh, st, title=self.name)
 
-    def check_command(self, u: np.ndarray, name: str = "command") -> None:
+    def check_command(self, u: FloatArray, name: str = "command") -> None:
         a = self.amplifier
         bad = np.flatnonzero((u < a.v_min) | (u > a.v_max))
         if bad.size:
@@ -408,7 +469,7 @@ class Stage:
         return float(100 * slope / xs[0])
 
 
-def _loop_width(u, x):
+def _loop_width(u: FloatArray, x: FloatArray) -> tuple[float, float]:
     """Output range and max loop width / range for one closed loop of (input, output)."""
     rng = float(np.ptp(x))
     du = np.gradient(u)
@@ -420,18 +481,18 @@ def _loop_width(u, x):
     return rng, float(np.max(np.abs(xd - xu)) / rng)
 
 
-def _number(section: dict, key: str) -> float:
+def _number(section: dict[str, Any], key: str) -> float:
     x = section[key]
     if isinstance(x, bool) or not isinstance(x, (int, float)):
         raise ParameterError(f"{key} = {x!r} must be a number")
     return float(x)
 
 
-def _inf(x):
+def _inf(x: float | str | None) -> float:
     return math.inf if x is None or x == "inf" else float(x)
 
 
-def _json_inf(x):
+def _json_inf(x: float) -> float | str:
     return "inf" if math.isinf(x) else x
 
 
