@@ -233,7 +233,7 @@ def seed1_case_studies(
     vh = plant.simulate(excitation(fs, 0.6)).cemf
     ks = 1.2 * float(np.max(np.abs(vh)))
     template = SMC(model, ks=ks, observer=VelocityObserver(300.0))
-    box = {"kp": (1e5, 3e7), "kv": (3e2, 1e4), "phi": (1e-3, 0.1)}
+    box: dict[str, Sequence[float]] = {"kp": (1e5, 3e7), "kv": (3e2, 1e4), "phi": (1e-3, 0.1)}
     seed = int(rng.integers(0, 2**31))
     cases = {"SMC+CEMF": [{"cemf": True}], "SMC": [{"cemf": False}], "both cases": [{"cemf": False}, {"cemf": True}]}
     tunings = {
