@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import argparse
 import sys
 
+from .common import _Parser
 
-def _bench_parser(sub) -> None:
+
+def _bench_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     b = sub.add_parser(
         "bench",
         help="run every benchmark in the source tree's bench/ and write one JSON + a "
@@ -30,7 +33,7 @@ def _bench_parser(sub) -> None:
     b.add_argument("--bench-dir", metavar="DIR", help="the bench/ directory (default: the source tree's)")
 
 
-def _bench(args) -> int:
+def _bench(args: argparse.Namespace) -> int:
     from ..papers.benchmarks import main as bench_main
 
     failed = bench_main(args)["failed"]

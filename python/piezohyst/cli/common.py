@@ -8,15 +8,41 @@ import json
 import math
 import re
 from pathlib import Path
+from typing import TYPE_CHECKING, NoReturn, TypedDict, Unpack
+
+import numpy as np
+import numpy.typing as npt
 
 from .._io import write_atomic
 from ..errors import ParameterError
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from ..models.model import HysteresisModel
+    from ..signals.data import Record
+
+#: A float array (signals, columns of records).
+FloatArray = npt.NDArray[np.float64]
+
+#: A sample range from the command line, ``A:B`` with either side optional.
+_Range = tuple[int | None, int | None]
+
+
+class _Columns(TypedDict, total=False):
+    """The column options of a record file, as :func:`~piezohyst.signals.data.load_record` takes them."""
+
+    input: str | int | None
+    output: str | int | None
+    time: str | int | None
+    fs: float | None
+    dataset: str | None
 
 
 class _Parser(argparse.ArgumentParser):
     """argparse whose usage errors are one line on stderr with exit code 2 (docs/spec.md §8, §10)."""
 
-    def error(self, message):
+    def error(self, message: str) -> NoReturn:
         msg = " ".join(str(message).split())
         self.exit(2, f"{self.prog}: error: {msg} (see {self.prog} --help)\n")
 
@@ -37,12 +63,12 @@ def _column_help(role: str, default: str) -> str:
     return f"{role} column, by name or 0-based index ({default})"
 
 
-def _atomic_savefig(fig, path) -> None:
+def _atomic_savefig(fig: Figure, path: str | Path) -> None:
     fmt = Path(path).suffix.lstrip(".").lower() or "png"
     write_atomic(path, writer=lambda tmp: fig.savefig(tmp, dpi=110, format=fmt))
 
 
-def _column(spec):
+def _column(spec: str | None) -> str | int | None:
     """A column spec from the command line: an integer string is a 0-based index."""
     if spec is None:
         return None
@@ -52,7 +78,7 @@ def _column(spec):
     return spec
 
 
-def _check_fs(fs):
+def _check_fs(fs: float | None) -> float | None:
     if fs is None:
         return None
     if not math.isfinite(fs) or fs <= 0:
@@ -60,13 +86,13 @@ def _check_fs(fs):
     return fs
 
 
-def _check_count(value, name, minimum=1):
+def _check_count(value: int | None, name: str, minimum: int = 1) -> int | None:
     if value is not None and value < minimum:
         raise _Fail(f"{name} = {value} must be >= {minimum}")
     return value
 
 
-def _existing_file(path, name) -> Path:
+def _existing_file(path: str | Path, name: str) -> Path:
     p = Path(path)
     if not p.exists():
         raise _Fail(f"{name} = '{path}': no such file")
@@ -75,7 +101,7 @@ def _existing_file(path, name) -> Path:
     return p
 
 
-def _writable(path, name, force) -> Path:
+def _writable(path: str | Path, name: str, force: bool) -> Path:
     p = Path(path)
     if p.is_dir():
         raise _Fail(f"{name} = '{path}' is a directory; give a file name")
@@ -90,12 +116,12 @@ def _writable(path, name, force) -> Path:
 _RANGE = re.compile(r"\s*([^:]*?)\s*:\s*([^:]*?)\s*")
 
 
-def _parse_range(text, name):
+def _parse_range(text: str, name: str) -> _Range:
     """``"A:B"`` with either side optional -> ``(A or None, B or None)``; non-negative integers."""
     m = _RANGE.fullmatch(text)
     if m is None:
         raise _Fail(f"{name} = '{text}' is not a sample range A:B (0-based, B exclusive; either side may be omitted)")
-    out = []
+    out: list[int | None] = []
     for part in m.groups():
         if part == "":
             out.append(None)
@@ -103,10 +129,10 @@ def _parse_range(text, name):
             out.append(int(part))
         else:
             raise _Fail(f"{name} = '{text}': {part!r} is not a sample index (a non-negative integer)")
-    return tuple(out)
+    return out[0], out[1]
 
 
-def _resolve_range(spec, n, name, text, what="DATA"):
+def _resolve_range(spec: _Range, n: int, name: str, text: str, what: str = "DATA") -> tuple[int, int]:
     a = 0 if spec[0] is None else spec[0]
     b = n if spec[1] is None else spec[1]
     if a >= n:
@@ -122,7 +148,7 @@ def _resolve_range(spec, n, name, text, what="DATA"):
     return a, b
 
 
-def _parse_validate(text):
+def _parse_validate(text: str | None) -> tuple[_Range | None, Path | None]:
     """``--validate``: a sample range of DATA, or a file. Returns ``(range, None)`` or ``(None, path)``."""
     if text is None:
         return None, None
@@ -146,7 +172,7 @@ def _named(e: Exception, prefix: str = "") -> _Fail:
     return _Fail(prefix + _ROLE.sub(r"--\1", msg))
 
 
-def _load(path, **kw):
+def _load(path: str | Path, **kw: Unpack[_Columns]) -> Record:
     from ..signals.data import load_record
 
     try:
@@ -155,11 +181,11 @@ def _load(path, **kw):
         raise _named(e) from None
 
 
-def _pct(x) -> str:
+def _pct(x: float) -> str:
     return f"{x:.4g} %"
 
 
-def _read_model(path: Path):
+def _read_model(path: Path) -> HysteresisModel:
     from ..models.model import model_from_dict
 
     try:

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 
+from .common import _Parser
 
-def _demo_parser(sub) -> None:
+
+def _demo_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     d = sub.add_parser(
         "demo",
         help="both papers end to end on the virtual stage: identify, compensate, track, "
@@ -18,11 +21,11 @@ def _demo_parser(sub) -> None:
     d.add_argument("--json", action="store_true", help="print the numbers as JSON")
 
 
-def _quiet(*a, **k) -> None:
+def _quiet(*a: object, **k: object) -> None:
     """Prints nothing (the demo's progress with ``--json``)."""
 
 
-def _demo(args) -> None:
+def _demo(args: argparse.Namespace) -> None:
     from ..papers.demo import run_demo
 
     quiet = _quiet if args.json else print

@@ -11,11 +11,12 @@ from .common import (
     _check_count,
     _existing_file,
     _Fail,
+    _Parser,
     _read_model,
 )
 
 
-def _export_c_parser(sub) -> None:
+def _export_c_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     e = sub.add_parser(
         "export-c",
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -58,7 +59,7 @@ def _export_c_parser(sub) -> None:
     e.add_argument("--debug", dest="sub_debug", action="store_true", help="show a traceback on errors")
 
 
-def _export_c(args) -> None:
+def _export_c(args: argparse.Namespace) -> None:
     from ..export import c as X
 
     model_path = _existing_file(args.model, "MODEL")

@@ -7,8 +7,10 @@ import json
 import math
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, TypedDict
 
 from .._io import write_atomic
+from ..identify.dispatch import KINDS
 from .common import (
     _FORMATS,
     _check_count,
@@ -20,19 +22,33 @@ from .common import (
     _load,
     _parse_range,
     _parse_validate,
+    _Parser,
     _pct,
     _resolve_range,
     _writable,
 )
 
-#: Model kinds of ``piezohyst identify`` (those of :func:`piezohyst.identify`).
-_KINDS = ("pi", "gpi", "mpi", "rdpi", "preisach", "boucwen", "cemf", "boucwen-benchmark")
+if TYPE_CHECKING:
+    from ..identify.core import IdentificationResult
+    from ..signals.data import Record
+    from .common import FloatArray, _Columns
+
+#: Model kinds of ``piezohyst identify``: those of :func:`piezohyst.identify`, from its registry
+#: (:data:`piezohyst.identify.KINDS`), in its order.
+_KINDS = KINDS
+
+
+class _Where(TypedDict):
+    """Where the validation data come from: a file and a sample range of it."""
+
+    source: str
+    range: list[int]
 
 
 _OPTIMIZERS = ("css", "pso", "mpso", "de", "ls")
 
 
-def _identify_parser(sub) -> None:
+def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     fmt = argparse.RawDescriptionHelpFormatter
     i = sub.add_parser(
         "identify",
@@ -185,7 +201,7 @@ def _identify_parser(sub) -> None:
     i.add_argument("--debug", dest="sub_debug", action="store_true", help="show a traceback on errors")
 
 
-def _identify(args) -> int:
+def _identify(args: argparse.Namespace) -> int:
     from ..identify.dispatch import identify
 
     _check_count(args.operators, "--operators")
@@ -194,7 +210,7 @@ def _identify(args) -> int:
     _check_count(args.population, "--population", minimum=2)
     if args.seed is not None and args.seed < 0:
         raise _Fail(f"--seed = {args.seed} must be >= 0")
-    extra = {}
+    extra: dict[str, Any] = {}
     if args.capacitance is not None:
         if args.model != "cemf":
             raise _Fail(f"--capacitance applies to --model cemf, not to --model {args.model}")
@@ -212,14 +228,15 @@ def _identify(args) -> int:
     if plot is not None and plot.resolve() == out.resolve():
         raise _Fail(f"--plot = '{args.plot}' is the same file as --out")
 
-    columns = dict(
+    columns: _Columns = dict(
         input=_column(args.input), output=_column(args.output), time=_column(args.time), fs=fs, dataset=args.dataset
     )
     if fs is None and args.time is None:
         raise _Fail("the sample rate is unknown: give --fs HZ or --time COL")
     rec = _load(data, **columns)
     n = rec.n
-    val = None
+    val: Record | None = None
+    val_where: _Where
     if val_spec is not None:
         c, d = _resolve_range(val_spec, n, "--validate", args.validate)
         if train_spec is None:
@@ -248,6 +265,7 @@ def _identify(args) -> int:
             val_where = {"source": str(val_file), "range": [0, val.n]}
     train = rec.trim(a, b) if (a, b) != (0, n) else rec
     fit_input, fit_output = train.input, train.output
+    validate: tuple[FloatArray, FloatArray] | tuple[FloatArray, FloatArray, tuple[int, int]] | None
     validate = None if val is None else (val.input, val.output)
     if args.model == "boucwen-benchmark":
         # the oscillator has a long memory: simulate DATA from its start (from rest, as the
@@ -315,6 +333,7 @@ def _identify(args) -> int:
         print(f"{args.model} identified by {res.method} in {res.wall_time:.3g} s -> {out}")
         rows = [("train", res.train, f"{data.name}[{a}:{b}], {b - a} samples")]
         if res.validation is not None:
+            assert val is not None  # validation metrics are those of val
             rows.append(
                 (
                     "validation",
@@ -337,16 +356,19 @@ def _identify(args) -> int:
     return 0
 
 
-def _model_document(res, kind, fs) -> dict:
+def _model_document(res: IdentificationResult, kind: str, fs: float) -> dict[str, Any]:
     """The model file's content (without the fit report): the model's own layout, a stage file
     for ``cemf``, the oscillator's parameters for ``boucwen-benchmark``."""
     if kind == "cemf":
-        from ..plant.stage import Amplifier, Stage
+        from ..plant.stage import Amplifier, Stage, StageParameters
 
+        assert isinstance(res.model, StageParameters)  # what identify_cemf returns
         return Stage(res.model, Amplifier(), sample_time=1.0 / fs, name="identified CEMF stage").to_dict()
     if kind == "boucwen-benchmark":
-        from ..models.boucwen_benchmark import UPSAMPLE
+        from ..models.boucwen_benchmark import UPSAMPLE, BoucWenBenchmark
         from ..models.model import SCHEMA_VERSION
+
+        assert isinstance(res.model, BoucWenBenchmark)  # what identify_boucwen_benchmark returns
 
         return {
             "schema_version": SCHEMA_VERSION,
@@ -356,4 +378,7 @@ def _model_document(res, kind, fs) -> dict:
             "upsample": UPSAMPLE,
             "units": {"input": "N", "output": "m"},
         }
+    from ..models.model import HysteresisModel
+
+    assert isinstance(res.model, HysteresisModel)  # the linear families and Bouc-Wen
     return res.model.to_dict()

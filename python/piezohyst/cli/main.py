@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable, Sequence
 
 from ..errors import PiezohystError
 from .bench import _bench, _bench_parser
@@ -41,7 +42,7 @@ def _parser() -> argparse.ArgumentParser:
 
 
 #: What each command runs; ``None`` or nothing returned means exit code 0.
-_COMMANDS = {
+_COMMANDS: dict[str, Callable[[argparse.Namespace], int | None]] = {
     "stage": _stage_info,
     "demo": _demo,
     "identify": _identify,
@@ -52,7 +53,7 @@ _COMMANDS = {
 }
 
 
-def main(argv=None) -> int:
+def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     debug = args.debug or getattr(args, "sub_debug", False)
     prog = (

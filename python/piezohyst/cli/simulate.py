@@ -8,6 +8,7 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .._io import write_atomic
 from .common import (
@@ -20,13 +21,18 @@ from .common import (
     _load,
     _named,
     _parse_range,
+    _Parser,
     _pct,
     _read_model,
     _writable,
 )
 
+if TYPE_CHECKING:
+    from ..models.model import HysteresisModel
+    from .common import FloatArray
 
-def _simulate_parser(sub) -> None:
+
+def _simulate_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     fmt = argparse.RawDescriptionHelpFormatter
     s = sub.add_parser(
         "simulate",
@@ -113,14 +119,16 @@ def _simulate_parser(sub) -> None:
     s.add_argument("--debug", dest="sub_debug", action="store_true", help="show a traceback on errors")
 
 
-def _model_ts(model):
+def _model_ts(model: HysteresisModel) -> float | None:
     ts = getattr(model, "ts", None)
     if ts is None:
         ts = getattr(getattr(model, "creep", None), "ts", None)
     return None if ts is None else float(ts)
 
 
-def _read_input(path: Path, input_spec, time_spec, dataset):
+def _read_input(
+    path: Path, input_spec: str | int | None, time_spec: str | int | None, dataset: str | None
+) -> tuple[FloatArray, FloatArray | None, float | None, dict[str, str]]:
     """The input column (and the time column when given) of a record file: what
     :func:`~piezohyst.data.load_record` reads, without requiring an output column."""
     from ..signals import data as D
@@ -174,6 +182,7 @@ def _read_input(path: Path, input_spec, time_spec, dataset):
             if close is not None:
                 close()
         if t is not None:
+            assert t_key is not None  # t was read from the time column
             if t.size != v.size:
                 raise _Fail(
                     f"{table.source}: time ({t_key[1]!r}) has {t.size} samples, input ({key[1]!r}) has "
@@ -194,7 +203,7 @@ def _read_input(path: Path, input_spec, time_spec, dataset):
         raise _named(e) from None
 
 
-def _simulate(args) -> None:
+def _simulate(args: argparse.Namespace) -> None:
     import numpy as np
 
     from ..identify.core import fit_metrics
@@ -272,7 +281,7 @@ def _simulate(args) -> None:
         return
     write_atomic(out, text, overwrite=args.force, name="--out")
 
-    def stats(a):
+    def stats(a: FloatArray) -> dict[str, float]:
         return {"min": float(np.min(a)), "max": float(np.max(a)), "mean": float(np.mean(a)), "range": float(np.ptp(a))}
 
     summary = {
@@ -297,8 +306,8 @@ def _simulate(args) -> None:
     print(f"{model.kind} simulated on {v.size} samples of {input_path.name} in {wall:.3g} s -> {out}")
     print(f"  output {summary['output']['min']:.6g} .. {summary['output']['max']:.6g}")
     if measured is not None:
-        e = summary["error"]
+        m = summary["error"]
         scored = f" (samples {a + args.score_from}:{b}" + (f", output lagged {args.lag}" if args.lag else "") + ")"
         print(
-            f"  vs measured: RMSE {_pct(e['rmse_percent'])} of range, max error {_pct(e['max_error_percent'])}{scored}"
+            f"  vs measured: RMSE {_pct(m['rmse_percent'])} of range, max error {_pct(m['max_error_percent'])}{scored}"
         )

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 
+from .common import _Parser
 
-def _stage_parser(sub) -> None:
+
+def _stage_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     st = sub.add_parser("stage", help="stage utilities")
     st_sub = st.add_subparsers(dest="stage_command", required=True)
     info = st_sub.add_parser("info", help="measure stroke, hysteresis, resonance and creep of a stage by simulation")
@@ -13,7 +16,7 @@ def _stage_parser(sub) -> None:
     info.add_argument("--json", action="store_true", help="print the numbers as JSON")
 
 
-def _stage_info(args) -> None:
+def _stage_info(args: argparse.Namespace) -> None:
     from ..plant.stage import Stage, virtual_stage
 
     stage = Stage.from_file(args.stage) if args.stage else virtual_stage()

@@ -5,11 +5,16 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .common import (
     _atomic_savefig,
     _Fail,
+    _Parser,
 )
+
+if TYPE_CHECKING:
+    from ..models.model import HysteresisModel
 
 _CONTROLLERS = ("open-loop", "pid", "inverse", "smc", "smc-cemf", "absmc")
 
@@ -17,7 +22,7 @@ _CONTROLLERS = ("open-loop", "pid", "inverse", "smc", "smc-cemf", "absmc")
 _REFERENCES = ("sine", "triangle", "variable-sine")
 
 
-def _track_parser(sub) -> None:
+def _track_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     t = sub.add_parser(
         "track",
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -56,7 +61,7 @@ def _track_parser(sub) -> None:
 _TRACK_MAX_SAMPLES = 10_000_000
 
 
-def _track(args) -> None:
+def _track(args: argparse.Namespace) -> None:
     import numpy as np
 
     from ..control.controllers import ABSMC, PID, SMC, Compensated, InverseFeedforward, OpenLoop, VelocityObserver
@@ -84,7 +89,7 @@ def _track(args) -> None:
     if args.plot and Path(args.plot).exists() and not args.force:
         raise _Fail(f"--plot {args.plot} exists; pass --force to overwrite it")
 
-    def hysteresis_model():
+    def hysteresis_model() -> HysteresisModel:
         if args.model:
             from ..models.model import load_model
 
@@ -94,9 +99,14 @@ def _track(args) -> None:
         t = np.arange(int(2.0 * fs)) / fs
         u = 75 - 75 * np.clip(1 - 0.5 * t, 0.2, 1.0) * np.cos(2 * np.pi * 5 * t)
         x = stage.simulate(u).position
-        return identify_mpi(u[:-1], x[1:], operators=9).model
+        from ..models.model import HysteresisModel
+
+        model = identify_mpi(u[:-1], x[1:], operators=9).model
+        assert isinstance(model, HysteresisModel)  # an MPI model
+        return model
 
     kind = args.controller
+    c: OpenLoop | PID | SMC | InverseFeedforward | Compensated
     if kind == "open-loop":
         c = OpenLoop()
     elif kind == "pid":

@@ -18,6 +18,7 @@ Examples
 
 from __future__ import annotations
 
+import argparse
 import datetime as _dt
 import json
 import os
@@ -25,9 +26,10 @@ import platform
 import subprocess
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, TypedDict
 
 from .._io import write_atomic
 from ..errors import DataError, ParameterError
@@ -35,6 +37,29 @@ from ..errors import DataError, ParameterError
 __all__ = ["BENCHMARKS", "Benchmark", "find_bench_dir", "run_suite", "summarize", "to_markdown", "update_readme"]
 
 BEGIN, END = "<!-- bench:begin -->", "<!-- bench:end -->"
+
+#: A benchmark's JSON result, as parsed (its layout is the script's).
+Json = dict[str, Any]
+
+#: One row of the summary table.
+Row = TypedDict(
+    "Row",
+    {
+        "figure": str,
+        "value": Any,
+        "unit": str,
+        "baseline": str,
+        "baseline_value": Any,
+        "ratio": Any,
+        "ratio_label": str,
+        "target": str | None,
+        "pass": Any,
+    },
+)
+
+#: ``print`` or a stand-in, for the progress lines (called with ``flush=True``; ``print``'s
+#: overloads fit no single protocol signature).
+_Print = Callable[..., object]
 
 
 @dataclass(frozen=True)
@@ -46,13 +71,24 @@ class Benchmark:
     script: str
     what: str
     quick_args: tuple[str, ...]
-    rows: Callable[[dict], list[dict]] = field(repr=False)
+    rows: Callable[[Json], list[Row]] = field(repr=False)
 
     def result_path(self, results: Path) -> Path:
         return results / f"{self.name}.json"
 
 
-def _row(figure, value, unit, baseline, baseline_value, *, ratio=None, ratio_label="", target=None, passed=None):
+def _row(
+    figure: str,
+    value: Any,
+    unit: str,
+    baseline: str,
+    baseline_value: Any,
+    *,
+    ratio: Any = None,
+    ratio_label: str = "",
+    target: str | None = None,
+    passed: Any = None,
+) -> Row:
     """One table row; ``ratio`` is how many times better than the baseline (None: not a
     speed/accuracy ratio)."""
     return {
@@ -68,8 +104,8 @@ def _row(figure, value, unit, baseline, baseline_value, *, ratio=None, ratio_lab
     }
 
 
-def _pi_batch_rows(d):
-    rows = []
+def _pi_batch_rows(d: Json) -> list[Row]:
+    rows: list[Row] = []
     for w in d["workloads"]:
         p2 = w["piezohyst"]["2_thread"]["updates_per_s"]
         sp = w["speedup"]
@@ -106,8 +142,8 @@ def _pi_batch_rows(d):
     return rows
 
 
-def _closed_loop_rows(d):
-    rows = []
+def _closed_loop_rows(d: Json) -> list[Row]:
+    rows: list[Row] = []
     for name, e in d["closed_loop_rtf"].items():
         rows.append(
             _row(
@@ -156,13 +192,13 @@ def _closed_loop_rows(d):
     return rows
 
 
-def _identify_mpi_rows(d):
+def _identify_mpi_rows(d: Json) -> list[Row]:
     h = d["headline"]
-    by_kind: dict[str, list] = {}
+    by_kind: dict[str, list[Json]] = {}
     for r in d["runs"]:
         by_kind.setdefault(r["method"], []).append(r)
-    rows = []
-    a = by_kind.get("a", [None])[0]
+    rows: list[Row] = []
+    a: Json | None = by_kind.get("a", [None])[0]
     for kind, label in (("b", "MPSO alone (median over seeds)"), ("c", "pyswarms + NumPy")):
         runs = by_kind.get(kind)
         if not runs:
@@ -189,8 +225,8 @@ def _identify_mpi_rows(d):
     return rows
 
 
-def _c_step_rows(d):
-    rows = []
+def _c_step_rows(d: Json) -> list[Row]:
+    rows: list[Row] = []
     base = (d.get("rust_api_baseline") or {}).get("results", {})
     # the C cases whose Rust-API counterpart has another name (the rest share theirs)
     rust_name = {
@@ -218,8 +254,8 @@ def _c_step_rows(d):
     return rows
 
 
-def _control_rows(d):
-    rows = []
+def _control_rows(d: Json) -> list[Row]:
+    rows: list[Row] = []
     s1 = d["seed1_table3"]
     key = next(iter(s1["rmse_um"]))
     for ref, r in s1["rmse_um"][key].items():
@@ -281,8 +317,8 @@ def _control_rows(d):
     return rows
 
 
-def _demo_rows(d):
-    rows = []
+def _demo_rows(d: Json) -> list[Row]:
+    rows: list[Row] = []
     for mode, r in d["runs"].items():
         rows.append(
             _row(
@@ -327,7 +363,7 @@ BENCHMARKS: tuple[Benchmark, ...] = (
 _BY_NAME = {b.name: b for b in BENCHMARKS}
 
 
-def find_bench_dir(explicit=None) -> Path:
+def find_bench_dir(explicit: str | Path | None = None) -> Path:
     """The ``bench/`` directory of the source tree this package was built from (or
     ``explicit``)."""
     if explicit is not None:
@@ -345,7 +381,7 @@ def find_bench_dir(explicit=None) -> Path:
     )
 
 
-def select(only=None, skip=None) -> list[Benchmark]:
+def select(only: Sequence[str] | None = None, skip: Sequence[str] | None = None) -> list[Benchmark]:
     for arg, names in (("--only", only), ("--skip", skip)):
         for n in names or ():
             if n not in _BY_NAME:
@@ -356,12 +392,14 @@ def select(only=None, skip=None) -> list[Benchmark]:
     return chosen
 
 
-def run_suite(benchmarks, bench_dir: Path, results: Path, *, quick=False, print_fn=print) -> dict[str, dict]:
+def run_suite(
+    benchmarks: Sequence[Benchmark], bench_dir: Path, results: Path, *, quick: bool = False, print_fn: _Print = print
+) -> dict[str, dict[str, Any]]:
     """Run each benchmark script in a fresh subprocess, writing its JSON to ``results``.
     A failing script is recorded (exit code and the end of its stderr) and the others still
     run. Returns ``{name: {"status", "wall_s", ...}}``."""
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", PYTHONUNBUFFERED="1")
-    status = {}
+    status: dict[str, dict[str, Any]] = {}
     for i, b in enumerate(benchmarks, 1):
         out = b.result_path(results)
         cmd = [sys.executable, str(bench_dir / b.script), "--out", str(out), *(b.quick_args if quick else ())]
@@ -387,10 +425,12 @@ def run_suite(benchmarks, bench_dir: Path, results: Path, *, quick=False, print_
     return status
 
 
-def summarize(benchmarks, results: Path, run_status: dict | None = None) -> dict:
+def summarize(
+    benchmarks: Sequence[Benchmark], results: Path, run_status: dict[str, dict[str, Any]] | None = None
+) -> Json:
     """One summary from the JSON files in ``results``: per benchmark its rows, the time
     its JSON was written and the machine it ran on."""
-    out = {
+    out: Json = {
         "benchmark": "suite",
         "timestamp_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         "python": platform.python_version(),
@@ -436,7 +476,7 @@ def summarize(benchmarks, results: Path, run_status: dict | None = None) -> dict
     return out
 
 
-def _num(x, unit="") -> str:
+def _num(x: float | None, unit: str = "") -> str:
     if x is None:
         return "—"
     if unit == "updates/s":
@@ -452,11 +492,11 @@ def _num(x, unit="") -> str:
     return f"{x:.3g}"
 
 
-def _times(x) -> str:
+def _times(x: float) -> str:
     return f"{x:.3g}×" if x < 100 else f"{x:.0f}×"
 
 
-def to_markdown(summary: dict) -> str:
+def to_markdown(summary: Json) -> str:
     """The summary as one Markdown table plus a provenance line per benchmark."""
     lines = [
         "| benchmark | figure | piezohyst | baseline (same run) | baseline | ratio | target |",
@@ -496,12 +536,12 @@ def update_readme(readme: Path, markdown: str) -> None:
     write_atomic(readme, text[: i + len(BEGIN)] + "\n" + note + markdown + text[j:])
 
 
-def main(args, print_fn=print) -> dict:
+def main(args: argparse.Namespace, print_fn: _Print = print) -> Json:
     """The ``piezohyst bench`` command (``args`` from its parser)."""
     bench_dir = find_bench_dir(args.bench_dir)
     results = Path(args.results) if args.results else bench_dir / "results"
     chosen = select(args.only, args.skip)
-    status = None
+    status: dict[str, dict[str, Any]] | None = None
     if args.report_only and not results.is_dir():
         raise ParameterError(f"--results = '{results}' is not a directory of benchmark results")
     if not args.report_only:

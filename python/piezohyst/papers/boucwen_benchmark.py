@@ -10,6 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import DataError
 from ..identify.boucwen_benchmark import DEFAULT_BOUNDS, IDENTIFY_PARAMETERS, identify_boucwen_benchmark
@@ -29,7 +30,7 @@ __all__ = [
 ]
 
 
-def load_train_multisine(path) -> tuple[np.ndarray, np.ndarray, float]:
+def load_train_multisine(path: str | Path) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], float]:
     """The benchmark's training record (``train_multisine.csv`` of forgi86/dynonet,
     header ``u,y``: 5 periods x 8192 samples, u in N, y in m).
 

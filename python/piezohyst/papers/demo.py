@@ -18,13 +18,20 @@ from __future__ import annotations
 import json
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..errors import OutputExistsError, ParameterError
+from ..models.model import HysteresisModel
 from ..plant.stage import virtual_stage
 from . import experiments as ex
+
+if TYPE_CHECKING:
+    from ..identify.core import IdentificationResult
+    from ..plant.stage import StageParameters
 
 __all__ = ["REPORT_FILES", "run_demo"]
 
@@ -35,22 +42,30 @@ REPORT_FILES = ("index.html", "report.md", "results.json")
 class _Steps:
     """One progress line per stage on stderr: ``[k/n] what ... done in s``."""
 
-    def __init__(self, total, stream):
+    def __init__(self, total: int, stream: IO[str] | None) -> None:
         self.total, self.k, self.stream, self.t0 = total, 0, stream, time.perf_counter()
 
-    def start(self, what):
+    def start(self, what: str) -> None:
         self.k += 1
         self._t = time.perf_counter()
         if self.stream:
             print(f"[{self.k}/{self.total}] {what} ...", file=self.stream, flush=True)
 
-    def done(self, detail=""):
+    def done(self, detail: str = "") -> None:
         if self.stream:
             dt = time.perf_counter() - self._t
             print(f"      done in {dt:.1f} s{'  ' + detail if detail else ''}", file=self.stream, flush=True)
 
 
-def run_demo(out_dir="piezohyst-report", *, force=False, quick=False, seed=0, progress=True, print_fn=print) -> dict:
+def run_demo(
+    out_dir: str | Path = "piezohyst-report",
+    *,
+    force: bool = False,
+    quick: bool = False,
+    seed: int | np.integer[Any] = 0,
+    progress: bool = True,
+    print_fn: Callable[[str], object] = print,
+) -> dict[str, Any]:
     """Run the demo and write the report; return every number (also in ``results.json``).
 
     Raises ``FileExistsError`` if ``out_dir`` already holds a report and ``force`` is false.
@@ -79,10 +94,10 @@ def run_demo(out_dir="piezohyst-report", *, force=False, quick=False, seed=0, pr
         "identify: CEMF stage model (CSS + least-squares polish; PSO, MPSO, DE for comparison) and MPI "
         "model (least squares)"
     )
-    convergence = {}
-    cemf = None
+    convergence: dict[str, dict[str, Any]] = {}
+    cemf: tuple[StageParameters, IdentificationResult, float] | None = None
     for method in ("css", "pso", "mpso", "de"):
-        sub = np.random.default_rng([seed, len(convergence)])
+        sub = np.random.default_rng([int(seed), len(convergence)])
         # the model used is CSS's, polished by least squares; the others are the comparison
         (model, ident, f_res), dt = ex.timed(
             ex.identify_stage_cemf,
@@ -93,6 +108,7 @@ def run_demo(out_dir="piezohyst-report", *, force=False, quick=False, seed=0, pr
             progress=progress,
             polish=method == "css",
         )
+        assert ident.history is not None  # a population optimizer's run
         convergence[method] = {
             "best_cost": [float(c) for c in ident.history["best_cost"]],
             "wall_s": dt,
@@ -101,26 +117,30 @@ def run_demo(out_dir="piezohyst-report", *, force=False, quick=False, seed=0, pr
         }
         if method == "css":
             cemf = (model, ident, f_res)
+    assert cemf is not None  # CSS ran first
     model, ident, f_res = cemf
     mpi_fit, t_mpi = ex.timed(ex.identify_stage_mpi, stage, rng)
-    table2 = ex.mpi_validation(stage, mpi_fit.model, rng)
-    mpi_vp = None
+    mpi_model = mpi_fit.model
+    assert isinstance(mpi_model, HysteresisModel)  # the MPI model
+    table2 = ex.mpi_validation(stage, mpi_model, rng)
+    mpi_vp: dict[str, Any] | None = None
     if not quick:
         # seed 2 identifies its MPI with MPSO: here MPSO over the structure (threshold spread,
         # envelopes, creep time constants) with the weights by least squares inside
         from ..identify.dispatch import identify
 
         fs = 1.0 / stage.sample_time
-        u, y = ex.measure(stage, ex.excitation(fs), np.random.default_rng([seed, 99]))
+        u, y = ex.measure(stage, ex.excitation(fs), np.random.default_rng([int(seed), 99]))
         vp, t_vp = ex.timed(
             identify, u, y, "mpi", structure="fit", optimizer="mpso", rng=seed, creep=3, fs=fs, max_iterations=30
         )
+        assert isinstance(vp.model, HysteresisModel)  # the MPI model
         mpi_vp = {
             "method": vp.method,
             "fit_rmse_percent": vp.train["rmse_percent"],
             "fit_max_error_percent": vp.train["max_error_percent"],
             "wall_s": t_vp,
-            "table2_mpi_validation": ex.mpi_validation(stage, vp.model, np.random.default_rng([seed, 98])),
+            "table2_mpi_validation": ex.mpi_validation(stage, vp.model, np.random.default_rng([int(seed), 98])),
         }
     steps.done(f"CEMF fit {ident.train['rmse_percent']:.2f} % RMSE; MPI fit {mpi_fit.metrics['rmse_percent']:.2f} %")
 
@@ -129,7 +149,7 @@ def run_demo(out_dir="piezohyst-report", *, force=False, quick=False, seed=0, pr
     steps.done(" ".join(f"{k}: cut {v['CEMF cut %']:.0f} %" for k, v in s1["rmse_um"]["tuned for SMC+CEMF"].items()))
 
     steps.start("seed 2: inverse-MPI feedforward and adaptive backstepping SMC")
-    s2, runs2 = ex.seed2_compensation(stage, mpi_fit.model, keep_runs=True)
+    s2, runs2 = ex.seed2_compensation(stage, mpi_model, keep_runs=True)
     t4 = s2["table4_80hz"]["constant"]
     steps.done(
         f"80 Hz normalized max error {t4['none']['normalized_max_error']:.4f} -> "
@@ -138,7 +158,7 @@ def run_demo(out_dir="piezohyst-report", *, force=False, quick=False, seed=0, pr
 
     steps.start(f"write the report to {out_dir}")
     k = model.stiffness / model.tem
-    results = {
+    results: dict[str, Any] = {
         "seed": seed,
         "quick": quick,
         "stage": None if info is None else info.to_dict(),

@@ -10,15 +10,25 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any, Literal, ParamSpec, TypeVar, overload
 
 import numpy as np
+import numpy.typing as npt
 
 from ..control.controllers import ABSMC, SMC, Compensated, InverseFeedforward, OpenLoop, VelocityObserver
 from ..control.tuning import stage_from_model, track, tune
 from ..identify.core import identify_cemf, identify_mpi
 from ..models.creep import Creep
 from ..plant.experiment import excitation, measure
+from ..plant.stage import StageParameters
 from ..signals.references import sine, triangle, variable_amplitude_sine
+
+if TYPE_CHECKING:
+    from ..control.simulation import ClosedLoopResult
+    from ..identify.core import FitResult, IdentificationResult
+    from ..models.model import HysteresisModel
+    from ..plant.stage import Stage
 
 __all__ = [
     "SEED1_TABLE3",
@@ -35,6 +45,11 @@ __all__ = [
     "seed2_compensation",
     "steady_sine",
 ]
+
+FloatArray = npt.NDArray[np.float64]
+
+_P = ParamSpec("_P")
+_T = TypeVar("_T")
 
 #: Seed 1, Table 3: RMSE (µm) on the real stage.
 SEED1_TABLE3 = {"triangle 5 Hz": {"SMC": 0.1118, "SMC+CEMF": 0.0715}, "sine 5 Hz": {"SMC": 0.1007, "SMC+CEMF": 0.0539}}
@@ -67,7 +82,9 @@ SEED2_TABLE4 = {
 }
 
 
-def steady_sine(freq, amplitude, offset, fs, variable=False, warm=1.0):
+def steady_sine(
+    freq: float, amplitude: float, offset: float, fs: float, variable: bool = False, warm: float = 1.0
+) -> tuple[FloatArray, int]:
     """``warm`` s of constant-amplitude sine from the bottom, then two evaluated periods
     (constant, or under a decaying envelope). Returns ``(reference, first evaluated sample)``."""
     n_warm = round(fs * (warm + 1 / (4 * freq)))
@@ -80,8 +97,16 @@ def steady_sine(freq, amplitude, offset, fs, variable=False, warm=1.0):
 
 
 def identify_stage_cemf(
-    stage, rng, *, optimizer="css", max_iterations=100, seconds=0.6, callback=None, progress=False, polish=True
-):
+    stage: Stage,
+    rng: np.random.Generator,
+    *,
+    optimizer: str = "css",
+    max_iterations: int = 100,
+    seconds: float = 0.6,
+    callback: Callable[..., object] | None = None,
+    progress: bool = False,
+    polish: bool = True,
+) -> tuple[StageParameters, IdentificationResult, float]:
     """Seed 1's CEMF model from a measured 5 Hz record, by a population optimizer (CSS as in
     seed 1) followed by a least-squares polish (``polish=False``: the optimizer's best alone;
     with 100 CSS iterations that is 0.95-1.08 % RMSE over three seeds, polished 0.43 %).
@@ -101,6 +126,7 @@ def identify_stage_cemf(
         polish=polish,
     )
     m = ident.model
+    assert isinstance(m, StageParameters)  # what identify_cemf identifies
     f_res = stage.measured_resonance()
     k = m.stiffness / m.tem
     mass = k / (2 * np.pi * f_res) ** 2
@@ -108,7 +134,7 @@ def identify_stage_cemf(
     return model, ident, f_res
 
 
-def identify_stage_mpi(stage, rng, *, operators=9):
+def identify_stage_mpi(stage: Stage, rng: np.random.Generator, *, operators: int = 9) -> FitResult:
     """Seed 2's MPI model (9 generalized plays, cubic polynomial, plus creep lags) from a
     measured 2 s record, by least squares over the linear parameters."""
     fs = 1.0 / stage.sample_time
@@ -116,7 +142,7 @@ def identify_stage_mpi(stage, rng, *, operators=9):
     return identify_mpi(u, y, operators=operators, creep=Creep(1 / fs, [0.01, 0.1, 1.0], [0.0, 0.0, 0.0]))
 
 
-def loop_lag(stage, model):
+def loop_lag(stage: Stage, model: HysteresisModel) -> float:
     """The loop's lag (s) seen by a feedforward: regress the deviation of the output from its
     best line on the reference velocity, on a 100 Hz sine through the inverse."""
     fs = 1.0 / stage.sample_time
@@ -129,11 +155,17 @@ def loop_lag(stage, model):
     return float(-coef[0])
 
 
-def mpi_validation(stage, model, rng, freqs=(2, 5, 10, 20, 50, 100), variable=(5, 10, 100)):
+def mpi_validation(
+    stage: Stage,
+    model: HysteresisModel,
+    rng: np.random.Generator,
+    freqs: Sequence[float] = (2, 5, 10, 20, 50, 100),
+    variable: Sequence[float] = (5, 10, 100),
+) -> dict[str, dict[str, float]]:
     """Seed 2, Table 2: the identified MPI model's free-run prediction against the measured
     output for full-range sine voltages; max error and RMS error in % of the output range."""
     fs = 1.0 / stage.sample_time
-    out = {}
+    out: dict[str, dict[str, float]] = {}
     cases = [(f, False) for f in freqs] + [(f, True) for f in variable]
     for f, var in cases:
         seconds = 0.5 + 2.0 / f
@@ -151,7 +183,35 @@ def mpi_validation(stage, model, rng, freqs=(2, 5, 10, 20, 50, 100), variable=(5
     return out
 
 
-def seed1_case_studies(stage, model, rng, *, tuning_iterations=30, method="css", keep_runs=False):
+@overload
+def seed1_case_studies(
+    stage: Stage,
+    model: StageParameters,
+    rng: np.random.Generator,
+    *,
+    tuning_iterations: int = ...,
+    method: str = ...,
+    keep_runs: Literal[False] = ...,
+) -> dict[str, Any]: ...
+@overload
+def seed1_case_studies(
+    stage: Stage,
+    model: StageParameters,
+    rng: np.random.Generator,
+    *,
+    tuning_iterations: int = ...,
+    method: str = ...,
+    keep_runs: Literal[True],
+) -> tuple[dict[str, Any], dict[tuple[str, str], ClosedLoopResult]]: ...
+def seed1_case_studies(
+    stage: Stage,
+    model: StageParameters,
+    rng: np.random.Generator,
+    *,
+    tuning_iterations: int = 30,
+    method: str = "css",
+    keep_runs: bool = False,
+) -> dict[str, Any] | tuple[dict[str, Any], dict[tuple[str, str], ClosedLoopResult]]:
     """Seed 1, Table 3: the switching gain from seed 1's robustness rule (the identified CEMF
     voltage + 20 %), the other gains tuned on the identified model for SMC + CEMF, then open
     loop, SMC (Case 1) and SMC + CEMF (Case 2) with identical gains on triangle 5 Hz, triangle
@@ -173,7 +233,7 @@ def seed1_case_studies(stage, model, rng, *, tuning_iterations=30, method="css",
     vh = plant.simulate(excitation(fs, 0.6)).cemf
     ks = 1.2 * float(np.max(np.abs(vh)))
     template = SMC(model, ks=ks, observer=VelocityObserver(300.0))
-    box = {"kp": (1e5, 3e7), "kv": (3e2, 1e4), "phi": (1e-3, 0.1)}
+    box: dict[str, Sequence[float]] = {"kp": (1e5, 3e7), "kv": (3e2, 1e4), "phi": (1e-3, 0.1)}
     seed = int(rng.integers(0, 2**31))
     cases = {"SMC+CEMF": [{"cemf": True}], "SMC": [{"cemf": False}], "both cases": [{"cemf": False}, {"cemf": True}]}
     tunings = {
@@ -191,19 +251,25 @@ def seed1_case_studies(stage, model, rng, *, tuning_iterations=30, method="css",
         )
         for case, variants in cases.items()
     }
-    gain_sets = {
-        "tuned for SMC+CEMF": tunings["SMC+CEMF"].controller,
-        "tuned for SMC": tunings["SMC"].controller,
-        "tuned for both cases": tunings["both cases"].controller,
+    tuned: dict[str, SMC] = {}
+    for case, t in tunings.items():
+        assert isinstance(t.controller, SMC)  # tune() returns the template, tuned
+        tuned[case] = t.controller
+    gain_sets: dict[str, SMC] = {
+        "tuned for SMC+CEMF": tuned["SMC+CEMF"],
+        "tuned for SMC": tuned["SMC"],
+        "tuned for both cases": tuned["both cases"],
         "seed-level (kp 1e6, kv 2e3, ks 20, phi 0.01)": dataclasses.replace(
             template, kp=1e6, kv=2e3, ks=20.0, phi=0.01
         ),
     }
-    rows, runs = {}, {}
+    rows: dict[str, dict[str, dict[str, float]]] = {}
+    runs: dict[tuple[str, str], ClosedLoopResult] = {}
     noise = int(rng.integers(0, 2**31))
     for set_name, gains_c in gain_sets.items():
         for name, ref in refs.items():
-            row = {}
+            row: dict[str, float] = {}
+            c: OpenLoop | SMC
             for label, c in (
                 ("open loop", OpenLoop()),
                 ("SMC", dataclasses.replace(gains_c, cemf=False)),
@@ -230,14 +296,23 @@ def seed1_case_studies(stage, model, rng, *, tuning_iterations=30, method="css",
     return (numbers, runs) if keep_runs else numbers
 
 
-def seed2_compensation(stage, model, *, keep_runs=False):
+@overload
+def seed2_compensation(stage: Stage, model: HysteresisModel, *, keep_runs: Literal[False] = ...) -> dict[str, Any]: ...
+@overload
+def seed2_compensation(
+    stage: Stage, model: HysteresisModel, *, keep_runs: Literal[True]
+) -> tuple[dict[str, Any], dict[tuple[str, str, str], ClosedLoopResult]]: ...
+def seed2_compensation(
+    stage: Stage, model: HysteresisModel, *, keep_runs: bool = False
+) -> dict[str, Any] | tuple[dict[str, Any], dict[tuple[str, str, str], ClosedLoopResult]]:
     """Seed 2, Tables 3 and 4: linearity error without/with the inverse-MPI feedforward at
     10-100 Hz, and none / feedforward / feedforward + ABSMC at 80 Hz (8 µm around 9 µm)."""
     fs = 1.0 / stage.sample_time
     lag = loop_lag(stage, model)
     ff = InverseFeedforward(model, c1=lag)
     amp, off = 8e-6, 9e-6
-    table3, runs = {}, {}
+    table3: dict[str, dict[str, float]] = {}
+    runs: dict[tuple[str, str, str], ClosedLoopResult] = {}
     for f in (10, 20, 50, 100):
         for variable in (False, True):
             ref, k0 = steady_sine(f, amp, off, fs, variable)
@@ -253,10 +328,11 @@ def seed2_compensation(stage, model, *, keep_runs=False):
     absmc = Compensated(
         ABSMC.linearized(fn, 0.7, c1=2e3, lam=2e3, ks=5e3, gamma_d=1e4, observer=VelocityObserver(1000.0)), model
     )
-    table4 = {}
+    table4: dict[str, dict[str, dict[str, float]]] = {}
     for variable in (False, True):
         ref, k0 = steady_sine(80, amp, off, fs, variable)
-        row = {}
+        row: dict[str, dict[str, float]] = {}
+        c: OpenLoop | InverseFeedforward | Compensated
         for label, c in (("none", OpenLoop()), ("feedforward", ff), ("feedforward+ABSMC", absmc)):
             res = track(c, ref, stage=stage, rng=1, skip=k0 / fs)
             m = res.metrics
@@ -280,7 +356,7 @@ def seed2_compensation(stage, model, *, keep_runs=False):
     return (numbers, runs) if keep_runs else numbers
 
 
-def timed(fn, *args, **kwargs):
+def timed(fn: Callable[_P, _T], *args: _P.args, **kwargs: _P.kwargs) -> tuple[_T, float]:
     """``(result, seconds)``."""
     t0 = time.perf_counter()
     out = fn(*args, **kwargs)

@@ -5,11 +5,26 @@ virtual stage — every table says so."""
 from __future__ import annotations
 
 import html
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .._io import write_atomic
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from ..control.simulation import ClosedLoopResult
+    from ..identify.core import FitResult
+    from ..plant.stage import Stage
+
+#: The demo's numbers (``results.json``): nested dicts of numbers and names, as :func:`run_demo` builds them.
+Results = dict[str, Any]
+
+#: One report table: ``(title, note, header, rows)``.
+Table = tuple[str, str, list[str], list[list[str]]]
 
 __all__ = ["write_report"]
 
@@ -20,7 +35,7 @@ _NOTE = (
 )
 
 
-def _save(fig, path: Path) -> None:
+def _save(fig: Figure, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     try:
@@ -30,7 +45,13 @@ def _save(fig, path: Path) -> None:
 
 
 # -- figures --------------------------------------------------------------------------------
-def _tracking_figure(runs, labels, title, zoom, window=None):
+def _tracking_figure(
+    runs: Mapping[str, ClosedLoopResult],
+    labels: Sequence[str],
+    title: str,
+    zoom: tuple[float, float],
+    window: tuple[float, float] | None = None,
+) -> Figure:
     """Tracking (µm) of several controllers on one reference with a zoom inset, errors below
     — the layout of seed 1's Figures 9-14 and seed 2's Figures 6-7. ``window`` limits the
     time shown."""
@@ -66,7 +87,14 @@ def _tracking_figure(runs, labels, title, zoom, window=None):
     return fig
 
 
-def _figures(out_dir: Path, results, runs1, runs2, mpi_fit, stage) -> dict:
+def _figures(
+    out_dir: Path,
+    results: Results,
+    runs1: Mapping[tuple[str, str], ClosedLoopResult],
+    runs2: Mapping[tuple[str, str, str], ClosedLoopResult],
+    mpi_fit: FitResult,
+    stage: Stage,
+) -> dict[str, str]:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -74,7 +102,7 @@ def _figures(out_dir: Path, results, runs1, runs2, mpi_fit, stage) -> dict:
 
     from .experiments import excitation
 
-    figs = {}
+    figs: dict[str, str] = {}
     # seed 1 Figures 9-14: tracking and error per reference
     for name in ("triangle 5 Hz", "triangle 10 Hz", "sine 5 Hz"):
         runs = {lab: runs1[(name, lab)] for lab in ("open loop", "SMC", "SMC+CEMF")}
@@ -91,7 +119,7 @@ def _figures(out_dir: Path, results, runs1, runs2, mpi_fit, stage) -> dict:
     # seed 2: 80 Hz tracking, constant and variable amplitude
     for amp in ("constant", "variable"):
         runs = {lab: runs2[("table4", amp, lab)] for lab in ("none", "feedforward", "feedforward+ABSMC")}
-        k0 = runs["none"].__dict__.get("skip_samples", 0)
+        k0 = runs["none"].skip_samples
         t_end = runs["none"].time[-1]
         fig = _tracking_figure(
             runs,
@@ -108,7 +136,7 @@ def _figures(out_dir: Path, results, runs1, runs2, mpi_fit, stage) -> dict:
     for a, amp in zip(ax, ("constant", "variable"), strict=False):
         for lab, style in (("none", "-"), ("feedforward", "-")):
             r = runs2[("table3", f"10 Hz {amp}", lab)]
-            k0 = r.__dict__.get("skip_samples", 0)
+            k0 = r.skip_samples
             a.plot(
                 r.reference[k0:] * 1e6,
                 r.position[k0:] * 1e6,
@@ -147,6 +175,9 @@ def _figures(out_dir: Path, results, runs1, runs2, mpi_fit, stage) -> dict:
     from .experiments import measure
 
     u, y = measure(stage, excitation(fs), np.random.default_rng(results["seed"]))
+    from ..models.model import HysteresisModel
+
+    assert isinstance(mpi_fit.model, HysteresisModel)  # the MPI model
     pred = mpi_fit.model.simulate(u)
     t = np.arange(u.size) / fs
     fig, ax = plt.subplots(1, 2, figsize=(11, 4.2))
@@ -167,9 +198,9 @@ def _figures(out_dir: Path, results, runs1, runs2, mpi_fit, stage) -> dict:
 
 
 # -- tables ---------------------------------------------------------------------------------
-def _tables(results) -> list:
+def _tables(results: Results) -> list[Table]:
     """``[(title, note, header, rows)]`` with every seed number beside ours."""
-    out = []
+    out: list[Table] = []
     ident = results["identification"]
     rows = []
     for key, ours in ident["table2_mpi_validation"].items():
@@ -289,7 +320,7 @@ def _tables(results) -> list:
     return out
 
 
-def _markdown(results, tables, figures) -> str:
+def _markdown(results: Results, tables: Sequence[Table], figures: Mapping[str, str]) -> str:
     lines = ["# piezohyst demo report", "", _NOTE, ""]
     c = results["identification"]["cemf"]
     lines += [
@@ -309,7 +340,7 @@ def _markdown(results, tables, figures) -> str:
     return "\n".join(lines)
 
 
-def _html(results, tables, figures) -> str:
+def _html(results: Results, tables: Sequence[Table], figures: Mapping[str, str]) -> str:
     e = html.escape
     parts = [
         "<!doctype html><html lang='en'><head><meta charset='utf-8'><title>piezohyst demo report</title>",
@@ -334,7 +365,15 @@ def _html(results, tables, figures) -> str:
     return "\n".join(parts)
 
 
-def write_report(out_dir, results, *, runs1, runs2, mpi_fit, stage) -> dict:
+def write_report(
+    out_dir: str | Path,
+    results: Results,
+    *,
+    runs1: Mapping[tuple[str, str], ClosedLoopResult],
+    runs2: Mapping[tuple[str, str, str], ClosedLoopResult],
+    mpi_fit: FitResult,
+    stage: Stage,
+) -> dict[str, str]:
     """Write figures, ``report.md`` and ``index.html`` into ``out_dir``; return the figure
     files by name."""
     out_dir = Path(out_dir)
