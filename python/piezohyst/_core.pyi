@@ -1,6 +1,7 @@
 """Type stub of the compiled core (``crates/python``). Checked against the module by
 ``tests/test_stub.py``: every public name here exists there and vice versa."""
 
+from collections.abc import Sequence
 from typing import Any, final
 
 import numpy as np
@@ -239,11 +240,11 @@ class Stage:
     def ts(self) -> float: ...
     def simulate(self, command: _Array1, state: _Array1) -> tuple[_Array1, _Array1, _Array1]:
         """As ``stage_simulate``."""
-    def closed_loop(self, scenario: _ScenarioSpec, initial_state: _Array1) -> dict:
+    def closed_loop(self, scenario: _ScenarioSpec, initial_state: _Array1) -> dict[str, Any]:
         """As ``closed_loop``."""
-    def closed_loop_batch(self, scenarios: list[_ScenarioSpec], initial_state: _Array1) -> list[dict]:
+    def closed_loop_batch(self, scenarios: Sequence[_ScenarioSpec], initial_state: _Array1) -> list[dict[str, Any]]:
         """As ``closed_loop_batch``."""
-    def closed_loop_batch_tracking(self, scenarios: list[_ScenarioSpec], initial_state: _Array1, skip: int) -> _Array2:
+    def closed_loop_batch_tracking(self, scenarios: Sequence[_ScenarioSpec], initial_state: _Array1, skip: int) -> _Array2:
         """As ``closed_loop_batch_tracking``."""
 
 def virtual_stage_params() -> _Array1:
@@ -270,7 +271,7 @@ def closed_loop(
     acceleration: _Array1,
     initial_state: _Array1,
     seed: int,
-) -> dict:
+) -> dict[str, Any]:
     """One closed-loop run: dict of ``command, voltage, position, measured, terms, term_names,
     final_state``."""
 
@@ -282,9 +283,9 @@ def closed_loop_batch(
     sensor_quantization: float,
     sensor_noise: float,
     sensor_delay: int,
-    scenarios: list[_ScenarioSpec],
+    scenarios: Sequence[_ScenarioSpec],
     initial_state: _Array1,
-) -> list[dict]:
+) -> list[dict[str, Any]]:
     """Many scenarios ``(controller, reference, velocity, acceleration, seed)`` in parallel
     (GIL released, rayon)."""
 
@@ -296,7 +297,7 @@ def closed_loop_batch_tracking(
     sensor_quantization: float,
     sensor_noise: float,
     sensor_delay: int,
-    scenarios: list[_ScenarioSpec],
+    scenarios: Sequence[_ScenarioSpec],
     initial_state: _Array1,
     skip: int,
 ) -> _Array2:

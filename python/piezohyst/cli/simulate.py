@@ -7,8 +7,9 @@ import functools
 import json
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from .._io import write_atomic
 from .common import (
@@ -136,6 +137,7 @@ def _read_input(
     suffix = path.suffix.lower()
     if dataset is not None and not dataset.strip():
         raise _Fail(f"--dataset = {dataset!r} may not be empty")
+    opener: Callable[[], D.ColumnSource[Any]]
     if suffix in D.TEXT_SUFFIXES:
         if dataset is not None:
             raise _Fail(f"--dataset = {dataset!r} applies to NPZ/MAT/HDF5 files; {path} is a text file")
@@ -155,7 +157,7 @@ def _read_input(
     try:
         in_spec = D.check_column_spec(input_spec, "input")
         t_spec = D.check_column_spec(time_spec, "time")
-        table = opener()
+        table: D.ColumnSource[Any] = opener()
         try:
             t_key = None if t_spec is None else table.resolve("time", t_spec)
             if in_spec is not None:
@@ -178,9 +180,7 @@ def _read_input(
             v = table.read("input", *key)
             t = None if t_key is None else table.read("time", *t_key)
         finally:
-            close = getattr(table, "close", None)
-            if close is not None:
-                close()
+            table.close()
         if t is not None:
             assert t_key is not None  # t was read from the time column
             if t.size != v.size:
@@ -276,7 +276,7 @@ def _simulate(args: argparse.Namespace) -> None:
         ",".join(map(repr, row)) for row in zip(*lists, strict=False)
     ]  # repr: shortest text that reads back exactly
     text = "\n".join(lines) + "\n"
-    if to_stdout:
+    if out is None:  # "--out -"
         sys.stdout.write(text)
         return
     write_atomic(out, text, overwrite=args.force, name="--out")

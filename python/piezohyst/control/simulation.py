@@ -37,7 +37,7 @@ class ControllerLike(Protocol):
 
     __dataclass_fields__: ClassVar[dict[str, Field[Any]]]
 
-    def core(self, stage: Stage) -> _core.ControllerSpec: ...
+    def core(self, stage: Stage) -> _core._ControllerSpec: ...
 
 
 __all__ = ["ClosedLoopResult", "closed_loop", "closed_loop_batch", "seed_from"]
@@ -276,7 +276,7 @@ def _prepare(
     reference: npt.ArrayLike,
     velocity: npt.ArrayLike | None,
     acceleration: npt.ArrayLike | None,
-) -> tuple[FloatArray, FloatArray, FloatArray, _core.ControllerSpec]:
+) -> tuple[FloatArray, FloatArray, FloatArray, _core._ControllerSpec]:
     if not is_controller(controller):
         raise ParameterTypeError(
             f"controller must be a piezohyst controller (OpenLoop, PID, ...), got {type(controller).__name__}"
@@ -382,7 +382,7 @@ def closed_loop_batch(
     seeds_rng = np.random.default_rng(seed_from(rng))
     init = stage.rest_state() if initial_state is None else as_record(initial_state, "initial_state")
     prepared: list[ControllerLike] = []
-    core: list[tuple[_core.ControllerSpec, FloatArray, FloatArray, FloatArray, int]] = []
+    core: list[tuple[_core._ControllerSpec, FloatArray, FloatArray, FloatArray, int]] = []
     for j, item in enumerate(scenarios):
         try:
             controller, reference = item

@@ -190,7 +190,7 @@ def tune(
         return replace(controller, **{n: float(v) for n, v in zip(names, values, strict=False)})
 
     def cost(X: FloatArray) -> FloatArray:
-        scen: list[tuple[_core.ControllerSpec, FloatArray, FloatArray, FloatArray, int]] = []
+        scen: list[tuple[_core._ControllerSpec, FloatArray, FloatArray, FloatArray, int]] = []
         valid: list[bool] = []
         for row in X:
             try:

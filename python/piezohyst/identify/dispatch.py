@@ -52,6 +52,10 @@ STRUCTURES = ("fixed", "fit")
 _VP_OPTIONS = ("envelope", "bounds", "polish", "starts")
 
 
+#: A held-out record: ``(input, output)``, or for ``boucwen-benchmark`` ``(input, output, (start, stop))``.
+HeldOut = tuple[npt.ArrayLike, npt.ArrayLike] | tuple[npt.ArrayLike, npt.ArrayLike, tuple[int, int]]
+
+
 @dataclass(frozen=True)
 class _Call:
     """One :func:`identify` call, checked, as the kind's fitter sees it."""
@@ -65,7 +69,7 @@ class _Call:
     creep: int
     loss: str
     delta: float | None
-    validate: tuple[npt.ArrayLike, npt.ArrayLike] | None
+    validate: HeldOut | None
     search: dict[str, Any]
     options: dict[str, Any]
     t0: float
@@ -118,7 +122,7 @@ def identify(
     rng: RngLike = None,
     max_iterations: int | None = None,
     population_size: int | None = None,
-    validate: tuple[npt.ArrayLike, npt.ArrayLike] | None = None,
+    validate: HeldOut | None = None,
     progress: bool = False,
     callback: Callback | None = None,
     loss: str = "squared",
@@ -176,6 +180,8 @@ def identify(
         (``boucwen-benchmark``), 60 (``structure="fit"``).
     validate : tuple, optional
         A held-out record ``(input, output)``; its metrics are reported, it is not fitted.
+        ``boucwen-benchmark`` also takes ``(input, output, (start, stop))``: the whole record
+        simulated from rest and scored on samples ``start:stop`` (the oscillator's memory is long).
     loss : {"squared", "huber"}
         ``"squared"``: the RMSE of the free-run simulation. ``"huber"``: the robust Huber
         cost, for records with glitches — iteratively reweighted least squares for the
@@ -225,6 +231,11 @@ def identify(
         raise ParameterError(
             f"creep = {creep} applies to model = {' / '.join(repr(k) for k in _VP_KINDS)}, not to {model!r}"
         )
+    if isinstance(validate, tuple) and len(validate) == 3 and model != "boucwen-benchmark":
+        raise ParameterError(
+            f"validate = (input, output, range) applies to model = 'boucwen-benchmark'; "
+            f"give (input, output) for model = {model!r}"
+        )
     if structure == "fit":
         unknown = sorted(set(options) - set(_VP_OPTIONS))
         if unknown:
@@ -243,7 +254,7 @@ def identify(
             rng=rng,
             max_iterations=max_iterations,
             population_size=population_size,
-            validate=validate,
+            validate=None if validate is None else (validate[0], validate[1]),  # 3-tuples refused above
             progress=progress,
             callback=callback,
             loss=loss,

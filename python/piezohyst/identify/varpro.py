@@ -265,6 +265,11 @@ class _Problem:
         self.table = _groups(model, envelope, creep, scales)
         self.names = [t[0] for t in self.table]
 
+    def _sample_time(self) -> float:
+        if self.ts is None:  # identify_vp requires ts for rdpi and creep before building this
+            raise ParameterError("ts is required for a rate-dependent model or creep terms")
+        return self.ts
+
     def template(self, p: dict[str, float]) -> LinearModel:
         """The model of structure ``p`` (a dict of every parameter) with zero linear part;
         ``ValueError`` when the structure is invalid."""
@@ -272,13 +277,15 @@ class _Problem:
         creep = None
         if self.creep:
             taus = 10.0 ** np.array([p[f"log10_tau_{j + 1}"] for j in range(self.creep)])
-            creep = Creep(self.ts, taus, np.zeros(self.creep))
+            creep = Creep(self._sample_time(), taus, np.zeros(self.creep))
         zeros = np.zeros(self.n)
         if self.model == "pi":
             return PI(r, zeros, 1.0, creep=creep)
         if self.model == "rdpi":
-            return RateDependentPI(r, zeros, self.ts, 1.0, p["beta"], None, p["filter_tau"], creep=creep)
+            return RateDependentPI(r, zeros, self._sample_time(), 1.0, p["beta"], None, p["filter_tau"], creep=creep)
         c, h = self.c, self.h
+        rising: Envelope | None
+        falling: Envelope | None
         if self.envelope == "polynomial":
             rising = Envelope.polynomial(*_poly_shape_coefficients(p["rising_q2"], p["rising_q3"], 0.0, 1.0, c, h))
             falling = Envelope.polynomial(

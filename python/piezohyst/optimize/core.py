@@ -168,7 +168,8 @@ class OptimizeResult(RunReport):
         Per iteration: ``"best_cost"`` (best so far, shape ``(nit,)``), ``"mean_cost"`` (mean
         of the finite costs of that population, ``inf`` if none was finite), ``"best_x"``
         (best so far, ``(nit, D)``), ``"n_finite"`` (number of finite costs) and ``"nfev"``
-        (cumulative evaluations).
+        (cumulative evaluations). Wrappers may add scalar annotations of the run (the Huber
+        fit adds ``"huber_delta"``, a float).
     message : str
         Why the run stopped.
     success : bool
@@ -190,7 +191,7 @@ class OptimizeResult(RunReport):
     fun: float
     nit: int
     nfev: int
-    history: dict[str, npt.NDArray[Any]] = field(repr=False)
+    history: dict[str, Any] = field(repr=False)
     message: str
     success: bool
     wall_time: float
