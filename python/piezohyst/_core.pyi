@@ -8,11 +8,11 @@ import numpy as np
 import numpy.typing as npt
 
 __all__ = [
-    "Controller",
     "MAX_TERMS",
-    "Model",
     "STAGE_PARAM_LEN",
     "STAGE_STATE_LEN",
+    "Controller",
+    "Model",
     "Scenario",
     "Stage",
     "__version__",
@@ -145,10 +145,10 @@ MAX_TERMS: int
 #: :class:`Controller`.
 _ControllerSpec = (
     tuple[str, _Array1, tuple[str, list[int], _Array1, float, float] | None, tuple[int, float, float, int, int] | None]
-    | Controller
+    | "Controller"
 )
 #: A :class:`Scenario` or ``(controller, reference, velocity, acceleration, seed)``.
-_ScenarioSpec = Scenario | tuple[_ControllerSpec, _Array1, _Array1, _Array1, int]
+_ScenarioSpec = "Scenario" | tuple[_ControllerSpec, _Array1, _Array1, _Array1, int]
 
 @final
 class Model:
@@ -244,7 +244,9 @@ class Stage:
         """As ``closed_loop``."""
     def closed_loop_batch(self, scenarios: Sequence[_ScenarioSpec], initial_state: _Array1) -> list[dict[str, Any]]:
         """As ``closed_loop_batch``."""
-    def closed_loop_batch_tracking(self, scenarios: Sequence[_ScenarioSpec], initial_state: _Array1, skip: int) -> _Array2:
+    def closed_loop_batch_tracking(
+        self, scenarios: Sequence[_ScenarioSpec], initial_state: _Array1, skip: int
+    ) -> _Array2:
         """As ``closed_loop_batch_tracking``."""
 
 def virtual_stage_params() -> _Array1:
