@@ -348,22 +348,7 @@ def closed_loop(
     """
     x, v, a, spec = _prepare(stage, controller, reference, velocity, acceleration)
     init = stage.rest_state() if initial_state is None else as_record(initial_state, "initial_state")
-    s = stage.sensor
-    d = _core.closed_loop(
-        stage.core_params(),
-        stage.sample_time,
-        stage.substeps,
-        stage.tolerance,
-        s.quantization,
-        s.noise_std,
-        s.delay,
-        spec,
-        x,
-        v,
-        a,
-        init,
-        seed_from(rng),
-    )
+    d = stage.compiled.closed_loop(_core.Scenario(spec, x, v, a, seed_from(rng)), init)
     return _result(stage, d, controller)
 
 
@@ -394,16 +379,5 @@ def closed_loop_batch(
             raise type(e)(f"scenarios[{j}]: {e}") from None
         prepared.append(controller)
         core.append((spec, x, v, a, int(seeds_rng.integers(0, 2**63 - 1))))
-    s = stage.sensor
-    out = _core.closed_loop_batch(
-        stage.core_params(),
-        stage.sample_time,
-        stage.substeps,
-        stage.tolerance,
-        s.quantization,
-        s.noise_std,
-        s.delay,
-        core,
-        init,
-    )
+    out = stage.compiled.closed_loop_batch(core, init)
     return [_result(stage, d, c) for c, d in zip(prepared, out, strict=False)]

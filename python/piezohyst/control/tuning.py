@@ -177,7 +177,6 @@ def tune(
     refs = [as_record(r, f"references[{j}]", min_length=2) for j, r in enumerate(items)]
     first = round(as_scalar(skip, "skip", nonnegative=True) / stage.sample_time)
     seeds = np.random.default_rng(seed_from(rng)).integers(0, 2**63 - 1, size=len(refs))
-    s = stage.sensor
 
     variants = [{}] if variants is None else [dict(v) for v in variants]
     for v in variants:
@@ -207,18 +206,7 @@ def tune(
             scen.extend((spec, x, v, a, int(seed)) for (x, v, a, spec), seed in specs)
         out = np.full(len(X), np.inf)
         if scen:
-            m = _core.closed_loop_batch_tracking(
-                stage.core_params(),
-                stage.sample_time,
-                stage.substeps,
-                stage.tolerance,
-                s.quantization,
-                s.noise_std,
-                s.delay,
-                scen,
-                stage.rest_state(),
-                first,
-            )
+            m = stage.compiled.closed_loop_batch_tracking(scen, stage.rest_state(), first)
             m = m.reshape(-1, len(variants) * len(refs), 3)
             rmse = m[:, :, 0].mean(axis=1)
             rmse[(m[:, :, 2] > saturation_limit).any(axis=1)] = np.inf

@@ -54,10 +54,22 @@ class HysteresisModel:
     def __init__(self, dims: Iterable[int], row: npt.ArrayLike, *, units: Mapping[str, str] | None = None) -> None:
         self.dims = tuple(int(d) for d in dims)
         self._row = np.ascontiguousarray(row, dtype=np.float64)
-        _core.validate(self.family, list(self.dims), self._row)
+        # built and validated once; every simulation and inverse below runs on it
+        self._compiled = _core.Model(self.family, list(self.dims), self._row)
         self._row.setflags(write=False)
         self.units = _units(units)
         self._state = self.initial_state()
+
+    # The compiled core model is not picklable: pickles carry the row, and it is rebuilt
+    # (and validated again) on load.
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        del state["_compiled"]
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._compiled = _core.Model(self.family, list(self.dims), self._row)
 
     # -- parameters -----------------------------------------------------------------
     def to_row(self) -> FloatArray:
@@ -72,7 +84,7 @@ class HysteresisModel:
     # -- state ------------------------------------------------------------------------
     def initial_state(self) -> FloatArray:
         """The relaxed initial state (input and memory at zero; Preisach: all relays down)."""
-        return _core.initial_state(self.family, list(self.dims), self._row)
+        return self._compiled.initial_state()
 
     @property
     def state(self) -> FloatArray:
@@ -116,7 +128,7 @@ class HysteresisModel:
         """
         v = as_record(input, "input")
         st = self.initial_state() if initial_state is None else self._checked_state(initial_state, "initial_state")
-        return _core.simulate(self.family, list(self.dims), self._row, v, st)
+        return self._compiled.simulate(v, st)
 
     def response(
         self,
@@ -168,7 +180,7 @@ class HysteresisModel:
         v = as_record(input, "input")
         t = _time_base(v.size, fs, time)
         st = self.initial_state() if initial_state is None else self._checked_state(initial_state, "initial_state")
-        y = _core.simulate(self.family, list(self.dims), self._row, v, st)
+        y = self._compiled.simulate(v, st)
         return Response(
             t,
             {"input": v, "output": y},
@@ -182,7 +194,7 @@ class HysteresisModel:
         """Apply one input sample, advance the internal state, return the output."""
         v = np.array([as_scalar(value, "value")])
         st = self._state.copy()
-        y = _core.simulate(self.family, list(self.dims), self._row, v, st)
+        y = self._compiled.simulate(v, st)
         self._state = st
         return float(y[0])
 
@@ -350,7 +362,7 @@ class Inverse:
         yd = as_record(desired, "desired")
         m = self.model
         st = m.initial_state() if initial_state is None else m._checked_state(initial_state, "initial_state")
-        return _core.inverse(m.family, list(m.dims), m._row, yd, st, 0.0)
+        return m._compiled.inverse(yd, st, 0.0)
 
     def response(
         self,
@@ -401,7 +413,7 @@ class Inverse:
         t = _time_base(yd.size, fs, time)
         m = self.model
         st = m.initial_state() if initial_state is None else m._checked_state(initial_state, "initial_state")
-        v = _core.inverse(m.family, list(m.dims), m._row, yd, st, 0.0)
+        v = m._compiled.inverse(yd, st, 0.0)
         return Response(
             t,
             {"desired": yd, "input": v},
@@ -416,7 +428,7 @@ class Inverse:
         m = self.model
         yd = np.array([as_scalar(desired, "desired")])
         st = self._state.copy()
-        v = _core.inverse(m.family, list(m.dims), m._row, yd, st, self._last_input)
+        v = m._compiled.inverse(yd, st, self._last_input)
         self._state = st
         self._last_input = float(v[0])
         return self._last_input

@@ -15,6 +15,7 @@ in it can be overridden from a file of the same layout (:meth:`Stage.from_file`)
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from dataclasses import dataclass, field, replace
@@ -365,6 +366,21 @@ class Stage:
         ]
         return np.array(head + taus + weights, dtype=np.float64)
 
+    @functools.cached_property
+    def compiled(self) -> _core.Stage:
+        """The Rust core's stage (parameters, control period, integration settings and
+        sensor), built and validated once per stage and reused by every run on it."""
+        s = self.sensor
+        return _core.Stage(
+            self.core_params(), self.sample_time, self.substeps, self.tolerance, s.quantization, s.noise_std, s.delay
+        )
+
+    # the compiled stage is not picklable: a pickle carries the fields; it is rebuilt on use
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        state.pop("compiled", None)
+        return state
+
     @staticmethod
     def rest_state() -> FloatArray:
         """The state at rest: ``[va, x, v, vh, creep[8]]`` all zero."""
@@ -394,7 +410,11 @@ class Stage:
         tol = self.tolerance if tolerance is None else as_scalar(tolerance, "tolerance", allow_infinite=True)
         st = self.rest_state() if initial_state is None else as_record(initial_state, "initial_state")
         st = st.copy()
-        x, va, vh = _core.stage_simulate(self.core_params(), ts, m, tol, u, st)
+        if (ts, m, tol) == (self.sample_time, self.substeps, self.tolerance):
+            core = self.compiled
+        else:
+            core = _core.Stage(self.core_params(), ts, m, tol)
+        x, va, vh = core.simulate(u, st)
         return StageResponse(np.arange(u.size) * ts, u, va, x, vh, st, title=self.name)
 
     def check_command(self, u: FloatArray, name: str = "command") -> None:
