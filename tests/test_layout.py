@@ -74,6 +74,8 @@ def test_controller_names_and_codes_are_the_table():
         ph.PI([0.0, 0.2, 0.5], [1.0, 0.3, 0.1], p0=0.5),
         ph.RateDependentPI([0.0, 0.3], [0.5, 0.2], 1e-3, 1.0, 0.1, [0.0, 0.0], 0.0),
         ph.Preisach(3, (0.0, 1.0), np.full(6, 0.1), 0.0, 1.0),
+        ph.PI([0.0, 0.2], [1.0, 0.3], p0=0.1, creep=ph.Creep(1e-3, [0.01, 0.1], [0.02, 0.01])),
+        ph.papers.mpi_seed2(),
     ],
 )
 def test_identify_columns_are_the_table_linear_slots(model):
@@ -89,6 +91,12 @@ def test_identify_columns_are_the_table_linear_slots(model):
     X = _core.regressors(model.family, list(model.dims), row, v)
     np.testing.assert_allclose(X @ theta, model.simulate(v), rtol=1e-12, atol=1e-12)
     assert build(theta) == model
+    # the lower bounds are the table's: 0 on its non-negative slots, free elsewhere
+    free = np.concatenate(
+        [np.full(sizes[n], n not in layout["nonnegative"]) for n in layout["linear"]] or [np.zeros(0, bool)]
+    )
+    assert np.array_equal(np.isneginf(lb), free)
+    assert np.all(lb[~free] == 0.0)
 
 
 def test_typed_model_matches_the_free_functions():

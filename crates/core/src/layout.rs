@@ -89,6 +89,9 @@ pub struct FamilyLayout {
     /// The slots the output is linear in, in the order of the regressor columns of
     /// [`crate::spec::Model::regressors_step`] (empty: not linear in any parameters).
     pub linear: &'static [&'static str],
+    /// The linear slots an identification keeps non-negative (the weights whose sign makes
+    /// the model increasing, hence invertible); the others are free.
+    pub nonnegative: &'static [&'static str],
     /// Decoder of the dims (their count is already checked against `dims`).
     pub decode: fn(&[usize]) -> Result<Family, ModelError>,
 }
@@ -144,6 +147,7 @@ pub const FAMILIES: &[FamilyLayout] = &[
             rep(CREEP_C, Count::Dim(1)),
         ],
         linear: &["p0", "w", CREEP_C],
+        nonnegative: &["p0", "w", CREEP_C],
         decode: decode_pi,
     },
     FamilyLayout {
@@ -164,6 +168,7 @@ pub const FAMILIES: &[FamilyLayout] = &[
             rep(CREEP_C, Count::Dim(3)),
         ],
         linear: &["poly", "b", CREEP_C],
+        nonnegative: &["b", CREEP_C],
         decode: decode_gpi,
     },
     FamilyLayout {
@@ -184,6 +189,7 @@ pub const FAMILIES: &[FamilyLayout] = &[
             rep(CREEP_C, Count::Dim(1)),
         ],
         linear: &["p0", "w", "c", CREEP_C],
+        nonnegative: &["p0", "w", CREEP_C],
         decode: decode_rdpi,
     },
     FamilyLayout {
@@ -193,6 +199,7 @@ pub const FAMILIES: &[FamilyLayout] = &[
         dims: &["terms"],
         slots: &[one(CREEP_TS), rep(CREEP_TAU, Count::Dim(0)), rep(CREEP_C, Count::Dim(0))],
         linear: &[CREEP_C],
+        nonnegative: &[CREEP_C],
         decode: decode_creep,
     },
     FamilyLayout {
@@ -202,6 +209,7 @@ pub const FAMILIES: &[FamilyLayout] = &[
         dims: &["levels", "memory"],
         slots: &[one("lo"), one("hi"), one("offset"), one("slope"), rep("w", Count::Triangle(0))],
         linear: &["offset", "slope", "w"],
+        nonnegative: &["slope", "w"],
         decode: decode_preisach,
     },
     FamilyLayout {
@@ -211,6 +219,7 @@ pub const FAMILIES: &[FamilyLayout] = &[
         dims: &[],
         slots: &[one("a"), one("beta"), one("gamma"), one("n"), one("d")],
         linear: &[],
+        nonnegative: &[],
         decode: |_| Ok(Family::BoucWen),
     },
     FamilyLayout {
@@ -220,6 +229,7 @@ pub const FAMILIES: &[FamilyLayout] = &[
         dims: &[],
         slots: &[one("alpha"), rep("f", Count::Fixed(4)), rep("g", Count::Fixed(4))],
         linear: &[],
+        nonnegative: &[],
         decode: |_| Ok(Family::Duhem),
     },
     FamilyLayout {
@@ -229,6 +239,7 @@ pub const FAMILIES: &[FamilyLayout] = &[
         dims: &[],
         slots: &[one("sigma"), one("h_c"), one("a")],
         linear: &[],
+        nonnegative: &[],
         decode: |_| Ok(Family::Dahl),
     },
 ];

@@ -89,3 +89,16 @@ fn one_decoder_with_consistent_errors() {
     assert!(matches!(smc.decode(&p), Err(ModelError::NotFinite("params", 3, _))));
     assert_eq!(smc.decode(&p[..20]).err(), Some(ModelError::Length("params", 21, 20)));
 }
+
+#[test]
+fn nonnegative_and_linear_slots_are_declared_slots() {
+    for f in FAMILIES {
+        let declared: Vec<&str> = f.slots.iter().map(|s| s.name).collect();
+        for name in f.linear {
+            assert!(declared.contains(name), "{}: linear slot {name} is not a slot", f.name);
+        }
+        for name in f.nonnegative {
+            assert!(f.linear.contains(name), "{}: nonnegative slot {name} is not linear", f.name);
+        }
+    }
+}

@@ -32,6 +32,7 @@ pub fn family_dict<'py>(py: Python<'py>, name: &str, dims: &[usize]) -> PyResult
     let groups: Vec<(&str, usize, usize)> = layout.ranges(dims).map(|(s, at, len)| (s.name, at, len)).collect();
     d.set_item("groups", groups)?;
     d.set_item("linear", layout.linear.to_vec())?;
+    d.set_item("nonnegative", layout.nonnegative.to_vec())?;
     d.set_item("param_len", fam.param_len())?;
     d.set_item("state_len", fam.state_len())?;
     Ok(d)
@@ -54,7 +55,7 @@ pub fn controller_dict<'py>(py: Python<'py>, kind: &str) -> PyResult<Bound<'py, 
 /// Slot names and metadata of a family's parameter row: `family`, `code` (the C
 /// `PhsFamily`), `dim_names`, `dims`, `slots` (expanded, in row order), `groups` (`(name,
 /// offset, length)` per declared slot), `linear` (slot names of the regressor columns),
-/// `param_len`, `state_len`.
+/// `nonnegative` (the linear slots a fit keeps >= 0), `param_len`, `state_len`.
 #[pyfunction]
 fn family_layout<'py>(py: Python<'py>, name: &str, dims: Vec<usize>) -> PyResult<Bound<'py, PyDict>> {
     family_dict(py, name, &dims)

@@ -192,16 +192,13 @@ def _check_loss(loss: object, delta: object) -> tuple[str, float | None]:
     return name, as_scalar(delta, "huber_delta", positive=True)
 
 
-#: Linear slots (names of the core's layout table) that fits keep non-negative.
-_NONNEGATIVE = frozenset({"p0", "w", "b", "slope", "creep_c"})
-
-
-def _linear_slots(model: LinearModel) -> list[tuple[str, int]]:
-    """``(name, length)`` of the model's linear slots in regressor-column order (the core's
-    layout table, ``_core.family_layout``)."""
+def _linear_slots(model: LinearModel) -> list[tuple[int, bool]]:
+    """``(length, non-negative)`` of the model's linear slots in regressor-column order, as
+    the core's layout table declares them (``_core.family_layout``: ``linear`` and
+    ``nonnegative``). Names are not spelled here: a slot renamed in the table is followed."""
     layout = _core.family_layout(model.family, list(model.dims))
     length = {name: size for name, _, size in layout["groups"]}
-    return [(name, length[name]) for name in layout["linear"]]
+    return [(length[name], name in layout["nonnegative"]) for name in layout["linear"]]
 
 
 def _layout(model: LinearModel) -> tuple[FloatArray, FloatArray, Callable[[FloatArray], LinearModel]]:
@@ -214,11 +211,12 @@ def _layout(model: LinearModel) -> tuple[FloatArray, FloatArray, Callable[[Float
             f"model must be PI, GeneralizedPI, RateDependentPI or Preisach, got {type(model).__name__}"
         )
     slots = _linear_slots(model)
-    lb = np.concatenate([np.full(size, 0.0 if name in _NONNEGATIVE else -inf) for name, size in slots])
+    lb = np.concatenate([np.full(size, 0.0 if nonnegative else -inf) for size, nonnegative in slots])
 
-    def parts(t: FloatArray) -> dict[str, FloatArray]:
-        ends = np.cumsum([size for _, size in slots])
-        return {name: t[end - size : end] for (name, size), end in zip(slots, ends, strict=True)}
+    def parts(t: FloatArray) -> list[FloatArray]:
+        """The solution split into the linear slots, in the table's (regressor-column) order."""
+        ends = np.cumsum([size for size, _ in slots])
+        return [t[end - size : end] for (size, _), end in zip(slots, ends, strict=True)]
 
     def with_creep(theta_tail: FloatArray) -> Creep | None:
         return None if creep is None else Creep(creep.ts, creep.taus, theta_tail)
@@ -226,44 +224,42 @@ def _layout(model: LinearModel) -> tuple[FloatArray, FloatArray, Callable[[Float
     if isinstance(model, RateDependentPI):
 
         def build(t: FloatArray) -> LinearModel:
-            p = parts(t)
+            p0, w, c, creep_c = parts(t)
             return RateDependentPI(
                 model.thresholds,
-                p["w"],
+                w,
                 model.ts,
-                p["p0"][0],
+                p0[0],
                 model.beta,
-                p["c"],
+                c,
                 model.filter_tau,
-                creep=with_creep(p["creep_c"]),
+                creep=with_creep(creep_c),
                 units=model.units,
             )
     elif isinstance(model, GeneralizedPI):
 
         def build(t: FloatArray) -> LinearModel:
-            p = parts(t)
+            poly, b, creep_c = parts(t)
             return GeneralizedPI(
                 model.thresholds,
-                p["b"],
-                p["poly"],
+                b,
+                poly,
                 model.rising,
                 model.falling,
                 model.input_range,
-                creep=with_creep(p["creep_c"]),
+                creep=with_creep(creep_c),
                 units=model.units,
             )
     elif isinstance(model, PI):
 
         def build(t: FloatArray) -> LinearModel:
-            p = parts(t)
-            return PI(model.thresholds, p["w"], p["p0"][0], creep=with_creep(p["creep_c"]), units=model.units)
+            p0, w, creep_c = parts(t)
+            return PI(model.thresholds, w, p0[0], creep=with_creep(creep_c), units=model.units)
     else:
 
         def build(t: FloatArray) -> LinearModel:
-            p = parts(t)
-            return Preisach(
-                model.levels, model.input_range, p["w"], p["offset"][0], p["slope"][0], model.memory, units=model.units
-            )
+            offset, slope, w = parts(t)
+            return Preisach(model.levels, model.input_range, w, offset[0], slope[0], model.memory, units=model.units)
 
     return lb, np.full(lb.size, inf), build
 
