@@ -43,6 +43,13 @@ CoreSpec: TypeAlias = tuple[str, FloatArray, InverseSpec | None, IlcSpec | None]
 _C = TypeVar("_C", bound="ControllerLike")
 
 
+class PackedController(Protocol):
+    """A controller whose ``core(stage)`` gives the tuple form :data:`CoreSpec` (every
+    controller of piezohyst, and :class:`~piezohyst.export.c.ExportedController`)."""
+
+    def core(self, stage: Stage) -> CoreSpec: ...
+
+
 class DomainController(Protocol):
     """A controller that can act in another domain than volts (behind an inverse): its
     ``core`` takes the output ``limits`` of that domain."""
@@ -242,6 +249,13 @@ def _pack(kind: str, **values: float) -> FloatArray:
     return np.array([values[name] for name in slots], dtype=float)
 
 
+def _slot_count(kind: str, name: str) -> int:
+    """How many indexed slots ``name_0``, ``name_1``, ... a controller kind has (the core's
+    layout table)."""
+    slots = _core.controller_layout(kind)["slots"]
+    return sum(1 for s in slots if s.startswith(f"{name}_") and s[len(name) + 1 :].isdigit())
+
+
 def _cemf_slots(params: StageParameters) -> dict[str, float]:
     c = cemf_model_parameters(params)
     names = {"M": "M", "B": "B", "K": "K", "tem": "tem", "capacitance": "capacitance"}
@@ -381,8 +395,9 @@ class ABSMC:
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
         b = as_scalar(self.b, "b", positive=True)
         th = [as_scalar(t, f"theta[{i}]") for i, t in enumerate(self.theta)]
-        if len(th) != 2:
-            raise ParameterError(f"theta must have 2 values [a0, a1], got {len(th)}")
+        n_theta = _slot_count("absmc", "theta0")  # the regressor phi = [-x, -x']
+        if len(th) != n_theta:
+            raise ParameterError(f"theta must have {n_theta} values [a0, a1], got {len(th)}")
         if self.theta_bounds is None:
             r = as_scalar(self.theta_range, "theta_range", positive=True)
             if r < 1:
@@ -394,8 +409,8 @@ class ABSMC:
         for name in ("c1", "lam", "phi", "gamma_d"):
             as_scalar(getattr(self, name), name, positive=True)
         as_scalar(self.ks, "ks", nonnegative=True)
-        if len(self.gamma_theta) != 2:
-            raise ParameterError(f"gamma_theta = {self.gamma_theta!r} must have 2 values (rates for a0, a1)")
+        if len(self.gamma_theta) != n_theta:
+            raise ParameterError(f"gamma_theta = {self.gamma_theta!r} must have {n_theta} values (rates for a0, a1)")
         g = [as_scalar(x, f"gamma_theta[{i}]", positive=True) for i, x in enumerate(self.gamma_theta)]
         d0 = as_scalar(self.d0, "d0", nonnegative=True)
         lo, hi = _domain_limits(self.u_min, self.u_max, stage, limits)
