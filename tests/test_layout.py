@@ -139,3 +139,42 @@ def test_controller_arrays_are_packed_by_table_names():
     kind, params, _, _ = ph.SMC(stage.params, switching="super_twisting", k1=10.0, k2=1000.0).core(stage)
     named = dict(zip(_core.controller_layout(kind)["slots"], params, strict=True))
     assert (named["switching"], named["ks_or_k1"], named["phi_or_k2"]) == (1.0, 10.0, 1000.0)
+
+
+@pytest.mark.parametrize(
+    "model",
+    [
+        ph.PI([0.0, 0.2, 0.5], [1.0, 0.3, 0.1], p0=0.5),
+        ph.RateDependentPI([0.0, 0.3], [0.5, 0.2], 1e-3, 1.0, 0.1, [0.0, 0.0], 0.0),
+        ph.Preisach(3, (-0.5, 2.0), np.full(6, 0.1), 0.0, 1.0),
+    ],
+)
+def test_example_input_range_reads_the_table_groups(model):
+    # the C example's input range is read at the offsets of the table's groups
+    from piezohyst.export.c import demo_input_range
+
+    layout = _core.family_layout(model.family, list(model.dims))
+    groups = {name: (offset, length) for name, offset, length in layout["groups"]}
+    row = model.to_row()
+    if model.family == "preisach":
+        expected = (row[groups["lo"][0]], row[groups["hi"][0]])
+    else:
+        offset, length = groups["r"]
+        expected = (0.0, 2 * row[offset + length - 1])
+    assert demo_input_range(model) == expected
+    # the slots are named as the groups say
+    assert layout["slots"][groups["r" if model.family != "preisach" else "hi"][0]].startswith(
+        "r[" if model.family != "preisach" else "hi"
+    )
+
+
+def test_example_input_range_of_gpi_reads_the_table_groups():
+    from piezohyst.export.c import demo_input_range
+
+    m = ph.GeneralizedPI([0.0, 0.4], [1.0, 0.2], (0, 1.0, 0, 0), input_range=(-0.75, 1.25))
+    layout = _core.family_layout(m.family, list(m.dims))
+    groups = {name: offset for name, offset, _ in layout["groups"]}
+    row = m.to_row()
+    assert demo_input_range(m) == (row[groups["range_lo"]], row[groups["range_hi"]]) == (-0.75, 1.25)
+    # without a finite range: [0, 2 max threshold] is for the PI family only
+    assert demo_input_range(ph.GeneralizedPI([0.0, 0.4], [1.0, 0.2], (0, 1.0, 0, 0))) == (-1.0, 1.0)

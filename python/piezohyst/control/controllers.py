@@ -13,13 +13,49 @@ the quantized reading).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any, Protocol, TypeAlias, TypeVar
 
 import numpy as np
+import numpy.typing as npt
 
 from .. import _core
 from .._validate import as_int, as_scalar
 from ..errors import ParameterError, ParameterTypeError
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from ..models.model import HysteresisModel
+    from ..plant.stage import Stage, StageParameters
+    from .simulation import ControllerLike
+
+FloatArray: TypeAlias = npt.NDArray[np.float64]
+#: Output limits ``(lower, upper)`` of a controller.
+Limits: TypeAlias = tuple[float, float]
+#: ``(family, dims, row, u_min, u_max)``: the exact inverse of a model the command passes through.
+InverseSpec: TypeAlias = tuple[str, list[int], FloatArray, float, float]
+#: ``(period, gain, forgetting, lead, delay)`` of iterative learning control.
+IlcSpec: TypeAlias = tuple[int, float, float, int, int]
+#: What ``controller.core(stage)`` gives the core: ``(kind, params, inverse, ilc)`` (one form
+#: of ``_core``'s controller spec).
+CoreSpec: TypeAlias = tuple[str, FloatArray, InverseSpec | None, IlcSpec | None]
+
+_C = TypeVar("_C", bound="ControllerLike")
+
+
+class PackedController(Protocol):
+    """A controller whose ``core(stage)`` gives the tuple form :data:`CoreSpec` (every
+    controller of piezohyst, and :class:`~piezohyst.export.c.ExportedController`)."""
+
+    def core(self, stage: Stage) -> CoreSpec: ...
+
+
+class DomainController(Protocol):
+    """A controller that can act in another domain than volts (behind an inverse): its
+    ``core`` takes the output ``limits`` of that domain."""
+
+    def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec: ...
+
 
 __all__ = [
     "ABSMC",
@@ -35,7 +71,7 @@ __all__ = [
 ]
 
 
-def _limits(u_min, u_max, stage):
+def _limits(u_min: float | None, u_max: float | None, stage: Stage) -> Limits:
     lo = stage.amplifier.v_min if u_min is None else as_scalar(u_min, "u_min")
     hi = stage.amplifier.v_max if u_max is None else as_scalar(u_max, "u_max")
     if not hi > lo:
@@ -50,11 +86,11 @@ def _limits(u_min, u_max, stage):
     return lo, hi
 
 
-def _domain_limits(controller, stage, limits):
+def _domain_limits(u_min: float | None, u_max: float | None, stage: Stage, limits: Limits | None) -> Limits:
     """Output limits: the amplifier's (volts) or, behind an inverse, the ones given."""
     if limits is not None:
         return limits
-    return _limits(getattr(controller, "u_min", None), getattr(controller, "u_max", None), stage)
+    return _limits(u_min, u_max, stage)
 
 
 @dataclass(frozen=True)
@@ -66,7 +102,7 @@ class VelocityObserver:
     bandwidth: float = 1000.0
     delay: float | None = None
 
-    def core(self, stage) -> list:
+    def core(self, stage: Stage) -> list[float]:
         bw = as_scalar(self.bandwidth, "observer_bandwidth", positive=True)
         if bw >= 0.5 / stage.sample_time:
             raise ParameterError(
@@ -101,12 +137,12 @@ class OpenLoop:
     def uses_reference_derivatives(self) -> bool:
         return self.c1 != 0 or self.c2 != 0
 
-    def core(self, stage, *, limits=None):
+    def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
         if self.gain is not None:
             gain = as_scalar(self.gain, "gain")
         else:  # behind an inverse the plant is linearized to unit gain
             gain = 1.0 if limits is not None else 1.0 / stage.params.static_gain
-        lo, hi = _domain_limits(self, stage, limits)
+        lo, hi = _domain_limits(self.u_min, self.u_max, stage, limits)
         return (
             "open_loop",
             _pack(
@@ -147,7 +183,7 @@ class PID:
     #: the step uses only the reference position
     uses_reference_derivatives = False
 
-    def core(self, stage, *, limits=None):
+    def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
         for name in ("kp", "ki", "kd"):
             as_scalar(getattr(self, name), name, nonnegative=True)
         as_scalar(self.tau_d, "tau_d", positive=True)
@@ -155,7 +191,7 @@ class PID:
             ff = 1.0  # behind an inverse the plant is linearized to unit gain
         else:
             ff = 1.0 / stage.params.static_gain if self.ff_gain is None else as_scalar(self.ff_gain, "ff_gain")
-        lo, hi = _domain_limits(self, stage, limits)
+        lo, hi = _domain_limits(self.u_min, self.u_max, stage, limits)
         return (
             "pid",
             _pack(
@@ -175,15 +211,21 @@ class PID:
         )
 
 
-def cemf_model_parameters(params) -> dict:
-    """The volt-normalized CEMF model of seed 1 from (identified) stage parameters:
-    ``M = m/Tem``, ``B = b/Tem``, ``K = k/Tem`` and the charge-driven Bouc–Wen law."""
+def _stage_parameters(params: object) -> StageParameters:
+    """``params`` if it is :class:`StageParameters`, else ``ParameterTypeError``."""
     from ..plant.stage import StageParameters
 
     if not isinstance(params, StageParameters):
         raise ParameterTypeError(
             f"model must be StageParameters (e.g. identify_cemf(...).model), got {type(params).__name__}"
         )
+    return params
+
+
+def cemf_model_parameters(params: StageParameters) -> dict[str, float]:
+    """The volt-normalized CEMF model of seed 1 from (identified) stage parameters:
+    ``M = m/Tem``, ``B = b/Tem``, ``K = k/Tem`` and the charge-driven Bouc–Wen law."""
+    params = _stage_parameters(params)
     if params.hyst_drive != "charge":
         raise ParameterError(f"model.hyst_drive = {params.hyst_drive!r}: the CEMF observer needs the charge-driven law")
     t = params.tem
@@ -199,7 +241,7 @@ def cemf_model_parameters(params) -> dict:
     }
 
 
-def _pack(kind: str, **values) -> np.ndarray:
+def _pack(kind: str, **values: float) -> FloatArray:
     """The flat parameter array of a controller kind from its values by slot name, in the
     order of the core's layout table (``_core.controller_layout``)."""
     slots = _core.controller_layout(kind)["slots"]
@@ -207,13 +249,20 @@ def _pack(kind: str, **values) -> np.ndarray:
     return np.array([values[name] for name in slots], dtype=float)
 
 
-def _cemf_slots(params) -> dict:
+def _slot_count(kind: str, name: str) -> int:
+    """How many indexed slots ``name_0``, ``name_1``, ... a controller kind has (the core's
+    layout table)."""
+    slots = _core.controller_layout(kind)["slots"]
+    return sum(1 for s in slots if s.startswith(f"{name}_") and s[len(name) + 1 :].isdigit())
+
+
+def _cemf_slots(params: StageParameters) -> dict[str, float]:
     c = cemf_model_parameters(params)
     names = {"M": "M", "B": "B", "K": "K", "tem": "tem", "capacitance": "capacitance"}
     return {**{slot: c[key] for slot, key in names.items()}, **{f"hyst_{k}": c[k] for k in ("alpha", "beta", "gamma")}}
 
 
-def _observer_slots(observer, stage) -> dict:
+def _observer_slots(observer: VelocityObserver, stage: Stage) -> dict[str, float]:
     return dict(zip(("observer_bandwidth", "ts", "observer_delay"), observer.core(stage), strict=True))
 
 
@@ -235,7 +284,7 @@ class SMC:
     The sliding dynamics ``e'' + (kv + alpha) e' + (alpha kv + kp) e = 0`` must be stable.
     """
 
-    model: object
+    model: StageParameters
     kp: float = 1e6
     kv: float = 2e3
     alpha: float = 0.0
@@ -252,7 +301,7 @@ class SMC:
 
     uses_reference_derivatives = True
 
-    def core(self, stage, *, limits=None):
+    def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
         cemf = _cemf_slots(self.model)
         kp, kv, alpha = (as_scalar(getattr(self, n), n) for n in ("kp", "kv", "alpha"))
         if alpha < 0:
@@ -271,7 +320,7 @@ class SMC:
             raise ParameterError(f"switching = {self.switching!r} must be 'boundary_layer' or 'super_twisting'")
         if self.model_terms not in ("measured", "desired"):
             raise ParameterError(f"model_terms = {self.model_terms!r} must be 'measured' or 'desired'")
-        lo, hi = _domain_limits(self, stage, limits)
+        lo, hi = _domain_limits(self.u_min, self.u_max, stage, limits)
         p = _pack(
             "smc",
             **cemf,
@@ -307,17 +356,17 @@ class ABSMC:
     """
 
     b: float
-    theta: tuple
+    theta: Sequence[float]
     c1: float = 2e3
     lam: float = 2e3
     ks: float = 1e3
     phi: float = 1e-3
-    gamma_theta: tuple = (1e12, 1e6)
+    gamma_theta: Sequence[float] = (1e12, 1e6)
     gamma_d: float = 1e6
     d0: float = 0.0
     d_max: float | None = None
     theta_range: float = 3.0
-    theta_bounds: tuple | None = None
+    theta_bounds: Sequence[Sequence[float]] | None = None
     regressor: str = "desired"
     observer: VelocityObserver = field(default_factory=VelocityObserver)
     u_min: float | None = None
@@ -326,7 +375,7 @@ class ABSMC:
     uses_reference_derivatives = True
 
     @classmethod
-    def for_stage(cls, model, **kw) -> ABSMC:
+    def for_stage(cls, model: StageParameters, **kw: Any) -> ABSMC:
         """Voltage-domain ABSMC from identified stage parameters."""
         c = (
             cemf_model_parameters(model)
@@ -336,18 +385,19 @@ class ABSMC:
         return cls(b=1.0 / c["M"], theta=(c["K"] / c["M"], c["B"] / c["M"]), **kw)
 
     @classmethod
-    def linearized(cls, natural_frequency, damping_ratio=0.05, **kw) -> ABSMC:
+    def linearized(cls, natural_frequency: float, damping_ratio: float = 0.05, **kw: Any) -> ABSMC:
         """Displacement-domain ABSMC for a stage linearized by an inverse model: unit static
         gain, ``natural_frequency`` in Hz."""
         w = 2 * math.pi * as_scalar(natural_frequency, "natural_frequency", positive=True)
         z = as_scalar(damping_ratio, "damping_ratio", nonnegative=True)
         return cls(b=w * w, theta=(w * w, 2 * z * w), **kw)
 
-    def core(self, stage, *, limits=None):
+    def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
         b = as_scalar(self.b, "b", positive=True)
         th = [as_scalar(t, f"theta[{i}]") for i, t in enumerate(self.theta)]
-        if len(th) != 2:
-            raise ParameterError(f"theta must have 2 values [a0, a1], got {len(th)}")
+        n_theta = _slot_count("absmc", "theta0")  # the regressor phi = [-x, -x']
+        if len(th) != n_theta:
+            raise ParameterError(f"theta must have {n_theta} values [a0, a1], got {len(th)}")
         if self.theta_bounds is None:
             r = as_scalar(self.theta_range, "theta_range", positive=True)
             if r < 1:
@@ -359,11 +409,11 @@ class ABSMC:
         for name in ("c1", "lam", "phi", "gamma_d"):
             as_scalar(getattr(self, name), name, positive=True)
         as_scalar(self.ks, "ks", nonnegative=True)
-        if len(self.gamma_theta) != 2:
-            raise ParameterError(f"gamma_theta = {self.gamma_theta!r} must have 2 values (rates for a0, a1)")
+        if len(self.gamma_theta) != n_theta:
+            raise ParameterError(f"gamma_theta = {self.gamma_theta!r} must have {n_theta} values (rates for a0, a1)")
         g = [as_scalar(x, f"gamma_theta[{i}]", positive=True) for i, x in enumerate(self.gamma_theta)]
         d0 = as_scalar(self.d0, "d0", nonnegative=True)
-        lo, hi = _domain_limits(self, stage, limits)
+        lo, hi = _domain_limits(self.u_min, self.u_max, stage, limits)
         d_max = (hi - lo) * b if self.d_max is None else as_scalar(self.d_max, "d_max", nonnegative=True)
         if self.regressor not in ("desired", "measured"):
             raise ParameterError(f"regressor = {self.regressor!r} must be 'desired' or 'measured'")
@@ -397,18 +447,18 @@ class CemfFeedforward:
     ``F = M x_d'' + B x_d' + K x_d``, the charge ``q = Cz F + Tem x_d``, ``Vh`` from the
     Bouc–Wen law on ``q``, and ``u = F + Vh``."""
 
-    model: object
+    model: StageParameters
     u_min: float | None = None
     u_max: float | None = None
 
     uses_reference_derivatives = True
 
-    def core(self, stage, *, limits=None):
-        lo, hi = _domain_limits(self, stage, limits)
+    def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
+        lo, hi = _domain_limits(self.u_min, self.u_max, stage, limits)
         return "cemf_feedforward", _pack("cemf_feedforward", **_cemf_slots(self.model), u_min=lo, u_max=hi), None, None
 
 
-def _model_output_range(model, v_min, v_max) -> tuple:
+def _model_output_range(model: HysteresisModel, v_min: float, v_max: float) -> Limits:
     """Outputs of a hysteresis model at the amplifier limits, reached along the major loop
     (for wiping-out models these do not depend on the history)."""
     ramp = np.concatenate(
@@ -418,6 +468,17 @@ def _model_output_range(model, v_min, v_max) -> tuple:
     return float(y[1199]), float(y[-1])
 
 
+def _hysteresis_model(model: object) -> HysteresisModel:
+    """``model`` if it is a hysteresis model, else ``ParameterTypeError``."""
+    from ..models.model import HysteresisModel
+
+    if not isinstance(model, HysteresisModel):
+        raise ParameterTypeError(
+            f"model must be a hysteresis model (e.g. identify(...).model), got {type(model).__name__}"
+        )
+    return model
+
+
 @dataclass(frozen=True)
 class Compensated:
     """``inner`` acting in the linearized (displacement) domain, behind the exact per-sample
@@ -425,28 +486,23 @@ class Compensated:
     the displacement wanted from the actuator, the inverse finds the voltage. The inner
     controller's limits are the model's outputs at the amplifier limits."""
 
-    inner: object
-    model: object
+    inner: DomainController
+    model: HysteresisModel
 
     @property
     def uses_reference_derivatives(self) -> bool:
-        return getattr(self.inner, "uses_reference_derivatives", True)
+        return bool(getattr(self.inner, "uses_reference_derivatives", True))
 
-    def core(self, stage, *, limits=None):
-        from ..models.model import HysteresisModel
-
-        if not isinstance(self.model, HysteresisModel):
-            raise ParameterTypeError(
-                f"model must be a hysteresis model (e.g. identify(...).model), got {type(self.model).__name__}"
-            )
+    def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
+        model = _hysteresis_model(self.model)
         if isinstance(self.inner, (Compensated, InverseFeedforward)):
             raise ParameterTypeError("inner must not itself be compensated")
         v_lo, v_hi = _limits(None, None, stage) if limits is None else limits
-        y_lo, y_hi = _model_output_range(self.model, v_lo, v_hi)
+        y_lo, y_hi = _model_output_range(model, v_lo, v_hi)
         if not y_hi > y_lo:
             raise ParameterError(f"the model's output range [{y_lo:.4g}, {y_hi:.4g}] at the amplifier limits is empty")
         kind, params, _, ilc = self.inner.core(stage, limits=(y_lo, y_hi))
-        inverse = (self.model.family, list(self.model.dims), self.model.to_row(), v_lo, v_hi)
+        inverse = (model.family, list(model.dims), model.to_row(), v_lo, v_hi)
         return kind, params, inverse, ilc
 
 
@@ -457,7 +513,7 @@ class InverseFeedforward:
     docs/spec.md §5). Any invertible model: PI family, Preisach, Bouc–Wen; for the CEMF model use
     :class:`CemfFeedforward`."""
 
-    model: object
+    model: HysteresisModel
     c1: float = 0.0
     c2: float = 0.0
 
@@ -465,7 +521,7 @@ class InverseFeedforward:
     def uses_reference_derivatives(self) -> bool:
         return self.c1 != 0 or self.c2 != 0
 
-    def core(self, stage, *, limits=None):
+    def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
         return Compensated(OpenLoop(gain=1.0, c1=self.c1, c2=self.c2), self.model).core(stage, limits=limits)
 
 
@@ -477,7 +533,7 @@ class ILC:
     (dimensionless behind an inverse); ``forgetting`` ``q`` in (0, 1]. Learning acts in the
     linearized domain when ``inner`` is :class:`Compensated`."""
 
-    inner: object
+    inner: DomainController
     period: int
     gain: float = 0.5
     forgetting: float = 1.0
@@ -485,9 +541,9 @@ class ILC:
 
     @property
     def uses_reference_derivatives(self) -> bool:
-        return getattr(self.inner, "uses_reference_derivatives", True)
+        return bool(getattr(self.inner, "uses_reference_derivatives", True))
 
-    def core(self, stage, *, limits=None):
+    def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
         n = as_int(self.period, "period", minimum=2)
         gain = as_scalar(self.gain, "gain", nonnegative=True)
         q = as_scalar(self.forgetting, "forgetting", positive=True)
@@ -502,10 +558,10 @@ class ILC:
         return kind, params, inverse, (n, gain, q, lead, int(stage.sensor.delay))
 
 
-def is_controller(c) -> bool:
+def is_controller(c: object) -> bool:
     return hasattr(c, "core") and callable(c.core)
 
 
-def with_gains(controller, **gains):
+def with_gains(controller: _C, **gains: Any) -> _C:
     """A copy of ``controller`` with some fields changed (for gain sweeps and tuning)."""
     return replace(controller, **gains)

@@ -32,14 +32,22 @@ from __future__ import annotations
 import json
 import math
 import shutil
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, NotRequired, Protocol, TypeAlias, TypedDict
 
 import numpy as np
+import numpy.typing as npt
 
 from .. import _core
-from .._io import load_json_file, malformed_as, write_atomic
+from .._io import PathLike, load_json_file, malformed_as, write_atomic
+from ..control.controllers import CoreSpec, FloatArray, IlcSpec, Limits, PackedController, is_controller
 from ..errors import OutputExistsError, ParameterError, ParameterTypeError
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from ..models.model import HysteresisModel
+    from ..plant.stage import Stage
 
 __all__ = [
     "CONTROLLER_KINDS",
@@ -61,11 +69,23 @@ __all__ = [
 FAMILY_CODES, CONTROLLER_KINDS = _core.layout_codes()
 #: Names of the flat parameters of each controller kind (``controller.core(stage)[1]``;
 #: the core's layout table, ``_core.controller_layout``).
-CONTROLLER_PARAMS = {kind: tuple(_core.controller_layout(kind)["slots"]) for kind in CONTROLLER_KINDS}
+CONTROLLER_PARAMS: dict[str, tuple[str, ...]] = {
+    kind: tuple(_core.controller_layout(kind)["slots"]) for kind in CONTROLLER_KINDS
+}
 #: Version of the controller-file layout.
 CONTROLLER_SCHEMA_VERSION = 1
 _FORMAT = "piezohyst-controller"
 _ILC_FIELDS = ("period", "gain", "forgetting", "lead", "delay")
+
+#: ``(family, dims, row, u_min, u_max)`` of the inverse model an exported controller acts behind.
+ExportedInverse: TypeAlias = tuple[str, Sequence[int], Sequence[float], float, float]
+
+
+class _HasSampleTime(Protocol):
+    """What an exported controller needs of a stage: its sample time (s)."""
+
+    @property
+    def sample_time(self) -> float: ...
 
 
 # --------------------------------------------------------------------------------------------
@@ -79,16 +99,16 @@ class ExportedController:
     on a stage with the sample time it was saved for."""
 
     kind: str
-    params: np.ndarray
-    inverse: tuple | None = None
-    ilc: tuple | None = None
+    params: FloatArray
+    inverse: ExportedInverse | None = None
+    ilc: IlcSpec | None = None
     sample_time: float = 1e-4
     description: str = ""
 
     #: the saved description does not say; the loop then passes the derivatives
     uses_reference_derivatives = True
 
-    def core(self, stage, *, limits=None):
+    def core(self, stage: _HasSampleTime, *, limits: Limits | None = None) -> CoreSpec:
         if limits is not None:
             raise ParameterTypeError("an exported controller cannot be wrapped again (it is already complete)")
         ts = float(stage.sample_time)
@@ -115,24 +135,29 @@ class ExportedController:
         return f"ExportedController({self.kind}{extra}: {self.description or '...'})"
 
 
-def _finite(x, name) -> float:
+def _finite(x: object, name: str) -> float:
     if isinstance(x, bool) or not isinstance(x, (int, float)):
         raise ParameterError(f"{name} = {x!r} must be a number")
-    x = float(x)
-    if not math.isfinite(x):
-        raise ParameterError(f"{name} = {x} is not finite")
-    return x
+    v = float(x)
+    if not math.isfinite(v):
+        raise ParameterError(f"{name} = {v} is not finite")
+    return v
 
 
-def _count(x, name, minimum=0) -> int:
+def _count(x: object, name: str, minimum: int = 0) -> int:
     if isinstance(x, bool) or not isinstance(x, int) or x < minimum:
         raise ParameterError(f"{name} = {x!r} must be an integer >= {minimum}")
     return int(x)
 
 
-def _validated(kind, params, inverse, ilc) -> None:
+def _validated(
+    kind: str,
+    params: npt.ArrayLike,
+    inverse: tuple[str, Iterable[int], npt.ArrayLike, float, float] | None,
+    ilc: IlcSpec | None,
+) -> None:
     """Build the controller once in the core (raises ValueError naming the problem)."""
-    spec = (
+    spec: CoreSpec = (
         kind,
         np.ascontiguousarray(params, dtype=np.float64),
         None
@@ -149,9 +174,9 @@ def _validated(kind, params, inverse, ilc) -> None:
     _core.controller_initial_state(spec, 0.0)
 
 
-def controller_to_dict(controller, stage) -> dict:
+def controller_to_dict(controller: PackedController, stage: Stage) -> dict[str, Any]:
     """The controller file's content for ``controller`` on ``stage`` (see the module doc)."""
-    if not (hasattr(controller, "core") and callable(controller.core)):
+    if not is_controller(controller):
         raise ParameterTypeError(
             f"controller must be a piezohyst controller (OpenLoop, PID, SMC, ...), got {type(controller).__name__}"
         )
@@ -161,7 +186,7 @@ def controller_to_dict(controller, stage) -> dict:
     if len(values) != len(names):
         raise ParameterError(f"controller {kind!r} gave {len(values)} parameters, expected {len(names)}")
     _validated(kind, values, inverse, ilc)
-    d = {
+    d: dict[str, Any] = {
         "schema_version": CONTROLLER_SCHEMA_VERSION,
         "format": _FORMAT,
         "kind": kind,
@@ -196,13 +221,13 @@ def controller_to_dict(controller, stage) -> dict:
     return d
 
 
-def controller_from_dict(d) -> ExportedController:
+def controller_from_dict(d: object) -> ExportedController:
     """Read a controller file's content (validated: the core builds it once)."""
     with malformed_as("the controller description"):
         return _controller_from_dict(d)
 
 
-def _controller_from_dict(d) -> ExportedController:
+def _controller_from_dict(d: object) -> ExportedController:
     if not isinstance(d, dict):
         raise ParameterError(f"a controller description must be a JSON object, got {type(d).__name__}")
     if d.get("format") != _FORMAT:
@@ -223,7 +248,7 @@ def _controller_from_dict(d) -> ExportedController:
             f"params of {kind!r} must be an object with the keys {list(names)} in this order, got {got!r}"
         )
     params = np.array([_finite(p[n], f"params.{n}") for n in names], dtype=np.float64)
-    inverse = None
+    inverse: ExportedInverse | None = None
     inv = d.get("inverse")
     if inv is not None:
         if not isinstance(inv, dict):
@@ -234,19 +259,19 @@ def _controller_from_dict(d) -> ExportedController:
         dims = inv.get("dims")
         if not isinstance(dims, list):
             raise ParameterError(f"inverse.dims = {dims!r} must be a list of integers")
-        dims = tuple(_count(x, f"inverse.dims[{i}]") for i, x in enumerate(dims))
+        dims_ = tuple(_count(x, f"inverse.dims[{i}]") for i, x in enumerate(dims))
         row = inv.get("params")
         if not isinstance(row, list):
             raise ParameterError("inverse.params must be a list of numbers")
-        row = tuple(_finite(x, f"inverse.params[{i}]") for i, x in enumerate(row))
+        row_ = tuple(_finite(x, f"inverse.params[{i}]") for i, x in enumerate(row))
         inverse = (
             family,
-            dims,
-            row,
+            dims_,
+            row_,
             _finite(inv.get("u_min"), "inverse.u_min"),
             _finite(inv.get("u_max"), "inverse.u_max"),
         )
-    ilc = None
+    ilc: IlcSpec | None = None
     il = d.get("ilc")
     if il is not None:
         if not isinstance(il, dict) or set(il) != set(_ILC_FIELDS):
@@ -272,7 +297,7 @@ def _controller_from_dict(d) -> ExportedController:
     return ExportedController(kind, params, inverse, ilc, ts, str(d.get("description", "")))
 
 
-def save_controller(controller, stage, path, *, overwrite: bool = False) -> Path:
+def save_controller(controller: PackedController, stage: Stage, path: PathLike, *, overwrite: bool = False) -> Path:
     """Write ``controller`` (as it runs on ``stage``) to a controller file, atomically; an
     existing file is kept unless ``overwrite``.
 
@@ -292,7 +317,7 @@ def save_controller(controller, stage, path, *, overwrite: bool = False) -> Path
     return write_atomic(path, text, overwrite=overwrite)
 
 
-def load_controller(path) -> ExportedController:
+def load_controller(path: PathLike) -> ExportedController:
     """Read a controller file written by :func:`save_controller` (``DataError`` naming the
     file if it is not one)."""
     return load_json_file(path, "controller file", controller_from_dict)
@@ -302,7 +327,7 @@ def load_controller(path) -> ExportedController:
 # C export
 
 
-def row_names(family: str, dims) -> list[str]:
+def row_names(family: str, dims: Iterable[int]) -> list[str]:
     """Names of the slots of a model family's parameter row (the core's layout table,
     ``_core.family_layout``)."""
     if family not in FAMILY_CODES:
@@ -338,7 +363,7 @@ def _c_double(x: float) -> str:
     return x.hex()
 
 
-def _c_array(name: str, values, names, indent="    ") -> str:
+def _c_array(name: str, values: FloatArray, names: Sequence[str], indent: str = "    ") -> str:
     lines = [f"const double {name}[{len(values)}] = {{"]
     for i, (v, n) in enumerate(zip(values, names, strict=False)):
         comma = "," if i + 1 < len(values) else " "
@@ -351,7 +376,7 @@ def _guard(name: str) -> str:
     return name.upper().replace(".", "_")
 
 
-def _model_files(model, source: str) -> dict:
+def _model_files(model: HysteresisModel, source: str) -> dict[str, str]:
     fam, dims, row = model.family, list(model.dims), model.to_row()
     n_params, n_state = _core.family_sizes(fam, dims)
     names = row_names(fam, dims)
@@ -403,20 +428,20 @@ PhsStatus piezohyst_model_init(PhsModel *model) {{
     return {"piezohyst_model.h": h, "piezohyst_model.c": c}
 
 
-def _scratch_len(family, dims) -> int:
-    dims = [int(x) for x in dims]
+def _scratch_len(family: str, dims: Iterable[int]) -> int:
+    d = [int(x) for x in dims]
     if family == "preisach":
-        return dims[0] * (dims[0] + 1) // 2
+        return d[0] * (d[0] + 1) // 2
     if family in ("pi", "rdpi"):
-        return dims[1]
+        return d[1]
     if family == "gpi":
-        return dims[3]
+        return d[3]
     if family == "creep":
-        return dims[0]
+        return d[0]
     return 0
 
 
-def _controller_files(c: ExportedController, source: str) -> dict:
+def _controller_files(c: ExportedController, source: str) -> dict[str, str]:
     kind = c.kind
     names = CONTROLLER_PARAMS[kind]
     spec = c.core(_StageStub(c.sample_time))
@@ -467,7 +492,7 @@ PhsStatus piezohyst_controller_init(PhsController *controller, const PhsModel *i
         f"                               PIEZOHYST_CONTROLLER_N_PARAMS, {'&inverse' if inv else 'NULL'}, "
         f"{'&ilc' if ilc else 'NULL'});"
     )
-    body = "\n".join(body)
+    body_text = "\n".join(body)
     cc = f"""/* Generated by `piezohyst export-c` from {source} -- do not edit. */
 #include "piezohyst_controller.h"
 
@@ -476,7 +501,7 @@ PhsStatus piezohyst_controller_init(PhsController *controller, const PhsModel *i
 {_c_array("piezohyst_controller_params", c.params, names)}
 
 PhsStatus piezohyst_controller_init(PhsController *controller, const PhsModel *inverse_model) {{
-{body}
+{body_text}
 }}
 """
     return {"piezohyst_controller.h": h, "piezohyst_controller.c": cc}
@@ -487,27 +512,58 @@ class _StageStub:
     sample_time: float
 
 
-def demo_input_range(model) -> tuple[float, float]:
+def demo_input_range(model: HysteresisModel) -> tuple[float, float]:
     """The input range ``example.c`` drives the model over: the model's own input range when
     it has one (GPI/MPI ``input_range``, Preisach grid), else ``[0, 2 max threshold]`` for
     the PI family, else ``[-1, 1]``."""
     row = model.to_row()
     fam = model.family
-    if fam in ("gpi", "preisach") and np.all(np.isfinite(row[:2])):
-        return float(row[0]), float(row[1])
+    groups = _groups(fam, model.dims)
+    if fam in _INPUT_RANGE_GROUPS:
+        lo, hi = (row[groups[g]] for g in _INPUT_RANGE_GROUPS[fam])
+        if np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)):
+            return float(lo[0]), float(hi[0])
     if fam in ("pi", "rdpi"):
-        n = model.dims[0]
-        r = row[1 : 1 + n] if fam == "pi" else row[4 : 4 + n]
-        if n and r[-1] > 0:
+        r = row[groups["r"]]  # the thresholds, increasing
+        if r.size and r[-1] > 0:
             return 0.0, float(2 * r[-1])
     return -1.0, 1.0
+
+
+#: The groups of the layout table holding a family's own input range ``(low, high)``.
+_INPUT_RANGE_GROUPS = {"gpi": ("range_lo", "range_hi"), "preisach": ("lo", "hi")}
+
+
+def _groups(family: str, dims: Iterable[int]) -> dict[str, slice]:
+    """Where each declared group of a family's row lies (the core's layout table,
+    ``_core.family_layout``): ``{name: slice}``."""
+    layout = _core.family_layout(family, [int(x) for x in dims])
+    return {name: slice(offset, offset + length) for name, offset, length in layout["groups"]}
 
 
 #: Samples per triangle period of the example's reference (the ILC period when learning).
 EXAMPLE_PERIOD = 1000
 
 
-def example_plan(model, controller: ExportedController | None, input_range=None, steps=None) -> dict:
+class ExamplePlan(TypedDict):
+    """The constants of ``example.c``: the input range and the triangle's period and length,
+    with a controller also the reference's range and the sample time."""
+
+    v_lo: float
+    v_hi: float
+    period: int
+    steps: int
+    x_lo: NotRequired[float]
+    x_hi: NotRequired[float]
+    ts: NotRequired[float]
+
+
+def example_plan(
+    model: HysteresisModel,
+    controller: ExportedController | None,
+    input_range: Sequence[float] | None = None,
+    steps: int | None = None,
+) -> ExamplePlan:
     """The constants ``example.c`` runs with (also what the test reproduces in Python)."""
     lo, hi = demo_input_range(model) if input_range is None else (float(input_range[0]), float(input_range[1]))
     if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
@@ -517,7 +573,7 @@ def example_plan(model, controller: ExportedController | None, input_range=None,
     n = 3 * period if steps is None else int(steps)
     if n < 1:
         raise ParameterError(f"steps = {n} must be >= 1")
-    plan = {"v_lo": lo, "v_hi": hi, "period": period, "steps": n}
+    plan: ExamplePlan = {"v_lo": lo, "v_hi": hi, "period": period, "steps": n}
     if controller is not None:
         # the reference stays inside the middle 60 % of the outputs over the input range
         v = np.concatenate(
@@ -532,11 +588,11 @@ def example_plan(model, controller: ExportedController | None, input_range=None,
         span = y_hi - y_lo
         if not span > 0:
             raise ParameterError("the model's output does not vary over the input range; give --input-range")
-        plan.update(x_lo=y_lo + 0.2 * span, x_hi=y_hi - 0.2 * span, ts=controller.sample_time)
+        plan.update({"x_lo": y_lo + 0.2 * span, "x_hi": y_hi - 0.2 * span, "ts": controller.sample_time})
     return plan
 
 
-def _example_c(model, controller, plan, lib_hint: str) -> str:
+def _example_c(model: HysteresisModel, controller: ExportedController | None, plan: ExamplePlan, lib_hint: str) -> str:
     head = f"""/* Generated by `piezohyst export-c` -- a minimal real-time loop on the exported objects.
  *
  * Build (the directory holds piezohyst.h; link the static library of crates/capi):
@@ -678,23 +734,22 @@ rate / TS, 0.0, y, &u), "phs_controller_step")) return 1;
 
 
 def export_c(
-    model, out_dir, *, controller=None, force: bool = False, source: str = "Python", input_range=None, steps=None
+    model: HysteresisModel,
+    out_dir: PathLike,
+    *,
+    controller: ExportedController | dict[str, Any] | None = None,
+    force: bool = False,
+    source: str = "Python",
+    input_range: Sequence[float] | None = None,
+    steps: int | None = None,
 ) -> list[Path]:
     """Write the C initializers of ``model`` (and ``controller``, an
     :class:`ExportedController` or a controller file's dict) into ``out_dir`` with
     ``piezohyst.h`` and ``example.c``. Existing files are kept unless ``force``; each file is
     written atomically. A controller behind an inverse model must have been built on
     ``model``. Returns the written paths."""
-    from ..models.model import HysteresisModel
-
-    if not isinstance(model, HysteresisModel):
-        raise ParameterTypeError(f"model must be a hysteresis model, got {type(model).__name__}")
-    if isinstance(controller, dict):
-        controller = controller_from_dict(controller)
-    if controller is not None and not isinstance(controller, ExportedController):
-        raise ParameterTypeError(
-            f"controller must be an ExportedController (load_controller) or its dict, got {type(controller).__name__}"
-        )
+    model = _as_model(model)
+    controller = _as_exported(controller)
     if controller is not None and controller.inverse is not None:
         fam, dims, row = controller.inverse[:3]
         if fam != model.family or tuple(dims) != tuple(model.dims) or not np.array_equal(np.array(row), model.to_row()):
@@ -719,11 +774,36 @@ def export_c(
             if (out / name).exists():
                 raise OutputExistsError(f"'{out / name}' exists; pass --force to overwrite it")
     out.mkdir(parents=True, exist_ok=True)
-    written = []
+    written: list[Path] = []
     for name, text in files.items():
         write_atomic(out / name, text)
         written.append(out / name)
     if header:
-        write_atomic(out / "piezohyst.h", writer=lambda tmp: shutil.copyfile(header, tmp))
+
+        def copy_header(tmp: str, header: Path = header) -> None:
+            shutil.copyfile(header, tmp)
+
+        write_atomic(out / "piezohyst.h", writer=copy_header)
         written.append(out / "piezohyst.h")
     return written
+
+
+def _as_model(model: object) -> HysteresisModel:
+    """``model`` if it is a hysteresis model, else ``ParameterTypeError``."""
+    from ..models.model import HysteresisModel
+
+    if not isinstance(model, HysteresisModel):
+        raise ParameterTypeError(f"model must be a hysteresis model, got {type(model).__name__}")
+    return model
+
+
+def _as_exported(controller: object) -> ExportedController | None:
+    """``controller`` as an :class:`ExportedController` (a controller file's dict is read),
+    ``None`` if ``None``, else ``ParameterTypeError``."""
+    if isinstance(controller, dict):
+        controller = controller_from_dict(controller)
+    if controller is not None and not isinstance(controller, ExportedController):
+        raise ParameterTypeError(
+            f"controller must be an ExportedController (load_controller) or its dict, got {type(controller).__name__}"
+        )
+    return controller
