@@ -178,3 +178,12 @@ def test_example_input_range_of_gpi_reads_the_table_groups():
     assert demo_input_range(m) == (row[groups["range_lo"]], row[groups["range_hi"]]) == (-0.75, 1.25)
     # without a finite range: [0, 2 max threshold] is for the PI family only
     assert demo_input_range(ph.GeneralizedPI([0.0, 0.4], [1.0, 0.2], (0, 1.0, 0, 0))) == (-1.0, 1.0)
+
+
+@pytest.mark.parametrize(
+    ("family", "dims", "scratch"),
+    [("pi", [3, 2], 2), ("gpi", [3, 1, 1, 0], 0), ("rdpi", [2, 1], 1), ("creep", [3], 3), ("preisach", [4, 8], 10)],
+)
+def test_scratch_len_is_the_c_librarys(family, dims, scratch):
+    # Preisach: n (n + 1) / 2 prefix sums; creep lags: one gain each (what phs_model_sizes reports)
+    assert _core.family_layout(family, dims)["scratch_len"] == scratch

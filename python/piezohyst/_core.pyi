@@ -55,7 +55,8 @@ def family_layout(name: str, dims: list[int]) -> dict[str, Any]:
     """The core's layout table for a family with these dims: ``family``, ``code`` (the C
     ``PhsFamily``), ``dim_names``, ``dims``, ``slots`` (slot names in row order, ``r[0]`` ...),
     ``groups`` (``(name, offset, length)`` per declared slot), ``linear`` (slot names of the
-    regressor columns), ``param_len``, ``state_len``."""
+    regressor columns), ``nonnegative`` (the linear slots a fit keeps >= 0), ``param_len``,
+    ``state_len``, ``scratch_len`` (what ``phs_model_sizes`` of the C library reports)."""
 
 def controller_layout(kind: str) -> dict[str, Any]:
     """The core's layout table for a controller kind: ``kind``, ``code`` (the C

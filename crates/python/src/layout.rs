@@ -35,6 +35,7 @@ pub fn family_dict<'py>(py: Python<'py>, name: &str, dims: &[usize]) -> PyResult
     d.set_item("nonnegative", layout.nonnegative.to_vec())?;
     d.set_item("param_len", fam.param_len())?;
     d.set_item("state_len", fam.state_len())?;
+    d.set_item("scratch_len", fam.scratch_len())?;
     Ok(d)
 }
 
@@ -55,7 +56,8 @@ pub fn controller_dict<'py>(py: Python<'py>, kind: &str) -> PyResult<Bound<'py, 
 /// Slot names and metadata of a family's parameter row: `family`, `code` (the C
 /// `PhsFamily`), `dim_names`, `dims`, `slots` (expanded, in row order), `groups` (`(name,
 /// offset, length)` per declared slot), `linear` (slot names of the regressor columns),
-/// `nonnegative` (the linear slots a fit keeps >= 0), `param_len`, `state_len`.
+/// `nonnegative` (the linear slots a fit keeps >= 0), `param_len`, `state_len`, `scratch_len`
+/// (derived coefficients a built model borrows: what the C library's `phs_model_sizes` reports).
 #[pyfunction]
 fn family_layout<'py>(py: Python<'py>, name: &str, dims: Vec<usize>) -> PyResult<Bound<'py, PyDict>> {
     family_dict(py, name, &dims)
