@@ -11,9 +11,11 @@ these rules:
    parent packages Python initializes on the way are not edges, or every package
    ``__init__`` that re-exports its modules would be a cycle.
 2. **The library never imports ``papers`` or ``cli``**: no module outside ``piezohyst.papers``
-   and ``piezohyst.cli`` imports them, except the top-level facade ``piezohyst/__init__.py``
-   (which re-exports the library and ``load_train_multisine``, and aliases the former flat
-   module paths) and ``piezohyst/__main__.py``.
+   and ``piezohyst.cli`` imports them, except ``piezohyst/__main__.py`` (``python -m
+   piezohyst`` is the command line). The top-level ``piezohyst/__init__.py`` is held to it too:
+   the public names whose home is ``papers`` (``load_train_multisine``, the provenance presets)
+   and the former flat paths of ``papers`` modules load on first use, and
+   ``test_import_piezohyst_loads_no_application_wing`` checks that at run time.
 3. **No private name across wings**: ``from piezohyst.<wing>.<module> import _x`` only from the
    same wing. The top-level helper modules (``_core``, ``_io``, ``_validate``, ``errors``) are
    the shared base: any wing may import those modules and their public names, never a private
@@ -32,7 +34,7 @@ ROOT = "piezohyst"
 #: Wings that may import anything (the rest is "the library").
 APPLICATIONS = ("papers", "cli")
 #: Top-level modules outside every wing that may still import papers/cli.
-FACADES = (ROOT, f"{ROOT}.__main__")
+FACADES = (f"{ROOT}.__main__",)
 
 
 def module_sources(package: Path = PACKAGE) -> dict[str, str]:
@@ -273,3 +275,15 @@ def test_private_names_within_a_wing_and_the_shared_base_pass(sources):
     ok = "from .core import _check_loss\nfrom .. import _core\nfrom .._validate import as_int"
     result = check(_with(sources, "piezohyst.identify.varpro", ok))
     assert result["private"] == []
+
+
+def test_import_piezohyst_loads_no_application_wing():
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, piezohyst, piezohyst.pi, piezohyst.stage; "
+        "print(sorted(m for m in sys.modules if m.startswith(('piezohyst.papers', 'piezohyst.cli'))))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"

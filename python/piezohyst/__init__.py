@@ -109,7 +109,6 @@ from .models import (
     model_from_dict,
 )
 from .optimize import CSS, DE, MPSO, PSO, IntermediateResult, Optimizer, OptimizeResult, RunReport, minimize
-from .papers.boucwen_benchmark import load_train_multisine
 from .plant import (
     A7075_YOUNGS_MODULUS,
     Amplifier,
@@ -267,6 +266,13 @@ _DEPRECATED = {
 }
 
 
+#: Public names whose home is ``papers`` (an application wing the library never imports):
+#: loaded on first use, so ``import piezohyst`` does not import ``papers``.
+_FROM_PAPERS = {
+    "load_train_multisine": "piezohyst.papers.boucwen_benchmark",
+}
+
+
 class _MovedModules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
     """Imports ``piezohyst.<old>`` of ``_MOVED`` as the module at its new path."""
 
@@ -303,6 +309,8 @@ def __getattr__(name: str) -> object:
             stacklevel=2,
         )
         return getattr(importlib.import_module(home), name)
+    if name in _FROM_PAPERS:
+        return getattr(importlib.import_module(_FROM_PAPERS[name]), name)
     if name in _MOVED:
         return importlib.import_module(f"{__name__}.{name}")
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
