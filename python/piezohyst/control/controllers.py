@@ -494,7 +494,8 @@ class Compensated:
         return bool(getattr(self.inner, "uses_reference_derivatives", True))
 
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
-        model = _hysteresis_model(self.model)
+        # the core inverts a bare parameter row: the model's output map goes into it
+        model = _hysteresis_model(self.model).mapped_row()
         if isinstance(self.inner, (Compensated, InverseFeedforward)):
             raise ParameterTypeError("inner must not itself be compensated")
         v_lo, v_hi = _limits(None, None, stage) if limits is None else limits
