@@ -769,7 +769,7 @@ def export_c(
     controller = _as_exported(controller)
     if controller is not None and controller.inverse is not None:
         # the controller inverts a bare row: the one holding the model's output map
-        model = model.mapped_row()
+        model = model.mapped_row((float(controller.inverse[3]), float(controller.inverse[4])))
         fam, dims, row = controller.inverse[:3]
         if fam != model.family or tuple(dims) != tuple(model.dims) or not np.array_equal(np.array(row), model.to_row()):
             raise ParameterError(

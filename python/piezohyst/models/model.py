@@ -185,7 +185,7 @@ class HysteresisModel:
         new._state = self.initial_state()
         return new
 
-    def mapped_row(self) -> HysteresisModel:
+    def mapped_row(self, input_range: tuple[float, float] | None = None) -> HysteresisModel:
         """An equal model (same outputs, same inverse) whose parameter row holds the output
         map, with the identity map: for consumers of the bare row (the compensated controllers
         of the core, the exported C controller). ``self`` when the map is the identity.
@@ -193,12 +193,14 @@ class HysteresisModel:
         The gain scales the parameters the output is linear in; the offset goes to the
         family's constant term (GPI polynomial ``c0``, Preisach ``offset``; a PI becomes the
         equal GPI with identity envelopes). ``ParameterError`` when the family cannot hold
-        the map (an offset on RDPI or Bouc–Wen; a negative gain on non-negative weights)."""
+        the map (an offset on RDPI or Bouc–Wen; a negative gain on non-negative weights).
+        ``input_range``: the inputs the row will see (e.g. the amplifier's limits), the input
+        range of the GPI a PI becomes (default: unbounded)."""
         if self._map.is_identity:
             return self
         why = ""
         try:
-            folded = self._fold_map(self._map.offset, self._map.gain)
+            folded = self._fold_map(self._map.offset, self._map.gain, input_range)
         except ParameterError as e:
             folded, why = None, f" ({e})"
         if folded is None:
@@ -208,7 +210,7 @@ class HysteresisModel:
             )
         return folded
 
-    def _fold_map(self, offset: float, gain: float) -> HysteresisModel | None:
+    def _fold_map(self, offset: float, gain: float, input_range: tuple[float, float] | None) -> HysteresisModel | None:
         """The model with the map folded into its row, or ``None`` if the family cannot hold it."""
         return None
 

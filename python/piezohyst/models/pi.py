@@ -112,12 +112,13 @@ class PI(HysteresisModel):
         p = dict(p)
         return cls(**{**p, "creep": creep_from(p.get("creep"))}, units=units)
 
-    def _fold_map(self, offset: float, gain: float) -> HysteresisModel | None:
+    def _fold_map(self, offset: float, gain: float, input_range: tuple[float, float] | None) -> HysteresisModel | None:
         # the equal GPI: identity envelopes, polynomial offset + p0 v
         return GeneralizedPI(
             self.thresholds,
             gain * self.weights,
             (offset, gain * self.p0, 0.0, 0.0),
+            input_range=(-np.inf, np.inf) if input_range is None else input_range,
             creep=_scaled(self.creep, gain),
             units=self.units,
         )
@@ -324,7 +325,7 @@ class GeneralizedPI(HysteresisModel):
         p["creep"] = creep_from(p.get("creep"))
         return cls(**p, units=units)
 
-    def _fold_map(self, offset: float, gain: float) -> HysteresisModel | None:
+    def _fold_map(self, offset: float, gain: float, input_range: tuple[float, float] | None) -> HysteresisModel | None:
         poly = gain * np.asarray(self.polynomial) + np.array([offset, 0.0, 0.0, 0.0])
         return GeneralizedPI(
             self.thresholds,
@@ -494,7 +495,7 @@ class RateDependentPI(HysteresisModel):
         )
         super().__init__([n, m], row, units=units)
 
-    def _fold_map(self, offset: float, gain: float) -> HysteresisModel | None:
+    def _fold_map(self, offset: float, gain: float, input_range: tuple[float, float] | None) -> HysteresisModel | None:
         if offset != 0.0:
             return None  # no constant term
         return RateDependentPI(

@@ -87,7 +87,7 @@ class Preisach(HysteresisModel):
         row = np.concatenate([[lo, hi, self.offset, self.slope], self.weights])
         super().__init__([self.levels, self.memory], row, units=units)
 
-    def _fold_map(self, offset: float, gain: float) -> HysteresisModel | None:
+    def _fold_map(self, offset: float, gain: float, input_range: tuple[float, float] | None) -> HysteresisModel | None:
         return Preisach(
             self.levels,
             self.input_range,
