@@ -182,6 +182,7 @@ class HysteresisModel:
         )
         new = copy.copy(self)
         new._map = m
+        new.units = dict(self.units)
         new._state = self.initial_state()
         return new
 
