@@ -207,7 +207,8 @@ class HysteresisModel:
         if folded is None:
             raise ParameterError(
                 f"output_map = (offset={self._map.offset}, gain={self._map.gain}) cannot be held in the "
-                f"parameter row of a {self.kind} model{why}"
+                f"parameter row of a {self.kind} model{why}; the core's compensated controllers invert the "
+                "family's row: use a pi, gpi/mpi or preisach model, or one fitted with offset=False (--no-offset)"
             )
         return folded
 
