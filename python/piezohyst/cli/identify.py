@@ -166,6 +166,13 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     )
     i.add_argument("--creep", metavar="M", type=int, default=0, help="pi/gpi/mpi/rdpi: add M creep lags (default 0)")
     i.add_argument(
+        "--offset",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="fit the output's offset (a sensor's zero) into the model's output map (default: on for every "
+        "model but cemf and boucwen-benchmark, which have no map); --no-offset: the family's own terms only",
+    )
+    i.add_argument(
         "--iterations",
         metavar="N",
         type=int,
@@ -296,6 +303,7 @@ def _identify(args: argparse.Namespace) -> int:
         population_size=args.population,
         validate=validate,
         progress=bool(args.progress or sys.stderr.isatty()),
+        offset=args.offset,
         **extra,
     )
 
@@ -306,6 +314,8 @@ def _identify(args: argparse.Namespace) -> int:
         "columns": dict(rec.columns),
         "fs": rec.fs,
     }
+    output_map = getattr(res.model, "output_map", None)  # cemf, boucwen-benchmark: none
+    fit["output_map"] = None if output_map is None else output_map.to_dict()
     doc = _model_document(res, args.model, train.fs)
     if res.partial:
         doc["partial"] = True  # Ctrl-C stopped the optimizer: the best model found before it
