@@ -150,6 +150,8 @@ def _read_input(
         opener = functools.partial(D.open_mat, path, dataset)
     elif suffix in D.HDF5_SUFFIXES:
         opener = functools.partial(D.open_hdf5, path, dataset)
+    elif suffix in D.PARQUET_SUFFIXES:
+        opener = functools.partial(D.open_parquet, path, dataset)
     else:
         raise _Fail(
             f"INPUT = '{path}': unsupported file extension {path.suffix!r}; supported: {' '.join(D.SUPPORTED_SUFFIXES)}"
