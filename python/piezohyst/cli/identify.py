@@ -13,6 +13,7 @@ from .._io import write_atomic
 from ..identify.dispatch import KINDS
 from .common import (
     _FORMATS,
+    _add_record_options,
     _check_count,
     _check_fs,
     _column,
@@ -24,7 +25,10 @@ from .common import (
     _parse_validate,
     _Parser,
     _pct,
+    _record_options,
     _resolve_range,
+    _units_line,
+    _units_report,
     _writable,
 )
 
@@ -114,6 +118,7 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         metavar="NAME",
         help="NPZ/MAT/HDF5: a 2-D matrix (rows = samples) whose columns integer COLs address",
     )
+    _add_record_options(i)
     i.add_argument(
         "--train",
         metavar="A:B",
@@ -231,6 +236,7 @@ def _identify(args: argparse.Namespace) -> int:
     columns: _Columns = dict(
         input=_column(args.input), output=_column(args.output), time=_column(args.time), fs=fs, dataset=args.dataset
     )
+    columns.update(_record_options(args))
     if fs is None and args.time is None:
         raise _Fail("the sample rate is unknown: give --fs HZ or --time COL")
     rec = _load(data, **columns)
@@ -305,8 +311,14 @@ def _identify(args: argparse.Namespace) -> int:
         "validation": None if val is None else {**val_where, "samples": val.n},
         "columns": dict(rec.columns),
         "fs": rec.fs,
+        "units": _units_report(rec),
     }
     doc = _model_document(res, args.model, train.fs)
+    if isinstance(doc.get("units"), dict):  # the model's signals are in the record's (SI) units
+        doc["units"] = {
+            **{k: v for k, v in rec.si_units().items() if v},
+            **{k: v for k, v in doc["units"].items() if v},
+        }
     if res.partial:
         doc["partial"] = True  # Ctrl-C stopped the optimizer: the best model found before it
     doc["fit"] = fit
@@ -345,6 +357,7 @@ def _identify(args: argparse.Namespace) -> int:
         print(f"  {'':<11} {'RMSE (% of range)':>18} {'max error (%)':>14}")
         for name, m, where in rows:
             print(f"  {name:<11} {_pct(m['rmse_percent']):>18} {_pct(m['max_error_percent']):>14}   ({where})")
+        print(f"  units: {_units_line(rec)}")
         if plot is not None:
             print(f"  figure: {plot}")
     if res.partial:

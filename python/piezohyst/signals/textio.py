@@ -129,7 +129,7 @@ class TextTable:
                 raw = raw.decode("latin-1").encode("utf-8")
         self.raw = raw
         self._scan_head(delimiter, header)
-        self._table: Any = None
+        self._arrays: dict[int, Any] | None = None
         self._read_keys: set[int] = set()
 
     # ---------------------------------------------------------------- layout
@@ -235,50 +235,113 @@ class TextTable:
 
     # ---------------------------------------------------------------- parsing
 
-    def _body(self) -> bytes | memoryview:
-        """The data lines as the parser sees them: comment and blank lines removed, runs of
-        whitespace made one space for a whitespace-separated file."""
+    def _body(self, clean: bool) -> bytes | memoryview:
+        """The data lines as the parser sees them (zero-copy unless something must change):
+        with ``clean``, comment and blank lines removed; runs of whitespace made one space for a
+        whitespace-separated file; a delimiter of several characters made one."""
         body: bytes | memoryview = memoryview(self.raw)[self.data_pos :]
-        raw = self.raw
         junk = _JUNK if self.delimiter == ";" else _JUNK_SEMI
-        marks = (b"\n#", b"\n%", b"\n ", b"\n\t", b"\n\r") + (() if self.delimiter == ";" else (b"\n;",))
         if self.delimiter == " ":
             b = bytes(body).replace(b"\r", b"")
             b = junk.sub(b"", b)
             b = re.sub(rb"[ \t]+", b" ", b)
             return re.sub(rb"(?m)^ | $", b"", b)
-        if any(raw.find(m, self.data_pos) >= 0 for m in marks):
+        if clean:
             body = junk.sub(b"", bytes(body))
         if len(self.delimiter) > 1:
             body = bytes(body).replace(self.delimiter.encode(), b"\x1f")
         return body
 
+    def _is_junk(self, text: str) -> bool:
+        s = text.strip()
+        return not s or s[0] in "#%" or (s[0] == ";" and self.delimiter != ";")
+
     def prepare(self, keys: Sequence[int]) -> None:
-        """Parse the columns ``keys`` (all columns named later are parsed in one pass)."""
-        pa, pacsv, _ = _import_pyarrow()
+        """Parse the columns ``keys`` (all columns named later are parsed in one pass).
+
+        Fast path: Arrow's streaming reader converts the columns to float64 batch by batch into
+        arrays sized from the line count (peak memory: the file plus the columns), skipping
+        comment and blank lines that its invalid-row handler sees as ragged. Any cell it cannot
+        convert (a word, an empty field, a comment line with as many fields as the data) sends
+        the file down the slow path: parsed as text (comment lines removed by a regular
+        expression) so that :meth:`read` can name the first bad cell and its line."""
         keys = sorted(set(keys) | self._read_keys)
-        if self._table is not None and set(keys) <= self._read_keys:
+        if self._arrays is not None and set(keys) <= self._read_keys:
             return
-        bad: list[tuple[int, int]] = []
+        arrays = self._stream(keys)
+        if arrays is None:
+            comment_chars = b"#%" + (b"" if self.delimiter == ";" else b";")
+            clean = any(bytes([c]) in self.raw[self.data_pos :] for c in comment_chars)
+            table = self._parse(keys, clean=clean)
+            if table.num_rows == 0:
+                raise DataError(f"{self.source}: has no data rows")
+            arrays = {k: table.column(f"c{k}") for k in keys}
+        self._arrays = arrays
+        self._read_keys = set(keys)
+
+    def _options(self, keys: Sequence[int], bad: list[tuple[int, int]], types: Any) -> tuple[Any, Any, Any]:
+        _, pacsv, _ = _import_pyarrow()
 
         def on_bad_row(row: Any) -> str:
+            if self._is_junk(str(row.text)):
+                return "skip"
             bad.append((int(row.expected_columns), int(row.actual_columns)))
             return "error"
 
         delim = "\x1f" if len(self.delimiter) > 1 else self.delimiter
         names = [f"c{j}" for j in range(self.ncols)]
+        return (
+            pacsv.ReadOptions(column_names=names, use_threads=True),
+            pacsv.ParseOptions(delimiter=delim, invalid_row_handler=on_bad_row),
+            pacsv.ConvertOptions(
+                include_columns=[names[k] for k in keys],
+                column_types={names[k]: types for k in keys},
+                null_values=[""],
+                strings_can_be_null=False,
+                quoted_strings_can_be_null=False,
+                decimal_point=self.decimal,
+            ),
+        )
+
+    def _stream(self, keys: Sequence[int]) -> dict[int, Any] | None:
+        """The columns as float64 arrays, or ``None`` when a cell is not a number."""
+        pa, pacsv, _ = _import_pyarrow()
+        bad: list[tuple[int, int]] = []
+        ro, po, co = self._options(keys, bad, pa.float64())
+        body = self._body(False)
+        rows = self.raw.count(b"\n", self.data_pos) + 1
+        out = {k: np.empty(rows, dtype=np.float64) for k in keys}
+        n = 0
         try:
-            table = pacsv.read_csv(
-                pa.py_buffer(self._body()),
-                read_options=pacsv.ReadOptions(column_names=names, use_threads=True),
-                parse_options=pacsv.ParseOptions(delimiter=delim, invalid_row_handler=on_bad_row),
-                convert_options=pacsv.ConvertOptions(
-                    include_columns=[names[k] for k in keys],
-                    null_values=[""],
-                    strings_can_be_null=False,
-                    quoted_strings_can_be_null=False,
-                    decimal_point=self.decimal,
-                ),
+            reader = pacsv.open_csv(pa.py_buffer(body), read_options=ro, parse_options=po, convert_options=co)
+            for batch in reader:
+                m = batch.num_rows
+                if n + m > rows:  # cannot happen (a row is at least one line); the slow path decides
+                    return None
+                for j, k in enumerate(keys):
+                    col = batch.column(j)
+                    if col.null_count:
+                        return None
+                    out[k][n : n + m] = col.to_numpy(zero_copy_only=False)
+                n += m
+        except Exception as e:  # ArrowInvalid: a ragged row (named) or a cell that is not a number
+            if bad:
+                self._raise_ragged()
+            if "Empty CSV" in str(e):
+                raise DataError(f"{self.source}: has no data rows") from None
+            return None
+        if n == 0:
+            raise DataError(f"{self.source}: has no data rows")
+        return {k: a[:n] for k, a in out.items()}
+
+    def _parse(self, keys: Sequence[int], clean: bool) -> Any:
+        """The columns as text (the slow path, for naming a bad cell)."""
+        pa, pacsv, _ = _import_pyarrow()
+        bad: list[tuple[int, int]] = []
+        ro, po, co = self._options(keys, bad, pa.string())
+        try:
+            return pacsv.read_csv(
+                pa.py_buffer(self._body(clean)), read_options=ro, parse_options=po, convert_options=co
             )
         except Exception as e:  # Arrow's ArrowInvalid, or anything else from a corrupt file
             if bad or "columns" in str(e):
@@ -286,26 +349,19 @@ class TextTable:
             if "Empty CSV" in str(e):
                 raise DataError(f"{self.source}: has no data rows") from None
             raise DataError(f"{self.source}: not readable as delimited text ({type(e).__name__}: {e})") from None
-        if table.num_rows == 0:
-            raise DataError(f"{self.source}: has no data rows")
-        self._table = table
-        self._read_keys = set(keys)
 
     def read(self, role: str, key: int, label: str) -> FloatArray:
         _, _, pc = _import_pyarrow()
-        if self._table is None or key not in self._read_keys:
+        if self._arrays is None or key not in self._read_keys:
             self.prepare([key])
-        col = self._table.column(f"c{key}")
+        assert self._arrays is not None  # prepare() parsed the column
+        col = self._arrays[key]
         import pyarrow as pa
 
-        typ = col.type
-        if pa.types.is_integer(typ) or pa.types.is_floating(typ):
-            if col.null_count:
-                i = int(np.flatnonzero(np.asarray(col.is_null()))[0])
-                self._raise_cell(role, key, label, i, "")
-            values = np.asarray(col.to_numpy(), dtype=np.float64)
+        if isinstance(col, np.ndarray):
+            values = col
         else:
-            text = col.cast(pa.string()) if not pa.types.is_string(typ) else col
+            text = col if pa.types.is_string(col.type) else col.cast(pa.string())
             cells = pc.utf8_trim(text, characters=" \t\"'")
             if self.decimal == ",":
                 cells = pc.replace_substring(cells, ",", ".")
@@ -324,8 +380,8 @@ class TextTable:
         return values
 
     def close(self) -> None:
-        """Drop the parsed table."""
-        self._table = None
+        """Drop the parsed columns."""
+        self._arrays = None
 
     # ---------------------------------------------------------------- errors (not on the fast path)
 
