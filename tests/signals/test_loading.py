@@ -416,3 +416,19 @@ def test_hdf5_external_links_storage_and_virtual_datasets_are_refused(tmp_path):
         h["alias"] = h5py.SoftLink("/u")  # a link inside the file is followed
     rec = load_record(g, input="alias", output="y", fs=1.0)
     np.testing.assert_array_equal(rec.input, np.arange(16.0))
+
+
+def test_a_line_of_units_under_the_names(tmp_path):
+    t, u, y = signals(80, fs=2000.0)
+    f = tmp_path / "scope.csv"
+    f.write_text("Time,Channel A,Channel B\n(ms),(V),(mV)\n\n" + rows(t * 1e3, u, y * 1e3))
+    rec = load_record(f, input="Channel A", output="Channel B", time="Time")
+    assert rec.fs == pytest.approx(2000.0, rel=1e-9)
+    np.testing.assert_allclose(rec.output, y, rtol=1e-12)
+    assert rec.columns == {"input": "Channel A [V]", "output": "Channel B [mV]", "time": "Time [ms]"}
+    assert rec.units["output"] == UnitConversion("mV", "V", 1e-3, "header")
+    lines = f.read_text().splitlines()
+    lines[10] = lines[10].rsplit(",", 1)[0] + ",x"
+    f.write_text("\n".join(lines) + "\n")
+    with pytest.raises(DataError, match=r"line 11 \(sample 7\), output column 'Channel B \[mV\]'"):
+        load_record(f, input="Channel A", output="Channel B", time="Time")

@@ -98,6 +98,18 @@ def _sniff_delimiter(lines: Sequence[str]) -> str:
     return "\t" if "\t" in s else "," if "," in s else ";" if ";" in s else " "
 
 
+def _unit_cell(field: str) -> str:
+    return _unquote(field).strip().strip("()[]").strip()
+
+
+def _is_unit_row(fields: Sequence[str]) -> bool:
+    """A row of unit names: no field a number, at least one a known unit."""
+    from .units import lookup_unit
+
+    cells = [_unit_cell(f) for f in fields]
+    return not any(_is_number(c) for c in cells) and any(lookup_unit(c) is not None for c in cells if c)
+
+
 def _is_data_line(fields: Sequence[str], decimal: str) -> bool:
     """Every field a number or empty, at least one a number."""
     return all(_is_number(f, decimal) or not _unquote(f) for f in fields) and any(_unquote(f) for f in fields)
@@ -168,12 +180,15 @@ class TextTable:
             raise DataError(f"{path}: {what}")
         # the first line and up to SNIFF_LINES lines after it that are not comments or blank
         sample: list[str] = [line]
-        p = first_end
+        where: list[tuple[int, int]] = [(first, first_end)]  # (0-based line, end offset) of each
+        p, k = first_end, first + 1
         while p < len(raw) and len(sample) <= SNIFF_LINES:
             ln, p = self._next_line(p)
             s = ln.strip()
             if s and s[0] not in "#%;":
                 sample.append(ln)
+                where.append((k, p))
+            k += 1
         if delimiter is None:
             delimiter = _sniff_delimiter([ln.strip() if ln.strip() else ln for ln in sample])
         elif delimiter.isspace() and delimiter != "\t":
@@ -186,10 +201,15 @@ class TextTable:
         numeric = _is_data_line(fields, self.decimal)
         data_pos = first_pos
         self.header_line: int | None = None
+        data_line = first
         if header is True or (header == "auto" and not numeric):
             names = [_unquote(f) for f in fields]
-            data_pos = first_end
+            data_pos, data_line = first_end, first + 1
             self.header_line = first
+            if len(rows) > 1 and len(rows[1]) == len(names) and _is_unit_row(rows[1]):
+                # a line of units under the names, as oscilloscope software writes: "(ms),(V),(V)"
+                names = [f"{n} [{u}]" if u else n for n, u in zip(names, map(_unit_cell, rows[1]), strict=True)]
+                data_line, data_pos = where[1][0] + 1, where[1][1]
         elif header == "auto" and prev_comment is not None:
             # a commented header right above the data, as numpy.savetxt(header=...) writes
             candidate = _split(prev_comment.lstrip("#%;").strip(), delimiter)
@@ -199,7 +219,7 @@ class TextTable:
         self.ncols = len(names) if names is not None else len(fields)
         self.first_line = first  # 0-based line of the first non-comment line
         self.data_pos = min(data_pos, len(raw))
-        self.data_line = first + (1 if self.header_line is not None else 0)  # 0-based line where data starts
+        self.data_line = data_line  # 0-based line where data starts
 
     # ---------------------------------------------------------------- columns
 
