@@ -118,3 +118,18 @@ def test_time_tolerance_rounded_jittered_and_gaps(tmp_path):
     )
     assert one_line_error(gap)
     assert "gap.csv: time has a gap at row 700" in gap.stderr and "about 5 samples missing" in gap.stderr
+
+
+def test_simulate_converts_the_input_and_time_units(tmp_path):
+    t, u, _y = record()
+    model = ph.PI(thresholds=[0.0, 1.5, 3.0], weights=[0.8, 0.3, 0.2], p0=0.0, units={"input": "V", "output": "m"})
+    model.save(tmp_path / "m.json")
+    write(tmp_path / "in.csv", "t [ms],u (mV)", t * 1e3, u * 1e3)
+    out = run("simulate", "m.json", "in.csv", "--input", "u", "--time", "t", "--out", "sim.csv", cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    sim = np.genfromtxt(tmp_path / "sim.csv", delimiter=",", names=True)
+    np.testing.assert_allclose(sim["time"], t, rtol=1e-12, atol=1e-15)  # seconds, not milliseconds
+    np.testing.assert_allclose(sim["input"], u, rtol=1e-12)  # volts, not millivolts
+    np.testing.assert_allclose(sim["output"], model.simulate(u), rtol=1e-9, atol=1e-12)
+    bad = run("simulate", "m.json", "in.csv", "--input", "u", "--time", "t", "--time-unit", "V", cwd=tmp_path)
+    assert one_line_error(bad) and "--time-unit = 'V' is not a unit of time" in bad.stderr

@@ -29,7 +29,16 @@ FloatArray = npt.NDArray[np.float64]
 _Range = tuple[int | None, int | None]
 
 
-class _Columns(TypedDict, total=False):
+class _RecordOptions(TypedDict, total=False):
+    """The unit and time-tolerance options of a record file (:func:`_add_record_options`)."""
+
+    time_unit: str | None
+    input_unit: str | None
+    output_unit: str | None
+    time_rtol: float
+
+
+class _Columns(_RecordOptions, total=False):
     """The column options of a record file, as :func:`~piezohyst.signals.data.load_record` takes them."""
 
     input: str | int | None
@@ -37,10 +46,6 @@ class _Columns(TypedDict, total=False):
     time: str | int | None
     fs: float | None
     dataset: str | None
-    time_unit: str | None
-    input_unit: str | None
-    output_unit: str | None
-    time_rtol: float
 
 
 class _Parser(argparse.ArgumentParser):
@@ -98,12 +103,12 @@ def _add_record_options(p: argparse.ArgumentParser, output: bool = True) -> None
     )
 
 
-def _record_options(args: argparse.Namespace) -> _Columns:
+def _record_options(args: argparse.Namespace) -> _RecordOptions:
     """The values of :func:`_add_record_options`' options, as :func:`_load` takes them."""
     tol = args.time_tolerance
     if not math.isfinite(tol) or not 0 < tol < 1:
         raise _Fail(f"--time-tolerance = {tol:g} must be a fraction of a step, 0 < REL < 1")
-    out: _Columns = {"time_unit": args.time_unit, "input_unit": args.input_unit, "time_rtol": tol}
+    out: _RecordOptions = {"time_unit": args.time_unit, "input_unit": args.input_unit, "time_rtol": tol}
     if hasattr(args, "output_unit"):
         out["output_unit"] = args.output_unit
     return out

@@ -234,9 +234,13 @@ def _identify(args: argparse.Namespace) -> int:
         raise _Fail(f"--plot = '{args.plot}' is the same file as --out")
 
     columns: _Columns = dict(
-        input=_column(args.input), output=_column(args.output), time=_column(args.time), fs=fs, dataset=args.dataset
+        input=_column(args.input),
+        output=_column(args.output),
+        time=_column(args.time),
+        fs=fs,
+        dataset=args.dataset,
+        **_record_options(args),
     )
-    columns.update(_record_options(args))
     if fs is None and args.time is None:
         raise _Fail("the sample rate is unknown: give --fs HZ or --time COL")
     rec = _load(data, **columns)
