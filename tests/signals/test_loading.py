@@ -432,3 +432,42 @@ def test_a_line_of_units_under_the_names(tmp_path):
     f.write_text("\n".join(lines) + "\n")
     with pytest.raises(DataError, match=r"line 11 \(sample 7\), output column 'Channel B \[mV\]'"):
         load_record(f, input="Channel A", output="Channel B", time="Time")
+
+
+@needs_h5py
+def test_hdf5_units_attribute(tmp_path):
+    t, u, y = signals(100, fs=500.0)
+    f = tmp_path / "a.h5"
+    with h5py.File(f, "w") as h:
+        h["t"] = t * 1e3
+        h["t"].attrs["units"] = "ms"
+        h["u"] = u
+        h["u"].attrs["units"] = np.bytes_("V")
+        h["x"] = y
+        h["x"].attrs["unit"] = "nm"
+    rec = load_record(f, input="u", output="x", time="t")
+    assert rec.fs == pytest.approx(500.0, rel=1e-9)
+    np.testing.assert_allclose(rec.output, y * 1e-9, rtol=1e-12)
+    assert rec.units["output"] == UnitConversion("nm", "m", 1e-9, "file")
+    rec = load_record(f, input="u", output="x", time="t", output_unit="um")  # an argument wins
+    np.testing.assert_allclose(rec.output, y * 1e-6, rtol=1e-12)
+
+
+def test_parquet_field_metadata_unit(tmp_path):
+    pa = pytest.importorskip("pyarrow")
+    import pyarrow.parquet as pq
+
+    t, u, y = signals(100)
+    schema = pa.schema(
+        [
+            pa.field("t", pa.float64(), metadata={"unit": "us"}),
+            pa.field("u", pa.float64()),
+            pa.field("y", pa.float64(), metadata={"units": "mm"}),
+        ]
+    )
+    f = tmp_path / "a.parquet"
+    pq.write_table(pa.table({"t": t * 1e6, "u": u, "y": y}, schema=schema), f)
+    rec = load_record(f, input="u", output="y", time="t")
+    assert rec.fs == pytest.approx(1000.0, rel=1e-9)
+    np.testing.assert_allclose(rec.output, y * 1e-3, rtol=1e-12)
+    assert rec.units["time"] == UnitConversion("us", "s", 1e-6, "file")

@@ -414,12 +414,14 @@ class _ContainerTable:
         lookup: Callable[[str], AnyArray],
         matrix_name: str | None,
         close: Callable[[], None] | None = None,
+        unit: Callable[[str], str | None] | None = None,
     ) -> None:
         self.source = source
         self.kind = kind
         self.variables = variables  # name -> shape, numeric arrays only (for listings)
         self._lookup = lookup  # name -> np.ndarray (raises KeyError)
         self._close = close
+        self._unit = unit
         self.matrix: AnyArray | None = None
         self.matrix_name = matrix_name
         if matrix_name is not None:
@@ -454,6 +456,12 @@ class _ContainerTable:
         if a.dtype.kind not in "fiu":
             raise ParameterTypeError(f"{self.source}: {role} = {name!r} must hold real numbers, got dtype {a.dtype}")
         return a
+
+    def unit_of(self, key: int | str) -> str | None:
+        """The unit stored with a named array (an HDF5 ``units`` attribute), if any."""
+        if isinstance(key, int) or self._unit is None:
+            return None
+        return self._unit(key)
 
     def columns(self) -> list[tuple[int | str, str]]:
         if self.matrix is not None:
@@ -723,6 +731,20 @@ class _Hdf5Source:
                     raise DataError(f"{self.file.filename}: {name!r}: soft links nested more than 16 deep")
                 self._check_links(str(link.path), name, depth + 1)
 
+    def unit(self, name: str) -> str | None:
+        """The ``units`` (or ``unit``) attribute of a dataset, if it has one."""
+        key = name.replace(".", "/") if self.matlab else name
+        try:
+            self._check_links(key, name)
+            value = self.file[key].attrs.get("units", self.file[key].attrs.get("unit"))
+        except (KeyError, ValueError, TypeError, OSError, DataError):
+            return None
+        if isinstance(value, np.ndarray) and value.size == 1:
+            value = value.ravel()[0]
+        if isinstance(value, bytes):
+            value = value.decode("utf-8", errors="replace")
+        return value if isinstance(value, str) and value.isprintable() and len(value) <= 32 else None
+
     def lookup(self, name: str) -> AnyArray:
         key = name.replace(".", "/") if self.matlab else name
         self._check_links(key, name)
@@ -767,7 +789,9 @@ def open_hdf5(path: Path, dataset: str | None, matlab: bool = False, limit: int 
     checked against ``limit`` before it is read."""
     src = _Hdf5Source(path, matlab, limit)
     try:
-        return _ContainerTable(str(path), src.kind, src.shapes, src.lookup, dataset, close=src.file.close)
+        return _ContainerTable(
+            str(path), src.kind, src.shapes, src.lookup, dataset, close=src.file.close, unit=src.unit
+        )
     except BaseException:
         src.file.close()
         raise
@@ -800,6 +824,15 @@ class ParquetTable:
 
     def columns(self) -> list[tuple[int, str]]:
         return list(enumerate(self.names))
+
+    def unit_of(self, key: int) -> str | None:
+        """A ``unit`` / ``units`` entry of the column's field metadata, if any."""
+        meta = self.file.schema_arrow.field(key).metadata or {}
+        value = meta.get(b"unit", meta.get(b"units"))
+        if not isinstance(value, bytes):
+            return None
+        text = value.decode("utf-8", errors="replace")
+        return text if text.isprintable() and len(text) <= 32 else None
 
     def resolve(self, role: str, spec: str | int) -> tuple[int, str]:
         if isinstance(spec, int):
@@ -1061,7 +1094,14 @@ def _assemble(
         prepare([resolved[role][0] for role in _ROLES if role in resolved])
     arrays = {role: table.read(role, *resolved[role]) for role in _ROLES if role in resolved}
     given = given_units or {}
-    units = {role: conversion_for(role, resolved[role][1], given.get(role)) for role in _ROLES if role in resolved}
+    unit_of = getattr(table, "unit_of", None)  # a unit stored with the column in the file, if any
+    units = {
+        role: conversion_for(
+            role, resolved[role][1], given.get(role), None if unit_of is None else unit_of(resolved[role][0])
+        )
+        for role in _ROLES
+        if role in resolved
+    }
     for role, conv in units.items():
         if conv.scale != 1.0:
             arrays[role] = arrays[role] * conv.scale

@@ -123,19 +123,25 @@ def split_annotation(label: str) -> tuple[str, str | None]:
     return label, None
 
 
-def conversion_for(role: str, label: str, given: str | None) -> UnitConversion:
-    """The conversion of a column: the unit ``given`` (an argument) wins over the label's
-    annotation; a time column without either is in seconds; an unknown annotation is kept as
-    it is (recorded, not converted)."""
+def conversion_for(role: str, label: str, given: str | None, stored: str | None = None) -> UnitConversion:
+    """The conversion of a column: the unit ``given`` (an argument) wins over the unit
+    ``stored`` with the column (an HDF5 ``units`` attribute, Parquet field metadata), which wins
+    over the label's annotation; a time column without any is in seconds; an unknown unit read
+    from the file is kept as it is (recorded, not converted)."""
     if given is not None:
         return parse_unit(given, role, "argument")
-    _, ann = split_annotation(label)
+    if stored is not None and stored.strip():
+        ann: str | None = stored.strip()
+        origin = "file"
+    else:
+        _, ann = split_annotation(label)
+        origin = "header"
     if ann is not None:
         hit = lookup_unit(ann)
         if hit is not None and (hit[0] == "s") == (role == "time"):
-            return UnitConversion(ann, hit[0], hit[1], "header")
+            return UnitConversion(ann, hit[0], hit[1], origin)
         if role != "time":
-            return UnitConversion(ann, ann, 1.0, "header")  # a unit we do not convert: kept as it is
+            return UnitConversion(ann, ann, 1.0, origin)  # a unit we do not convert: kept as it is
     if role == "time":
         return UnitConversion("s", "s", 1.0, "assumed")
     return UnitConversion("", "", 1.0, "assumed")
