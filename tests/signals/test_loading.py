@@ -471,3 +471,11 @@ def test_parquet_field_metadata_unit(tmp_path):
     assert rec.fs == pytest.approx(1000.0, rel=1e-9)
     np.testing.assert_allclose(rec.output, y * 1e-3, rtol=1e-12)
     assert rec.units["time"] == UnitConversion("us", "s", 1e-6, "file")
+
+
+def test_whitespace_with_decimal_comma_and_no_header(tmp_path):
+    f = tmp_path / "ws.txt"
+    f.write_text("0,5  1,25  -3\n1,5  2,25  -4\n2,5  3,25  -5\n")  # ',' splits every line alike, but into non-numbers
+    rec = load_record(f, input=1, output=2, fs=1.0)
+    np.testing.assert_array_equal(rec.input, [1.25, 2.25, 3.25])
+    np.testing.assert_array_equal(rec.output, [-3, -4, -5])

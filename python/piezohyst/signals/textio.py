@@ -88,12 +88,19 @@ def _decimal_of(rows: Sequence[Sequence[str]]) -> str:
 def _sniff_delimiter(lines: Sequence[str]) -> str:
     """Tab, semicolon, comma or whitespace: the first that splits every sample line into the
     same number (> 1) of fields; else as the first line suggests (tab, comma, semicolon, spaces)."""
+    consistent = []
     for d in ("\t", ";", ",", " "):
         if d != " " and not any(d in line for line in lines):
             continue
         counts = {len(_split(line, d)) for line in lines}
         if len(counts) == 1 and counts.pop() > 1:
+            consistent.append(d)
+    for d in consistent:  # prefer one whose data lines (after a possible header) are numbers
+        data = [_split(line, d) for line in (lines[1:] or lines)]
+        if all(_is_data_line(f, ".") or _is_data_line(f, ",") for f in data):
             return d
+    if consistent:
+        return consistent[0]
     s = lines[0]
     return "\t" if "\t" in s else "," if "," in s else ";" if ";" in s else " "
 
