@@ -336,7 +336,8 @@ class TextTable:
         bad: list[tuple[int, int]] = []
         ro, po, co = self._options(keys, bad, pa.float64())
         body = self._body(False)
-        rows = self.raw.count(b"\n", self.data_pos) + 1
+        rows = self.raw.count(b"\n", self.data_pos) or self.raw.count(b"\r", self.data_pos)  # old Mac line ends
+        rows += 1
         out = {k: np.empty(rows, dtype=np.float64) for k in keys}
         n = 0
         try:
