@@ -111,7 +111,10 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     g = i.add_mutually_exclusive_group()
     g.add_argument("--fs", metavar="HZ", type=float, help="sample rate in Hz (> 0); this or --time is required")
     g.add_argument(
-        "--time", metavar="COL", help="time column in seconds (strictly increasing and uniform; gives the sample rate)"
+        "--time",
+        metavar="COL",
+        help="time column (strictly increasing, uniform within --time-tolerance; gives the sample rate); "
+        "seconds unless its name ('t [ms]') or --time-unit says otherwise",
     )
     i.add_argument(
         "--dataset",

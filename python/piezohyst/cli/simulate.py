@@ -84,7 +84,10 @@ def _simulate_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         "time of a model that has one (rdpi, creep). Default: the model's, else no time column",
     )
     g.add_argument(
-        "--time", metavar="COL", help="time column in seconds (strictly increasing, uniform), copied to the CSV"
+        "--time",
+        metavar="COL",
+        help="time column (strictly increasing, uniform), copied to the CSV in seconds; "
+        "its unit from its name ('t [ms]') or --time-unit, else s",
     )
     s.add_argument(
         "--dataset",
