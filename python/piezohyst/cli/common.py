@@ -123,9 +123,11 @@ def _units_line(rec: Record) -> str:
     """One line of the units read: ``input V, output m (from um, header), time s (from ms)``."""
     parts = []
     for role, c in rec.units.items():
-        unit = c.si or "(no unit)"
-        src = "" if c.source == c.si else f" from {c.source}"
-        parts.append(f"{role} {unit}{src} ({c.origin})")
+        if not c.si:
+            parts.append(f"{role} as read (no unit given)")
+        else:
+            src = "" if c.source == c.si else f" from {c.source}"
+            parts.append(f"{role} {c.si}{src} ({c.origin})")
     return ", ".join(parts)
 
 
