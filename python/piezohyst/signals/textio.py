@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import codecs
 import csv
+import mmap
 import re
 from collections.abc import Sequence
 from pathlib import Path
@@ -122,6 +123,21 @@ def _is_data_line(fields: Sequence[str], decimal: str) -> bool:
     return all(_is_number(f, decimal) or not _unquote(f) for f in fields) and any(_unquote(f) for f in fields)
 
 
+def _map(path: Path) -> bytes | mmap.mmap:
+    """The file's bytes, memory-mapped (no copy; Arrow parses the mapping) where it can be."""
+    with open(path, "rb") as fh:
+        try:
+            return mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ)
+        except (ValueError, OSError):  # an empty file, a pipe
+            return fh.read()
+
+
+def _is_ascii(raw: bytes | mmap.mmap) -> bool:
+    if isinstance(raw, bytes):
+        return raw.isascii()
+    return len(raw) == 0 or int(np.frombuffer(raw, dtype=np.uint8).max()) < 128
+
+
 class TextTable:
     """A delimited text file: the layout sniffed at construction, the columns parsed by Arrow on
     :meth:`prepare` (or the first :meth:`read`). Keys are 0-based column indices."""
@@ -131,22 +147,25 @@ class TextTable:
     def __init__(self, path: Path, delimiter: str | None, header: bool | str) -> None:
         self.source = str(path)
         self.path = path
-        raw = path.read_bytes()
-        if raw.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
+        raw = _map(path)
+        self.start = 0  # where the text begins (after a UTF-8 byte-order mark)
+        if raw[:2] in (codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE):
             try:
-                raw = raw.decode("utf-16").encode("utf-8")
+                raw = raw[:].decode("utf-16").encode("utf-8")
             except UnicodeDecodeError:
                 raise DataError(f"{path}: has a UTF-16 byte-order mark but is not UTF-16 text") from None
-        if b"\x00" in raw:
+        if raw.find(b"\x00") >= 0:
             raise DataError(f"{path}: contains NUL bytes: a binary file, not delimited text")
-        if raw.startswith(codecs.BOM_UTF8):
-            raw = raw[len(codecs.BOM_UTF8) :]
-        if not raw.isascii():
+        if raw[:3] == codecs.BOM_UTF8:
+            self.start = len(codecs.BOM_UTF8)
+        if not _is_ascii(raw):
+            text = raw[:]
             try:
-                raw.decode("utf-8")
+                text.decode("utf-8")
             except UnicodeDecodeError:
-                raw = raw.decode("latin-1").encode("utf-8")
-        self.raw = raw
+                text = text.decode("latin-1").encode("utf-8")
+            raw = text
+        self.raw: bytes | mmap.mmap = raw
         self._scan_head(delimiter, header)
         self._arrays: dict[int, Any] | None = None
         self._read_keys: set[int] = set()
@@ -161,7 +180,7 @@ class TextTable:
     def _scan_head(self, delimiter: str | None, header: bool | str) -> None:
         raw = self.raw
         path = self.source
-        pos, lineno = 0, 0
+        pos, lineno = self.start, 0
         first: int | None = None  # line number (0-based) of the first non-comment line
         first_pos = first_end = 0
         prev_comment: str | None = None  # the comment line right above it
@@ -336,22 +355,17 @@ class TextTable:
         bad: list[tuple[int, int]] = []
         ro, po, co = self._options(keys, bad, pa.float64())
         body = self._body(False)
-        rows = self.raw.count(b"\n", self.data_pos) or self.raw.count(b"\r", self.data_pos)  # old Mac line ends
-        rows += 1
-        out = {k: np.empty(rows, dtype=np.float64) for k in keys}
+        chunks: dict[int, list[FloatArray]] = {k: [] for k in keys}
         n = 0
         try:
             reader = pacsv.open_csv(pa.py_buffer(body), read_options=ro, parse_options=po, convert_options=co)
             for batch in reader:
-                m = batch.num_rows
-                if n + m > rows:  # cannot happen (a row is at least one line); the slow path decides
-                    return None
                 for j, k in enumerate(keys):
                     col = batch.column(j)
                     if col.null_count:
                         return None
-                    out[k][n : n + m] = col.to_numpy(zero_copy_only=False)
-                n += m
+                    chunks[k].append(np.asarray(col.to_numpy(zero_copy_only=False), dtype=np.float64))
+                n += batch.num_rows
         except Exception as e:  # ArrowInvalid: a ragged row (named) or a cell that is not a number
             if bad:
                 self._raise_ragged()
@@ -360,7 +374,7 @@ class TextTable:
             return None
         if n == 0:
             raise DataError(f"{self.source}: has no data rows")
-        return {k: a[:n] for k, a in out.items()}
+        return {k: np.concatenate(c) for k, c in chunks.items()}
 
     def _parse(self, keys: Sequence[int], clean: bool) -> Any:
         """The columns as text (the slow path, for naming a bad cell)."""
@@ -415,7 +429,7 @@ class TextTable:
 
     def _data_lines(self) -> list[tuple[int, str]]:
         """``(1-based line number, text)`` of every data line: the error path only."""
-        text = self.raw.decode("utf-8", errors="replace")
+        text = self.raw[:].decode("utf-8", errors="replace")
         out = []
         for i, line in enumerate(text.split("\n")[self.data_line :], start=self.data_line + 1):
             s = line.strip()
