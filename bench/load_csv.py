@@ -130,7 +130,7 @@ def main(argv=None) -> int:
     mem_ratio = max(mem["load_record"]["tracemalloc_peak_over_file"], mem["load_record"]["rss_growth_over_file"])
     payload = {
         "benchmark": "load_csv",
-        "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "timestamp_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         "rows": args.rows,
         "columns": 4,
         "file_bytes": size,
