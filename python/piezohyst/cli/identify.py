@@ -13,6 +13,7 @@ from .._io import write_atomic
 from ..identify.dispatch import KINDS
 from .common import (
     _FORMATS,
+    _add_record_options,
     _check_count,
     _check_fs,
     _column,
@@ -24,7 +25,10 @@ from .common import (
     _parse_validate,
     _Parser,
     _pct,
+    _record_options,
     _resolve_range,
+    _units_line,
+    _units_report,
     _writable,
 )
 
@@ -107,13 +111,17 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     g = i.add_mutually_exclusive_group()
     g.add_argument("--fs", metavar="HZ", type=float, help="sample rate in Hz (> 0); this or --time is required")
     g.add_argument(
-        "--time", metavar="COL", help="time column in seconds (strictly increasing and uniform; gives the sample rate)"
+        "--time",
+        metavar="COL",
+        help="time column (strictly increasing, uniform within --time-tolerance; gives the sample rate); "
+        "seconds unless its name ('t [ms]') or --time-unit says otherwise",
     )
     i.add_argument(
         "--dataset",
         metavar="NAME",
         help="NPZ/MAT/HDF5: a 2-D matrix (rows = samples) whose columns integer COLs address",
     )
+    _add_record_options(i)
     i.add_argument(
         "--train",
         metavar="A:B",
@@ -236,7 +244,12 @@ def _identify(args: argparse.Namespace) -> int:
         raise _Fail(f"--plot = '{args.plot}' is the same file as --out")
 
     columns: _Columns = dict(
-        input=_column(args.input), output=_column(args.output), time=_column(args.time), fs=fs, dataset=args.dataset
+        input=_column(args.input),
+        output=_column(args.output),
+        time=_column(args.time),
+        fs=fs,
+        dataset=args.dataset,
+        **_record_options(args),
     )
     if fs is None and args.time is None:
         raise _Fail("the sample rate is unknown: give --fs HZ or --time COL")
@@ -313,10 +326,16 @@ def _identify(args: argparse.Namespace) -> int:
         "validation": None if val is None else {**val_where, "samples": val.n},
         "columns": dict(rec.columns),
         "fs": rec.fs,
+        "units": _units_report(rec),
     }
     output_map = getattr(res.model, "output_map", None)  # cemf, boucwen-benchmark: none
     fit["output_map"] = None if output_map is None else output_map.to_dict()
     doc = _model_document(res, args.model, train.fs)
+    if isinstance(doc.get("units"), dict):  # the model's signals are in the record's (SI) units
+        doc["units"] = {
+            **{k: v for k, v in rec.si_units().items() if v},
+            **{k: v for k, v in doc["units"].items() if v},
+        }
     if res.partial:
         doc["partial"] = True  # Ctrl-C stopped the optimizer: the best model found before it
     doc["fit"] = fit
@@ -355,6 +374,7 @@ def _identify(args: argparse.Namespace) -> int:
         print(f"  {'':<11} {'RMSE (% of range)':>18} {'max error (%)':>14}")
         for name, m, where in rows:
             print(f"  {name:<11} {_pct(m['rmse_percent']):>18} {_pct(m['max_error_percent']):>14}   ({where})")
+        print(f"  units: {_units_line(rec)}")
         if plot is not None:
             print(f"  figure: {plot}")
     if res.partial:
