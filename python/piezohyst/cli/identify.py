@@ -49,6 +49,13 @@ class _Where(TypedDict):
 _OPTIMIZERS = ("css", "pso", "mpso", "de", "ls")
 
 
+class _KindsOrAuto(tuple[str, ...]):
+    """``--model``'s choices: the registry's kinds (what the choices list), and ``auto``."""
+
+    def __contains__(self, key: object) -> bool:
+        return key == "auto" or tuple.__contains__(self, key)
+
+
 def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     fmt = argparse.RawDescriptionHelpFormatter
     i = sub.add_parser(
@@ -95,8 +102,8 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         "--model",
         metavar="KIND",
         required=True,
-        choices=(*_KINDS, "auto"),
-        help=f"model to identify: {', '.join(_KINDS)} or auto (required). auto fits pi, gpi, mpi, rdpi, "
+        choices=_KindsOrAuto(_KINDS),
+        help=f"model to identify: {', '.join(_KINDS)} (required). Or auto: it fits pi, gpi, mpi, rdpi, "
         "preisach and boucwen (the PI family with and without --creep 2), ranks them by validation "
         "error (state carried) and saves the winner: the simplest model within one standard error "
         "of the best (without --validate: by BIC on the training range); the league table is printed "

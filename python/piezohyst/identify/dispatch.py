@@ -436,8 +436,9 @@ def _assess(
 ) -> ValidatedResult:
     """The fitted model scored honestly: training record (warm-up and periodic state as asked),
     validation record with the state carried (or from rest), whiteness, verdict, diagnosis."""
-    v = as_record(input, "input", min_length=2)
-    y = as_record(output, "output", min_length=2)
+    # the kind's fitter has validated the records (each is validated once): only converted here
+    v = np.asarray(input, dtype=np.float64)
+    y = np.asarray(output, dtype=np.float64)
     period = None
     if periodic is not None:
         period = estimate_period(v) if periodic == "auto" else as_int(periodic, "periodic", minimum=1)
@@ -446,15 +447,15 @@ def _assess(
     wu = as_int(warmup, "warmup", minimum=0)
     if wu >= v.size - 1:
         raise ParameterError(f"warmup = {wu} leaves fewer than 2 samples of the training record ({v.size}) to score")
-    sim = res.simulate
+    sim = res.simulate if res.simulator is None else res.simulator  # the records are valid already
     train, r_train = scored_metrics(sim, v, y, warmup=wu, periodic=period)
     assessment: dict[str, Any] = {"validate_from": validate_from, "warmup": wu, "periodic": period}
     assessment["train"] = residual_whiteness(r_train, v[wu:]) if r_train.size >= 4 else None
     val = None
     scored = (train, r_train, v[wu:])
     if validate is not None:
-        vv = as_record(validate[0], "validate input")
-        vy = as_record(validate[1], "validate output")
+        vv = np.asarray(validate[0], dtype=np.float64)
+        vy = np.asarray(validate[1], dtype=np.float64)
         if vy.size != vv.size:
             raise ParameterError(
                 f"validate output has {vy.size} samples, validate input has {vv.size}; they must match"
