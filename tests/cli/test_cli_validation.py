@@ -205,3 +205,20 @@ def test_track_flags_a_model_of_another_actuator(tmp_path):
     other = run(*args, "um.json", "--json", cwd=tmp_path)
     assert other.returncode == 3 and "another actuator" in other.stderr
     assert json.loads(other.stdout)["model_check"]["ratio"] > 1e5
+
+
+def test_bad_validation_flags_are_one_line_errors(tmp_path):
+    v, y = record()
+    path = write(tmp_path / "r.csv", v, y)
+    (tmp_path / "w.txt").write_text("\n".join(["1"] * 10))
+    for args, named in [
+        (("--weights", "nosuch"), "--weights = 'nosuch'"),
+        (("--weights", "w.txt"), "--weights = 'w.txt' holds 10 values"),
+        (("--periodic", "0"), "--periodic = '0'"),
+        (("--loss", "linf", "--structure", "fit"), "loss = 'linf'"),
+    ]:
+        out = identify(path, *args, cwd=tmp_path)
+        assert out.returncode == 2 and named in out.stderr and "\n" not in out.stderr.strip(), (args, out.stderr)
+    np.savetxt(tmp_path / "w2.txt", np.r_[np.ones(1000), np.zeros(1000)])  # one per training sample
+    out = identify(path, "--weights", "w2.txt", "--out", "m.json", cwd=tmp_path)
+    assert out.returncode == 0, out.stderr

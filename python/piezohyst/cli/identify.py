@@ -341,6 +341,11 @@ def _identify(args: argparse.Namespace) -> int:
     honest = _honest_options(args, rec, data, columns, (a, b), None if val_spec is None else (c, d), n)
     if args.model != "boucwen-benchmark":
         extra.update(honest.pop("identify"))
+    elif args.warmup or args.periodic or args.loss != "l2" or args.weights or args.validate_from != "carried":
+        raise _Fail(
+            "--warmup / --periodic / --loss / --weights / --validate-from do not apply to --model boucwen-benchmark "
+            "(it is simulated from the record's start and scores its ranges)"
+        )
     common: dict[str, Any] = dict(
         fs=train.fs,
         operators=args.operators,
@@ -525,7 +530,10 @@ def _honest_options(
             kw["weights"] = w[a:b] if w.size == n and n != b - a else w
         else:
             wcols: _Columns = {**columns, "output": _column(args.weights)}
-            wrec = _load(data, **wcols)
+            try:
+                wrec = _load(data, **wcols)
+            except ParameterError as e:
+                raise _Fail(f"--weights = '{args.weights}' is neither a file nor a column of DATA ({e})") from None
             kw["weights"] = wrec.output[a:b]
     return {"identify": kw, "note": note}
 
