@@ -254,7 +254,8 @@ def test_refuses_to_overwrite_without_force(data, tmp_path):
     assert not (tmp_path / "new.json").exists()  # checked before any work is done
 
     out = run(*args, "--force", cwd=tmp_path)
-    assert out.returncode == 0, out.stderr
+    # exit 3 (issue 14): pi has no output offset, 5.7 % on this MPI record: fitted, written, not trusted
+    assert out.returncode in (0, 3), out.stderr
     assert ph.load_model(tmp_path / "model.json").kind == "pi"
 
     (tmp_path / "pred.csv").write_text("mine")

@@ -40,6 +40,16 @@ from .core import (
     identify_cemf,
     minimize_huber,
 )
+from .losses import check_weights, fit_linear_weighted
+from .validation import (
+    VALIDATE_FROM,
+    ValidatedResult,
+    diagnose,
+    estimate_period,
+    residual_whiteness,
+    scored_metrics,
+    trust,
+)
 from .varpro import identify_vp
 
 __all__ = ["KINDS", "STRUCTURES", "identify"]
@@ -77,6 +87,7 @@ class _Call:
     options: dict[str, Any]
     t0: float
     offset: bool = True
+    weights: FloatArray | None = None
 
 
 @dataclass(frozen=True)
@@ -132,6 +143,12 @@ def identify(
     loss: str = "squared",
     huber_delta: float | None = None,
     offset: bool | None = None,
+    validate_from: str | None = None,
+    gap: npt.ArrayLike | None = None,
+    warmup: int = 0,
+    periodic: int | str | None = None,
+    weights: npt.ArrayLike | None = None,
+    diagnosis: bool = True,
     **options: Any,
 ) -> IdentificationResult:
     """Identify a hysteresis model from an input/output record (free-run simulation error).
@@ -187,7 +204,10 @@ def identify(
         A held-out record ``(input, output)``; its metrics are reported, it is not fitted.
         ``boucwen-benchmark`` also takes ``(input, output, (start, stop))``: the whole record
         simulated from rest and scored on samples ``start:stop`` (the oscillator's memory is long).
-    loss : {"squared", "huber"}
+    loss : {"squared", "huber", "linf"}
+        ``"linf"``: the minimax fit (the largest error made smallest) — a linear program
+        (:func:`scipy.optimize.linprog`) for the linear families (fixed structure), the
+        max-abs error of the free run as the population optimizer's cost for ``boucwen``.
         ``"squared"``: the RMSE of the free-run simulation. ``"huber"``: the robust Huber
         cost, for records with glitches — iteratively reweighted least squares for the
         linear families (:func:`fit_linear`), :func:`huber_cost` of the simulated residuals
@@ -206,6 +226,31 @@ def identify(
         (default): ``True`` for every kind whose model has an output map, i.e. all but
         ``cemf`` and ``boucwen-benchmark`` (whose simulations start at rest at zero).
         ``False``: no offset beyond the family's own (the fit of earlier versions).
+    validate_from : {"carried", "rest"}, optional
+        How the validation record is simulated; by default ``"carried"`` when ``gap`` is given
+        (the caller says where the validation sits), else ``"rest"`` (a record of another run,
+        the former behaviour). ``"carried"``: it is taken to follow
+        the training record (after the input ``gap``, if given): the model runs from the
+        training record's start through the validation record and only the validation record
+        is scored, so the validation starts from the state the training left (a record of
+        another run has no such state: use ``"rest"``). ``"rest"``: simulated from the model's
+        rest state.
+    gap : array_like, optional
+        ``validate_from="carried"``: the input between the training record's end and the
+        validation record's start (simulated, not scored).
+    warmup : int
+        Samples at the start of each scored record (training, validation) left out of the
+        metrics (the model's initial transient).
+    periodic : int or "auto", optional
+        For periodic records: the period in samples (``"auto"``: estimated from the input's
+        autocorrelation); one period of the input is simulated before each simulation so it
+        starts in the periodic steady state.
+    weights : array_like, optional
+        Sample weights (``>= 0``, one per training sample) of the linear families' fit
+        (weighted least squares / Huber; ``max w |r|`` for ``"linf"``).
+    diagnosis : bool
+        When the fit is not trustworthy (:func:`~piezohyst.identify.validation.trust`), refit
+        to name the likely cause (:func:`~piezohyst.identify.validation.diagnose`).
     **options
         Further keywords of :func:`identify_cemf` or of
         :func:`~piezohyst.boucwen_benchmark.identify_boucwen_benchmark` (e.g. ``bounds``,
@@ -214,8 +259,11 @@ def identify(
 
     Returns
     -------
-    IdentificationResult
-        ``method`` names the optimizer, with ``+huber`` for the Huber loss.
+    ValidatedResult
+        An :class:`IdentificationResult` (``method`` names the optimizer, with ``+huber`` for
+        the Huber loss, ``+linf`` for the minimax one) whose ``assessment`` holds how the
+        spans were scored, the residuals' whiteness, the trust verdict and, when not trusted,
+        the diagnosis (``boucwen-benchmark``: none, it scores its own ranges).
 
     Examples
     --------
@@ -232,7 +280,101 @@ def identify(
     t0 = time.perf_counter()
     if model not in KINDS:
         raise ParameterError(f"model = {model!r} is unknown; expected one of {list(KINDS)}")
-    loss, delta = _check_loss(loss, huber_delta)
+    if loss == "linf":
+        if huber_delta is not None:
+            raise ParameterError(f"huber_delta = {huber_delta!r} is only used with loss = 'huber', got loss = 'linf'")
+        delta = None
+        if structure == "fit" or model in ("cemf", "boucwen-benchmark"):
+            raise ParameterError(
+                f"loss = 'linf' applies to the fixed-structure linear families and boucwen, not to model = "
+                f"{model!r}{' with structure = fit' if structure == 'fit' else ''}"
+            )
+    else:
+        loss, delta = _check_loss(loss, huber_delta)
+    if validate_from is None:
+        validate_from = "rest" if gap is None else "carried"
+    if validate_from not in VALIDATE_FROM:
+        raise ParameterError(f"validate_from = {validate_from!r} is unknown; expected one of {list(VALIDATE_FROM)}")
+    w = None
+    if weights is not None:
+        if structure == "fit" or model not in ("pi", "gpi", "mpi", "rdpi", "preisach"):
+            raise ParameterError(
+                f"weights apply to the fixed-structure linear families (pi, gpi, mpi, rdpi, preisach), not to "
+                f"model = {model!r}{' with structure = fit' if structure == 'fit' else ''}"
+            )
+        w = check_weights(weights, np.size(input))
+    res = _identify(
+        input,
+        output,
+        model,
+        fs,
+        operators,
+        levels,
+        structure,
+        creep,
+        optimizer,
+        rng,
+        max_iterations,
+        population_size,
+        validate,
+        progress,
+        callback,
+        loss,
+        delta,
+        w,
+        offset,
+        t0,
+        options,
+    )
+    if model == "boucwen-benchmark":
+        return res
+    return _assess(
+        res,
+        input,
+        output,
+        validate,
+        validate_from,
+        gap,
+        warmup,
+        periodic,
+        fs,
+        diagnosis,
+        model,
+        dict(
+            operators=operators,
+            levels=levels,
+            creep=creep,
+            validate_from=validate_from,
+            warmup=warmup,
+            periodic=periodic,
+        ),
+    )
+
+
+def _identify(
+    input: npt.ArrayLike,
+    output: npt.ArrayLike,
+    model: str,
+    fs: float | None,
+    operators: int,
+    levels: int,
+    structure: str,
+    creep: int,
+    optimizer: str,
+    rng: RngLike,
+    max_iterations: int | None,
+    population_size: int | None,
+    validate: HeldOut | None,
+    progress: bool,
+    callback: Callback | None,
+    loss: str,
+    delta: float | None,
+    weights: FloatArray | None,
+    offset: bool | None,
+    t0: float,
+    options: dict[str, Any],
+) -> IdentificationResult:
+    """The kind's fit (:func:`identify` once its own arguments are checked)."""
     if structure not in STRUCTURES:
         raise ParameterError(f"structure = {structure!r} is unknown; expected one of {list(STRUCTURES)}")
     creep = as_int(creep, "creep")
@@ -297,9 +439,145 @@ def identify(
         callback=callback,
     )
     call = _Call(
-        input, output, model, fs, operators, levels, creep, loss, delta, validate, search, options, t0, bool(offset)
+        input,
+        output,
+        model,
+        fs,
+        operators,
+        levels,
+        creep,
+        loss,
+        delta,
+        validate,
+        search,
+        options,
+        t0,
+        bool(offset),
+        weights,
     )
     return kind.fit(call)
+
+
+def _assess(
+    res: IdentificationResult,
+    input: npt.ArrayLike,
+    output: npt.ArrayLike,
+    validate: HeldOut | None,
+    validate_from: str,
+    gap: npt.ArrayLike | None,
+    warmup: int,
+    periodic: int | str | None,
+    fs: float | None,
+    diagnosis: bool,
+    model: str,
+    settings: dict[str, Any],
+) -> ValidatedResult:
+    """The fitted model scored honestly: training record (warm-up and periodic state as asked),
+    validation record with the state carried (or from rest), whiteness, verdict, diagnosis."""
+    # the kind's fitter has validated the records (each is validated once): only converted here
+    v = np.asarray(input, dtype=np.float64)
+    y = np.asarray(output, dtype=np.float64)
+    period = None
+    if periodic is not None:
+        period = estimate_period(v) if periodic == "auto" else as_int(periodic, "periodic", minimum=1)
+        if period > v.size:
+            raise ParameterError(f"periodic = {period} is longer than the training record ({v.size} samples)")
+    wu = as_int(warmup, "warmup", minimum=0)
+    if wu >= v.size - 1:
+        raise ParameterError(f"warmup = {wu} leaves fewer than 2 samples of the training record ({v.size}) to score")
+    sim = res.simulate if res.simulator is None else res.simulator  # the records are valid already
+    train, r_train = scored_metrics(sim, v, y, warmup=wu, periodic=period)
+    assessment: dict[str, Any] = {"validate_from": validate_from, "warmup": wu, "periodic": period}
+    assessment["train"] = residual_whiteness(r_train, v[wu:]) if r_train.size >= 4 else None
+    val = None
+    scored = (train, r_train, v[wu:])
+    if validate is not None:
+        vv = np.asarray(validate[0], dtype=np.float64)
+        vy = np.asarray(validate[1], dtype=np.float64)
+        if vy.size != vv.size:
+            raise ParameterError(
+                f"validate output has {vy.size} samples, validate input has {vv.size}; they must match"
+            )
+        if wu >= vv.size - 1:
+            raise ParameterError(
+                f"warmup = {wu} leaves fewer than 2 samples of the validation record ({vv.size}) to score"
+            )
+        if validate_from == "carried":
+            between = np.zeros(0) if gap is None else as_record(gap, "gap", min_length=0)
+            u = np.concatenate([v, between, vv])
+            lead = v.size + between.size
+            val, r_val = scored_metrics(
+                sim, u, np.concatenate([np.zeros(lead), vy]), start=lead, warmup=wu, periodic=period
+            )
+            assessment["gap"] = int(between.size)
+        else:
+            if gap is not None:
+                raise ParameterError("gap is only used with validate_from = 'carried'")
+            val, r_val = scored_metrics(sim, vv, vy, warmup=wu, periodic=period)
+        assessment["validation"] = residual_whiteness(r_val, vv[wu:]) if r_val.size >= 4 else None
+        scored = (val, r_val, vv[wu:])
+    elif gap is not None:
+        raise ParameterError("gap is only used with a validation record (validate)")
+    metrics, residual, scored_input = scored
+    whiteness = residual_whiteness(residual, scored_input) if residual.size >= 4 else None
+    trusted, reasons = trust(metrics, whiteness) if whiteness is not None else (True, [])
+    assessment.update(trusted=trusted, reasons=reasons, scored="validation" if val is not None else "train")
+    if not trusted and diagnosis and whiteness is not None and model not in ("cemf",):
+        assessment["diagnosis"] = _diagnose(v, y, wu, period, fs, model, settings, residual, whiteness)
+    fields = {f: getattr(res, f) for f in res.__dataclass_fields__}
+    fields.update(train=train, validation=val)
+    return ValidatedResult(**fields, assessment=assessment)
+
+
+#: Creep time constants (s) of the diagnosis's sample-rate check: piezo creep's decades.
+_PHYSICAL_TAUS = np.array([0.003, 0.03, 0.3, 3.0, 30.0])
+
+#: The kinds a diagnosis refits as they are (linear, fast); the others are refitted as ``mpi``.
+_QUICK = ("pi", "gpi", "mpi", "rdpi", "preisach")
+
+
+def _diagnose(
+    v: FloatArray,
+    y: FloatArray,
+    warmup: int,
+    period: int | None,
+    fs: float | None,
+    model: str,
+    settings: dict[str, Any],
+    residual: FloatArray,
+    whiteness: dict[str, Any],
+) -> list[dict[str, Any]]:
+    quick = model if model in _QUICK else "mpi"
+    creep = settings["creep"] if quick in ("pi", "gpi", "mpi", "rdpi") else 0
+
+    def refit(vi: FloatArray, yo: FloatArray, rate: float | None) -> float:
+        """In-sample RMSE (% of range) of the quick kind refitted to a rearranged training record."""
+        try:
+            r = identify(
+                vi,
+                yo,
+                quick,
+                fs=rate,
+                operators=settings["operators"],
+                levels=settings["levels"],
+                creep=creep,
+                warmup=min(warmup, vi.size - 2),
+                periodic=period,
+                diagnosis=False,
+            )
+        except ParameterError:
+            return float("inf")
+        return float(r.train["rmse_percent"])
+
+    # the refits score their own training record: compared with the same fit of the record as given
+    def rate_refit(rate: float) -> float:
+        """In-sample RMSE (%) of an MPI with creep lags of physical time constants at ``rate``."""
+        lags = Creep(1.0 / rate, _PHYSICAL_TAUS, np.zeros(_PHYSICAL_TAUS.size))
+        r = _default_thresholds(v, as_int(settings["operators"], "operators", minimum=1))
+        return float(_fit_linear(_mpi_template(v, r, None, None, lags), v, y, "squared", None).metrics["rmse_percent"])
+
+    base = refit(v, y, fs)
+    return diagnose(refit, (v, y), residual, whiteness, base, fs, rate_refit=rate_refit)
 
 
 #: What a fitter of :func:`_free_run` returns: ``(model, method, history, partial, evaluations)``.
@@ -317,8 +595,8 @@ def _free_run(fit: Callable[[_Call, FloatArray, FloatArray], _Fitted]) -> Callab
         if y.size != v.size:
             raise ParameterError(f"output has {y.size} samples, input has {v.size}; they must match")
         fitted, method, history, partial, evaluations = fit(c, v, y)
-        if c.loss == "huber":
-            method += "+huber"
+        if c.loss in ("huber", "linf"):
+            method += "+" + c.loss
         train = _fit_metrics(fitted.simulate(v), y)
         val = None
         if c.validate is not None:
@@ -341,7 +619,7 @@ def _free_run(fit: Callable[[_Call, FloatArray, FloatArray], _Fitted]) -> Callab
 
 @_free_run
 def _fit_linear_kind(c: _Call, v: FloatArray, y: FloatArray) -> _Fitted:
-    fit = _identify_linear(c.kind, v, y, c.fs, c.operators, c.levels, c.loss, c.delta, c.creep, c.offset)
+    fit = _identify_linear(c.kind, v, y, c.fs, c.operators, c.levels, c.loss, c.delta, c.creep, c.offset, c.weights)
     return fit.model, "ls", {}, False, fit.evaluations
 
 
@@ -371,6 +649,7 @@ def _identify_linear(
     delta: float | None,
     creep: int = 0,
     offset: bool = False,
+    weights: FloatArray | None = None,
 ) -> FitResult:
     """The least-squares kinds' fit, from the validated record (the checks and their order
     are those of :func:`identify_pi`, :func:`identify_mpi`, :func:`identify_preisach` and
@@ -390,6 +669,8 @@ def _identify_linear(
             raise ParameterError("fs is required for model = 'rdpi' (the rate needs the sample time)")
         r = _default_thresholds(v, as_int(operators, "operators", minimum=1))
         template = RateDependentPI(r, np.zeros(r.size), 1.0 / float(fs), 1.0, 0.0, creep=lags)
+    if loss == "linf" or weights is not None:
+        return fit_linear_weighted(template, v, y, loss, delta, weights, offset=offset)
     return _fit_linear(template, v, y, loss, delta, offset=offset)
 
 
@@ -422,18 +703,34 @@ def _identify_boucwen(
     method = "de" if optimizer == "ls" else optimizer
     family = BoucWen(1.0, 1.0, 0.0).family
     bounds = _boucwen_bounds(v, y)
+
     # the rows stay inside the box, where every Bouc-Wen row is valid (n = 1, finite)
-    centre = np.median if loss == "huber" else np.mean
+    # the offset that is best for the loss: mean (squared), median (huber), mid-range (linf)
+    def centre(r: FloatArray) -> FloatArray:
+        if loss == "huber":
+            return np.asarray(np.median(r, axis=-1, keepdims=True), dtype=np.float64)
+        if loss == "linf":
+            return np.asarray(0.5 * (r.max(axis=-1, keepdims=True) + r.min(axis=-1, keepdims=True)), dtype=np.float64)
+        return np.asarray(np.mean(r, axis=-1, keepdims=True), dtype=np.float64)
 
     def simulate(rows: FloatArray) -> FloatArray:
         out: FloatArray = _core.batch_simulate(family, [], np.ascontiguousarray(rows), v)
         if offset:
             with np.errstate(invalid="ignore", over="ignore"):
-                out += centre(y - out, axis=-1, keepdims=True)
+                out += centre(y - out)
         return out
 
     if loss == "huber":
         res = minimize_huber(simulate, y, bounds, delta, method=method, **search)
+    elif loss == "linf":
+
+        def worst(rows: FloatArray) -> FloatArray:
+            r = simulate(rows) - y
+            with np.errstate(invalid="ignore", over="ignore"):
+                c: FloatArray = np.max(np.abs(r), axis=-1)
+            return np.where(np.isfinite(c), c, np.inf)
+
+        res = minimize(worst, bounds, method=method, polish=True, **search)
     elif offset:
 
         def cost(rows: FloatArray) -> FloatArray:
