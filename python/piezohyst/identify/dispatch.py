@@ -748,7 +748,7 @@ def _identify_boucwen(
         res = minimize(cost, bounds, method=method, polish=True, **search)
     fitted = BoucWen(*np.asarray(res.x, dtype=np.float64))
     if offset:
-        fitted = fitted.with_output_map(offset=float(centre(y - fitted.simulate(v))))
+        fitted = fitted.with_output_map(offset=float(centre(y - fitted.simulate(v))[0]))
     return fitted, method, dict(res.history), res.interrupted, int(res.nfev)
 
 
