@@ -285,6 +285,17 @@ impl Hysteresis for Preisach<'_> {
         state.iter_mut().for_each(|s| *s = 0.0);
         state[0] = self.lo; // negative saturation
     }
+    /// Besides finite slots: `state[1]` (the number of stored extrema) is a whole number in
+    /// `0..=memory` (a larger one would index past the buffer).
+    fn check_state(&self, state: &[f64]) -> Result<(), ModelError> {
+        crate::hysteresis::check_state_len(state, self.state_len())?;
+        check_finite("state", state)?;
+        let len = state[1];
+        if !((0.0..=self.memory as f64).contains(&len) && len == libm::trunc(len)) {
+            return Err(ModelError::OutOfRange("state (memory length)", 1, len, 0.0, self.memory as f64));
+        }
+        Ok(())
+    }
     fn step(&self, state: &mut [f64], v: f64) -> f64 {
         let (head, ext) = state.split_at_mut(2);
         let len = self.update(ext, head[1] as usize, head[0], v);
