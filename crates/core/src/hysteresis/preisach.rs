@@ -26,6 +26,9 @@ use crate::hysteresis::{Hysteresis, Invertible};
 /// Largest memory depth (number of stored extrema).
 pub const MAX_MEMORY: usize = 256;
 
+/// Most grid levels (`levels (levels + 1) / 2` cells: 500,500 weights at the limit).
+pub const MAX_LEVELS: usize = 1000;
+
 /// Number of cells of an `levels x levels` triangular grid.
 pub const fn cell_count(levels: usize) -> usize {
     levels * (levels + 1) / 2
@@ -79,7 +82,7 @@ impl<'a> Preisach<'a> {
         if !(hi > lo) {
             return Err(ModelError::NotIncreasing("input_range", 1, hi));
         }
-        if levels == 0 || levels > 1000 {
+        if levels == 0 || levels > MAX_LEVELS {
             return Err(ModelError::Structure("levels", levels));
         }
         if !(2..=MAX_MEMORY).contains(&memory) {
