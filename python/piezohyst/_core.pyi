@@ -16,7 +16,6 @@ __all__ = [
     "Scenario",
     "Stage",
     "__version__",
-    "_panic_for_tests",
     "batch_rmse",
     "batch_simulate",
     "boucwen_benchmark_batch_rmse",
@@ -106,10 +105,6 @@ def regressors(name: str, dims: list[int], params: _Array1, input: _Array1) -> _
 
 def thread_count() -> int:
     """Threads rayon uses for batch calls."""
-
-def _panic_for_tests() -> None:
-    """A deliberate panic inside the binding's guard (raises ``InternalError``): the test of
-    the last line of defence."""
 
 def boucwen_benchmark_integrate(params: _Array1, input: _Array1, h: float, state: _Array1) -> tuple[_Array1, _Array1]:
     """Bouc–Wen benchmark by Newmark (average acceleration) + trapezoidal ``z``: ``(y, z)`` at

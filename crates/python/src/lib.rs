@@ -30,7 +30,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     // SAFETY: mi_option_set stores one integer option; it takes no pointers
     unsafe { libmimalloc_sys::mi_option_set(15, 1000) };
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
-    m.add_function(wrap_pyfunction!(_panic_for_tests, m)?)?;
+    // set as a plain attribute, so it stays out of `__all__` and the stub (private)
+    m.setattr("_panic_for_tests", wrap_pyfunction!(_panic_for_tests, m)?)?;
     models::register(m)?;
     layout::register(m)?;
     boucwen_benchmark::register(m)?;
