@@ -66,7 +66,9 @@ test-c: $(BUILT)
 	$(CC) $(C_FLAGS) tests/c/replay_vectors.c $(CAPI_LIB) $(C_LIBS) -o $(C_DIR)/replay_vectors
 	$(CC) $(C_FLAGS) tests/c/bad_input.c -Ltarget/release -lpiezohyst -Wl,-rpath,$(abspath target/release) -lm -o $(C_DIR)/bad_input
 	$(C_DIR)/replay_vectors $(C_DIR)/vectors.txt
-	$(C_DIR)/bad_input
+	@# a refused call prints nothing: bad_input's stderr must stay empty (no Rust backtrace)
+	$(C_DIR)/bad_input 2>$(C_DIR)/bad_input.stderr || { cat $(C_DIR)/bad_input.stderr; exit 1; }
+	@test ! -s $(C_DIR)/bad_input.stderr || { echo "bad_input wrote to stderr:"; cat $(C_DIR)/bad_input.stderr; exit 1; }
 
 bench-c: $(BUILT)
 	$(BIN)/python bench/c_step.py

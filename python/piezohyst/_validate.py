@@ -65,13 +65,15 @@ def as_scalar(
     return v
 
 
-def as_int(x: object, name: str, *, minimum: int = 0) -> int:
-    """An integer >= minimum."""
+def as_int(x: object, name: str, *, minimum: int = 0, maximum: int | None = None) -> int:
+    """An integer >= minimum (and <= maximum, if given)."""
     if isinstance(x, bool) or not isinstance(x, (numbers.Integral, np.integer)):
         raise ParameterTypeError(f"{name} must be an integer, got {x!r}")
     v = int(x)
     if v < minimum:
         raise ParameterError(f"{name} = {v} must be >= {minimum}")
+    if maximum is not None and v > maximum:
+        raise ParameterError(f"{name} = {v} must lie within [{minimum}, {maximum}]")
     return v
 
 

@@ -20,6 +20,8 @@ class                         builtin             C status (``crates/capi``)
 :class:`DataError`            ``ValueError``      (files are read in Python only)
 :class:`ComputationError`     ``RuntimeError``    ``PHS_ERR_NOT_FINITE`` on a result
 :class:`OutputExistsError`    ``FileExistsError`` (no files in C)
+:class:`ResourceLimitError`   ``MemoryError``     (C never allocates)
+:class:`InternalError`        ``RuntimeError``    ``PHS_ERR_INTERNAL``
 ============================  ==================  =========================================
 
 The command line prints ``piezohyst <command>: error: <message>`` on one line and exits
@@ -40,11 +42,13 @@ from __future__ import annotations
 __all__ = [
     "ComputationError",
     "DataError",
+    "InternalError",
     "NotInvertibleError",
     "OutputExistsError",
     "ParameterError",
     "ParameterTypeError",
     "PiezohystError",
+    "ResourceLimitError",
     "UnreachableError",
 ]
 
@@ -93,3 +97,15 @@ class ComputationError(PiezohystError, RuntimeError):
 class OutputExistsError(PiezohystError, FileExistsError):
     """An output file exists and overwriting was not asked for (``--force`` /
     ``overwrite=True``)."""
+
+
+class ResourceLimitError(PiezohystError, MemoryError):
+    """A request would allocate more than the limit (2 GiB by default) before any work
+    starts: the message names the size and the limit. Raise the limit with the
+    environment variable ``PIEZOHYST_MAX_ALLOC_BYTES`` (bytes) when the machine has the
+    memory."""
+
+
+class InternalError(ComputationError):
+    """A bug in piezohyst caught at the Rust boundary (a panic): every argument and state is
+    validated first, so this should not happen; please report it with the message."""

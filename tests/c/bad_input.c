@@ -2,7 +2,8 @@
  * the argument (docs/spec.md §10): NULL pointers, NaN parameters, unordered thresholds,
  * non-invertible weights, wrong lengths, unknown codes, unstable gains, reversed bounds,
  * uninitialized structs. Also: copies of initialized structs work, a failed init leaves a
- * struct that cannot be stepped, non-finite inputs leave the state untouched.
+ * struct that cannot be stepped, non-finite inputs leave the state untouched; tampered and
+ * non-finite states and far references are refused with a status (issue 20).
  * Exit 0 when every check passes. */
 #include <math.h>
 #include <stdio.h>
@@ -219,6 +220,94 @@ int main(void) {
         }
         EXPECT(phs_controller_init(&c, 0, absmc, 22, NULL, NULL), PHS_ERR_UNKNOWN_KIND, "kind = 0 is unknown");
         EXPECT(phs_controller_step(&c, st, n, 0, 0, 0, 0, &u), PHS_ERR_NOT_INITIALIZED, "controller was not initialized");
+    }
+
+    /* hostile states (issue 20): a tampered Preisach memory length, NaN and infinite model
+     * and controller states, a reference far beyond a controller's declared range behind
+     * an inverse model; each a status naming the slot or value, the state untouched (and,
+     * checked by the Makefile, nothing on stderr) */
+    {
+        /* lo, hi, offset, slope, w[4*5/2] */
+        const double pre_row[14] = {-1.5, 1.5, 0.2, 0.3, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5};
+        PhsModelSpec ps;
+        PhsModel pre;
+        double pre_scratch[10], pst[18], before[18];
+        /* PID: kp, ki, kd, tau_d, ts, ff_gain, offset, u_min, u_max */
+        const double pid[9] = {2e6, 2e9, 0.0, 1e-4, 1e-4, 7e6, 0.0, -20.0, 150.0};
+        /* behind the inverse, the limits are metres: -0.5 .. 1.5 (the PI model's outputs) */
+        const double lin[9] = {0.5, 100.0, 0.0, 1e-4, 1e-4, 1.0, 0.0, -0.5, 1.5};
+        PhsInverse inv;
+        double cst[8], cbefore[8];
+        size_t len;
+        memset(&ps, 0, sizeof ps);
+        ps.family = PHS_FAMILY_PREISACH;
+        ps.n_dims = 2;
+        ps.dims[0] = 4;  /* levels */
+        ps.dims[1] = 16; /* memory */
+        ps.params = pre_row;
+        ps.n_params = 14;
+        EXPECT(phs_model_sizes(&ps, NULL, &n, &len), PHS_OK, NULL);
+        TRUE(n == 18 && len == 10);
+        EXPECT(phs_model_init(&pre, &ps, pre_scratch, 10), PHS_OK, NULL);
+        EXPECT(phs_model_reset(&pre, pst, 18), PHS_OK, NULL);
+        for (k = 0; k < 40; k++) EXPECT(phs_model_step(&pre, pst, 18, 1.2 * sin(0.3 * k), &y), PHS_OK, NULL);
+        pst[1] = 1e9; /* the memory length slot */
+        memcpy(before, pst, sizeof pst);
+        EXPECT(phs_model_step(&pre, pst, 18, 0.3, &y), PHS_ERR_INVALID_PARAMETER, "state (memory length)[1] = 1000000000");
+        EXPECT(phs_model_inverse_step(&pre, pst, 18, 0.3, 0.0, &v), PHS_ERR_INVALID_PARAMETER, "memory length");
+        TRUE(memcmp(before, pst, sizeof pst) == 0);
+        pst[1] = -3.0;
+        EXPECT(phs_model_step(&pre, pst, 18, 0.3, &y), PHS_ERR_INVALID_PARAMETER, "must lie within [0, 16]");
+        pst[1] = 2.5;
+        EXPECT(phs_model_step(&pre, pst, 18, 0.3, &y), PHS_ERR_INVALID_PARAMETER, "state (memory length)[1] = 2.5");
+        pst[1] = 0.0;
+        EXPECT(phs_model_step(&pre, pst, 18, 0.3, &y), PHS_OK, NULL);
+
+        /* the PI model's state: a NaN play was silently absorbed by max/min */
+        EXPECT(phs_model_reset(&model, state, 3), PHS_OK, NULL);
+        EXPECT(phs_model_step(&model, state, 3, 0.4, &y), PHS_OK, NULL);
+        state[1] = NAN;
+        EXPECT(phs_model_step(&model, state, 3, 0.4, &y), PHS_ERR_NOT_FINITE, "state[1] = NaN is not finite");
+        EXPECT(phs_model_inverse_step(&model, state, 3, 0.1, 0.0, &v), PHS_ERR_NOT_FINITE, "state[1] = NaN");
+        TRUE(isnan(state[1]));
+        state[1] = -INFINITY;
+        EXPECT(phs_model_step(&model, state, 3, 0.4, &y), PHS_ERR_NOT_FINITE, "state[1] = -inf");
+
+        /* PID with a NaN or -inf state: drove the upper rail with PHS_OK */
+        EXPECT(phs_controller_init(&c, PHS_CONTROLLER_PID, pid, 9, NULL, NULL), PHS_OK, NULL);
+        EXPECT(phs_controller_reset(&c, cst, 3, 0.0), PHS_OK, NULL);
+        EXPECT(phs_controller_step(&c, cst, 3, 1e-6, 0, 0, 0, &u), PHS_OK, NULL);
+        cst[0] = NAN;
+        memcpy(cbefore, cst, sizeof cst);
+        u = 42.0;
+        EXPECT(phs_controller_step(&c, cst, 3, 1e-6, 0, 0, 0, &u), PHS_ERR_NOT_FINITE, "state[0] = NaN is not finite");
+        TRUE(u == 42.0);
+        TRUE(memcmp(cbefore, cst, 3 * sizeof(double)) == 0);
+        cst[0] = 0.0;
+        cst[1] = -INFINITY;
+        EXPECT(phs_controller_step(&c, cst, 3, 1e-6, 0, 0, 0, &u), PHS_ERR_NOT_FINITE, "state[1] = -inf");
+        cst[1] = 0.0;
+        cst[2] = INFINITY;
+        EXPECT(phs_controller_step(&c, cst, 3, 1e-6, 0, 0, 0, &u), PHS_ERR_NOT_FINITE, "state[2] = inf");
+
+        /* behind the PI inverse: a reference of 1e300 m is refused, a reachable one is not */
+        inv.model = &model;
+        inv.u_min = -20.0;
+        inv.u_max = 150.0;
+        EXPECT(phs_controller_init(&c, PHS_CONTROLLER_PID, lin, 9, &inv, NULL), PHS_OK, NULL);
+        EXPECT(phs_controller_state_len(&c, &n), PHS_OK, NULL);
+        TRUE(n == 3 + 3 + 1);
+        EXPECT(phs_controller_reset(&c, cst, n, 0.0), PHS_OK, NULL);
+        memcpy(cbefore, cst, n * sizeof(double));
+        EXPECT(phs_controller_step(&c, cst, n, 1e300, 0, 0, 0, &u), PHS_ERR_UNREACHABLE, "x_ref = 1e300 m is outside [-2.5, 3.5]");
+        EXPECT(phs_controller_step(&c, cst, n, -1e300, 0, 0, 0, &u), PHS_ERR_UNREACHABLE, "x_ref = -1e300");
+        EXPECT(phs_controller_step(&c, cst, n, 3.6, 0, 0, 0, &u), PHS_ERR_UNREACHABLE, "x_ref = 3.6");
+        TRUE(memcmp(cbefore, cst, n * sizeof(double)) == 0);
+        EXPECT(phs_controller_step(&c, cst, n, 3.4, 0, 0, 0, &u), PHS_OK, NULL); /* beyond reach: saturates */
+        TRUE(u >= -20.0 && u <= 150.0);
+        EXPECT(phs_controller_step(&c, cst, n, 0.5, 0, 0, 0.4, &u), PHS_OK, NULL);
+        cst[3] = NAN; /* the inverse model's state inside the controller's */
+        EXPECT(phs_controller_step(&c, cst, n, 0.5, 0, 0, 0.4, &u), PHS_ERR_NOT_FINITE, "state[3] = NaN");
     }
 
     printf("bad_input: %d checks, %d failed\n", checks, failures);

@@ -68,7 +68,9 @@ enum PhsStatus
   PHS_ERR_NOT_INCREASING = 5,
   // The weights make the model non-invertible (a partial weight sum is negative).
   PHS_ERR_NOT_INVERTIBLE = 6,
-  // The desired output is beyond what the model can produce from its current state.
+  // The desired output is beyond what the model can produce from its current state, or a
+  // reference is beyond the range a controller behind an inverse model declares
+  // (`phs_controller_step`).
   PHS_ERR_UNREACHABLE = 7,
   // Unknown model family or controller kind code.
   PHS_ERR_UNKNOWN_KIND = 8,
@@ -322,7 +324,10 @@ PhsStatus phs_model_state_len(const struct PhsModel *model, size_t *n_state);
 PhsStatus phs_model_reset(const struct PhsModel *model, double *state, size_t n_state);
 
 // Apply input `v` for one sample: advance `state`, write the output to `*y_out`.
-// A non-finite `v` is rejected before the state is touched; a non-finite output
+// A non-finite `v` and a state the model could not have written (a NaN or infinite
+// slot: `PHS_ERR_NOT_FINITE`; a Preisach memory length, slot 1, that is not a whole
+// number in `0..=memory`: `PHS_ERR_INVALID_PARAMETER`; the message names the slot) are
+// rejected before the state is touched; a non-finite output
 // (parameters that let the model diverge) returns `PHS_ERR_NOT_FINITE` after the state
 // advanced — reset it.
 //
@@ -338,7 +343,8 @@ PhsStatus phs_model_step(const struct PhsModel *model,
 // Exact per-sample inverse (docs/spec.md §2.1): find the input `v` with `model(v) = y_desired`
 // from the current state, advance the state with it, write it to `*v_out`. `guess` seeds
 // the solver: pass the previous input (0 after a reset). `PHS_ERR_UNREACHABLE` (state
-// untouched) when no input gives `y_desired`.
+// untouched) when no input gives `y_desired`. The state is checked as in
+// `phs_model_step`.
 //
 // # Safety
 // As `phs_model_step`.
@@ -400,7 +406,14 @@ PhsStatus phs_controller_reset(const struct PhsController *controller,
 
 // One control step: reference position, velocity, acceleration (m, m/s, m/s^2) and the
 // measured position `y` (m) in; the command (V, inside the limits) out in `*u_out`.
-// Non-finite inputs are rejected before the state is touched.
+// Rejected before the state is touched: non-finite inputs; a state the controller could
+// not have written (a NaN or infinite slot that the step reads — integrator, filter,
+// observer, inverse-model state —: `PHS_ERR_NOT_FINITE`; an ILC sample counter or a
+// Preisach memory length out of range: `PHS_ERR_INVALID_PARAMETER`; the message names
+// the slot); behind an inverse model, a reference `x_ref` outside
+// `[u_min - w, u_max + w]`, `w = u_max - u_min`, the controller's output limits (metres)
+// widened by their span: `PHS_ERR_UNREACHABLE` (a reference inside that range but
+// beyond reach saturates the command, as the limits say).
 //
 // # Safety
 // `controller` points to a `PhsController`; `state` to `n_state` writable values that do

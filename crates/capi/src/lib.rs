@@ -21,7 +21,9 @@
 //!   returns a [`PhsStatus`]; the detailed reason (naming the argument and the value) is
 //!   kept per thread for [`phs_last_error_message`]. Every entry point also runs inside
 //!   `catch_unwind`, so even a bug in the core cannot unwind into C: it returns
-//!   `PHS_ERR_INTERNAL`. (The workspace keeps `panic = "unwind"` for PyO3; with
+//!   `PHS_ERR_INTERNAL`, with the panic's message in `phs_last_error_message` and nothing
+//!   printed (the library installs a silent panic hook for its own std on first use).
+//!   States are validated slot by slot where they enter (`check_state` of the core). (The workspace keeps `panic = "unwind"` for PyO3; with
 //!   `panic = "abort"` a bug would abort instead, still never unwinding into C.)
 //! * **std, with a `no_std` core.** The core is built without its `std` feature. This crate
 //!   links std only for `catch_unwind` and the thread-local error message: a `no_std`
@@ -73,7 +75,9 @@ pub enum PhsStatus {
     PHS_ERR_NOT_INCREASING = 5,
     /// The weights make the model non-invertible (a partial weight sum is negative).
     PHS_ERR_NOT_INVERTIBLE = 6,
-    /// The desired output is beyond what the model can produce from its current state.
+    /// The desired output is beyond what the model can produce from its current state, or a
+    /// reference is beyond the range a controller behind an inverse model declares
+    /// (`phs_controller_step`).
     PHS_ERR_UNREACHABLE = 7,
     /// Unknown model family or controller kind code.
     PHS_ERR_UNKNOWN_KIND = 8,
@@ -333,6 +337,8 @@ enum Why {
     Overlap(&'static str, &'static str),
     Diverged(f64),
     Unreachable(f64),
+    /// A reference beyond the declared range of a controller behind an inverse: (x_ref, lo, hi).
+    OutOfReach(f64, f64, f64),
     /// (context, i, S_i)
     NotInvertible(&'static str, usize, f64),
     Context(&'static str, ModelError),
@@ -366,7 +372,7 @@ impl Why {
             Why::UnknownFamily(_) | Why::UnknownKind(_) => PHS_ERR_UNKNOWN_KIND,
             Why::NotInitialized(_) => PHS_ERR_NOT_INITIALIZED,
             Why::Overlap(..) => PHS_ERR_OVERLAP,
-            Why::Unreachable(_) => PHS_ERR_UNREACHABLE,
+            Why::Unreachable(_) | Why::OutOfReach(..) => PHS_ERR_UNREACHABLE,
             Why::NotInvertible(..) => PHS_ERR_NOT_INVERTIBLE,
             Why::Panic => PHS_ERR_INTERNAL,
         }
@@ -402,12 +408,35 @@ impl fmt::Display for Why {
                 "the result {y} is not finite: the parameters do not keep the output bounded (reset the state)"
             ),
             Why::Unreachable(y) => write!(f, "desired output {y} is outside the range the model can produce from its state"),
+            Why::OutOfReach(x, lo, hi) => write!(
+                f,
+                "x_ref = {} m is outside [{}, {}], the controller's limits u_min..u_max widened by their span: no \
+                 position the inverse model can be driven to (state untouched)",
+                Num(x),
+                Num(lo),
+                Num(hi)
+            ),
             Why::NotInvertible(context, i, x) => write!(
                 f,
                 "{context}weights are not invertible: partial sum S[{i}] = p0 + sum(weights[:{i}]) = {x} is negative, so the \
                  model decreases there and has no inverse"
             ),
             Why::Panic => write!(f, "internal error (a bug in piezohyst); please report it"),
+        }
+    }
+}
+
+/// A number in a message: plain, or in exponent form when plain would take a line
+/// (`1e300`, not three hundred digits).
+struct Num(f64);
+
+impl fmt::Display for Num {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let a = self.0.abs();
+        if a != 0.0 && !(1e-4..1e16).contains(&a) {
+            write!(f, "{:e}", self.0)
+        } else {
+            write!(f, "{}", self.0)
         }
     }
 }
@@ -450,14 +479,90 @@ fn record(function: &'static str, why: &Why) -> PhsStatus {
     code
 }
 
-/// Run an entry point: its error is recorded and returned as a code, and a panic (a bug)
-/// is caught here, never unwinding into C.
+thread_local! {
+    // the message of the last panic on this thread, written by the silent hook
+    static PANIC: RefCell<LastError> = const { RefCell::new(LastError { code: PHS_ERR_INTERNAL, len: 0, text: [0; MESSAGE_LEN] }) };
+}
+
+static SILENT_HOOK: std::sync::Once = std::sync::Once::new();
+
+/// The hook that was in place before ours: panics outside an entry point (a Rust program
+/// linking the rlib, its own threads) still go to it.
+type Hook = Box<dyn Fn(&std::panic::PanicHookInfo<'_>) + Sync + Send + 'static>;
+static PREVIOUS_HOOK: std::sync::OnceLock<Hook> = std::sync::OnceLock::new();
+
+thread_local! {
+    // inside `guard` on this thread: a panic here is the library's, kept silent
+    static IN_GUARD: core::cell::Cell<bool> = const { core::cell::Cell::new(false) };
+}
+
+/// Install a panic hook that keeps silent about panics inside an entry point: std's hook
+/// would print the message and a backtrace on stderr, and a C program's stderr is its own.
+/// The message is kept for `phs_last_error_message` instead. Any other panic goes to the
+/// previous hook. Installing it allocates nothing (the closure captures nothing, so its
+/// box is zero-sized, and std's default hook is a function).
+fn silence_panics() {
+    SILENT_HOOK.call_once(|| {
+        let _ = PREVIOUS_HOOK.set(std::panic::take_hook());
+        std::panic::set_hook(Box::new(|info| {
+            if !IN_GUARD.try_with(|g| g.get()).unwrap_or(false) {
+                if let Some(previous) = PREVIOUS_HOOK.get() {
+                    previous(info);
+                }
+                return;
+            }
+            let _ = PANIC.try_with(|p| {
+                if let Ok(mut p) = p.try_borrow_mut() {
+                    p.len = 0;
+                    let payload = info.payload();
+                    let text = payload
+                        .downcast_ref::<&str>()
+                        .copied()
+                        .or_else(|| payload.downcast_ref::<String>().map(String::as_str))
+                        .unwrap_or("(no message)");
+                    let _ = match info.location() {
+                        Some(at) => write!(p, "{text} (at {}:{})", at.file(), at.line()),
+                        None => write!(p, "{text}"),
+                    };
+                }
+            });
+        }));
+    });
+}
+
+/// Run an entry point: its error is recorded and returned as a code, and a panic (a bug:
+/// every argument and state is validated first) is caught here, never unwinding into C
+/// and never printing: its message goes to `phs_last_error_message`.
 fn guard(function: &'static str, f: impl FnOnce() -> Result<(), Why>) -> PhsStatus {
-    match catch_unwind(AssertUnwindSafe(f)) {
+    silence_panics();
+    // entry points do not nest (none calls another), so a flag is enough
+    let _ = IN_GUARD.try_with(|g| g.set(true));
+    let result = catch_unwind(AssertUnwindSafe(f));
+    let _ = IN_GUARD.try_with(|g| g.set(false));
+    match result {
         Ok(Ok(())) => PHS_OK,
         Ok(Err(why)) => record(function, &why),
-        Err(_) => record(function, &Why::Panic),
+        Err(_) => {
+            let code = record(function, &Why::Panic);
+            let _ = PANIC.try_with(|p| {
+                let _ = LAST.try_with(|last| {
+                    if let (Ok(p), Ok(mut last)) = (p.try_borrow(), last.try_borrow_mut()) {
+                        let _ = write!(last, ": {}", core::str::from_utf8(&p.text[..p.len]).unwrap_or(""));
+                        let n = last.len;
+                        last.text[n] = 0;
+                    }
+                });
+            });
+            code
+        }
     }
+}
+
+/// Not part of the C ABI (no `extern "C"`, not in the header): a panic inside `guard`, so
+/// `tests/hostile.rs` can check the last line of defence (status, message, silence).
+#[doc(hidden)]
+pub fn __panic_through_guard() -> PhsStatus {
+    guard("__panic_through_guard", || -> Result<(), Why> { panic!("a deliberate panic of the test") })
 }
 
 fn finite(name: &'static str, x: f64) -> Result<(), Why> {
@@ -784,7 +889,10 @@ pub unsafe extern "C" fn phs_model_reset(model: *const PhsModel, state: *mut f64
 }
 
 /// Apply input `v` for one sample: advance `state`, write the output to `*y_out`.
-/// A non-finite `v` is rejected before the state is touched; a non-finite output
+/// A non-finite `v` and a state the model could not have written (a NaN or infinite
+/// slot: `PHS_ERR_NOT_FINITE`; a Preisach memory length, slot 1, that is not a whole
+/// number in `0..=memory`: `PHS_ERR_INVALID_PARAMETER`; the message names the slot) are
+/// rejected before the state is touched; a non-finite output
 /// (parameters that let the model diverge) returns `PHS_ERR_NOT_FINITE` after the state
 /// advanced — reset it.
 ///
@@ -806,6 +914,7 @@ pub unsafe extern "C" fn phs_model_step(
         let st = unsafe { buffer(state, n_state, len, "state", "n_state")? };
         let y_out = out(y_out, "y_out")?;
         finite("v", v)?;
+        m.check_state(st)?;
         let y = m.step(st, v);
         if !y.is_finite() {
             return Err(Why::Diverged(y));
@@ -818,7 +927,8 @@ pub unsafe extern "C" fn phs_model_step(
 /// Exact per-sample inverse (docs/spec.md §2.1): find the input `v` with `model(v) = y_desired`
 /// from the current state, advance the state with it, write it to `*v_out`. `guess` seeds
 /// the solver: pass the previous input (0 after a reset). `PHS_ERR_UNREACHABLE` (state
-/// untouched) when no input gives `y_desired`.
+/// untouched) when no input gives `y_desired`. The state is checked as in
+/// `phs_model_step`.
 ///
 /// # Safety
 /// As `phs_model_step`.
@@ -842,6 +952,7 @@ pub unsafe extern "C" fn phs_model_inverse_step(
         if flags & PHS_MODEL_FLAG_NOT_INVERTIBLE != 0 {
             invertibility(m)?;
         }
+        m.check_state(st)?;
         let v = inverse_step(m, st, y_desired, guess, 0).map_err(|_| Why::Unreachable(y_desired))?;
         *v_out = v;
         Ok(())
@@ -1026,7 +1137,14 @@ pub unsafe extern "C" fn phs_controller_reset(
 
 /// One control step: reference position, velocity, acceleration (m, m/s, m/s^2) and the
 /// measured position `y` (m) in; the command (V, inside the limits) out in `*u_out`.
-/// Non-finite inputs are rejected before the state is touched.
+/// Rejected before the state is touched: non-finite inputs; a state the controller could
+/// not have written (a NaN or infinite slot that the step reads — integrator, filter,
+/// observer, inverse-model state —: `PHS_ERR_NOT_FINITE`; an ILC sample counter or a
+/// Preisach memory length out of range: `PHS_ERR_INVALID_PARAMETER`; the message names
+/// the slot); behind an inverse model, a reference `x_ref` outside
+/// `[u_min - w, u_max + w]`, `w = u_max - u_min`, the controller's output limits (metres)
+/// widened by their span: `PHS_ERR_UNREACHABLE` (a reference inside that range but
+/// beyond reach saturates the command, as the limits say).
 ///
 /// # Safety
 /// `controller` points to a `PhsController`; `state` to `n_state` writable values that do
@@ -1054,6 +1172,8 @@ pub unsafe extern "C" fn phs_controller_step(
         finite("v_ref", v_ref)?;
         finite("a_ref", a_ref)?;
         finite("y", y)?;
+        trackable(c, x_ref)?;
+        on_built!(c, c => c.check_state(st))?;
         let r = Reference { x: x_ref, v: v_ref, a: a_ref };
         let u = on_built!(c, c => c.step(st, &r, y).u);
         if !u.is_finite() {
@@ -1062,6 +1182,27 @@ pub unsafe extern "C" fn phs_controller_step(
         *u_out = u;
         Ok(())
     })
+}
+
+/// The reference rule of `phs_controller_step` behind an inverse model: the controller's
+/// output limits `[u_min, u_max]` (metres, the displacement the inverse model is asked
+/// for) declare the range it drives; a reference farther from that range than its width
+/// `w = u_max - u_min`, i.e. outside `[u_min - w, u_max + w]`, is no position the stage
+/// can be steered to (a unit or scaling error, or garbage) and is refused. Inside it,
+/// a reference beyond reach simply saturates, as before.
+fn trackable(c: &Built, x_ref: f64) -> Result<(), Why> {
+    let limits = match c {
+        Built::Inverse(c) => c.inner.limits(),
+        Built::InverseLearning(c) => c.inner.limits(),
+        Built::Plain(_) | Built::Learning(_) => return Ok(()),
+    };
+    let w = limits.max - limits.min;
+    let (lo, hi) = (limits.min - w, limits.max + w);
+    if x_ref >= lo && x_ref <= hi {
+        Ok(())
+    } else {
+        Err(Why::OutOfReach(x_ref, lo, hi))
+    }
 }
 
 #[cfg(test)]

@@ -318,14 +318,33 @@ proptest! {
         if code != PHS_OK {
             return Ok(());
         }
+        // behind an inverse: the reference rule of phs_controller_step (the controller's
+        // limits widened by their span)
+        let declared = |x: f64| {
+            inp.inverse.is_none() || {
+                let (l, h) = (inp.params[inp.declared - 2], inp.params[inp.declared - 1]);
+                x >= l - (h - l) && x <= h + (h - l)
+            }
+        };
         for (x, v, a, y) in steps {
             let mut u = f64::NAN;
+            let before = state.clone();
             let code = unsafe { phs_controller_step(&c, state.as_mut_ptr(), n, x, v, a, y, &mut u) };
             prop_assert!(documented(code), "step: {code:?}");
+            let inputs_finite = [x, v, a, y].iter().all(|z| z.is_finite());
             match code {
                 PHS_OK => prop_assert!(u.is_finite() && u >= u_lo && u <= u_hi, "u = {} outside [{}, {}]", u, u_lo, u_hi),
-                PHS_ERR_NOT_FINITE => prop_assert!(![x, v, a, y].iter().all(|z| z.is_finite()), "finite inputs rejected"),
+                // a non-finite input, or a state that an earlier step drove to infinity
+                // (garbage gains): refused, never pinned to a rail
+                PHS_ERR_NOT_FINITE => prop_assert!(
+                    !inputs_finite || before.iter().any(|z| !z.is_finite()),
+                    "finite inputs and state rejected"
+                ),
+                PHS_ERR_UNREACHABLE => prop_assert!(inputs_finite && !declared(x), "x_ref = {} refused", x),
                 other => prop_assert!(false, "step returned {other:?}"),
+            }
+            if code != PHS_OK {
+                prop_assert!(state.iter().zip(&before).all(|(a, b)| a.to_bits() == b.to_bits()), "state touched");
             }
         }
     }

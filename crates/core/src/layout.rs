@@ -16,6 +16,7 @@ use crate::cemf::{CemfFeedforward, CemfModel};
 use crate::control::{Controller, Limits, OpenLoop, Output, Pid, PidConfig, Reference, VelocityObserver};
 use crate::envelope::Envelope;
 use crate::error::ModelError;
+use crate::preisach::MAX_LEVELS;
 use crate::smc::{Smc, SmcConfig, Switching};
 use crate::spec::{Family, MAX_OPERATORS};
 
@@ -103,7 +104,8 @@ const CREEP_C: &str = "creep_c";
 fn dim(dims: &[usize], i: usize, name: &'static str) -> Result<usize, ModelError> {
     let d = dims[i];
     if d > MAX_OPERATORS {
-        return Err(ModelError::Structure(name, d));
+        // the range in the message: a typo asking for terabytes says what is allowed
+        return Err(ModelError::OutOfRange(name, usize::MAX, d as f64, 0.0, MAX_OPERATORS as f64));
     }
     Ok(d)
 }
@@ -125,8 +127,8 @@ fn decode_creep(d: &[usize]) -> Result<Family, ModelError> {
 }
 fn decode_preisach(d: &[usize]) -> Result<Family, ModelError> {
     let levels = dim(d, 0, "levels")?;
-    if levels == 0 || levels > 1000 {
-        return Err(ModelError::Structure("levels", levels));
+    if levels == 0 || levels > MAX_LEVELS {
+        return Err(ModelError::OutOfRange("levels", usize::MAX, levels as f64, 1.0, MAX_LEVELS as f64));
     }
     Ok(Family::Preisach { levels, memory: dim(d, 1, "memory")? })
 }

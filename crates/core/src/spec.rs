@@ -251,6 +251,12 @@ impl Hysteresis for Model<'_> {
             c.reset(b);
         }
     }
+    fn check_state(&self, state: &[f64]) -> Result<(), ModelError> {
+        crate::hysteresis::check_state_len(state, self.state_len())?;
+        on_base!(&self.base, m => m.check_state(&state[..self.base_len()]), Ok(()))?;
+        // the creep slots follow the base's: indices name slots of the whole state
+        crate::error::check_finite("state", state)
+    }
     #[inline]
     fn step(&self, state: &mut [f64], v: f64) -> f64 {
         let (a, b) = state.split_at_mut(self.base_len());

@@ -191,12 +191,14 @@ fn parse_errors() {
     assert_eq!(Family::parse("gpi", &[3, 3, 0, 0]), Err(ModelError::Structure("envelope kind", 3)));
     assert_eq!(Family::parse("gpi", &[3, 0, 7, 0]), Err(ModelError::Structure("envelope kind", 7)));
     assert_eq!(Family::parse("nope", &[]), Err(ModelError::Structure("family (unknown name)", 0)));
-    assert_eq!(Family::parse("preisach", &[0, 8]), Err(ModelError::Structure("levels", 0)));
-    assert_eq!(Family::parse("preisach", &[1001, 8]), Err(ModelError::Structure("levels", 1001)));
-    assert_eq!(Family::parse("pi", &[MAX_OPERATORS + 1, 0]), Err(ModelError::Structure("n", MAX_OPERATORS + 1)));
+    assert_eq!(Family::parse("preisach", &[0, 8]), Err(ModelError::OutOfRange("levels", MAXI, 0.0, 1.0, 1000.0)));
+    assert_eq!(Family::parse("preisach", &[1001, 8]), Err(ModelError::OutOfRange("levels", MAXI, 1001.0, 1.0, 1000.0)));
+    let e = Family::parse("pi", &[MAX_OPERATORS + 1, 0]).unwrap_err();
+    assert_eq!(e, ModelError::OutOfRange("n", MAXI, (MAX_OPERATORS + 1) as f64, 0.0, MAX_OPERATORS as f64));
+    assert_eq!(e.to_string(), "n = 100001 must lie within [0, 100000]");
     assert_eq!(
         Family::parse("rdpi", &[2, MAX_OPERATORS + 1]),
-        Err(ModelError::Structure("creep_terms", MAX_OPERATORS + 1))
+        Err(ModelError::OutOfRange("creep_terms", MAXI, (MAX_OPERATORS + 1) as f64, 0.0, MAX_OPERATORS as f64))
     );
 }
 

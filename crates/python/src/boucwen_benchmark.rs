@@ -16,6 +16,8 @@ use piezohyst_core::ModelError;
 use pyo3::prelude::*;
 use rayon::prelude::*;
 
+use crate::util::{check_alloc, guarded, interruptible};
+
 /// `(y, z)` records.
 type Pair<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>);
 
@@ -47,33 +49,39 @@ fn boucwen_benchmark_integrate<'py>(
     h: f64,
     mut state: PyReadwriteArray1<'py, f64>,
 ) -> PyResult<Pair<'py>> {
-    let cfg = BoucWenBenchmark::from_slice(slice(&params, "params")?).map_err(err)?;
-    let stepper = Newmark::new(cfg, h).map_err(err)?;
-    let u = slice(&input, "input")?;
-    check_finite("input", u)?;
-    let st = state.as_slice_mut().map_err(|_| ParameterError::new_err("state must be a contiguous float64 array"))?;
-    if st.len() != 4 {
-        return Err(ParameterError::new_err(format!("state has length {}, expected 4 ([y, dy, ddy, z])", st.len())));
-    }
-    check_finite("state", st)?;
-    let mut s = State::from_array([st[0], st[1], st[2], st[3]]);
-    let mut y = vec![0.0; u.len()];
-    let mut z = vec![0.0; u.len()];
-    let failed = py.detach(|| integrate(&stepper, &mut s, u, &mut y, &mut z)).map_err(err)?;
-    st.copy_from_slice(&s.to_array());
-    if let Some(k) = failed {
-        return Err(ParameterError::new_err(format!(
+    guarded(|| {
+        let cfg = BoucWenBenchmark::from_slice(slice(&params, "params")?).map_err(err)?;
+        let stepper = Newmark::new(cfg, h).map_err(err)?;
+        let u = slice(&input, "input")?;
+        check_finite("input", u)?;
+        let st =
+            state.as_slice_mut().map_err(|_| ParameterError::new_err("state must be a contiguous float64 array"))?;
+        if st.len() != 4 {
+            return Err(ParameterError::new_err(format!(
+                "state has length {}, expected 4 ([y, dy, ddy, z])",
+                st.len()
+            )));
+        }
+        check_finite("state", st)?;
+        let mut s = State::from_array([st[0], st[1], st[2], st[3]]);
+        let mut y = vec![0.0; u.len()];
+        let mut z = vec![0.0; u.len()];
+        let failed = py.detach(|| integrate(&stepper, &mut s, u, &mut y, &mut z)).map_err(err)?;
+        st.copy_from_slice(&s.to_array());
+        if let Some(k) = failed {
+            return Err(ParameterError::new_err(format!(
             "the implicit step at internal step {k} could not be solved (y = {}, z = {}); the input or the parameters drive the system beyond what the step h = {h} resolves",
             y[k], z[k]
         )));
-    }
-    if let Some(k) = y.iter().zip(&z).position(|(a, b)| !a.is_finite() || !b.is_finite()) {
-        return Err(ParameterError::new_err(format!(
+        }
+        if let Some(k) = y.iter().zip(&z).position(|(a, b)| !a.is_finite() || !b.is_finite()) {
+            return Err(ParameterError::new_err(format!(
             "the simulation diverged at internal step {k} (y = {}, z = {}); the parameters or the step h = {h} do not keep it bounded for this input",
             y[k], z[k]
         )));
-    }
-    Ok((y.into_pyarray(py), z.into_pyarray(py)))
+        }
+        Ok((y.into_pyarray(py), z.into_pyarray(py)))
+    })
 }
 
 /// MATLAB `decimate(x, p, 'fir')` applied for each prime factor `p` of `factor` in
@@ -84,19 +92,21 @@ fn boucwen_benchmark_decimate<'py>(
     x: PyReadonlyArray1<'py, f64>,
     factor: usize,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    if factor == 0 {
-        return Err(ParameterError::new_err("factor = 0 must be >= 1"));
-    }
-    let xs = slice(&x, "x")?;
-    check_finite("x", xs)?;
-    let out = py.detach(|| -> Result<Vec<f64>, ModelError> {
-        let mut cur = xs.to_vec();
-        let mut work = vec![0.0; cascade_work_len(xs.len(), factor)];
-        let mut out = vec![0.0; decimated_len(xs.len(), factor)];
-        decimate_cascade(&mut cur, factor, &mut work, &mut out)?;
-        Ok(out)
-    });
-    Ok(out.map_err(err)?.into_pyarray(py))
+    guarded(|| {
+        if factor == 0 {
+            return Err(ParameterError::new_err("factor = 0 must be >= 1"));
+        }
+        let xs = slice(&x, "x")?;
+        check_finite("x", xs)?;
+        let out = py.detach(|| -> Result<Vec<f64>, ModelError> {
+            let mut cur = xs.to_vec();
+            let mut work = vec![0.0; cascade_work_len(xs.len(), factor)];
+            let mut out = vec![0.0; decimated_len(xs.len(), factor)];
+            decimate_cascade(&mut cur, factor, &mut work, &mut out)?;
+            Ok(out)
+        });
+        Ok(out.map_err(err)?.into_pyarray(py))
+    })
 }
 
 /// The checked arguments of a batch call: one stepper per row (`None`: invalid row), the
@@ -172,35 +182,43 @@ fn boucwen_benchmark_batch_rmse<'py>(
     skip: usize,
     invalid_cost: Option<f64>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let py = params.py();
-    let b = batch_args(&params, &input, h, factor, invalid_cost.is_none())?;
-    let t = slice(&target, "target")?;
-    check_finite("target", t)?;
-    if t.is_empty() || skip + t.len() > b.n_out {
-        return Err(ParameterError::new_err(format!(
+    guarded(|| {
+        let py = params.py();
+        let b = batch_args(&params, &input, h, factor, invalid_cost.is_none())?;
+        let t = slice(&target, "target")?;
+        check_finite("target", t)?;
+        if t.is_empty() || skip + t.len() > b.n_out {
+            return Err(ParameterError::new_err(format!(
             "target has length {} and skip = {skip}, but the decimated record has {} samples (len(input) = {}, factor = {factor}); need 1 <= len(target) <= {}",
             t.len(),
             b.n_out,
             b.input.len(),
             b.n_out.saturating_sub(skip)
         )));
-    }
-    let bad = invalid_cost.unwrap_or(f64::INFINITY);
-    let (u, n_out) = (b.input, b.n_out);
-    let wl = cascade_work_len(u.len(), factor);
-    let out: Result<Vec<f64>, ModelError> = py.detach(|| {
-        b.steppers
-            .par_iter()
-            .map_init(
-                || (vec![0.0; u.len()], vec![0.0; wl], vec![0.0; n_out]),
-                |(fine, work, dec), st| match st {
-                    None => Ok(bad),
-                    Some(st) => record_rmse(st, u, factor, t, skip, &mut RecordBuffers { fine, work, out: dec }),
-                },
-            )
-            .collect()
-    });
-    Ok(out.map_err(err)?.into_pyarray(py))
+        }
+        let bad = invalid_cost.unwrap_or(f64::INFINITY);
+        let (u, n_out) = (b.input, b.n_out);
+        let wl = cascade_work_len(u.len(), factor);
+        // work buffers per rayon thread
+        check_alloc(
+            "boucwen_benchmark_batch_rmse: the work buffers",
+            &[rayon::current_num_threads(), u.len() + wl + n_out],
+        )?;
+        let out: Result<Vec<f64>, ModelError> = interruptible(py, |stop| {
+            b.steppers
+                .par_iter()
+                .map_init(
+                    || (vec![0.0; u.len()], vec![0.0; wl], vec![0.0; n_out]),
+                    |(fine, work, dec), st| match st {
+                        _ if stop.stopped() => Ok(bad),
+                        None => Ok(bad),
+                        Some(st) => record_rmse(st, u, factor, t, skip, &mut RecordBuffers { fine, work, out: dec }),
+                    },
+                )
+                .collect()
+        })?;
+        Ok(out.map_err(err)?.into_pyarray(py))
+    })
 }
 
 /// `(S, count)` displacements (m) of `S` parameter rows over the high-rate force `input`,
@@ -218,35 +236,45 @@ fn boucwen_benchmark_batch_simulate<'py>(
     skip: usize,
     count: Option<usize>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let b = batch_args(&params, &input, h, factor, true)?;
-    let (u, n_out) = (b.input, b.n_out);
-    let count = count.unwrap_or(n_out.saturating_sub(skip));
-    if count == 0 || skip + count > n_out {
-        return Err(ParameterError::new_err(format!(
+    guarded(|| {
+        let b = batch_args(&params, &input, h, factor, true)?;
+        let (u, n_out) = (b.input, b.n_out);
+        let count = count.unwrap_or(n_out.saturating_sub(skip));
+        if count == 0 || skip + count > n_out {
+            return Err(ParameterError::new_err(format!(
             "skip = {skip} and count = {count}, but the decimated record has {n_out} samples (len(input) = {}, factor = {factor}); need 1 <= count <= {}",
             u.len(),
             n_out.saturating_sub(skip)
         )));
-    }
-    let s = b.steppers.len();
-    let mut out = vec![0.0; s * count];
-    let wl = cascade_work_len(u.len(), factor);
-    let res: Result<(), ModelError> = py.detach(|| {
-        out.par_chunks_mut(count.max(1)).zip(b.steppers.par_iter()).try_for_each_init(
-            || (vec![0.0; u.len()], vec![0.0; wl], vec![0.0; n_out]),
-            |(fine, work, dec), (row, st)| {
-                let st = st.as_ref().expect("invalid rows raised above");
-                match simulate_record(st, u, factor, &mut RecordBuffers { fine, work, out: dec })? {
-                    Ok(()) => row.copy_from_slice(&dec[skip..skip + count]),
-                    Err(_) => row.fill(f64::NAN),
-                }
-                Ok(())
-            },
-        )
-    });
-    res.map_err(err)?;
-    let arr = Array2::from_shape_vec((s, count), out).expect("shape matches length");
-    Ok(arr.into_pyarray(py))
+        }
+        let s = b.steppers.len();
+        let wl = cascade_work_len(u.len(), factor);
+        check_alloc("boucwen_benchmark_batch_simulate: the (S, count) result", &[s, count])?;
+        check_alloc(
+            "boucwen_benchmark_batch_simulate: the work buffers",
+            &[rayon::current_num_threads(), u.len() + wl + n_out],
+        )?;
+        let mut out = vec![0.0; s * count];
+        let res: Result<(), ModelError> = interruptible(py, |stop| {
+            out.par_chunks_mut(count.max(1)).zip(b.steppers.par_iter()).try_for_each_init(
+                || (vec![0.0; u.len()], vec![0.0; wl], vec![0.0; n_out]),
+                |(fine, work, dec), (row, st)| {
+                    if stop.stopped() {
+                        return Ok(());
+                    }
+                    let st = st.as_ref().expect("invalid rows raised above");
+                    match simulate_record(st, u, factor, &mut RecordBuffers { fine, work, out: dec })? {
+                        Ok(()) => row.copy_from_slice(&dec[skip..skip + count]),
+                        Err(_) => row.fill(f64::NAN),
+                    }
+                    Ok(())
+                },
+            )
+        })?;
+        res.map_err(err)?;
+        let arr = Array2::from_shape_vec((s, count), out).expect("shape matches length");
+        Ok(arr.into_pyarray(py))
+    })
 }
 
 /// Add this module's functions to the extension module.

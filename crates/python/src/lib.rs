@@ -16,6 +16,13 @@ mod plant;
 mod steps;
 mod util;
 
+/// A deliberate panic inside [`util::guarded`], so a test can check the last line of
+/// defence: an `InternalError`, not a `PanicException`. Private (not in the stub).
+#[pyfunction]
+fn _panic_for_tests() -> PyResult<()> {
+    util::guarded(|| -> PyResult<()> { panic!("a deliberate panic of the test") })
+}
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     // purge freed pages after 1 s rather than mimalloc's default 10 ms (option 15 is
@@ -23,6 +30,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     // SAFETY: mi_option_set stores one integer option; it takes no pointers
     unsafe { libmimalloc_sys::mi_option_set(15, 1000) };
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    // set as a plain attribute, so it stays out of `__all__` and the stub (private)
+    m.setattr("_panic_for_tests", wrap_pyfunction!(_panic_for_tests, m)?)?;
     models::register(m)?;
     layout::register(m)?;
     boucwen_benchmark::register(m)?;

@@ -13,7 +13,7 @@ use piezohyst_core::spec::{Family, Model as CoreModel};
 use piezohyst_core::{Hysteresis, ModelError};
 use pyo3::prelude::*;
 
-use crate::util::{check_finite, err, slice};
+use crate::util::{check_alloc, check_finite, err, guarded, interruptible, slice, Stop, INTERRUPTIBLE_WORK};
 
 use rayon::prelude::*;
 
@@ -70,8 +70,10 @@ fn family_sizes(name: &str, dims: Vec<usize>) -> PyResult<(usize, usize)> {
 /// Validate a parameter row; raises ValueError naming the offending parameter.
 #[pyfunction]
 fn validate(name: &str, dims: Vec<usize>, params: PyReadonlyArray1<'_, f64>) -> PyResult<()> {
-    let fam = family(name, dims)?;
-    with_model(fam, slice(&params, "params")?, |_| Ok(())).map_err(err)
+    guarded(|| {
+        let fam = family(name, dims)?;
+        with_model(fam, slice(&params, "params")?, |_| Ok(())).map_err(err)
+    })
 }
 
 fn initial_state_of(fam: Family, p: &[f64]) -> PyResult<Vec<f64>> {
@@ -84,17 +86,41 @@ fn initial_state_of(fam: Family, p: &[f64]) -> PyResult<Vec<f64>> {
     Ok(st)
 }
 
+/// Samples per chunk of a single-threaded loop between two looks at the stop flag: about
+/// 2^16 state slots of work.
+fn chunk_len(state_len: usize) -> usize {
+    (1usize << 16) / state_len.max(1) + 1
+}
+
+/// Run a single-threaded loop over `n` samples of a model with `state_len` slots: through
+/// [`interruptible`] when it is long, else directly with the GIL released.
+fn run_long<T: Send>(py: Python<'_>, n: usize, state_len: usize, work: impl FnOnce(&Stop) -> T + Send) -> PyResult<T> {
+    if n.saturating_mul(state_len.max(1)) > INTERRUPTIBLE_WORK {
+        interruptible(py, work)
+    } else {
+        Ok(py.detach(|| work(&Stop::default())))
+    }
+}
+
 fn simulate_from(py: Python<'_>, fam: Family, p: &[f64], v: &[f64], st: &mut [f64]) -> PyResult<Vec<f64>> {
     check_finite("input", v)?;
+    check_alloc("simulate: the output", &[v.len()])?;
     let mut y = vec![0.0; v.len()];
-    py.detach(|| {
+    let chunk = chunk_len(fam.state_len());
+    run_long(py, v.len(), fam.state_len(), |stop| {
         with_model(fam, p, |m| {
-            for (yk, &vk) in y.iter_mut().zip(v) {
-                *yk = m.step(st, vk);
+            m.check_state(st)?;
+            for (ys, vs) in y.chunks_mut(chunk).zip(v.chunks(chunk)) {
+                if stop.stopped() {
+                    break;
+                }
+                for (yk, &vk) in ys.iter_mut().zip(vs) {
+                    *yk = m.step(st, vk);
+                }
             }
             Ok(())
         })
-    })
+    })?
     .map_err(err)?;
     check_output(&y)?;
     Ok(y)
@@ -105,8 +131,29 @@ fn inverse_from(py: Python<'_>, fam: Family, p: &[f64], yd: &[f64], st: &mut [f6
     if !guess.is_finite() {
         return Err(ParameterError::new_err(format!("guess = {guess} is not finite")));
     }
+    check_alloc("inverse: the output", &[yd.len()])?;
     let mut v = vec![0.0; yd.len()];
-    py.detach(|| with_model(fam, p, |m| inverse_simulate(m, st, yd, &mut v, guess))).map_err(err)?;
+    let chunk = chunk_len(fam.state_len());
+    run_long(py, yd.len(), fam.state_len(), |stop| {
+        with_model(fam, p, |m| {
+            m.check_state(st)?;
+            // in chunks (the guess of each sample is the input before it, as in one call);
+            // a sample index in an error counts from the record's start
+            let mut guess = guess;
+            for (c, (vs, ys)) in v.chunks_mut(chunk).zip(yd.chunks(chunk)).enumerate() {
+                if stop.stopped() {
+                    break;
+                }
+                inverse_simulate(m, st, ys, vs, guess).map_err(|e| match e {
+                    ModelError::Unreachable(k, y) => ModelError::Unreachable(k + c * chunk, y),
+                    e => e,
+                })?;
+                guess = vs[vs.len() - 1];
+            }
+            Ok(())
+        })
+    })?
+    .map_err(err)?;
     Ok(v)
 }
 
@@ -118,8 +165,10 @@ fn initial_state<'py>(
     dims: Vec<usize>,
     params: PyReadonlyArray1<'py, f64>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let fam = family(name, dims)?;
-    Ok(initial_state_of(fam, slice(&params, "params")?)?.into_pyarray(py))
+    guarded(|| {
+        let fam = family(name, dims)?;
+        Ok(initial_state_of(fam, slice(&params, "params")?)?.into_pyarray(py))
+    })
 }
 
 /// Simulate from `state` (updated in place); returns the outputs.
@@ -132,12 +181,14 @@ fn simulate<'py>(
     input: PyReadonlyArray1<'py, f64>,
     mut state: PyReadwriteArray1<'py, f64>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let fam = family(name, dims)?;
-    let p = slice(&params, "params")?;
-    let v = slice(&input, "input")?;
-    check_finite("input", v)?;
-    let st = state_slice(fam, &mut state)?;
-    Ok(simulate_from(py, fam, p, v, st)?.into_pyarray(py))
+    guarded(|| {
+        let fam = family(name, dims)?;
+        let p = slice(&params, "params")?;
+        let v = slice(&input, "input")?;
+        check_finite("input", v)?;
+        let st = state_slice(fam, &mut state)?;
+        Ok(simulate_from(py, fam, p, v, st)?.into_pyarray(py))
+    })
 }
 
 /// Exact per-sample inverse from `state` (the forward state, updated in place).
@@ -151,15 +202,17 @@ fn inverse<'py>(
     mut state: PyReadwriteArray1<'py, f64>,
     guess: f64,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let fam = family(name, dims)?;
-    let p = slice(&params, "params")?;
-    let yd = slice(&desired, "desired")?;
-    check_finite("desired", yd)?;
-    if !guess.is_finite() {
-        return Err(ParameterError::new_err(format!("guess = {guess} is not finite")));
-    }
-    let st = state_slice(fam, &mut state)?;
-    Ok(inverse_from(py, fam, p, yd, st, guess)?.into_pyarray(py))
+    guarded(|| {
+        let fam = family(name, dims)?;
+        let p = slice(&params, "params")?;
+        let yd = slice(&desired, "desired")?;
+        check_finite("desired", yd)?;
+        if !guess.is_finite() {
+            return Err(ParameterError::new_err(format!("guess = {guess} is not finite")));
+        }
+        let st = state_slice(fam, &mut state)?;
+        Ok(inverse_from(py, fam, p, yd, st, guess)?.into_pyarray(py))
+    })
 }
 
 /// A hysteresis model built once from its family name, dims and parameter row, validated
@@ -186,7 +239,7 @@ impl Model {
 impl Model {
     #[new]
     fn new(family: &str, dims: Vec<usize>, params: PyReadonlyArray1<'_, f64>) -> PyResult<Self> {
-        Model::build(family, dims, slice(&params, "params")?)
+        guarded(|| Model::build(family, dims, slice(&params, "params")?))
     }
     /// Family name.
     #[getter]
@@ -220,7 +273,7 @@ impl Model {
     }
     /// The relaxed initial state.
     fn initial_state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        Ok(initial_state_of(self.fam, &self.params)?.into_pyarray(py))
+        guarded(|| Ok(initial_state_of(self.fam, &self.params)?.into_pyarray(py)))
     }
     /// Outputs for `input` from `state` (updated in place), or from the relaxed state.
     #[pyo3(signature = (input, state=None))]
@@ -230,15 +283,17 @@ impl Model {
         input: PyReadonlyArray1<'py, f64>,
         state: Option<PyReadwriteArray1<'py, f64>>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let v = slice(&input, "input")?;
-        let y = match state {
-            Some(mut st) => simulate_from(py, self.fam, &self.params, v, state_slice(self.fam, &mut st)?)?,
-            None => {
-                let mut st = initial_state_of(self.fam, &self.params)?;
-                simulate_from(py, self.fam, &self.params, v, &mut st)?
-            }
-        };
-        Ok(y.into_pyarray(py))
+        guarded(|| {
+            let v = slice(&input, "input")?;
+            let y = match state {
+                Some(mut st) => simulate_from(py, self.fam, &self.params, v, state_slice(self.fam, &mut st)?)?,
+                None => {
+                    let mut st = initial_state_of(self.fam, &self.params)?;
+                    simulate_from(py, self.fam, &self.params, v, &mut st)?
+                }
+            };
+            Ok(y.into_pyarray(py))
+        })
     }
     /// Exact per-sample inverse from the forward `state` (updated in place).
     #[pyo3(signature = (desired, state, guess=0.0))]
@@ -249,9 +304,11 @@ impl Model {
         mut state: PyReadwriteArray1<'py, f64>,
         guess: f64,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let yd = slice(&desired, "desired")?;
-        let st = state_slice(self.fam, &mut state)?;
-        Ok(inverse_from(py, self.fam, &self.params, yd, st, guess)?.into_pyarray(py))
+        guarded(|| {
+            let yd = slice(&desired, "desired")?;
+            let st = state_slice(self.fam, &mut state)?;
+            Ok(inverse_from(py, self.fam, &self.params, yd, st, guess)?.into_pyarray(py))
+        })
     }
     fn __repr__(&self) -> String {
         format!("Model({:?}, {:?}, <{} params>)", self.name, self.dims, self.params.len())
@@ -268,13 +325,15 @@ fn pi_analytic_inverse<'py>(
     thresholds: PyReadonlyArray1<'py, f64>,
     weights: PyReadonlyArray1<'py, f64>,
 ) -> PyResult<InversePi<'py>> {
-    let r = slice(&thresholds, "thresholds")?;
-    let w = slice(&weights, "weights")?;
-    let m = Pi::new(p0, r, w).map_err(err)?;
-    let mut ri = vec![0.0; r.len()];
-    let mut wi = vec![0.0; r.len()];
-    let p0i = m.analytic_inverse(&mut ri, &mut wi).map_err(err)?;
-    Ok((p0i, ri.into_pyarray(py), wi.into_pyarray(py)))
+    guarded(|| {
+        let r = slice(&thresholds, "thresholds")?;
+        let w = slice(&weights, "weights")?;
+        let m = Pi::new(p0, r, w).map_err(err)?;
+        let mut ri = vec![0.0; r.len()];
+        let mut wi = vec![0.0; r.len()];
+        let p0i = m.analytic_inverse(&mut ri, &mut wi).map_err(err)?;
+        Ok((p0i, ri.into_pyarray(py), wi.into_pyarray(py)))
+    })
 }
 
 /// `g^{-1}(y)` element-wise for an envelope (kind 0 identity, 1 polynomial, 2 tanh).
@@ -285,19 +344,21 @@ fn envelope_inverse<'py>(
     coefficients: [f64; 4],
     values: PyReadonlyArray1<'py, f64>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let g = piezohyst_core::envelope::Envelope::from_code(kind, coefficients).map_err(err)?;
-    let ys = slice(&values, "values")?;
-    check_finite("values", ys)?;
-    let mut out = Vec::with_capacity(ys.len());
-    let mut guess = 0.0;
-    for (k, &y) in ys.iter().enumerate() {
-        let v = g.inverse(y, guess).ok_or_else(|| {
-            ParameterError::new_err(format!("values[{k}] = {y} is outside the range of the envelope"))
-        })?;
-        out.push(v);
-        guess = v;
-    }
-    Ok(out.into_pyarray(py))
+    guarded(|| {
+        let g = piezohyst_core::envelope::Envelope::from_code(kind, coefficients).map_err(err)?;
+        let ys = slice(&values, "values")?;
+        check_finite("values", ys)?;
+        let mut out = Vec::with_capacity(ys.len());
+        let mut guess = 0.0;
+        for (k, &y) in ys.iter().enumerate() {
+            let v = g.inverse(y, guess).ok_or_else(|| {
+                ParameterError::new_err(format!("values[{k}] = {y} is outside the range of the envelope"))
+            })?;
+            out.push(v);
+            guess = v;
+        }
+        Ok(out.into_pyarray(py))
+    })
 }
 
 /// `g(v)` element-wise for an envelope.
@@ -308,9 +369,11 @@ fn envelope_eval<'py>(
     coefficients: [f64; 4],
     values: PyReadonlyArray1<'py, f64>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let g = piezohyst_core::envelope::Envelope::from_code(kind, coefficients).map_err(err)?;
-    let vs = slice(&values, "values")?;
-    Ok(vs.iter().map(|&v| g.eval(v)).collect::<Vec<_>>().into_pyarray(py))
+    guarded(|| {
+        let g = piezohyst_core::envelope::Envelope::from_code(kind, coefficients).map_err(err)?;
+        let vs = slice(&values, "values")?;
+        Ok(vs.iter().map(|&v| g.eval(v)).collect::<Vec<_>>().into_pyarray(py))
+    })
 }
 
 /// Solve `f(v) = y` for an increasing polynomial `f` (used by tests of the solver).
@@ -333,20 +396,32 @@ enum Sink<'a> {
 }
 
 /// One parameter set through the generic model (any family).
-fn run_one(fam: Family, row: &[f64], v: &[f64], sink: &mut Sink<'_>) -> Result<(), ModelError> {
+/// Stops early (leaving the rest of the output) once `stop` is set.
+fn run_one(fam: Family, row: &[f64], v: &[f64], sink: &mut Sink<'_>, stop: &Stop) -> Result<(), ModelError> {
+    let chunk = chunk_len(fam.state_len());
     with_model(fam, row, |m| {
         let mut st = vec![0.0; fam.state_len()];
         m.reset(&mut st);
         match sink {
             Sink::Outputs(out) => {
-                for (o, &vk) in out.iter_mut().zip(v) {
-                    *o = m.step(&mut st, vk);
+                for (os, vs) in out.chunks_mut(chunk).zip(v.chunks(chunk)) {
+                    if stop.stopped() {
+                        break;
+                    }
+                    for (o, &vk) in os.iter_mut().zip(vs) {
+                        *o = m.step(&mut st, vk);
+                    }
                 }
             }
             Sink::Rmse { target, sse } => {
-                for (&t, &vk) in target.iter().zip(v) {
-                    let e = m.step(&mut st, vk) - t;
-                    *sse += e * e;
+                for (ts, vs) in target.chunks(chunk).zip(v.chunks(chunk)) {
+                    if stop.stopped() {
+                        break;
+                    }
+                    for (&t, &vk) in ts.iter().zip(vs) {
+                        let e = m.step(&mut st, vk) - t;
+                        *sse += e * e;
+                    }
                 }
             }
         }
@@ -357,6 +432,11 @@ fn run_one(fam: Family, row: &[f64], v: &[f64], sink: &mut Sink<'_>) -> Result<(
 /// Parameter sets per lane group: with the operator count unrolled, 8 lanes (one AVX-512
 /// register per operator) keep every play state in registers; wider groups spill.
 const GROUP: usize = 8;
+
+/// Largest `operators x samples` the lane kernel runs for one group in one go (about half a
+/// second): beyond it rows go through the generic path, which looks at the stop flag every
+/// chunk of samples (Ctrl-C within a second) and gives the same outputs bit for bit.
+const GROUP_WORK_MAX: usize = 1 << 26;
 
 /// Check rows; returns per-row validity or the first error (with its row index).
 fn check_rows(fam: Family, params: &[f64], s: usize, raise: bool) -> PyResult<Vec<bool>> {
@@ -373,6 +453,8 @@ fn check_rows(fam: Family, params: &[f64], s: usize, raise: bool) -> PyResult<Ve
     Ok(ok)
 }
 
+// two call sites, each passing its own buffers and the stop flag of `interruptible`
+#[allow(clippy::too_many_arguments)]
 fn batch_core(
     fam: Family,
     params: &[f64],
@@ -381,19 +463,23 @@ fn batch_core(
     target: Option<&[f64]>,
     valid: &[bool],
     out: &mut [f64],
+    stop: &Stop,
 ) -> Vec<Option<ModelError>> {
     let p = fam.param_len();
     let nv = v.len();
     let per = if target.is_some() { 1 } else { nv };
     let mut errs: Vec<Option<ModelError>> = vec![None; s];
     match fam {
-        Family::Pi { n, creep: 0 } => {
+        Family::Pi { n, creep: 0 } if n.saturating_mul(nv) <= GROUP_WORK_MAX => {
             // groups of GROUP valid rows; invalid rows are left for the caller
             let idx: Vec<usize> = (0..s).filter(|&j| valid[j]).collect();
             let groups: Vec<&[usize]> = idx.chunks(GROUP).collect();
             let results: Vec<(Vec<usize>, Vec<f64>)> = groups
                 .par_iter()
                 .map(|g| {
+                    if stop.stopped() {
+                        return (Vec::new(), Vec::new());
+                    }
                     let rows: Vec<&[f64]> = g.iter().map(|&j| &params[j * p..(j + 1) * p]).collect();
                     let mut buf = vec![0.0; g.len() * per];
                     let mut scratch = if n > piezohyst_core::batch::MAX_FIXED_OPERATORS {
@@ -413,7 +499,7 @@ fn batch_core(
         }
         _ => {
             out.par_chunks_mut(per).zip(errs.par_iter_mut()).enumerate().for_each(|(j, (o, e))| {
-                if !valid[j] {
+                if !valid[j] || stop.stopped() {
                     return;
                 }
                 let row = &params[j * p..(j + 1) * p];
@@ -421,7 +507,7 @@ fn batch_core(
                     None => Sink::Outputs(o),
                     Some(t) => Sink::Rmse { target: t, sse: 0.0 },
                 };
-                if let Err(x) = run_one(fam, row, v, &mut sink) {
+                if let Err(x) = run_one(fam, row, v, &mut sink, stop) {
                     *e = Some(x);
                 }
                 if let Sink::Rmse { sse, .. } = sink {
@@ -469,16 +555,19 @@ fn batch_simulate<'py>(
     params: PyReadonlyArray2<'py, f64>,
     input: PyReadonlyArray1<'py, f64>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let fam = family(name, dims)?;
-    let (p, s, v) = batch_inputs(fam, &params, &input)?;
-    let valid = check_rows(fam, p, s, true)?;
-    let mut out = vec![0.0; s * v.len()];
-    let errs = py.detach(|| batch_core(fam, p, s, v, None, &valid, &mut out));
-    if let Some((j, e)) = errs.iter().enumerate().find_map(|(j, e)| e.map(|e| (j, e))) {
-        return Err(crate::util::err_in(&format!("params[{j}]"), e));
-    }
-    let arr = Array2::from_shape_vec((s, v.len()), out).expect("shape matches length");
-    Ok(arr.into_pyarray(py))
+    guarded(|| {
+        let fam = family(name, dims)?;
+        let (p, s, v) = batch_inputs(fam, &params, &input)?;
+        check_alloc("batch_simulate: the (S, N) result", &[s, v.len()])?;
+        let valid = check_rows(fam, p, s, true)?;
+        let mut out = vec![0.0; s * v.len()];
+        let errs = interruptible(py, |stop| batch_core(fam, p, s, v, None, &valid, &mut out, stop))?;
+        if let Some((j, e)) = errs.iter().enumerate().find_map(|(j, e)| e.map(|e| (j, e))) {
+            return Err(crate::util::err_in(&format!("params[{j}]"), e));
+        }
+        let arr = Array2::from_shape_vec((s, v.len()), out).expect("shape matches length");
+        Ok(arr.into_pyarray(py))
+    })
 }
 
 /// `(S,)` RMSE of `S` parameter sets against `target` (GIL released, rayon). Invalid rows
@@ -494,34 +583,38 @@ fn batch_rmse<'py>(
     target: PyReadonlyArray1<'py, f64>,
     invalid_cost: Option<f64>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let fam = family(name, dims)?;
-    let (p, s, v) = batch_inputs(fam, &params, &input)?;
-    let t = slice(&target, "target")?;
-    check_finite("target", t)?;
-    if t.len() != v.len() {
-        return Err(ParameterError::new_err(format!(
-            "target has length {}, input has length {}; they must match",
-            t.len(),
-            v.len()
-        )));
-    }
-    let valid = check_rows(fam, p, s, invalid_cost.is_none())?;
-    let mut sse = vec![0.0; s];
-    let errs = py.detach(|| batch_core(fam, p, s, v, Some(t), &valid, &mut sse));
-    let n = v.len() as f64;
-    let bad = invalid_cost.unwrap_or(f64::INFINITY);
-    let out: Vec<f64> = (0..s)
-        .map(|j| {
-            if !valid[j] || errs[j].is_some() {
-                bad
-            } else if sse[j].is_finite() {
-                (sse[j] / n).sqrt()
-            } else {
-                f64::INFINITY
-            }
-        })
-        .collect();
-    Ok(out.into_pyarray(py))
+    guarded(|| {
+        let fam = family(name, dims)?;
+        let (p, s, v) = batch_inputs(fam, &params, &input)?;
+        let t = slice(&target, "target")?;
+        check_finite("target", t)?;
+        if t.len() != v.len() {
+            return Err(ParameterError::new_err(format!(
+                "target has length {}, input has length {}; they must match",
+                t.len(),
+                v.len()
+            )));
+        }
+        // rows, their results and one state each
+        check_alloc("batch_rmse: the rows' work buffers", &[s, 3 + fam.state_len()])?;
+        let valid = check_rows(fam, p, s, invalid_cost.is_none())?;
+        let mut sse = vec![0.0; s];
+        let errs = interruptible(py, |stop| batch_core(fam, p, s, v, Some(t), &valid, &mut sse, stop))?;
+        let n = v.len() as f64;
+        let bad = invalid_cost.unwrap_or(f64::INFINITY);
+        let out: Vec<f64> = (0..s)
+            .map(|j| {
+                if !valid[j] || errs[j].is_some() {
+                    bad
+                } else if sse[j].is_finite() {
+                    (sse[j] / n).sqrt()
+                } else {
+                    f64::INFINITY
+                }
+            })
+            .collect();
+        Ok(out.into_pyarray(py))
+    })
 }
 
 /// Regressors of a row's linear parameters over an input record, from the relaxed state:
@@ -534,33 +627,38 @@ fn regressors<'py>(
     params: PyReadonlyArray1<'py, f64>,
     input: PyReadonlyArray1<'py, f64>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let fam = family(name, dims)?;
-    let p = slice(&params, "params")?;
-    let v = slice(&input, "input")?;
-    check_finite("input", v)?;
-    let m = fam.regressor_count();
-    if m == 0 {
-        return Err(ParameterError::new_err(format!("family = {name:?} has no linear parameters to regress on")));
-    }
-    let mut out = vec![0.0; v.len() * m];
-    let ok = py
-        .detach(|| {
+    guarded(|| {
+        let fam = family(name, dims)?;
+        let p = slice(&params, "params")?;
+        let v = slice(&input, "input")?;
+        check_finite("input", v)?;
+        let m = fam.regressor_count();
+        if m == 0 {
+            return Err(ParameterError::new_err(format!("family = {name:?} has no linear parameters to regress on")));
+        }
+        check_alloc("regressors: the (N, m) result", &[v.len(), m])?;
+        let mut out = vec![0.0; v.len() * m];
+        let ok = run_long(py, v.len(), m + fam.state_len(), |stop| {
             with_model(fam, p, |model| {
                 let mut st = vec![0.0; fam.state_len()];
                 model.reset(&mut st);
                 let mut ok = true;
                 for (k, &vk) in v.iter().enumerate() {
+                    if k % 1024 == 0 && stop.stopped() {
+                        break;
+                    }
                     ok &= model.regressors_step(&mut st, vk, &mut out[k * m..(k + 1) * m]);
                 }
                 Ok(ok)
             })
-        })
+        })?
         .map_err(err)?;
-    if !ok {
-        return Err(ParameterError::new_err(format!("family = {name:?} has no linear parameters to regress on")));
-    }
-    let arr = Array2::from_shape_vec((v.len(), m), out).expect("shape matches length");
-    Ok(arr.into_pyarray(py))
+        if !ok {
+            return Err(ParameterError::new_err(format!("family = {name:?} has no linear parameters to regress on")));
+        }
+        let arr = Array2::from_shape_vec((v.len(), m), out).expect("shape matches length");
+        Ok(arr.into_pyarray(py))
+    })
 }
 
 /// Number of threads rayon uses for batch calls.

@@ -17,7 +17,7 @@ use pyo3::prelude::*;
 
 use crate::control::{with_controller, ControllerSpec};
 use crate::models::Model;
-use crate::util::{check_finite, err, slice};
+use crate::util::{check_alloc, check_finite, err, guarded, interruptible, slice};
 use pyo3::types::{PyDict, PyTuple};
 use rayon::prelude::*;
 
@@ -39,6 +39,7 @@ fn simulate_stage<'py>(
     let s = state.as_slice_mut().map_err(|_| ParameterError::new_err("state must be a contiguous float64 array"))?;
     let mut ss = StageState::from_array(s).map_err(err)?;
     let n = u.len();
+    check_alloc("stage simulate: the three output records", &[3, n])?;
     let (mut x, mut va, mut vh) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     py.detach(|| {
         for k in 0..n {
@@ -68,8 +69,10 @@ fn stage_simulate<'py>(
     command: PyReadonlyArray1<'py, f64>,
     mut state: PyReadwriteArray1<'py, f64>,
 ) -> PyResult<Positions<'py>> {
-    let st = stage(slice(&params, "params")?, ts, substeps, tolerance)?;
-    simulate_stage(py, &st, &command, &mut state)
+    guarded(|| {
+        let st = stage(slice(&params, "params")?, ts, substeps, tolerance)?;
+        simulate_stage(py, &st, &command, &mut state)
+    })
 }
 
 /// The tuple form of a controller: `(kind, params, inverse, ilc)` with `inverse` either
@@ -167,7 +170,7 @@ impl Controller {
     }
     /// The state before the first step, given the first measurement `y0`.
     fn initial_state<'py>(&self, py: Python<'py>, y0: f64) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        crate::steps::initial_state(py, &self.spec, y0)
+        guarded(|| crate::steps::initial_state(py, &self.spec, y0))
     }
     /// Step from `state` (updated in place) on the reference and the measured positions;
     /// returns the commands (empty velocity / acceleration stand for zeros).
@@ -180,8 +183,10 @@ impl Controller {
         measured: PyReadonlyArray1<'py, f64>,
         state: PyReadwriteArray1<'py, f64>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let signals = crate::steps::Signals { reference, velocity, acceleration, measured };
-        crate::steps::steps(py, &self.spec, signals, state)
+        guarded(|| {
+            let signals = crate::steps::Signals { reference, velocity, acceleration, measured };
+            crate::steps::steps(py, &self.spec, signals, state)
+        })
     }
     fn __repr__(&self) -> String {
         format!("Controller({:?}, <{} params>)", self.spec.kind, self.spec.params.len())
@@ -315,7 +320,7 @@ impl Stage {
         command: PyReadonlyArray1<'py, f64>,
         mut state: PyReadwriteArray1<'py, f64>,
     ) -> PyResult<Positions<'py>> {
-        simulate_stage(py, &self.stage, &command, &mut state)
+        guarded(|| simulate_stage(py, &self.stage, &command, &mut state))
     }
     /// One closed loop (as `closed_loop`).
     fn closed_loop<'py>(
@@ -324,14 +329,16 @@ impl Stage {
         scenario: ScenarioArg<'py>,
         initial_state: PyReadonlyArray1<'py, f64>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let init = StageState::from_array(slice(&initial_state, "initial_state")?).map_err(err)?;
-        let scenarios = [scenario];
-        let sc = runs(py, &scenarios).map_err(|e| ParameterError::new_err(strip_prefix(py, e)))?;
-        let sig = py.detach(|| run_scenario(&self.stage, &self.sensor, &sc[0], init));
-        if let Some(k) = sig.diverged_at {
-            return Err(ParameterError::new_err(format!("the closed loop diverged at sample {k}")));
-        }
-        signals_dict(py, sig)
+        guarded(|| {
+            let init = StageState::from_array(slice(&initial_state, "initial_state")?).map_err(err)?;
+            let scenarios = [scenario];
+            let sc = runs(py, &scenarios).map_err(|e| ParameterError::new_err(strip_prefix(py, e)))?;
+            let sig = py.detach(|| run_scenario(&self.stage, &self.sensor, &sc[0], init));
+            if let Some(k) = sig.diverged_at {
+                return Err(ParameterError::new_err(format!("the closed loop diverged at sample {k}")));
+            }
+            signals_dict(py, sig)
+        })
     }
     /// Many closed loops in parallel (as `closed_loop_batch`).
     fn closed_loop_batch<'py>(
@@ -340,7 +347,7 @@ impl Stage {
         scenarios: Vec<ScenarioArg<'py>>,
         initial_state: PyReadonlyArray1<'py, f64>,
     ) -> PyResult<Vec<Bound<'py, PyDict>>> {
-        batch(py, &self.stage, &self.sensor, &scenarios, &initial_state)
+        guarded(|| batch(py, &self.stage, &self.sensor, &scenarios, &initial_state))
     }
     /// Tracking figures of many closed loops (as `closed_loop_batch_tracking`).
     fn closed_loop_batch_tracking<'py>(
@@ -350,7 +357,7 @@ impl Stage {
         initial_state: PyReadonlyArray1<'py, f64>,
         skip: usize,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        tracking(py, &self.stage, &self.sensor, &scenarios, &initial_state, skip)
+        guarded(|| tracking(py, &self.stage, &self.sensor, &scenarios, &initial_state, skip))
     }
 }
 
@@ -656,18 +663,20 @@ fn stage_of(
                       controller, reference, velocity, acceleration, initial_state, seed)"
 )]
 fn closed_loop<'py>(py: Python<'py>, args: &Bound<'py, PyTuple>) -> PyResult<Bound<'py, PyDict>> {
-    type Rest<'py> = (ControllerArg<'py>, Arr<'py>, Arr<'py>, Arr<'py>, Arr<'py>, u64);
-    let (st, (controller, reference, velocity, acceleration, init, seed)): (Stage, Rest<'py>) =
-        split_args("closed_loop", args, 6)?;
-    let c = controller_spec(&controller)?;
-    let (r, v, a) = scenario_arrays(&reference, &velocity, &acceleration)?;
-    let init = StageState::from_array(slice(&init, "initial_state")?).map_err(err)?;
-    let sc = Run { reference: r, velocity: v, acceleration: a, seed, controller: c };
-    let sig = py.detach(|| run_scenario(&st.stage, &st.sensor, &sc, init));
-    if let Some(k) = sig.diverged_at {
-        return Err(ParameterError::new_err(format!("the closed loop diverged at sample {k}")));
-    }
-    signals_dict(py, sig)
+    guarded(|| {
+        type Rest<'py> = (ControllerArg<'py>, Arr<'py>, Arr<'py>, Arr<'py>, Arr<'py>, u64);
+        let (st, (controller, reference, velocity, acceleration, init, seed)): (Stage, Rest<'py>) =
+            split_args("closed_loop", args, 6)?;
+        let c = controller_spec(&controller)?;
+        let (r, v, a) = scenario_arrays(&reference, &velocity, &acceleration)?;
+        let init = StageState::from_array(slice(&init, "initial_state")?).map_err(err)?;
+        let sc = Run { reference: r, velocity: v, acceleration: a, seed, controller: c };
+        let sig = py.detach(|| run_scenario(&st.stage, &st.sensor, &sc, init));
+        if let Some(k) = sig.diverged_at {
+            return Err(ParameterError::new_err(format!("the closed loop diverged at sample {k}")));
+        }
+        signals_dict(py, sig)
+    })
 }
 
 fn batch<'py>(
@@ -679,9 +688,15 @@ fn batch<'py>(
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
     let init = StageState::from_array(slice(initial_state, "initial_state")?).map_err(err)?;
     let list = runs(py, scenarios)?;
-    let results: Vec<Signals> = py.detach(|| list.par_iter().map(|sc| run_scenario(st, se, sc, init)).collect());
+    // every run records five signals and up to MAX_TERMS terms per sample
+    let samples = list.iter().fold(0usize, |acc, sc| acc.saturating_add(sc.reference.len()));
+    check_alloc("closed_loop_batch: the recorded signals", &[samples, 5 + MAX_TERMS])?;
+    let results: Vec<Option<Signals>> = interruptible(py, |stop| {
+        list.par_iter().map(|sc| if stop.stopped() { None } else { Some(run_scenario(st, se, sc, init)) }).collect()
+    })?;
     let mut out = Vec::with_capacity(results.len());
     for (j, sig) in results.into_iter().enumerate() {
+        let sig = sig.expect("every run ran (an interrupt raised above)");
         if let Some(k) = sig.diverged_at {
             return Err(ParameterError::new_err(format!("scenarios[{j}]: the closed loop diverged at sample {k}")));
         }
@@ -700,8 +715,11 @@ fn batch<'py>(
                       scenarios, initial_state)"
 )]
 fn closed_loop_batch<'py>(py: Python<'py>, args: &Bound<'py, PyTuple>) -> PyResult<Vec<Bound<'py, PyDict>>> {
-    let (st, (scenarios, init)): (Stage, (Vec<ScenarioArg<'py>>, Arr<'py>)) = split_args("closed_loop_batch", args, 2)?;
-    batch(py, &st.stage, &st.sensor, &scenarios, &init)
+    guarded(|| {
+        let (st, (scenarios, init)): (Stage, (Vec<ScenarioArg<'py>>, Arr<'py>)) =
+            split_args("closed_loop_batch", args, 2)?;
+        batch(py, &st.stage, &st.sensor, &scenarios, &init)
+    })
 }
 
 fn tracking<'py>(
@@ -722,9 +740,12 @@ fn tracking<'py>(
             )));
         }
     }
-    let rows: Vec<[f64; 3]> = py.detach(|| {
+    let rows: Vec<[f64; 3]> = interruptible(py, |stop| {
         list.par_iter()
             .map(|sc| {
+                if stop.stopped() {
+                    return [f64::NAN; 3];
+                }
                 with_controller(&sc.controller, |c| {
                     let mut ss = init;
                     let mut sst = se.state(ss.x, sc.seed);
@@ -748,7 +769,7 @@ fn tracking<'py>(
                 .expect("validated before the run")
             })
             .collect()
-    });
+    })?;
     let flat: Vec<f64> = rows.iter().flatten().copied().collect();
     Ok(Array2::from_shape_vec((rows.len(), 3), flat).expect("shape").into_pyarray(py))
 }
@@ -764,9 +785,11 @@ fn tracking<'py>(
                       scenarios, initial_state, skip)"
 )]
 fn closed_loop_batch_tracking<'py>(py: Python<'py>, args: &Bound<'py, PyTuple>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    type Rest<'py> = (Vec<ScenarioArg<'py>>, Arr<'py>, usize);
-    let (st, (scenarios, init, skip)): (Stage, Rest<'py>) = split_args("closed_loop_batch_tracking", args, 3)?;
-    tracking(py, &st.stage, &st.sensor, &scenarios, &init, skip)
+    guarded(|| {
+        type Rest<'py> = (Vec<ScenarioArg<'py>>, Arr<'py>, usize);
+        let (st, (scenarios, init, skip)): (Stage, Rest<'py>) = split_args("closed_loop_batch_tracking", args, 3)?;
+        tracking(py, &st.stage, &st.sensor, &scenarios, &init, skip)
+    })
 }
 
 /// `(S,)` RMSE between the open-loop position of `S` stage parameter rows (`(S,
@@ -784,67 +807,74 @@ fn stage_batch_rmse<'py>(
     target: PyReadonlyArray1<'py, f64>,
     invalid_cost: Option<f64>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let py = params.py();
-    let shape = params.shape();
-    let width = piezohyst_core::stage::PARAM_LEN;
-    if shape[1] != width {
-        return Err(ParameterError::new_err(format!(
-            "params has shape ({}, {}), expected (S, {width})",
-            shape[0], shape[1]
-        )));
-    }
-    // as_slice also accepts Fortran order (then in memory order): insist on rows
-    if !params.is_c_contiguous() {
-        return Err(ParameterError::new_err("params must be a C-contiguous float64 array"));
-    }
-    let p = params.as_slice().map_err(|_| ParameterError::new_err("params must be a C-contiguous float64 array"))?;
-    let u = slice(&command, "command")?;
-    let t = slice(&target, "target")?;
-    check_finite("command", u)?;
-    check_finite("target", t)?;
-    if t.len() != u.len() || u.is_empty() {
-        return Err(ParameterError::new_err(format!(
-            "target has length {}, command has length {}; they must match and not be empty",
-            t.len(),
-            u.len()
-        )));
-    }
-    let mut stages = Vec::with_capacity(shape[0]);
-    for j in 0..shape[0] {
-        let row = &p[j * width..(j + 1) * width];
-        match stage(row, ts, substeps, tolerance) {
-            Ok(s) => stages.push(Some(s)),
-            Err(e) if invalid_cost.is_none() => {
-                return Err(ParameterError::new_err(format!("params[{j}]: {}", e.value(py))))
-            }
-            Err(_) => stages.push(None),
+    guarded(|| {
+        let py = params.py();
+        let shape = params.shape();
+        let width = piezohyst_core::stage::PARAM_LEN;
+        if shape[1] != width {
+            return Err(ParameterError::new_err(format!(
+                "params has shape ({}, {}), expected (S, {width})",
+                shape[0], shape[1]
+            )));
         }
-    }
-    let bad = invalid_cost.unwrap_or(f64::INFINITY);
-    let out: Vec<f64> = py.detach(|| {
-        stages
-            .par_iter()
-            .map(|s| match s {
-                None => bad,
-                Some(st) => {
-                    let mut ss = StageState::ZERO;
-                    let mut sse = 0.0;
-                    for (&uk, &tk) in u.iter().zip(t) {
-                        let e = ss.x - tk;
-                        sse += e * e;
-                        st.advance(&mut ss, uk);
-                    }
-                    let r = (sse / u.len() as f64).sqrt();
-                    if r.is_finite() {
-                        r
-                    } else {
-                        f64::INFINITY
-                    }
+        // as_slice also accepts Fortran order (then in memory order): insist on rows
+        if !params.is_c_contiguous() {
+            return Err(ParameterError::new_err("params must be a C-contiguous float64 array"));
+        }
+        let p =
+            params.as_slice().map_err(|_| ParameterError::new_err("params must be a C-contiguous float64 array"))?;
+        let u = slice(&command, "command")?;
+        let t = slice(&target, "target")?;
+        check_finite("command", u)?;
+        check_finite("target", t)?;
+        if t.len() != u.len() || u.is_empty() {
+            return Err(ParameterError::new_err(format!(
+                "target has length {}, command has length {}; they must match and not be empty",
+                t.len(),
+                u.len()
+            )));
+        }
+        let mut stages = Vec::with_capacity(shape[0]);
+        for j in 0..shape[0] {
+            let row = &p[j * width..(j + 1) * width];
+            match stage(row, ts, substeps, tolerance) {
+                Ok(s) => stages.push(Some(s)),
+                Err(e) if invalid_cost.is_none() => {
+                    return Err(ParameterError::new_err(format!("params[{j}]: {}", e.value(py))))
                 }
-            })
-            .collect()
-    });
-    Ok(out.into_pyarray(py))
+                Err(_) => stages.push(None),
+            }
+        }
+        let bad = invalid_cost.unwrap_or(f64::INFINITY);
+        let out: Vec<f64> = interruptible(py, |stop| {
+            stages
+                .par_iter()
+                .map(|s| match s {
+                    _ if stop.stopped() => bad,
+                    None => bad,
+                    Some(st) => {
+                        let mut ss = StageState::ZERO;
+                        let mut sse = 0.0;
+                        for (k, (&uk, &tk)) in u.iter().zip(t).enumerate() {
+                            if k % 4096 == 0 && stop.stopped() {
+                                break;
+                            }
+                            let e = ss.x - tk;
+                            sse += e * e;
+                            st.advance(&mut ss, uk);
+                        }
+                        let r = (sse / u.len() as f64).sqrt();
+                        if r.is_finite() {
+                            r
+                        } else {
+                            f64::INFINITY
+                        }
+                    }
+                })
+                .collect()
+        })?;
+        Ok(out.into_pyarray(py))
+    })
 }
 
 /// Add this module's functions to the extension module.

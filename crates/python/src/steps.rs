@@ -7,7 +7,7 @@ use pyo3::prelude::*;
 
 use crate::control::{with_controller, ControllerSpec};
 use crate::plant::{controller_spec, ControllerArg};
-use crate::util::{check_finite, slice};
+use crate::util::{check_alloc, check_finite, err, guarded, slice};
 
 fn state_of<'a>(state: &'a mut PyReadwriteArray1<'_, f64>, want: usize) -> PyResult<&'a mut [f64]> {
     let s = state.as_slice_mut().map_err(|_| ParameterError::new_err("state must be a contiguous float64 array"))?;
@@ -68,9 +68,11 @@ pub fn steps<'py>(
             y.len()
         )));
     }
+    check_alloc("controller_steps: the commands", &[n])?;
     let mut u = vec![0.0; n];
     let run = with_controller(spec, |c| -> PyResult<()> {
         let st = state_of(&mut state, c.state_len())?;
+        c.check_state(st).map_err(err)?;
         let pick = |s: &[f64], k: usize| if s.is_empty() { 0.0 } else { s[k] };
         py.detach(|| {
             for k in 0..n {
@@ -92,10 +94,12 @@ fn controller_initial_state<'py>(
     controller: ControllerArg<'py>,
     y0: f64,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    if !y0.is_finite() {
-        return Err(ParameterError::new_err(format!("y0 = {y0} is not finite")));
-    }
-    initial_state(py, &controller_spec(&controller)?, y0)
+    guarded(|| {
+        if !y0.is_finite() {
+            return Err(ParameterError::new_err(format!("y0 = {y0} is not finite")));
+        }
+        initial_state(py, &controller_spec(&controller)?, y0)
+    })
 }
 
 /// Step the controller from `state` (updated in place) on the reference `(reference,
@@ -111,8 +115,10 @@ fn controller_steps<'py>(
     measured: PyReadonlyArray1<'py, f64>,
     state: PyReadwriteArray1<'py, f64>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let spec = controller_spec(&controller)?;
-    steps(py, &spec, Signals { reference, velocity, acceleration, measured }, state)
+    guarded(|| {
+        let spec = controller_spec(&controller)?;
+        steps(py, &spec, Signals { reference, velocity, acceleration, measured }, state)
+    })
 }
 
 /// Add this module's functions to the extension module.

@@ -72,3 +72,139 @@ pub fn check_finite(name: &str, xs: &[f64]) -> PyResult<()> {
         None => Ok(()),
     }
 }
+
+// ---------------------------------------------------------------------------------------
+// the last line of defence, resource bounds, interrupts (issue 20)
+
+pyo3::import_exception!(piezohyst.errors, InternalError);
+pyo3::import_exception!(piezohyst.errors, ResourceLimitError);
+
+/// Run an entry point's body and turn a panic (a bug: every argument and state is
+/// validated first) into `piezohyst.errors.InternalError` — a `PiezohystError`, so
+/// `except PiezohystError` / `except Exception` catch it, unlike PyO3's `PanicException`
+/// (a `BaseException`). A panic on a rayon worker reaches here too (rayon resumes it on
+/// the calling thread).
+pub fn guarded<T>(f: impl FnOnce() -> PyResult<T>) -> PyResult<T> {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)) {
+        Ok(r) => r,
+        Err(payload) => {
+            let text = payload
+                .downcast_ref::<&str>()
+                .copied()
+                .or_else(|| payload.downcast_ref::<String>().map(String::as_str))
+                .unwrap_or("(no message)");
+            Err(InternalError::new_err(format!("internal error (a bug in piezohyst; please report it): {text}")))
+        }
+    }
+}
+
+/// The environment variable that sets [`max_alloc_bytes`].
+pub const MAX_ALLOC_ENV: &str = "PIEZOHYST_MAX_ALLOC_BYTES";
+/// Default of [`max_alloc_bytes`]: 2 GiB.
+pub const DEFAULT_MAX_ALLOC_BYTES: u64 = 2 << 30;
+
+/// Most bytes one call may allocate for its result and work buffers: `PIEZOHYST_MAX_ALLOC_BYTES`
+/// (a whole number of bytes) or 2 GiB. Read at each call, so a test or a session can raise it.
+pub fn max_alloc_bytes() -> PyResult<u64> {
+    match std::env::var(MAX_ALLOC_ENV) {
+        Err(_) => Ok(DEFAULT_MAX_ALLOC_BYTES),
+        Ok(s) => s.trim().parse::<u64>().map_err(|_| {
+            bad_arg(format!("{MAX_ALLOC_ENV} = {s:?} is not a whole number of bytes (unset it for the default, 2 GiB)"))
+        }),
+    }
+}
+
+fn human(bytes: f64) -> String {
+    const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
+    let mut x = bytes;
+    let mut u = 0;
+    while x >= 1024.0 && u + 1 < UNITS.len() {
+        x /= 1024.0;
+        u += 1;
+    }
+    format!("{x:.1} {}", UNITS[u])
+}
+
+/// Refuse a request before allocating: `what` needs `factors` (multiplied) `f64` values.
+/// Raises `piezohyst.errors.ResourceLimitError` (a `MemoryError`) naming the size, the
+/// limit and how to raise it.
+pub fn check_alloc(what: &str, factors: &[usize]) -> PyResult<()> {
+    let limit = max_alloc_bytes()?;
+    let values = factors.iter().try_fold(1u64, |acc, &f| acc.checked_mul(f as u64));
+    let bytes = values.and_then(|v| v.checked_mul(8));
+    let shape = factors.iter().map(|f| f.to_string()).collect::<Vec<_>>().join(" x ");
+    match bytes {
+        Some(b) if b <= limit => Ok(()),
+        _ => {
+            let need = factors.iter().fold(8.0, |acc, &f| acc * f as f64);
+            Err(ResourceLimitError::new_err(format!(
+                "{what} needs {} ({shape} float64 values), above the limit of {} ({limit} bytes); raise it with the \
+                 environment variable {MAX_ALLOC_ENV} (bytes) if the machine has the memory",
+                human(need),
+                human(limit as f64),
+            )))
+        }
+    }
+}
+
+/// A stop request seen by long loops: set when the calling thread found a pending signal.
+#[derive(Debug, Default)]
+pub struct Stop(std::sync::atomic::AtomicBool);
+
+impl Stop {
+    /// Whether the work should stop now (its result will be discarded).
+    #[inline]
+    pub fn stopped(&self) -> bool {
+        self.0.load(std::sync::atomic::Ordering::Relaxed)
+    }
+}
+
+/// How often a waiting caller checks for signals (Ctrl-C stops within about this, plus one
+/// chunk of work).
+const POLL: std::time::Duration = std::time::Duration::from_millis(50);
+
+/// Run `work` (which may use rayon) on a helper thread while the calling thread, with the
+/// GIL released, checks for signals every 50 ms: on a pending signal (Ctrl-C) the stop flag
+/// is set, `work` (which polls it between rows and every few thousand samples) returns
+/// early, and the signal handler's exception (`KeyboardInterrupt`) is raised. A panic in
+/// `work` is resumed on the calling thread (see [`guarded`]).
+pub fn interruptible<T: Send>(py: Python<'_>, work: impl FnOnce(&Stop) -> T + Send) -> PyResult<T> {
+    use std::sync::{Condvar, Mutex};
+    let stop = Stop::default();
+    let done = (Mutex::new(false), Condvar::new());
+    let mut interrupted = None;
+    let result = std::thread::scope(|s| {
+        let (stop, done) = (&stop, &done);
+        let handle = s.spawn(move || {
+            let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| work(stop)));
+            *done.0.lock().unwrap_or_else(|e| e.into_inner()) = true;
+            done.1.notify_all();
+            r
+        });
+        // wait until the work is done, looking for signals every POLL
+        let finished = || {
+            let g = done.0.lock().unwrap_or_else(|e| e.into_inner());
+            let (g, _) = done.1.wait_timeout_while(g, POLL, |d| !*d).unwrap_or_else(|e| e.into_inner());
+            *g
+        };
+        while !py.detach(finished) {
+            if let Err(e) = py.check_signals() {
+                stop.0.store(true, std::sync::atomic::Ordering::Relaxed);
+                interrupted = Some(e);
+                break;
+            }
+        }
+        py.detach(|| handle.join())
+    });
+    match result {
+        Ok(Ok(r)) => match interrupted {
+            Some(e) => Err(e),
+            None => Ok(r),
+        },
+        Ok(Err(payload)) | Err(payload) => std::panic::resume_unwind(payload),
+    }
+}
+
+/// Work (in model steps x state slots) above which a single-threaded call goes through
+/// [`interruptible`]; below it, the thread hand-off would cost more than the call.
+pub const INTERRUPTIBLE_WORK: usize = 1 << 22;

@@ -55,6 +55,10 @@ from .._validate import as_int, as_scalar
 from ..errors import ComputationError, ParameterError, ParameterTypeError
 from .report import RunReport
 
+#: Largest population an optimizer takes: each generation evaluates every member (a batch
+#: call per generation), so a typo of a million members would hold the machine for hours.
+MAX_POPULATION = 100_000
+
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from scipy.optimize import Bounds
 
@@ -300,7 +304,9 @@ class Optimizer:
                 population_size = init_array.shape[0]
         if population_size is None:
             population_size = max(20, 5 * D)
-        self.population_size = as_int(population_size, "population_size", minimum=self.min_population)
+        self.population_size = as_int(
+            population_size, "population_size", minimum=self.min_population, maximum=MAX_POPULATION
+        )
         self.max_iterations = as_int(max_iterations, "max_iterations", minimum=1)
         self._rng = _as_rng(rng)
         S = self.population_size

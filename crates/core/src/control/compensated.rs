@@ -58,7 +58,25 @@ impl<C: Controller, M: Invertible> Controller for Compensated<C, M> {
     fn term_names(&self) -> &'static [&'static str] {
         self.inner.term_names()
     }
+    fn check_state(&self, state: &[f64]) -> Result<(), crate::ModelError> {
+        crate::hysteresis::check_state_len(state, self.state_len())?;
+        let (a, b) = self.split();
+        self.inner.check_state(&state[..a])?;
+        self.model.check_state(&state[a..a + b]).map_err(|e| offset_slot(e, a))?;
+        crate::error::check_scalar("state (previous voltage)", state[a + b])
+            .map_err(|_| crate::ModelError::NotFinite("state", a + b, state[a + b]))
+    }
     fn limits(&self) -> Limits {
         self.limits
+    }
+}
+
+/// A slot error of a part of the state, renumbered as a slot of the whole state.
+pub(crate) fn offset_slot(e: crate::ModelError, at: usize) -> crate::ModelError {
+    use crate::ModelError::*;
+    match e {
+        NotFinite(n, i, v) if i != usize::MAX => NotFinite(n, i + at, v),
+        OutOfRange(n, i, v, lo, hi) if i != usize::MAX => OutOfRange(n, i + at, v, lo, hi),
+        e => e,
     }
 }

@@ -100,6 +100,39 @@ impl<C: Controller> Controller for Ilc<C> {
     fn term_names(&self) -> &'static [&'static str] {
         &["learned", "error", "u_inner", "u_unsaturated"]
     }
+    /// The inner state, the sample counter (a whole number `0 ..= 2^53`) and the learned
+    /// and reference slots this step reads (checking all `2 period` each step would cost
+    /// a real-time loop more than the step).
+    fn check_state(&self, state: &[f64]) -> Result<(), ModelError> {
+        crate::hysteresis::check_state_len(state, self.state_len())?;
+        let a = self.inner.state_len();
+        let n = self.period;
+        self.inner.check_state(&state[..a])?;
+        let k = state[a];
+        if !((0.0..=9_007_199_254_740_992.0).contains(&k) && k == libm::trunc(k)) {
+            return Err(ModelError::OutOfRange("state (sample counter)", a, k, 0.0, 9_007_199_254_740_992.0));
+        }
+        let now = k as usize % n;
+        let learned = a + 1;
+        let history = a + 1 + n;
+        let back = |i: usize, by: usize| (i + n - by) % n;
+        let learn_at = back(now, self.lead);
+        let slots = [
+            learned + back(now, 1),
+            learned + now,
+            learned + (now + 1) % n,
+            learned + back(learn_at, 1),
+            learned + learn_at,
+            learned + (learn_at + 1) % n,
+            history + back(now, self.delay),
+        ];
+        for i in slots {
+            if !state[i].is_finite() {
+                return Err(ModelError::NotFinite("state", i, state[i]));
+            }
+        }
+        Ok(())
+    }
     fn limits(&self) -> Limits {
         self.inner.limits()
     }

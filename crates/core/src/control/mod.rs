@@ -57,6 +57,14 @@ pub trait Controller {
     fn term_names(&self) -> &'static [&'static str];
     /// Output limits.
     fn limits(&self) -> Limits;
+    /// Check a state that came from outside (a caller's buffer, possibly tampered with)
+    /// before [`Controller::step`] reads it: the length, and every slot the step reads
+    /// finite and in range (a NaN integrator would otherwise pin the output to a rail).
+    /// The error names the slot as `state[i]`.
+    fn check_state(&self, state: &[f64]) -> Result<(), ModelError> {
+        crate::hysteresis::check_state_len(state, self.state_len())?;
+        crate::error::check_finite("state", state)
+    }
 }
 
 /// A borrowed controller is a controller (so a loop can run a `&dyn Controller`).
@@ -76,6 +84,9 @@ impl<C: Controller + ?Sized> Controller for &C {
     }
     fn limits(&self) -> Limits {
         (**self).limits()
+    }
+    fn check_state(&self, state: &[f64]) -> Result<(), ModelError> {
+        (**self).check_state(state)
     }
 }
 

@@ -34,6 +34,22 @@ pub trait Hysteresis {
     }
     /// Apply input `v` for one sample: update `state`, return the output.
     fn step(&self, state: &mut [f64], v: f64) -> f64;
+    /// Check a state that came from outside (a caller's buffer, possibly tampered with)
+    /// before [`Hysteresis::step`] reads it: the length, every slot finite, and any slot
+    /// with a structural meaning (Preisach's memory length) in its range. The error names
+    /// the slot as `state[i]`. [`Hysteresis::step`] assumes a state that passes.
+    fn check_state(&self, state: &[f64]) -> Result<(), crate::ModelError> {
+        check_state_len(state, self.state_len())?;
+        crate::error::check_finite("state", state)
+    }
+}
+
+/// `state.len() == want`, else a [`crate::ModelError::Length`] naming `state`.
+pub fn check_state_len(state: &[f64], want: usize) -> Result<(), crate::ModelError> {
+    if state.len() != want {
+        return Err(crate::ModelError::Length("state", want, state.len()));
+    }
+    Ok(())
 }
 
 /// A model whose output at one sample is a continuous, increasing function of that

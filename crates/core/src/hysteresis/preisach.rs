@@ -26,6 +26,9 @@ use crate::hysteresis::{Hysteresis, Invertible};
 /// Largest memory depth (number of stored extrema).
 pub const MAX_MEMORY: usize = 256;
 
+/// Most grid levels (`levels (levels + 1) / 2` cells: 500,500 weights at the limit).
+pub const MAX_LEVELS: usize = 1000;
+
 /// Number of cells of an `levels x levels` triangular grid.
 pub const fn cell_count(levels: usize) -> usize {
     levels * (levels + 1) / 2
@@ -79,7 +82,7 @@ impl<'a> Preisach<'a> {
         if !(hi > lo) {
             return Err(ModelError::NotIncreasing("input_range", 1, hi));
         }
-        if levels == 0 || levels > 1000 {
+        if levels == 0 || levels > MAX_LEVELS {
             return Err(ModelError::Structure("levels", levels));
         }
         if !(2..=MAX_MEMORY).contains(&memory) {
@@ -284,6 +287,17 @@ impl Hysteresis for Preisach<'_> {
     fn reset(&self, state: &mut [f64]) {
         state.iter_mut().for_each(|s| *s = 0.0);
         state[0] = self.lo; // negative saturation
+    }
+    /// Besides finite slots: `state[1]` (the number of stored extrema) is a whole number in
+    /// `0..=memory` (a larger one would index past the buffer).
+    fn check_state(&self, state: &[f64]) -> Result<(), ModelError> {
+        crate::hysteresis::check_state_len(state, self.state_len())?;
+        check_finite("state", state)?;
+        let len = state[1];
+        if !((0.0..=self.memory as f64).contains(&len) && len == libm::trunc(len)) {
+            return Err(ModelError::OutOfRange("state (memory length)", 1, len, 0.0, self.memory as f64));
+        }
+        Ok(())
     }
     fn step(&self, state: &mut [f64], v: f64) -> f64 {
         let (head, ext) = state.split_at_mut(2);
