@@ -30,8 +30,10 @@ N = 6000
 
 def excitation(n: int, fs: float) -> np.ndarray:
     t = np.arange(n) / fs
-    return 2 + 1.5 * np.sin(2 * np.pi * 0.7 * t) * (1 + 0.3 * np.sin(2 * np.pi * 0.13 * t)) + 0.4 * np.sin(
-        2 * np.pi * 2.3 * t
+    return (
+        2
+        + 1.5 * np.sin(2 * np.pi * 0.7 * t) * (1 + 0.3 * np.sin(2 * np.pi * 0.13 * t))
+        + 0.4 * np.sin(2 * np.pi * 2.3 * t)
     )
 
 
@@ -56,7 +58,9 @@ def heldout_error(rec: Record, truth: np.ndarray) -> float:
 
 
 def delayed(y: np.ndarray, k: int) -> np.ndarray:
-    return np.concatenate((np.full(k, y[0]), y[: y.size - k])) if k > 0 else np.concatenate((y[-k:], np.full(-k, y[-1])))
+    return (
+        np.concatenate((np.full(k, y[0]), y[: y.size - k])) if k > 0 else np.concatenate((y[-k:], np.full(-k, y[-1])))
+    )
 
 
 # -- lag ---------------------------------------------------------------------------------
@@ -133,6 +137,7 @@ def test_remove_drift_keeps_a_drift_free_record_and_its_start():
     y = 3 * u
     corrected, d = remove_drift(y, 300.0, input=u)
     assert np.max(np.abs(d)) < 1e-9 * np.ptp(y)
+    np.testing.assert_allclose(corrected, y, atol=1e-9 * np.ptp(y))
     # a plain detrend (no input) would take the input's rise for drift
     _, plain = remove_drift(y, 300.0)
     assert plain[-1] > 0.5 * 3 * 0.2 * t[-1]
