@@ -75,6 +75,19 @@ def test_estimate_lag_finds_the_delay_of_a_hysteretic_record(clean, k):
     assert estimate_lag(u, -y, 20) == k  # a sensor that reads lower for a larger stroke
 
 
+@pytest.mark.parametrize("k", [0, 3, 12])
+def test_estimate_lag_on_a_bouc_wen_record(k):
+    # a saturating loop (the steepest slope right after each reversal), unlike PI's hardening one
+    from piezohyst.models.differential import BoucWen
+
+    fs = 200.0
+    t = np.arange(1200) / fs
+    u = np.sin(2 * np.pi * t) + 0.4 * np.sin(2 * np.pi * 3.3 * t + 1)
+    y0 = np.asarray(BoucWen(a=0.5, beta=2.0 / np.ptp(u), gamma=0.5 / np.ptp(u)).simulate(u))
+    y = delayed(y0, k) + 0.003 * np.ptp(y0) * np.random.default_rng(k).standard_normal(u.size)
+    assert estimate_lag(u, y, 15) == k
+
+
 def test_lag_fixes_the_fit(clean):
     u, y0 = clean
     k = 6
