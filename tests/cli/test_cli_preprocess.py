@@ -168,3 +168,10 @@ def test_bad_values_are_one_line_errors(records, tmp_path, flags, message):
               *flags, cwd=tmp_path)  # fmt: skip
     assert out.returncode == 2 and "Traceback" not in out.stderr
     assert message in out.stderr and "\n" not in out.stderr.strip()
+
+
+def test_text_output_says_what_was_done(records, tmp_path):
+    out = run("identify", records["lag"], "--model", "pi", "--fs", FS, "--lag", "auto", "--decimate", "2",
+              "--force", "--out", tmp_path / "m.json", cwd=tmp_path)  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert "preprocessing: lag 5 samples (auto) removed; decimated by 2 to 250 Hz" in out.stdout

@@ -472,6 +472,8 @@ def _preprocess(
     except (ValueError, TypeError) as e:
         raise _Fail(f"preprocessing DATA: {e}") from None
     _warn_outliers(report, "DATA")
+    if report["steps"] and not args.json:
+        print(f"preprocessing: {_summary(report)}")
     if report["steps"]:
         report["ranges_of_data"] = {"train": None if train is None else list(train)}
         report["ranges_of_data"]["validate"] = None if validate is None else list(validate)
@@ -521,3 +523,21 @@ def _warn_outliers(report: dict[str, Any], where: str) -> None:
             f"piezohyst identify: warning: {o['count']} glitch(es) in the output of {where}, rows {rows}: {what}",
             file=sys.stderr,
         )
+
+
+def _summary(report: dict[str, Any]) -> str:
+    """One line saying what the preprocessing did."""
+    parts = []
+    if report["outliers"] is not None:
+        o = report["outliers"]
+        parts.append(f"{o['count']} glitch(es) " + ("interpolated over" if o["replaced"] else "flagged"))
+    if report["lead_in"] is not None:
+        parts.append(f"lead-in of {report['lead_in']['samples']} samples dropped")
+    if report["lag"] is not None:
+        parts.append(f"lag {report['lag']['samples']} samples ({report['lag']['mode']}) removed")
+    if report["drift"] is not None:
+        parts.append(f"drift of order {report['drift']['order']} removed (change {report['drift']['change']:.4g})")
+    if report["decimate"] is not None:
+        d = report["decimate"]
+        parts.append(f"decimated by {d['factor']} to {d['fs_out']:g} Hz")
+    return "; ".join(parts)
