@@ -287,3 +287,12 @@ def test_import_piezohyst_loads_no_application_wing():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_application_wings_load_on_attribute_access():
+    import subprocess
+    import sys
+
+    code = "import piezohyst as ph; print(ph.papers.mpi_seed2().kind, callable(ph.cli.main))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["gpi", "True"]

@@ -412,7 +412,8 @@ def _run_cli(argv, cwd):
 def test_unmutated_commands_run(cli_dir):
     for argv in _BASE.values():
         code, _out, err = _run_cli(list(argv), cli_dir)
-        assert code == 0, (argv, err)
+        # identify may exit 3 (issue 14: fitted, not trustworthy): pi has no offset, 7.4 % on this MPI record
+        assert code == 0 or (argv[0] == "identify" and code == 3), (argv, err)
 
 
 @FUZZ
@@ -420,7 +421,7 @@ def test_unmutated_commands_run(cli_dir):
 def test_fuzz_command_line(cli_dir, command, data):
     """Mutated valid command lines (a value replaced, a token deleted, an option added) never
     crash: exit 0 (it ran), 1 (a benchmark missing) or 2 with one line on stderr, and never a
-    traceback or a stray temporary file."""
+    traceback or a stray temporary file (or 3: a fit or model not to trust, issue 14)."""
     argv = list(_BASE[command])
     for _ in range(data.draw(st.integers(0, 3), label="n edits")):
         op = data.draw(st.sampled_from(["replace", "delete", "add"]), label="op")
@@ -446,7 +447,7 @@ def test_fuzz_command_line(cli_dir, command, data):
     finally:
         shutil.rmtree(work, ignore_errors=True)
     _event(f"{command}: exit {code}")
-    assert code in (0, 1, 2), (argv, code, err)
+    assert code in (0, 1, 2, 3), (argv, code, err)  # 3: identify's / track's "fitted, not trustworthy"
     assert "Traceback" not in err, (argv, err)
     if code == 2:
         assert err.strip() and len(err.strip().splitlines()) == 1, (argv, err)

@@ -100,6 +100,7 @@ from .models import (
     GeneralizedPlay,
     HysteresisModel,
     Inverse,
+    OutputMap,
     PlayOperator,
     Preisach,
     RateDependentPI,
@@ -180,6 +181,7 @@ __all__ = [
     "OptimizeResult",
     "Optimizer",
     "OutputExistsError",
+    "OutputMap",
     "ParameterError",
     "ParameterTypeError",
     "PiezohystError",
@@ -273,6 +275,10 @@ _FROM_PAPERS = {
 }
 
 
+#: The application wings, imported on first attribute access (``piezohyst.papers``).
+_LAZY_WINGS = ("papers", "cli")
+
+
 class _MovedModules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
     """Imports ``piezohyst.<old>`` of ``_MOVED`` as the module at its new path."""
 
@@ -311,6 +317,8 @@ def __getattr__(name: str) -> object:
         return getattr(importlib.import_module(home), name)
     if name in _FROM_PAPERS:
         return getattr(importlib.import_module(_FROM_PAPERS[name]), name)
+    if name in _LAZY_WINGS:
+        return importlib.import_module(f"{__name__}.{name}")
     if name in _MOVED:
         return importlib.import_module(f"{__name__}.{name}")
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

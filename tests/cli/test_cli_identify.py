@@ -197,7 +197,10 @@ def test_boucwen_de_recovers_the_parameters(data, tmp_path):
     for name, value in BW_TRUTH.items():
         assert got[name] == pytest.approx(value, rel=1e-2), (name, got)
     u = bw_signal()
-    assert np.array_equal(ph.load_model(tmp_path / "bw.json").simulate(u), ph.BoucWen(**got).simulate(u))
+    # the file's model is its parameters through its output map (the fitted sensor offset)
+    assert abs(doc["output_map"]["offset"]) < 1e-6 and doc["output_map"]["gain"] == 1.0
+    expected = ph.BoucWen(**got).with_output_map(doc["output_map"]).simulate(u)
+    assert np.array_equal(ph.load_model(tmp_path / "bw.json").simulate(u), expected)
 
 
 @pytest.mark.skipif(not YAN9A.exists(), reason=f"{YAN9A} is not present")
@@ -251,7 +254,8 @@ def test_refuses_to_overwrite_without_force(data, tmp_path):
     assert not (tmp_path / "new.json").exists()  # checked before any work is done
 
     out = run(*args, "--force", cwd=tmp_path)
-    assert out.returncode == 0, out.stderr
+    # exit 3 (issue 14): pi has no output offset, 5.7 % on this MPI record: fitted, written, not trusted
+    assert out.returncode in (0, 3), out.stderr
     assert ph.load_model(tmp_path / "model.json").kind == "pi"
 
     (tmp_path / "pred.csv").write_text("mine")

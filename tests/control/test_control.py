@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import piezohyst as ph
-from piezohyst import PID, Amplifier, OpenLoop, Sensor, closed_loop, closed_loop_batch, virtual_stage
+from piezohyst import PI, PID, Amplifier, OpenLoop, Sensor, closed_loop, closed_loop_batch, identify, virtual_stage
 from piezohyst.control import (
     ABSMC,
     ILC,
@@ -665,3 +665,20 @@ def test_batch_equals_single_runs_with_the_seeds_it_draws(mpi):
         assert_same(a, b)
     other = closed_loop_batch(STAGE, sc, rng=22)
     assert not np.array_equal(other[0].measured, batch[0].measured)
+
+
+@pytest.mark.parametrize("family", ["mpi", "pi", "preisach"])
+def test_inverse_feedforward_inverts_the_model_output_map(mpi, family):
+    # a model identified through a sensor with an offset and a gain error: the inverse solves
+    # the mapped model (the core inverts the row that holds the map: PI becomes the equal GPI)
+    t = times(1.0)
+    v = 75 - 75 * np.clip(1 - 0.8 * t, 0.2, 1.0) * np.cos(2 * np.pi * 5 * t)
+    base = mpi if family == "mpi" else identify(v, mpi.simulate(v), family, levels=8, offset=False).model
+    assert isinstance(base, {"mpi": ph.GeneralizedPI, "pi": PI, "preisach": ph.Preisach}[family])
+    mapped = base.with_output_map(offset=-1e-6, gain=1.05)
+    t = times(0.1)
+    ref = 10e-6 - 6e-6 * np.cos(2 * np.pi * 20 * t)
+    a = closed_loop(STAGE, InverseFeedforward(mapped), ref, rng=2)
+    np.testing.assert_allclose(mapped.simulate(a.command), ref, rtol=0, atol=1e-12)
+    b = closed_loop(STAGE, InverseFeedforward(base), ref, rng=2)
+    assert np.max(np.abs(a.command - b.command)) > 1.0  # volts: the map is not ignored

@@ -285,7 +285,19 @@ def build_example(out: Path, lib: Path, with_controller: bool) -> Path:
     return exe
 
 
-def test_exported_model_example_runs(tmp_path, capsys, mpi, c_library):
+def with_map(model, mapped):
+    """The model, or with an output map (a sensor offset of 2 um and a gain error of 5 %)."""
+    return model.with_output_map(offset=2e-6, gain=1.05) if mapped else model
+
+
+def pi_of(mpi):
+    """A PI model (no constant term of its own) on MPI's thresholds."""
+    return ph.PI(mpi.thresholds, np.abs(mpi.weights) + 1e-3, p0=0.05)
+
+
+@pytest.mark.parametrize(("family", "mapped"), [("mpi", False), ("mpi", True), ("pi", True)])
+def test_exported_model_example_runs(tmp_path, capsys, mpi, c_library, family, mapped):
+    mpi = with_map(mpi if family == "mpi" else pi_of(mpi), mapped)
     mpath = tmp_path / "mpi.json"
     mpi.save(mpath)
     out = tmp_path / "c"
@@ -313,10 +325,28 @@ def test_exported_model_example_runs(tmp_path, capsys, mpi, c_library):
     y = mpi.simulate(v)
     assert np.array_equal(rows[:, 2], y)
     assert np.array_equal(rows[:, 3], mpi.inverse().simulate(y))
+    header = (out / "piezohyst_model.h").read_text()
+    offset, gain = mpi.output_map.offset, mpi.output_map.gain
+    assert f"#define PIEZOHYST_MODEL_OUTPUT_OFFSET {float(offset).hex()}" in header
+    assert f"#define PIEZOHYST_MODEL_OUTPUT_GAIN {float(gain).hex()}" in header
+    # the parameter row is the family's, map or not (the C ABI)
+    assert np.array_equal(
+        parse_c_array((out / "piezohyst_model.c").read_text(), "piezohyst_model_params"), mpi.to_row()
+    )
 
 
-@pytest.mark.parametrize("name", ["smc_cemf_super_twisting", "pid_mpi_ilc", "absmc_mpi"])
-def test_exported_controller_example_matches_python(tmp_path, stage, mpi, c_library, name):
+@pytest.mark.parametrize(
+    ("name", "mapped"),
+    [
+        ("smc_cemf_super_twisting", False),
+        ("pid_mpi_ilc", False),
+        ("absmc_mpi", False),
+        ("pid_mpi_ilc", True),
+        ("absmc_mpi", True),
+    ],
+)
+def test_exported_controller_example_matches_python(tmp_path, stage, mpi, c_library, name, mapped):
+    mpi = with_map(mpi, mapped)
     c = controllers(stage, mpi)[name]
     mpath = tmp_path / "mpi.json"
     mpi.save(mpath)
@@ -331,10 +361,13 @@ def test_exported_controller_example_matches_python(tmp_path, stage, mpi, c_libr
     rows = np.array([[float(x) for x in line.split()] for line in trace])
     # the same loop in Python: the plant is the model, read one sample late
     loaded = load_controller(cpath)
-    plan = example_plan(mpi, loaded, steps=900)
+    # behind an inverse the controller and the exported model use the row that holds the map
+    plain = mpi.mapped_row()
+    assert mapped == (plain is not mpi)
+    plan = example_plan(plain, loaded, steps=900)
     spec = loaded.core(stage)
-    fam, dims, row = mpi.family, list(mpi.dims), mpi.to_row()
-    plant = mpi.initial_state()
+    fam, dims, row = plain.family, list(plain.dims), plain.to_row()
+    plant = plain.initial_state()
     position = float(_core.simulate(fam, dims, row, np.zeros(1), plant)[0])
     state = _core.controller_initial_state(spec, position)
     period, lo, hi, ts = plan["period"], plan["x_lo"], plan["x_hi"], plan["ts"]

@@ -29,7 +29,16 @@ FloatArray = npt.NDArray[np.float64]
 _Range = tuple[int | None, int | None]
 
 
-class _Columns(TypedDict, total=False):
+class _RecordOptions(TypedDict, total=False):
+    """The unit and time-tolerance options of a record file (:func:`_add_record_options`)."""
+
+    time_unit: str | None
+    input_unit: str | None
+    output_unit: str | None
+    time_rtol: float
+
+
+class _Columns(_RecordOptions, total=False):
     """The column options of a record file, as :func:`~piezohyst.signals.data.load_record` takes them."""
 
     input: str | int | None
@@ -53,10 +62,73 @@ class _Fail(ParameterError):
 
 _FORMATS = (
     "DATA formats: delimited text (.csv .tsv .txt .dat .asc; comma, tab, semicolon or whitespace\n"
-    "separated; with or without a header line), NumPy .npz/.npy, MATLAB .mat (v4-v7; v7.3 with h5py),\n"
-    "HDF5 (.h5 .hdf5 .he5, with h5py). A column COL is a name (header name, NPZ key, MATLAB variable or\n"
-    "'s.field', HDF5 dataset path) or a 0-based index, an integer ('column 5' of a data README is 4)."
+    "separated, decimal point or comma, with or without a header line, # % ; comment lines),\n"
+    "Parquet (.parquet .pq), NumPy .npz/.npy, MATLAB .mat (v4-v7; v7.3 with h5py), HDF5 (.h5 .hdf5\n"
+    ".he5, with h5py). A column COL is a name (header name, NPZ key, MATLAB variable or 's.field',\n"
+    "HDF5 dataset path) or a 0-based index, an integer ('column 5' of a data README is 4). Units\n"
+    "annotated in a column name ('t [ms]', 'x (um)', 'disp_um') or given by --time-unit,\n"
+    "--input-unit, --output-unit are converted to SI (s, V, m) on loading; a time column without\n"
+    "a unit is in seconds. Arrays larger than PIEZOHYST_MAX_ARRAY_BYTES (default 1 GiB) are refused."
 )
+
+#: The CLI's default tolerance of a time column: rounded or jittered stamps within 5 % of a step.
+TIME_TOLERANCE = 0.05
+
+
+def _add_record_options(p: argparse.ArgumentParser, output: bool = True) -> None:
+    """The unit and time-tolerance options of a record file (after --time / --dataset)."""
+    p.add_argument(
+        "--time-unit",
+        metavar="UNIT",
+        help="unit of the --time column: s, ms, us, ns, min (default: a unit in the column name, else s)",
+    )
+    p.add_argument(
+        "--input-unit",
+        metavar="UNIT",
+        help="unit of the input column, converted to SI: V, mV, kV, ... (default: a unit in the column name)",
+    )
+    if output:
+        p.add_argument(
+            "--output-unit",
+            metavar="UNIT",
+            help="unit of the output column, converted to SI: m, mm, um, nm, ... (default: a unit in the column name)",
+        )
+    p.add_argument(
+        "--time-tolerance",
+        metavar="REL",
+        type=float,
+        default=TIME_TOLERANCE,
+        help="--time: how far rounded or jittered stamps may stray, relative to a step (default "
+        f"{TIME_TOLERANCE:g}); the rate is a least-squares fit; a step of 1.5 steps or more is a gap (an error)",
+    )
+
+
+def _record_options(args: argparse.Namespace) -> _RecordOptions:
+    """The values of :func:`_add_record_options`' options, as :func:`_load` takes them."""
+    tol = args.time_tolerance
+    if not math.isfinite(tol) or not 0 < tol < 1:
+        raise _Fail(f"--time-tolerance = {tol:g} must be a fraction of a step, 0 < REL < 1")
+    out: _RecordOptions = {"time_unit": args.time_unit, "input_unit": args.input_unit, "time_rtol": tol}
+    if hasattr(args, "output_unit"):
+        out["output_unit"] = args.output_unit
+    return out
+
+
+def _units_report(rec: Record) -> dict[str, dict[str, str | float]]:
+    """The JSON of a record's unit conversions: role -> {from, to, scale, origin}."""
+    return {role: conv.to_dict() for role, conv in rec.units.items()}
+
+
+def _units_line(rec: Record) -> str:
+    """One line of the units read: ``input V, output m (from um, header), time s (from ms)``."""
+    parts = []
+    for role, c in rec.units.items():
+        if not c.si:
+            parts.append(f"{role} as read (no unit given)")
+        else:
+            src = "" if c.source == c.si else f" from {c.source}"
+            parts.append(f"{role} {c.si}{src} ({c.origin})")
+    return ", ".join(parts)
 
 
 def _column_help(role: str, default: str) -> str:
@@ -162,6 +234,7 @@ def _parse_validate(text: str | None) -> tuple[_Range | None, Path | None]:
 
 
 _ROLE = re.compile(r"(?<![\w-])(input|output|time|fs|dataset)(?= = | is not )")
+_UNIT_ROLE = re.compile(r"(?<![\w-])(input|output|time)_unit(?= = )")
 
 
 def _named(e: Exception, prefix: str = "") -> _Fail:
@@ -169,6 +242,7 @@ def _named(e: Exception, prefix: str = "") -> _Fail:
     msg = str(e)
     if isinstance(e, FileNotFoundError) and e.filename is not None and not msg.startswith(str(e.filename)):
         msg = f"{e.filename}: {e.strerror or msg}"
+    msg = _UNIT_ROLE.sub(r"--\1-unit", msg).replace("time_rtol", "--time-tolerance")
     return _Fail(prefix + _ROLE.sub(r"--\1", msg))
 
 

@@ -10,9 +10,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypedDict
 
 from .._io import write_atomic
+from ..errors import ParameterError
 from ..identify.dispatch import KINDS
 from .common import (
     _FORMATS,
+    _add_record_options,
     _check_count,
     _check_fs,
     _column,
@@ -24,7 +26,10 @@ from .common import (
     _parse_validate,
     _Parser,
     _pct,
+    _record_options,
     _resolve_range,
+    _units_line,
+    _units_report,
     _writable,
 )
 
@@ -46,6 +51,13 @@ class _Where(TypedDict):
 
 
 _OPTIMIZERS = ("css", "pso", "mpso", "de", "ls")
+
+
+class _KindsOrAuto(tuple[str, ...]):
+    """``--model``'s choices: the registry's kinds (what the choices list), and ``auto``."""
+
+    def __contains__(self, key: object) -> bool:
+        return key == "auto" or tuple.__contains__(self, key)
 
 
 def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
@@ -77,7 +89,16 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
             '"boucwen-benchmark", with fs and the upsampling factor); it is simulated over DATA from the\n'
             "record's start (at rest, as the benchmark's generator), and --train / --validate ranges of DATA\n"
             "select the samples scored. 'piezohyst simulate' reads neither file.\n\n"
-            "exit status: 0 on success, 2 on bad input (one line on stderr naming the argument)."
+            "validation: a --validate range of DATA is simulated with the model's state carried: the model\n"
+            "runs from the start of --train through the validation range and only that range is scored\n"
+            "(--validate-from rest: from rest, as before; a --validate FILE always starts from rest).\n"
+            "The report gives RMSE and max error (output units and % of range) and the residual's\n"
+            "whiteness (autocorrelation, cross-correlation with the input, Ljung-Box).\n\n"
+            "exit status: 0 on success, 2 on bad input (one line on stderr naming the argument), 3 when the\n"
+            "model was fitted (and written) but is not trustworthy: validation RMSE > 5 % of range, or a\n"
+            "residual far from white (most autocorrelation lags outside the 95 % band with RMSE > 1 %);\n"
+            'a diagnosis on stderr (and under "assessment" in --json) names the likely cause: offset,\n'
+            "drift, delay, swapped columns, sample rate / time unit."
         ),
     )
     i.add_argument("data", metavar="DATA", help="the record file (see the formats above)")
@@ -85,8 +106,12 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         "--model",
         metavar="KIND",
         required=True,
-        choices=_KINDS,
-        help=f"model to identify: {', '.join(_KINDS)} (required). pi/gpi/mpi/rdpi/preisach: least "
+        choices=_KindsOrAuto(_KINDS),
+        help=f"model to identify: {', '.join(_KINDS)} (required). Or auto: it fits pi, gpi, mpi, rdpi, "
+        "preisach and boucwen (the PI family with and without --creep 2), ranks them by validation "
+        "error (state carried) and saves the winner: the simplest model within one standard error "
+        "of the best (without --validate: by BIC on the training range); the league table is printed "
+        'and put under "league" in --json. pi/gpi/mpi/rdpi/preisach: least '
         "squares over the linear parameters with a default structure; boucwen: population "
         "optimizer over all parameters; cemf: seed 1's grey-box stage model (input = voltage "
         "across the stack in V, output = displacement), population optimizer (default css) then "
@@ -107,13 +132,17 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     g = i.add_mutually_exclusive_group()
     g.add_argument("--fs", metavar="HZ", type=float, help="sample rate in Hz (> 0); this or --time is required")
     g.add_argument(
-        "--time", metavar="COL", help="time column in seconds (strictly increasing and uniform; gives the sample rate)"
+        "--time",
+        metavar="COL",
+        help="time column (strictly increasing, uniform within --time-tolerance; gives the sample rate); "
+        "seconds unless its name ('t [ms]') or --time-unit says otherwise",
     )
     i.add_argument(
         "--dataset",
         metavar="NAME",
         help="NPZ/MAT/HDF5: a 2-D matrix (rows = samples) whose columns integer COLs address",
     )
+    _add_record_options(i)
     i.add_argument(
         "--train",
         metavar="A:B",
@@ -205,6 +234,47 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         "record (JSON preprocessing.index: processed sample j is row start + j*step)",
     )
     i.add_argument(
+        "--offset",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="fit the output's offset (a sensor's zero) into the model's output map (default: on for every "
+        "model but cemf and boucwen-benchmark, which have no map); --no-offset: the family's own terms only",
+    )
+    i.add_argument(
+        "--validate-from",
+        choices=("carried", "rest"),
+        default="carried",
+        help="carried (default): a --validate range of DATA is simulated from the start of --train with "
+        "the state carried (across any gap); rest: the validation data simulated from rest",
+    )
+    i.add_argument(
+        "--warmup",
+        metavar="N",
+        type=int,
+        default=0,
+        help="samples at the start of each scored range (train, validation) left out of the score (default 0)",
+    )
+    i.add_argument(
+        "--periodic",
+        metavar="N|auto",
+        help="periodic records: simulate one period (N samples, or auto: estimated from the input) "
+        "before each simulation, so the model starts in its periodic steady state",
+    )
+    i.add_argument(
+        "--loss",
+        choices=("l2", "huber", "linf"),
+        default="l2",
+        help="fit cost: l2 (default, least squares), huber (robust to glitches), linf (minimax: the "
+        "largest error made smallest; a linear program for pi/gpi/mpi/rdpi/preisach, the max-abs "
+        "error for boucwen)",
+    )
+    i.add_argument(
+        "--weights",
+        metavar="FILE|COL",
+        help="sample weights (>= 0) of the linear families' fit: a column of DATA, or a text file "
+        "with one weight per line (one per sample of DATA, or of the --train range)",
+    )
+    i.add_argument(
         "--iterations",
         metavar="N",
         type=int,
@@ -268,7 +338,12 @@ def _identify(args: argparse.Namespace) -> int:
         raise _Fail(f"--plot = '{args.plot}' is the same file as --out")
 
     columns: _Columns = dict(
-        input=_column(args.input), output=_column(args.output), time=_column(args.time), fs=fs, dataset=args.dataset
+        input=_column(args.input),
+        output=_column(args.output),
+        time=_column(args.time),
+        fs=fs,
+        dataset=args.dataset,
+        **_record_options(args),
     )
     if fs is None and args.time is None:
         raise _Fail("the sample rate is unknown: give --fs HZ or --time COL")
@@ -324,10 +399,15 @@ def _identify(args: argparse.Namespace) -> int:
         extra["structure"] = "fit"
     if args.creep:
         extra["creep"] = args.creep
-    res = identify(
-        fit_input,
-        fit_output,
-        model=args.model,
+    honest = _honest_options(args, rec, data, columns, (a, b), None if val_spec is None else (c, d), n)
+    if args.model != "boucwen-benchmark":
+        extra.update(honest.pop("identify"))
+    elif args.warmup or args.periodic or args.loss != "l2" or args.weights or args.validate_from != "carried":
+        raise _Fail(
+            "--warmup / --periodic / --loss / --weights / --validate-from do not apply to --model boucwen-benchmark "
+            "(it is simulated from the record's start and scores its ranges)"
+        )
+    common: dict[str, Any] = dict(
         fs=train.fs,
         operators=args.operators,
         levels=args.levels,
@@ -337,8 +417,14 @@ def _identify(args: argparse.Namespace) -> int:
         population_size=args.population,
         validate=validate,
         progress=bool(args.progress or sys.stderr.isatty()),
-        **extra,
+        offset=args.offset,
     )
+    league = None
+    kind = args.model
+    if kind == "auto":
+        kind, res, league = _auto(fit_input, fit_output, common, extra, train.fs)
+    else:
+        res = identify(fit_input, fit_output, model=kind, **common, **extra)
 
     fit = res.to_dict()
     fit["data"] = {
@@ -346,9 +432,26 @@ def _identify(args: argparse.Namespace) -> int:
         "validation": None if val is None else {**val_where, "samples": val.n},
         "columns": dict(rec.columns),
         "fs": rec.fs,
+        "units": _units_report(rec),
     }
+<<<<<<< HEAD
     fit["preprocessing"] = preprocessing
     doc = _model_document(res, args.model, train.fs)
+=======
+    output_map = getattr(res.model, "output_map", None)  # cemf, boucwen-benchmark: none
+    fit["output_map"] = None if output_map is None else output_map.to_dict()
+    doc = _model_document(res, kind, train.fs)
+    if isinstance(doc.get("units"), dict):  # the model's signals are in the record's (SI) units
+        doc["units"] = {
+            **{k: v for k, v in rec.si_units().items() if v},
+            **{k: v for k, v in doc["units"].items() if v},
+        }
+    assessment = getattr(res, "assessment", None)
+    if assessment is not None:
+        fit["assessment"] = {**assessment, "note": honest["note"]} if honest["note"] else assessment
+    if league is not None:
+        fit["league"] = league
+>>>>>>> main
     if res.partial:
         doc["partial"] = True  # Ctrl-C stopped the optimizer: the best model found before it
     doc["fit"] = fit
@@ -360,7 +463,18 @@ def _identify(args: argparse.Namespace) -> int:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
-        fig = res.plot(train.input, train.output)
+        if val_spec is not None and args.validate_from == "carried" and c >= a and kind != "boucwen-benchmark":
+            from ..identify.validation import plot_validation
+
+            fig = plot_validation(
+                res.simulate,
+                rec.input[a:d],
+                rec.output[a:d],
+                {"train": (0, b - a), "validation": (c - a, d - a)},
+                periodic=assessment["periodic"] if assessment else None,
+            )
+        else:
+            fig = res.plot(train.input, train.output)
         try:
             write_atomic(
                 plot, writer=lambda tmp: fig.savefig(tmp, format="png", dpi=110), overwrite=args.force, name="--plot"
@@ -369,10 +483,14 @@ def _identify(args: argparse.Namespace) -> int:
             plt.close(fig)
 
     if args.json:
-        report = {"out": str(out), "plot": None if plot is None else str(plot), "model": doc["kind"], **fit}
+        named = doc["kind"] if kind == "cemf" else kind  # the kind fitted (mpi, not its file's gpi)
+        report = {"out": str(out), "plot": None if plot is None else str(plot), "model": named, **fit}
+        report["file_kind"] = doc["kind"]
         print(json.dumps(report, indent=2, allow_nan=False))
     else:
-        print(f"{args.model} identified by {res.method} in {res.wall_time:.3g} s -> {out}")
+        if league is not None:
+            _print_league(league)
+        print(f"{kind} identified by {res.method} in {res.wall_time:.3g} s -> {out}")
         rows = [("train", res.train, f"{data.name}[{a}:{b}], {b - a} samples")]
         if res.validation is not None:
             assert val is not None  # validation metrics are those of val
@@ -384,9 +502,15 @@ def _identify(args: argparse.Namespace) -> int:
                     f"{val_where['range'][1]}], {val.n} samples",
                 )
             )
-        print(f"  {'':<11} {'RMSE (% of range)':>18} {'max error (%)':>14}")
+        print(f"  {'':<11} {'RMSE (% of range)':>18} {'max error (%)':>14} {'RMSE':>11} {'max error':>11}")
         for name, m, where in rows:
-            print(f"  {name:<11} {_pct(m['rmse_percent']):>18} {_pct(m['max_error_percent']):>14}   ({where})")
+            print(
+                f"  {name:<11} {_pct(m['rmse_percent']):>18} {_pct(m['max_error_percent']):>14} "
+                f"{m['rmse']:>11.4g} {m['max_error']:>11.4g}   ({where})"
+            )
+        print(f"  units: {_units_line(rec)}")
+        if assessment:
+            _print_whiteness(assessment)
         if plot is not None:
             print(f"  figure: {plot}")
     if res.partial:
@@ -395,6 +519,9 @@ def _identify(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 130
+    if assessment and not assessment["trusted"]:
+        _print_distrust(assessment)
+        return 3
     return 0
 
 
@@ -426,6 +553,7 @@ def _model_document(res: IdentificationResult, kind: str, fs: float) -> dict[str
     return res.model.to_dict()
 
 
+<<<<<<< HEAD
 def _preprocess(
     args: argparse.Namespace, rec: Record, train: _Range | None, validate: _Range | None
 ) -> tuple[Record, dict[str, Any], _Range | None, _Range | None]:
@@ -541,3 +669,145 @@ def _summary(report: dict[str, Any]) -> str:
         d = report["decimate"]
         parts.append(f"decimated by {d['factor']} to {d['fs_out']:g} Hz")
     return "; ".join(parts)
+=======
+def _honest_options(
+    args: argparse.Namespace,
+    rec: Record,
+    data: Path,
+    columns: _Columns,
+    train: tuple[int, int],
+    val: tuple[int, int] | None,
+    n: int,
+) -> dict[str, Any]:
+    """The validation and loss options of ``identify`` from the flags: ``{"identify": keywords,
+    "note": what the report should say of how the validation was simulated}``."""
+    import numpy as np
+
+    a, b = train
+    kw: dict[str, Any] = {"validate_from": args.validate_from}
+    note = None
+    if args.warmup < 0:
+        raise _Fail(f"--warmup = {args.warmup} must be >= 0")
+    kw["warmup"] = args.warmup
+    if args.periodic is not None:
+        if args.periodic == "auto":
+            kw["periodic"] = "auto"
+        else:
+            try:
+                kw["periodic"] = int(args.periodic)
+            except ValueError:
+                raise _Fail(f"--periodic = '{args.periodic}' must be a period in samples (>= 1) or 'auto'") from None
+            if kw["periodic"] < 1:
+                raise _Fail(f"--periodic = '{args.periodic}' must be a period in samples (>= 1) or 'auto'")
+    kw["loss"] = {"l2": "squared"}.get(args.loss, args.loss)
+    if args.validate_from == "carried" and args.validate is not None:
+        if val is None:
+            kw["validate_from"] = "rest"
+            note = "the validation file is another record: simulated from rest"
+        elif val[0] < a:
+            kw["validate_from"] = "rest"
+            note = "the validation range precedes the training range: simulated from rest"
+        else:
+            kw["gap"] = rec.input[b : val[0]]
+    if args.weights is not None:
+        if Path(args.weights).is_file():
+            try:
+                w = np.loadtxt(args.weights, dtype=np.float64, ndmin=1)
+            except ValueError as e:
+                raise _Fail(f"--weights = '{args.weights}' is not a file of numbers, one per line: {e}") from None
+            if w.ndim != 1 or w.size not in (n, b - a):
+                raise _Fail(
+                    f"--weights = '{args.weights}' holds {w.size} values; expected one per sample of DATA ({n}) "
+                    f"or of the --train range ({b - a})"
+                )
+            kw["weights"] = w[a:b] if w.size == n and n != b - a else w
+        else:
+            wcols: _Columns = {**columns, "output": _column(args.weights)}
+            try:
+                wrec = _load(data, **wcols)
+            except ParameterError as e:
+                raise _Fail(f"--weights = '{args.weights}' is neither a file nor a column of DATA ({e})") from None
+            kw["weights"] = wrec.output[a:b]
+    return {"identify": kw, "note": note}
+
+
+#: ``--model auto``'s candidates: (kind, creep lags).
+_AUTO = (
+    ("pi", 0),
+    ("pi", 2),
+    ("gpi", 0),
+    ("gpi", 2),
+    ("mpi", 0),
+    ("mpi", 2),
+    ("rdpi", 0),
+    ("rdpi", 2),
+    ("preisach", 0),
+    ("boucwen", 0),
+)
+
+
+def _auto(
+    v: FloatArray, y: FloatArray, common: dict[str, Any], extra: dict[str, Any], fs: float
+) -> tuple[str, IdentificationResult, list[dict[str, Any]]]:
+    """``--model auto``: every candidate fitted, the league ranked, the winner's result."""
+    from ..identify.dispatch import identify
+    from ..identify.validation import league_table
+
+    if extra.get("structure") == "fit" or extra.get("creep"):
+        raise _Fail("--model auto chooses the structure and the creep itself: drop --structure fit / --creep")
+    results: list[tuple[str, int, IdentificationResult | None, str | None]] = []
+    for kind, creep in _AUTO:
+        kw = dict(extra)
+        if kind in ("boucwen",) and "weights" in kw:
+            results.append((kind, creep, None, "--weights apply to the linear families"))
+            continue
+        if creep:
+            kw["creep"] = creep
+        try:
+            fitted = identify(v, y, model=kind, **{**common, "progress": False}, diagnosis=False, **kw)
+            results.append((kind, creep, fitted, None))
+        except ParameterError as e:
+            results.append((kind, creep, None, str(e)))
+    table, best = league_table(results, v.size)
+    kind, creep, res, _ = results[best]
+    assert res is not None  # league_table picks a fitted one
+    if not getattr(res, "assessment", {}).get("trusted", True):  # the winner's diagnosis
+        kw = {**extra, "creep": creep} if creep else dict(extra)
+        res = identify(v, y, model=kind, **{**common, "progress": False}, **kw)
+    return kind, res, table
+
+
+def _print_league(league: list[dict[str, Any]]) -> None:
+    print(f"  {'rank':<5}{'model':<14}{'params':>7}{'train %':>11}{'validation %':>14}  ranked by")
+    for row in league:
+        if row["rank"] is None:
+            print(f"  {'-':<5}{row['name']:<14}{'':>7}{'':>11}{'':>14}  not fitted: {row['error']}")
+            continue
+        mark = "  <- saved" if row["chosen"] else ""
+        val = "-" if row["validation_rmse_percent"] is None else f"{row['validation_rmse_percent']:.4g}"
+        print(
+            f"  {row['rank']:<5}{row['name']:<14}{row['parameters']:>7}{row['train_rmse_percent']:>11.4g}"
+            f"{val:>14}  {row['criterion']}{mark}"
+        )
+
+
+def _print_whiteness(assessment: dict[str, Any]) -> None:
+    w = assessment.get("validation") or assessment.get("train")
+    if not w:
+        return
+    print(
+        f"  residual ({assessment['scored']}): "
+        f"{100 * w['autocorrelation_outside']:.0f} % of {w['lags']} autocorrelation lags and "
+        f"{100 * w['cross_correlation_outside']:.0f} % of input cross-correlation lags outside the 95 % band, "
+        f"Ljung-Box Q = {w['ljung_box']:.4g} (p = {w['ljung_box_p']:.2g})"
+    )
+
+
+def _print_distrust(assessment: dict[str, Any]) -> None:
+    print(f"piezohyst identify: fitted, not trustworthy: {'; '.join(assessment['reasons'])}", file=sys.stderr)
+    causes = assessment.get("diagnosis") or []
+    if not causes:
+        print("  likely cause: none of offset, drift, delay, swapped columns, sample rate found", file=sys.stderr)
+    for cause in causes:
+        print(f"  likely cause: {cause['cause']}: {cause['evidence']}", file=sys.stderr)
+>>>>>>> main

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 from .._io import write_atomic
 from .common import (
     _FORMATS,
+    _add_record_options,
     _check_fs,
     _column,
     _column_help,
@@ -25,12 +26,13 @@ from .common import (
     _Parser,
     _pct,
     _read_model,
+    _record_options,
     _writable,
 )
 
 if TYPE_CHECKING:
     from ..models.model import HysteresisModel
-    from .common import FloatArray
+    from .common import FloatArray, _RecordOptions
 
 
 def _simulate_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
@@ -82,13 +84,17 @@ def _simulate_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         "time of a model that has one (rdpi, creep). Default: the model's, else no time column",
     )
     g.add_argument(
-        "--time", metavar="COL", help="time column in seconds (strictly increasing, uniform), copied to the CSV"
+        "--time",
+        metavar="COL",
+        help="time column (strictly increasing, uniform), copied to the CSV in seconds; "
+        "its unit from its name ('t [ms]') or --time-unit, else s",
     )
     s.add_argument(
         "--dataset",
         metavar="NAME",
         help="NPZ/MAT/HDF5: a 2-D matrix (rows = samples) whose columns integer COLs address",
     )
+    _add_record_options(s)
     s.add_argument(
         "--rows",
         metavar="A:B",
@@ -128,11 +134,16 @@ def _model_ts(model: HysteresisModel) -> float | None:
 
 
 def _read_input(
-    path: Path, input_spec: str | int | None, time_spec: str | int | None, dataset: str | None
+    path: Path,
+    input_spec: str | int | None,
+    time_spec: str | int | None,
+    dataset: str | None,
+    opts: _RecordOptions | None = None,
 ) -> tuple[FloatArray, FloatArray | None, float | None, dict[str, str]]:
     """The input column (and the time column when given) of a record file: what
     :func:`~piezohyst.data.load_record` reads, without requiring an output column."""
     from ..signals import data as D
+    from ..signals.units import conversion_for
 
     suffix = path.suffix.lower()
     if dataset is not None and not dataset.strip():
@@ -150,6 +161,8 @@ def _read_input(
         opener = functools.partial(D.open_mat, path, dataset)
     elif suffix in D.HDF5_SUFFIXES:
         opener = functools.partial(D.open_hdf5, path, dataset)
+    elif suffix in D.PARQUET_SUFFIXES:
+        opener = functools.partial(D.open_parquet, path, dataset)
     else:
         raise _Fail(
             f"INPUT = '{path}': unsupported file extension {path.suffix!r}; supported: {' '.join(D.SUPPORTED_SUFFIXES)}"
@@ -179,6 +192,10 @@ def _read_input(
                 raise _Fail(f"{table.source}: --input and --time are the same column {key[1]!r}")
             v = table.read("input", *key)
             t = None if t_key is None else table.read("time", *t_key)
+            o = opts or {}
+            v = v * conversion_for("input", key[1], o.get("input_unit")).scale  # units -> SI
+            if t is not None and t_key is not None:
+                t = t * conversion_for("time", t_key[1], o.get("time_unit")).scale
         finally:
             table.close()
         if t is not None:
@@ -189,7 +206,8 @@ def _read_input(
                     f"{v.size}: lengths must match"
                 )
             try:
-                fs = D.fs_from_time(t, "time", D.TIME_RTOL) if t.size >= 2 else None
+                rtol = (opts or {}).get("time_rtol", D.TIME_RTOL)
+                fs = D.fs_from_time(t, "time", rtol) if t.size >= 2 else None
             except ValueError as e:
                 raise _Fail(f"{table.source}: {e}") from None
         else:
@@ -217,6 +235,7 @@ def _simulate(args: argparse.Namespace) -> None:
     out = None if to_stdout else _writable(args.out, "--out", args.force)
     model = _read_model(model_path)
 
+    opts = _record_options(args)
     measured = None
     if args.output is not None:
         rec = _load(
@@ -226,11 +245,12 @@ def _simulate(args: argparse.Namespace) -> None:
             time=_column(args.time),
             fs=fs if fs is not None or args.time is not None else 1.0,
             dataset=args.dataset,
+            **opts,
         )
         v, t, measured, columns = rec.input, rec.time, rec.output, rec.columns
         fs_data = rec.fs if (fs is not None or t is not None) else None
     else:
-        v, t, fs_time, columns = _read_input(input_path, _column(args.input), _column(args.time), args.dataset)
+        v, t, fs_time, columns = _read_input(input_path, _column(args.input), _column(args.time), args.dataset, opts)
         fs_data = fs if fs is not None else fs_time
     n_all = v.size
     a, b = _parse_range(args.rows, "--rows") if args.rows else (None, None)

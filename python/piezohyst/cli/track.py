@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -15,6 +16,7 @@ from .common import (
 
 if TYPE_CHECKING:
     from ..models.model import HysteresisModel
+    from ..plant.stage import Stage
 
 _CONTROLLERS = ("open-loop", "pid", "inverse", "smc", "smc-cemf", "absmc")
 
@@ -39,7 +41,9 @@ def _track_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
             "examples:\n"
             "  piezohyst track --controller smc-cemf --reference triangle --freq 5 --amp 5 --offset 7\n"
             "  piezohyst track --controller absmc --reference sine --freq 80 --amp 8 --offset 9 --json\n\n"
-            "exit status: 0 on success, 2 on bad input (one line on stderr naming the argument)."
+            "exit status: 0 on success, 2 on bad input (one line on stderr naming the argument), 3 when\n"
+            "--model looks like a model of another actuator: over the amplifier's voltage range its output\n"
+            "span is off the stage's by more than 3x, or its output unit is not m (the run is still made)."
         ),
     )
     t.add_argument("--stage", metavar="FILE", help="stage file (JSON; default: the built-in virtual stage)")
@@ -61,7 +65,7 @@ def _track_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
 _TRACK_MAX_SAMPLES = 10_000_000
 
 
-def _track(args: argparse.Namespace) -> None:
+def _track(args: argparse.Namespace) -> int:
     import numpy as np
 
     from ..control.controllers import ABSMC, PID, SMC, Compensated, InverseFeedforward, OpenLoop, VelocityObserver
@@ -119,6 +123,7 @@ def _track(args: argparse.Namespace) -> None:
         c = InverseFeedforward(hysteresis_model(), c1=stage.sample_time)
     else:
         c = Compensated(ABSMC.linearized(2000.0, 0.7, c1=2e3, lam=2e3, ks=5e3, gamma_d=1e4), hysteresis_model())
+    foreign = _foreign_model(args.model, stage) if args.model and kind in ("inverse", "absmc") else None
     res = track(c, ref, stage=stage, rng=args.seed, skip=args.skip)
     m = res.metrics
     if args.plot:
@@ -128,10 +133,11 @@ def _track(args: argparse.Namespace) -> None:
         fig = res.plot(zoom=(args.skip, args.skip + min(0.5 / args.freq, args.duration - args.skip)))
         _atomic_savefig(fig, args.plot)
     if args.json:
-        print(
-            json.dumps({"controller": kind, "reference": args.reference, "freq_hz": args.freq, "metrics": m}, indent=2)
-        )
-        return
+        doc = {"controller": kind, "reference": args.reference, "freq_hz": args.freq, "metrics": m}
+        if foreign is not None:
+            doc["model_check"] = foreign
+        print(json.dumps(doc, indent=2))
+        return _distrust(foreign)
     print(
         f"{kind} tracking a {args.freq:g} Hz {args.reference} ({args.amp:g} um around {args.offset:g} um), "
         f"{args.duration:g} s, metrics after {args.skip:g} s"
@@ -140,3 +146,46 @@ def _track(args: argparse.Namespace) -> None:
     print(f"  max error     {m['max_error'] * 1e6:9.4f} um  ({m['max_error_percent']:.3f} % of range)")
     print(f"  normalized    max {m['normalized_max_error']:.4f}, rms {m['normalized_rms_error']:.4f}")
     print(f"  linearity     {m['linearity_error']:9.3f} %")
+    return _distrust(foreign)
+
+
+def _foreign_model(path: str, stage: Stage) -> dict[str, object] | None:
+    """Whether the model file looks like a model of another actuator than ``stage``: its output
+    unit is not m, or over a slow 0 → v_max → 0 V sweep its output span is off the stage's by
+    more than 3x. ``None`` when it fits."""
+    import numpy as np
+
+    from ..models.model import load_model
+
+    model = load_model(path)
+    fs = 1.0 / stage.sample_time
+    n = max(int(0.1 * fs), 50)
+    hi = stage.amplifier.v_max
+    u = np.concatenate([np.linspace(0.0, hi, n), np.linspace(hi, 0.0, n)])
+    span_stage = float(np.ptp(stage.simulate(u).position))
+    span_model = float(np.ptp(model.simulate(u)))
+    ratio = span_model / span_stage if span_stage > 0 else float("inf")
+    unit = model.units.get("output", "")
+    reasons = []
+    if unit and unit != "m":
+        reasons.append(f"its output unit is {unit!r}, the stage's position is in m")
+    if not 1 / 3 <= ratio <= 3:
+        reasons.append(
+            f"over 0..{hi:g} V its output spans {span_model:.4g}, the stage's position {span_stage:.4g} m "
+            f"({ratio:.3g}x)"
+        )
+    if not reasons:
+        return None
+    return {"foreign": True, "ratio": ratio, "reasons": reasons}
+
+
+def _distrust(foreign: dict[str, object] | None) -> int:
+    if foreign is None:
+        return 0
+    reasons = foreign["reasons"]
+    assert isinstance(reasons, list)
+    print(
+        "piezohyst track: not trustworthy: --model looks like a model of another actuator: " + "; ".join(reasons),
+        file=sys.stderr,
+    )
+    return 3

@@ -494,10 +494,11 @@ class Compensated:
         return bool(getattr(self.inner, "uses_reference_derivatives", True))
 
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
-        model = _hysteresis_model(self.model)
         if isinstance(self.inner, (Compensated, InverseFeedforward)):
             raise ParameterTypeError("inner must not itself be compensated")
         v_lo, v_hi = _limits(None, None, stage) if limits is None else limits
+        # the core inverts a bare parameter row: the model's output map goes into it
+        model = _hysteresis_model(self.model).mapped_row((v_lo, v_hi))
         y_lo, y_hi = _model_output_range(model, v_lo, v_hi)
         if not y_hi > y_lo:
             raise ParameterError(f"the model's output range [{y_lo:.4g}, {y_hi:.4g}] at the amplifier limits is empty")

@@ -271,6 +271,7 @@ def fit_linear(
     *,
     loss: str = "squared",
     huber_delta: float | None = None,
+    offset: bool = True,
 ) -> FitResult:
     """Fit the linear parameters of ``model`` (its weights, linear term / polynomial, creep
     weights; Preisach offset, slope and cell weights) to a record, keeping its structure.
@@ -291,6 +292,11 @@ def fit_linear(
     huber_delta : float, optional
         Huber threshold in the output's unit; by default :func:`default_huber_delta` of the
         current residuals, re-estimated at each iteration.
+    offset : bool
+        Fit an output offset (a sensor's zero): one more least-squares column, a constant,
+        whose coefficient becomes ``model.output_map.offset``. Families with a constant term
+        of their own (the GPI polynomial's ``c0``, the Preisach ``offset``) fit it there and
+        get no second one. ``False``: no column is added (the fit of earlier versions).
 
     Examples
     --------
@@ -313,17 +319,23 @@ def fit_linear(
     t0 = time.perf_counter()
     name, delta = _check_loss(loss, huber_delta)
     v = as_record(input, "input", min_length=2)
-    return _fit_output(model, v, output, name, delta, t0)
+    return _fit_output(model, v, output, name, delta, t0, offset)
 
 
 def _fit_output(
-    model: LinearModel, v: FloatArray, output: npt.ArrayLike, loss: str, delta: float | None, t0: float
+    model: LinearModel,
+    v: FloatArray,
+    output: npt.ArrayLike,
+    loss: str,
+    delta: float | None,
+    t0: float,
+    offset: bool = True,
 ) -> FitResult:
     """:func:`fit_linear` from a validated input and checked loss: validates ``output``."""
     y = as_record(output, "output", min_length=2)
     if y.size != v.size:
         raise ParameterError(f"output has {y.size} samples, input has {v.size}; they must match")
-    return _fit_linear(model, v, y, loss, delta, t0)
+    return _fit_linear(model, v, y, loss, delta, t0, bool(offset))
 
 
 def _bvls(A: FloatArray, y: FloatArray, bounds: tuple[FloatArray, FloatArray]) -> FloatArray:
@@ -334,13 +346,44 @@ def _bvls(A: FloatArray, y: FloatArray, bounds: tuple[FloatArray, FloatArray]) -
     return x
 
 
+def _has_constant(A: FloatArray) -> bool:
+    """Whether a regressor matrix already has a constant non-zero column (the GPI polynomial's
+    ``c0``, the Preisach ``offset``): the family then fits an output offset of its own."""
+    return bool(np.any(np.all(A == A[:1], axis=0) & (A[0] != 0.0)))
+
+
+def _design(
+    model: LinearModel, v: FloatArray, offset: bool
+) -> tuple[FloatArray, FloatArray, FloatArray, Callable[[FloatArray], LinearModel]]:
+    """``(A, lb, ub, build)``: the regressors of ``model`` on ``v`` with their bounds, and the
+    map from a solution to a model. With ``offset`` and no constant column in the family's
+    regressors, a column of ones is appended (unbounded) and ``build`` puts its coefficient in
+    the model's output map (``output_map.offset``; the gain stays 1, the weights absorb it).
+    The family's parameter row is unchanged."""
+    lb, ub, build = _layout(model)
+    A = _core.regressors(model.family, list(model.dims), model.to_row(), v)
+    if not offset or _has_constant(A):
+        return A, lb, ub, build
+    A = np.column_stack([A, np.ones(v.size)])
+
+    def build_offset(t: FloatArray) -> LinearModel:
+        return build(t[:-1]).with_output_map(offset=float(t[-1]))
+
+    return A, np.append(lb, -np.inf), np.append(ub, np.inf), build_offset
+
+
 def _fit_linear(
-    model: LinearModel, v: FloatArray, y: FloatArray, loss: str, delta: float | None, t0: float | None = None
+    model: LinearModel,
+    v: FloatArray,
+    y: FloatArray,
+    loss: str,
+    delta: float | None,
+    t0: float | None = None,
+    offset: bool = False,
 ) -> FitResult:
     """:func:`fit_linear` of validated records (equal lengths) with a checked loss."""
     t0 = time.perf_counter() if t0 is None else t0
-    lb, ub, build = _layout(model)
-    A = _core.regressors(model.family, list(model.dims), model.to_row(), v)
+    A, lb, ub, build = _design(model, v, offset)
     scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-300)  # equilibrate the columns
     A = A / scale
     bounds = (lb * scale, ub * scale)
@@ -404,16 +447,17 @@ def identify_pi(
     creep: Creep | None = None,
     loss: str = "squared",
     huber_delta: float | None = None,
+    offset: bool = True,
 ) -> FitResult:
     """Classical PI with ``operators`` thresholds spread over half the input range (or the
     given ones), weights and linear term by non-negative least squares (``loss``,
-    ``huber_delta``: see :func:`fit_linear`)."""
+    ``huber_delta``, ``offset``: see :func:`fit_linear`)."""
     t0 = time.perf_counter()
     v = as_record(input, "input", min_length=2)
     r = _default_thresholds(v, as_int(operators, "operators", minimum=1)) if thresholds is None else thresholds
     model = PI(r, np.zeros(len(r)), 1.0, creep=creep)
     name, delta = _check_loss(loss, huber_delta)
-    return _fit_output(model, v, output, name, delta, t0)
+    return _fit_output(model, v, output, name, delta, t0, offset)
 
 
 def identify_mpi(
@@ -427,16 +471,17 @@ def identify_mpi(
     creep: Creep | None = None,
     loss: str = "squared",
     huber_delta: float | None = None,
+    offset: bool = True,
 ) -> FitResult:
     """Seed 2's MPI (cubic input polynomial + generalized plays) with the envelopes given
     (identity by default); polynomial and weights by bounded least squares (``loss``,
-    ``huber_delta``: see :func:`fit_linear`)."""
+    ``huber_delta``, ``offset``: see :func:`fit_linear`)."""
     t0 = time.perf_counter()
     v = as_record(input, "input", min_length=2)
     r = _default_thresholds(v, as_int(operators, "operators", minimum=1)) if thresholds is None else thresholds
     model = _mpi_template(v, r, rising, falling, creep)
     name, delta = _check_loss(loss, huber_delta)
-    return _fit_output(model, v, output, name, delta, t0)
+    return _fit_output(model, v, output, name, delta, t0, offset)
 
 
 def _mpi_template(
@@ -457,15 +502,16 @@ def identify_preisach(
     memory: int = 64,
     loss: str = "squared",
     huber_delta: float | None = None,
+    offset: bool = True,
 ) -> FitResult:
     """Discretized Preisach on a ``levels x levels`` grid over the input range; offset, slope
-    and cell weights (non-negative) by least squares (``loss``, ``huber_delta``: see
+    and cell weights (non-negative) by least squares (``loss``, ``huber_delta``, ``offset``: see
     :func:`fit_linear`)."""
     t0 = time.perf_counter()
     v = as_record(input, "input", min_length=2)
     model = _preisach_template(v, levels, input_range, memory)
     name, delta = _check_loss(loss, huber_delta)
-    return _fit_output(model, v, output, name, delta, t0)
+    return _fit_output(model, v, output, name, delta, t0, offset)
 
 
 def _preisach_template(v: FloatArray, levels: int, input_range: tuple[float, float] | None, memory: int) -> Preisach:

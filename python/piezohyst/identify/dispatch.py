@@ -40,6 +40,16 @@ from .core import (
     identify_cemf,
     minimize_huber,
 )
+from .losses import check_weights, fit_linear_weighted
+from .validation import (
+    VALIDATE_FROM,
+    ValidatedResult,
+    diagnose,
+    estimate_period,
+    residual_whiteness,
+    scored_metrics,
+    trust,
+)
 from .varpro import identify_vp
 
 __all__ = ["KINDS", "STRUCTURES", "identify"]
@@ -47,6 +57,9 @@ __all__ = ["KINDS", "STRUCTURES", "identify"]
 #: ``structure`` values of :func:`identify`: the default structure, or identified with it by
 #: variable projection.
 STRUCTURES = ("fixed", "fit")
+
+#: Kinds whose fitted model has no output map (not a :class:`~piezohyst.HysteresisModel`).
+_NO_OUTPUT_MAP = ("cemf", "boucwen-benchmark")
 
 #: Keywords :func:`identify` passes on to :func:`piezohyst.varpro.identify_vp`.
 _VP_OPTIONS = ("envelope", "bounds", "polish", "starts")
@@ -73,6 +86,8 @@ class _Call:
     search: dict[str, Any]
     options: dict[str, Any]
     t0: float
+    offset: bool = True
+    weights: FloatArray | None = None
 
 
 @dataclass(frozen=True)
@@ -127,6 +142,13 @@ def identify(
     callback: Callback | None = None,
     loss: str = "squared",
     huber_delta: float | None = None,
+    offset: bool | None = None,
+    validate_from: str | None = None,
+    gap: npt.ArrayLike | None = None,
+    warmup: int = 0,
+    periodic: int | str | None = None,
+    weights: npt.ArrayLike | None = None,
+    diagnosis: bool = True,
     **options: Any,
 ) -> IdentificationResult:
     """Identify a hysteresis model from an input/output record (free-run simulation error).
@@ -182,7 +204,10 @@ def identify(
         A held-out record ``(input, output)``; its metrics are reported, it is not fitted.
         ``boucwen-benchmark`` also takes ``(input, output, (start, stop))``: the whole record
         simulated from rest and scored on samples ``start:stop`` (the oscillator's memory is long).
-    loss : {"squared", "huber"}
+    loss : {"squared", "huber", "linf"}
+        ``"linf"``: the minimax fit (the largest error made smallest) — a linear program
+        (:func:`scipy.optimize.linprog`) for the linear families (fixed structure), the
+        max-abs error of the free run as the population optimizer's cost for ``boucwen``.
         ``"squared"``: the RMSE of the free-run simulation. ``"huber"``: the robust Huber
         cost, for records with glitches — iteratively reweighted least squares for the
         linear families (:func:`fit_linear`), :func:`huber_cost` of the simulated residuals
@@ -191,6 +216,41 @@ def identify(
     huber_delta : float, optional
         Huber threshold in the output's unit; by default 1.345 times the MAD-based robust
         sigma of the residuals (:func:`default_huber_delta`).
+    offset : bool, optional
+        Fit an output offset (the sensor's zero), stored in the model's output map
+        (``model.output_map.offset``; :class:`~piezohyst.OutputMap`). Linear families: one
+        more least-squares column (GPI/MPI and Preisach fit it in their own constant term,
+        ``c0`` / ``offset``, and get no second one); ``boucwen``: projected out of every
+        candidate's cost (the best offset of its simulated output, in closed form). A gain
+        error needs no map gain: the weights (Bouc–Wen: ``a`` and ``d``) absorb it. ``None``
+        (default): ``True`` for every kind whose model has an output map, i.e. all but
+        ``cemf`` and ``boucwen-benchmark`` (whose simulations start at rest at zero).
+        ``False``: no offset beyond the family's own (the fit of earlier versions).
+    validate_from : {"carried", "rest"}, optional
+        How the validation record is simulated; by default ``"carried"`` when ``gap`` is given
+        (the caller says where the validation sits), else ``"rest"`` (a record of another run,
+        the former behaviour). ``"carried"``: it is taken to follow
+        the training record (after the input ``gap``, if given): the model runs from the
+        training record's start through the validation record and only the validation record
+        is scored, so the validation starts from the state the training left (a record of
+        another run has no such state: use ``"rest"``). ``"rest"``: simulated from the model's
+        rest state.
+    gap : array_like, optional
+        ``validate_from="carried"``: the input between the training record's end and the
+        validation record's start (simulated, not scored).
+    warmup : int
+        Samples at the start of each scored record (training, validation) left out of the
+        metrics (the model's initial transient).
+    periodic : int or "auto", optional
+        For periodic records: the period in samples (``"auto"``: estimated from the input's
+        autocorrelation); one period of the input is simulated before each simulation so it
+        starts in the periodic steady state.
+    weights : array_like, optional
+        Sample weights (``>= 0``, one per training sample) of the linear families' fit
+        (weighted least squares / Huber; ``max w |r|`` for ``"linf"``).
+    diagnosis : bool
+        When the fit is not trustworthy (:func:`~piezohyst.identify.validation.trust`), refit
+        to name the likely cause (:func:`~piezohyst.identify.validation.diagnose`).
     **options
         Further keywords of :func:`identify_cemf` or of
         :func:`~piezohyst.boucwen_benchmark.identify_boucwen_benchmark` (e.g. ``bounds``,
@@ -199,8 +259,11 @@ def identify(
 
     Returns
     -------
-    IdentificationResult
-        ``method`` names the optimizer, with ``+huber`` for the Huber loss.
+    ValidatedResult
+        An :class:`IdentificationResult` (``method`` names the optimizer, with ``+huber`` for
+        the Huber loss, ``+linf`` for the minimax one) whose ``assessment`` holds how the
+        spans were scored, the residuals' whiteness, the trust verdict and, when not trusted,
+        the diagnosis (``boucwen-benchmark``: none, it scores its own ranges).
 
     Examples
     --------
@@ -212,16 +275,116 @@ def identify(
     >>> y[::100] += 0.5                                   # glitches on 1 % of the samples
     >>> fits = {loss: identify(v, y, "pi", operators=4, loss=loss) for loss in ("squared", "huber")}
     >>> {k: round(float(np.sqrt(np.mean((f.model.simulate(v) - truth.simulate(v)) ** 2))), 4) for k, f in fits.items()}
-    {'squared': 0.005, 'huber': 0.0}
+    {'squared': 0.0052, 'huber': 0.0}
     """
     t0 = time.perf_counter()
     if model not in KINDS:
         raise ParameterError(f"model = {model!r} is unknown; expected one of {list(KINDS)}")
-    loss, delta = _check_loss(loss, huber_delta)
+    if loss == "linf":
+        if huber_delta is not None:
+            raise ParameterError(f"huber_delta = {huber_delta!r} is only used with loss = 'huber', got loss = 'linf'")
+        delta = None
+        if structure == "fit" or model in ("cemf", "boucwen-benchmark"):
+            raise ParameterError(
+                f"loss = 'linf' applies to the fixed-structure linear families and boucwen, not to model = "
+                f"{model!r}{' with structure = fit' if structure == 'fit' else ''}"
+            )
+    else:
+        loss, delta = _check_loss(loss, huber_delta)
+    if validate_from is None:
+        validate_from = "rest" if gap is None else "carried"
+    if validate_from not in VALIDATE_FROM:
+        raise ParameterError(f"validate_from = {validate_from!r} is unknown; expected one of {list(VALIDATE_FROM)}")
+    w = None
+    if weights is not None:
+        if structure == "fit" or model not in ("pi", "gpi", "mpi", "rdpi", "preisach"):
+            raise ParameterError(
+                f"weights apply to the fixed-structure linear families (pi, gpi, mpi, rdpi, preisach), not to "
+                f"model = {model!r}{' with structure = fit' if structure == 'fit' else ''}"
+            )
+        w = check_weights(weights, np.size(input))
+    res = _identify(
+        input,
+        output,
+        model,
+        fs,
+        operators,
+        levels,
+        structure,
+        creep,
+        optimizer,
+        rng,
+        max_iterations,
+        population_size,
+        validate,
+        progress,
+        callback,
+        loss,
+        delta,
+        w,
+        offset,
+        t0,
+        options,
+    )
+    if model == "boucwen-benchmark":
+        return res
+    return _assess(
+        res,
+        input,
+        output,
+        validate,
+        validate_from,
+        gap,
+        warmup,
+        periodic,
+        fs,
+        diagnosis,
+        model,
+        dict(
+            operators=operators,
+            levels=levels,
+            creep=creep,
+            validate_from=validate_from,
+            warmup=warmup,
+            periodic=periodic,
+        ),
+    )
+
+
+def _identify(
+    input: npt.ArrayLike,
+    output: npt.ArrayLike,
+    model: str,
+    fs: float | None,
+    operators: int,
+    levels: int,
+    structure: str,
+    creep: int,
+    optimizer: str,
+    rng: RngLike,
+    max_iterations: int | None,
+    population_size: int | None,
+    validate: HeldOut | None,
+    progress: bool,
+    callback: Callback | None,
+    loss: str,
+    delta: float | None,
+    weights: FloatArray | None,
+    offset: bool | None,
+    t0: float,
+    options: dict[str, Any],
+) -> IdentificationResult:
+    """The kind's fit (:func:`identify` once its own arguments are checked)."""
     if structure not in STRUCTURES:
         raise ParameterError(f"structure = {structure!r} is unknown; expected one of {list(STRUCTURES)}")
     creep = as_int(creep, "creep")
     kind = _REGISTRY[model]
+    if offset and model in _NO_OUTPUT_MAP:
+        raise ParameterError(
+            f"offset = {offset!r} applies to models with an output map; model = {model!r} has none "
+            "(give offset = None or False)"
+        )
+    offset = model not in _NO_OUTPUT_MAP if offset is None else bool(offset)
     if structure == "fit" and not kind.structure:
         raise ParameterError(
             f"structure = 'fit' applies to model = {' / '.join(repr(k) for k in _VP_KINDS)}; "
@@ -259,6 +422,7 @@ def identify(
             callback=callback,
             loss=loss,
             huber_delta=delta,
+            offset=offset,
             **options,
         )
     if options and not kind.options:
@@ -274,8 +438,146 @@ def identify(
         progress=progress,
         callback=callback,
     )
-    call = _Call(input, output, model, fs, operators, levels, creep, loss, delta, validate, search, options, t0)
+    call = _Call(
+        input,
+        output,
+        model,
+        fs,
+        operators,
+        levels,
+        creep,
+        loss,
+        delta,
+        validate,
+        search,
+        options,
+        t0,
+        bool(offset),
+        weights,
+    )
     return kind.fit(call)
+
+
+def _assess(
+    res: IdentificationResult,
+    input: npt.ArrayLike,
+    output: npt.ArrayLike,
+    validate: HeldOut | None,
+    validate_from: str,
+    gap: npt.ArrayLike | None,
+    warmup: int,
+    periodic: int | str | None,
+    fs: float | None,
+    diagnosis: bool,
+    model: str,
+    settings: dict[str, Any],
+) -> ValidatedResult:
+    """The fitted model scored honestly: training record (warm-up and periodic state as asked),
+    validation record with the state carried (or from rest), whiteness, verdict, diagnosis."""
+    # the kind's fitter has validated the records (each is validated once): only converted here
+    v = np.asarray(input, dtype=np.float64)
+    y = np.asarray(output, dtype=np.float64)
+    period = None
+    if periodic is not None:
+        period = estimate_period(v) if periodic == "auto" else as_int(periodic, "periodic", minimum=1)
+        if period > v.size:
+            raise ParameterError(f"periodic = {period} is longer than the training record ({v.size} samples)")
+    wu = as_int(warmup, "warmup", minimum=0)
+    if wu >= v.size - 1:
+        raise ParameterError(f"warmup = {wu} leaves fewer than 2 samples of the training record ({v.size}) to score")
+    sim = res.simulate if res.simulator is None else res.simulator  # the records are valid already
+    train, r_train = scored_metrics(sim, v, y, warmup=wu, periodic=period)
+    assessment: dict[str, Any] = {"validate_from": validate_from, "warmup": wu, "periodic": period}
+    assessment["train"] = residual_whiteness(r_train, v[wu:]) if r_train.size >= 4 else None
+    val = None
+    scored = (train, r_train, v[wu:])
+    if validate is not None:
+        vv = np.asarray(validate[0], dtype=np.float64)
+        vy = np.asarray(validate[1], dtype=np.float64)
+        if vy.size != vv.size:
+            raise ParameterError(
+                f"validate output has {vy.size} samples, validate input has {vv.size}; they must match"
+            )
+        if wu >= vv.size - 1:
+            raise ParameterError(
+                f"warmup = {wu} leaves fewer than 2 samples of the validation record ({vv.size}) to score"
+            )
+        if validate_from == "carried":
+            between = np.zeros(0) if gap is None else as_record(gap, "gap", min_length=0)
+            u = np.concatenate([v, between, vv])
+            lead = v.size + between.size
+            val, r_val = scored_metrics(
+                sim, u, np.concatenate([np.zeros(lead), vy]), start=lead, warmup=wu, periodic=period
+            )
+            assessment["gap"] = int(between.size)
+        else:
+            if gap is not None:
+                raise ParameterError("gap is only used with validate_from = 'carried'")
+            val, r_val = scored_metrics(sim, vv, vy, warmup=wu, periodic=period)
+        assessment["validation"] = residual_whiteness(r_val, vv[wu:]) if r_val.size >= 4 else None
+        scored = (val, r_val, vv[wu:])
+    elif gap is not None:
+        raise ParameterError("gap is only used with a validation record (validate)")
+    metrics, residual, scored_input = scored
+    whiteness = residual_whiteness(residual, scored_input) if residual.size >= 4 else None
+    trusted, reasons = trust(metrics, whiteness) if whiteness is not None else (True, [])
+    assessment.update(trusted=trusted, reasons=reasons, scored="validation" if val is not None else "train")
+    if not trusted and diagnosis and whiteness is not None and model not in ("cemf",):
+        assessment["diagnosis"] = _diagnose(v, y, wu, period, fs, model, settings, residual, whiteness)
+    fields = {f: getattr(res, f) for f in res.__dataclass_fields__}
+    fields.update(train=train, validation=val)
+    return ValidatedResult(**fields, assessment=assessment)
+
+
+#: Creep time constants (s) of the diagnosis's sample-rate check: piezo creep's decades.
+_PHYSICAL_TAUS = np.array([0.003, 0.03, 0.3, 3.0, 30.0])
+
+#: The kinds a diagnosis refits as they are (linear, fast); the others are refitted as ``mpi``.
+_QUICK = ("pi", "gpi", "mpi", "rdpi", "preisach")
+
+
+def _diagnose(
+    v: FloatArray,
+    y: FloatArray,
+    warmup: int,
+    period: int | None,
+    fs: float | None,
+    model: str,
+    settings: dict[str, Any],
+    residual: FloatArray,
+    whiteness: dict[str, Any],
+) -> list[dict[str, Any]]:
+    quick = model if model in _QUICK else "mpi"
+    creep = settings["creep"] if quick in ("pi", "gpi", "mpi", "rdpi") else 0
+
+    def refit(vi: FloatArray, yo: FloatArray, rate: float | None) -> float:
+        """In-sample RMSE (% of range) of the quick kind refitted to a rearranged training record."""
+        try:
+            r = identify(
+                vi,
+                yo,
+                quick,
+                fs=rate,
+                operators=settings["operators"],
+                levels=settings["levels"],
+                creep=creep,
+                warmup=min(warmup, vi.size - 2),
+                periodic=period,
+                diagnosis=False,
+            )
+        except ParameterError:
+            return float("inf")
+        return float(r.train["rmse_percent"])
+
+    # the refits score their own training record: compared with the same fit of the record as given
+    def rate_refit(rate: float) -> float:
+        """In-sample RMSE (%) of an MPI with creep lags of physical time constants at ``rate``."""
+        lags = Creep(1.0 / rate, _PHYSICAL_TAUS, np.zeros(_PHYSICAL_TAUS.size))
+        r = _default_thresholds(v, as_int(settings["operators"], "operators", minimum=1))
+        return float(_fit_linear(_mpi_template(v, r, None, None, lags), v, y, "squared", None).metrics["rmse_percent"])
+
+    base = refit(v, y, fs)
+    return diagnose(refit, (v, y), residual, whiteness, base, fs, rate_refit=rate_refit)
 
 
 #: What a fitter of :func:`_free_run` returns: ``(model, method, history, partial, evaluations)``.
@@ -293,8 +595,8 @@ def _free_run(fit: Callable[[_Call, FloatArray, FloatArray], _Fitted]) -> Callab
         if y.size != v.size:
             raise ParameterError(f"output has {y.size} samples, input has {v.size}; they must match")
         fitted, method, history, partial, evaluations = fit(c, v, y)
-        if c.loss == "huber":
-            method += "+huber"
+        if c.loss in ("huber", "linf"):
+            method += "+" + c.loss
         train = _fit_metrics(fitted.simulate(v), y)
         val = None
         if c.validate is not None:
@@ -317,13 +619,13 @@ def _free_run(fit: Callable[[_Call, FloatArray, FloatArray], _Fitted]) -> Callab
 
 @_free_run
 def _fit_linear_kind(c: _Call, v: FloatArray, y: FloatArray) -> _Fitted:
-    fit = _identify_linear(c.kind, v, y, c.fs, c.operators, c.levels, c.loss, c.delta, c.creep)
+    fit = _identify_linear(c.kind, v, y, c.fs, c.operators, c.levels, c.loss, c.delta, c.creep, c.offset, c.weights)
     return fit.model, "ls", {}, False, fit.evaluations
 
 
 @_free_run
 def _fit_boucwen(c: _Call, v: FloatArray, y: FloatArray) -> _Fitted:
-    return _identify_boucwen(v, y, c.loss, c.delta, c.search)
+    return _identify_boucwen(v, y, c.loss, c.delta, c.search, c.offset)
 
 
 def _fit_cemf(c: _Call) -> IdentificationResult:
@@ -346,6 +648,8 @@ def _identify_linear(
     loss: str,
     delta: float | None,
     creep: int = 0,
+    offset: bool = False,
+    weights: FloatArray | None = None,
 ) -> FitResult:
     """The least-squares kinds' fit, from the validated record (the checks and their order
     are those of :func:`identify_pi`, :func:`identify_mpi`, :func:`identify_preisach` and
@@ -365,7 +669,9 @@ def _identify_linear(
             raise ParameterError("fs is required for model = 'rdpi' (the rate needs the sample time)")
         r = _default_thresholds(v, as_int(operators, "operators", minimum=1))
         template = RateDependentPI(r, np.zeros(r.size), 1.0 / float(fs), 1.0, 0.0, creep=lags)
-    return _fit_linear(template, v, y, loss, delta)
+    if loss == "linf" or weights is not None:
+        return fit_linear_weighted(template, v, y, loss, delta, weights, offset=offset)
+    return _fit_linear(template, v, y, loss, delta, offset=offset)
 
 
 def _default_creep(n: int, fs: float | None, terms: int) -> Creep | None:
@@ -381,27 +687,69 @@ def _default_creep(n: int, fs: float | None, terms: int) -> Creep | None:
     return Creep(1.0 / fs, 10.0 ** (lo + w * (np.arange(terms) + 0.5)), np.zeros(terms))
 
 
-def _identify_boucwen(v: FloatArray, y: FloatArray, loss: str, delta: float | None, search: dict[str, Any]) -> _Fitted:
-    """Bouc–Wen by a population optimizer: ``(model, method, history, partial, evaluations)``."""
+def _identify_boucwen(
+    v: FloatArray, y: FloatArray, loss: str, delta: float | None, search: dict[str, Any], offset: bool = False
+) -> _Fitted:
+    """Bouc–Wen by a population optimizer: ``(model, method, history, partial, evaluations)``.
+
+    With ``offset`` the output offset is projected out of every candidate (variable
+    projection): each simulated output is scored with its best offset — the mean residual
+    for the RMSE, the median for the Huber cost — so the search runs over the shape alone
+    and an offset in the record cannot bend the loop; the fitted model carries the offset
+    in its output map. Bouc–Wen scales with ``a`` and ``d``: no gain is fitted."""
     search = dict(search)
     search.pop("validate")
     optimizer = search.pop("optimizer")
     method = "de" if optimizer == "ls" else optimizer
     family = BoucWen(1.0, 1.0, 0.0).family
     bounds = _boucwen_bounds(v, y)
-    if loss == "huber":
-        # the rows stay inside the box, where every Bouc-Wen row is valid (n = 1, finite)
-        def simulate(rows: FloatArray) -> FloatArray:
-            return _core.batch_simulate(family, [], np.ascontiguousarray(rows), v)
 
+    # the rows stay inside the box, where every Bouc-Wen row is valid (n = 1, finite)
+    # the offset that is best for the loss: mean (squared), median (huber), mid-range (linf)
+    def centre(r: FloatArray) -> FloatArray:
+        if loss == "huber":
+            return np.asarray(np.median(r, axis=-1, keepdims=True), dtype=np.float64)
+        if loss == "linf":
+            return np.asarray(0.5 * (r.max(axis=-1, keepdims=True) + r.min(axis=-1, keepdims=True)), dtype=np.float64)
+        return np.asarray(np.mean(r, axis=-1, keepdims=True), dtype=np.float64)
+
+    def simulate(rows: FloatArray) -> FloatArray:
+        out: FloatArray = _core.batch_simulate(family, [], np.ascontiguousarray(rows), v)
+        if offset:
+            with np.errstate(invalid="ignore", over="ignore"):
+                out += centre(y - out)
+        return out
+
+    if loss == "huber":
         res = minimize_huber(simulate, y, bounds, delta, method=method, **search)
+    elif loss == "linf":
+
+        def worst(rows: FloatArray) -> FloatArray:
+            r = simulate(rows) - y
+            with np.errstate(invalid="ignore", over="ignore"):
+                c: FloatArray = np.max(np.abs(r), axis=-1)
+            return np.where(np.isfinite(c), c, np.inf)
+
+        res = minimize(worst, bounds, method=method, polish=True, **search)
+    elif offset:
+
+        def cost(rows: FloatArray) -> FloatArray:
+            r = simulate(rows) - y
+            with np.errstate(invalid="ignore", over="ignore"):
+                c: FloatArray = np.sqrt(np.mean(r * r, axis=-1))
+            return np.where(np.isfinite(c), c, np.inf)
+
+        res = minimize(cost, bounds, method=method, polish=True, **search)
     else:
 
         def cost(rows: FloatArray) -> FloatArray:
             return _core.batch_rmse(family, [], np.ascontiguousarray(rows), v, y, float("inf"))
 
         res = minimize(cost, bounds, method=method, polish=True, **search)
-    return BoucWen(*np.asarray(res.x, dtype=np.float64)), method, dict(res.history), res.interrupted, int(res.nfev)
+    fitted = BoucWen(*np.asarray(res.x, dtype=np.float64))
+    if offset:
+        fitted = fitted.with_output_map(offset=float(centre(y - fitted.simulate(v))[0]))
+    return fitted, method, dict(res.history), res.interrupted, int(res.nfev)
 
 
 def _identify_benchmark(

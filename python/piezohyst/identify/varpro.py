@@ -59,7 +59,6 @@ from typing import TYPE_CHECKING, Any, TypeAlias
 import numpy as np
 import numpy.typing as npt
 
-from .. import _core
 from .._validate import as_int, as_record, as_scalar
 from ..errors import ParameterError, ParameterTypeError
 from ..models.creep import Creep
@@ -230,6 +229,9 @@ def _search_box(
 class _Problem:
     """The projected problem: candidate structure -> template model -> regressors -> weights."""
 
+    #: Fit an output offset (a constant regressor, :func:`piezohyst.identify.core._design`).
+    offset: bool = False
+
     def __init__(
         self,
         model: str,
@@ -307,10 +309,9 @@ class _Problem:
     def solve(self, template: LinearModel) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """``(z, scale, A_scaled, fit)``: the bounded least-squares weights (equilibrated
         columns) of ``template`` and the fitted free-run output ``A z``."""
-        from .core import _irls_huber, _layout
+        from .core import _design, _irls_huber
 
-        lb, ub, _ = _layout(template)
-        A = _core.regressors(template.family, list(template.dims), template.to_row(), self.v)
+        A, lb, ub, _ = _design(template, self.v, self.offset)
         scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-300)
         A = A / scale
         lbs, ubs = lb * scale, ub * scale
@@ -416,6 +417,7 @@ def identify_vp(
     callback: Callback | None = None,
     loss: str = "squared",
     huber_delta: float | None = None,
+    offset: bool = True,
 ) -> IdentificationResult:
     """Identify a PI-family model with its structure by variable projection (docs/spec.md §4).
 
@@ -463,6 +465,9 @@ def identify_vp(
     loss, huber_delta
         ``"huber"``: each candidate's weights by the Huber IRLS of :func:`fit_linear`, its
         cost the :func:`huber_cost` of its residuals (``huber_delta`` as there).
+    offset : bool
+        Fit an output offset with every candidate's weights (a constant regressor; the model's
+        ``output_map.offset``), as :func:`fit_linear` does.
 
     Returns
     -------
@@ -511,6 +516,7 @@ def identify_vp(
     if model not in ("gpi", "mpi") and envelope == "tanh":
         raise ParameterError(f"envelope = {envelope!r} applies to model = 'gpi'/'mpi' only; {model!r} has no envelopes")
     problem = _Problem(model, v, y, fs, n, envelope if model in ("gpi", "mpi") else "identity", creep, loss, delta)
+    problem.offset = bool(offset)
     names, lower, upper, fixed = _search_box(problem.table, bounds)
     unknowns = (4 if model in ("gpi", "mpi") else 1) + n * (2 if model == "rdpi" else 1) + creep
     if v.size < unknowns + len(names):
@@ -602,7 +608,7 @@ def identify_vp(
         method += "+polish"
     structure = full(x)
     history["structure"] = structure
-    final = _fit_linear(problem.template(structure), v, y, loss, delta)
+    final = _fit_linear(problem.template(structure), v, y, loss, delta, offset=bool(offset))
     fitted = final.model
     evaluations += final.evaluations
     train = _fit_metrics(fitted.simulate(v), y)

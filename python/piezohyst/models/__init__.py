@@ -7,7 +7,7 @@ from .batch import batch_rmse, batch_simulate
 from .boucwen_benchmark import BoucWenBenchmark
 from .creep import Creep
 from .differential import BoucWen, Dahl, Duhem
-from .model import SCHEMA_VERSION, HysteresisModel, Inverse, load_model, model_from_dict
+from .model import SCHEMA_VERSION, HysteresisModel, Inverse, OutputMap, load_model, model_from_dict
 from .pi import PI, Envelope, EnvelopeInverse, GeneralizedPI, GeneralizedPlay, PlayOperator, RateDependentPI
 from .preisach import Preisach
 
@@ -25,6 +25,7 @@ __all__ = [
     "GeneralizedPlay",
     "HysteresisModel",
     "Inverse",
+    "OutputMap",
     "PlayOperator",
     "Preisach",
     "RateDependentPI",

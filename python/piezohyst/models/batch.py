@@ -63,6 +63,9 @@ def batch_simulate(
 ) -> FloatArray:
     """Outputs of ``S`` parameter sets driven by one input record.
 
+    The rows are the family's parameter rows: a model's output map
+    (:class:`~piezohyst.OutputMap`) is not part of them and is not applied.
+
     Parameters
     ----------
     model : HysteresisModel or str

@@ -57,6 +57,12 @@ class BoucWen(HysteresisModel):
         self.d = as_scalar(d, "d")
         super().__init__([], [self.a, self.beta, self.gamma, self.n, self.d], units=units)
 
+    def _fold_map(self, offset: float, gain: float, input_range: tuple[float, float] | None) -> HysteresisModel | None:
+        # n = 1: h scales with a for a positive gain (beta, gamma act on |h| / h)
+        if offset != 0.0 or not (gain > 0.0 and self.n == 1.0):
+            return None
+        return BoucWen(gain * self.a, self.beta, self.gamma, self.n, gain * self.d, units=self.units)
+
     @classmethod
     def from_benchmark(cls, alpha: float, beta: float, gamma: float, delta: float, nu: float = 1.0) -> BoucWen:
         """The Noël–Schoukens benchmark form ``z' = alpha y' - beta (gamma |y'| |z|^(nu-1) z

@@ -8,8 +8,10 @@ samples run in the Rust core.
 
 from __future__ import annotations
 
+import copy
 import json
 from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Self, TypeVar
 
@@ -22,7 +24,7 @@ from .._validate import as_record, as_scalar
 from ..errors import ParameterError, ParameterTypeError
 from ..signals.response import Response
 
-__all__ = ["SCHEMA_VERSION", "HysteresisModel", "Inverse", "load_model", "model_from_dict"]
+__all__ = ["IDENTITY_MAP", "SCHEMA_VERSION", "HysteresisModel", "Inverse", "OutputMap", "load_model", "model_from_dict"]
 
 FloatArray = npt.NDArray[np.float64]
 #: A JSON object: a model description as written to or parsed from a model file.
@@ -34,6 +36,87 @@ SCHEMA_VERSION = 1
 _REGISTRY: dict[str, type[HysteresisModel]] = {}
 
 _ModelType = TypeVar("_ModelType", bound="type[HysteresisModel]")
+
+
+@dataclass(frozen=True)
+class OutputMap:
+    """The output map of every model: ``y = gain * h(v) + offset``, ``h`` the family's output.
+
+    It models what sits between the actuator and the recorded output: a sensor offset (the
+    zero of a displacement probe or an oscilloscope channel) and a gain (a calibration
+    error, a unit factor). The family's parameter row, hence the core and the C ABI, is
+    untouched: the map is applied to the core's output (and removed from a desired output
+    before the core inverts it). The identity (``offset = 0``, ``gain = 1``) is the default;
+    a model file stores the map only when it is not the identity.
+
+    Parameters
+    ----------
+    offset : float
+        Added to the output, in the output's unit.
+    gain : float
+        Multiplies the family's output: finite and non-zero.
+
+    Examples
+    --------
+    >>> from piezohyst import PI
+    >>> m = PI([0.5], [1.0], p0=1.0).with_output_map(offset=10.0, gain=2.0)
+    >>> m.simulate([0.0, 1.0, 2.0]).tolist()
+    [10.0, 13.0, 17.0]
+    >>> m.inverse().simulate([10.0, 13.0, 17.0]).tolist()
+    [0.0, 1.0, 2.0]
+    """
+
+    offset: float = 0.0
+    gain: float = 1.0
+
+    def __post_init__(self) -> None:
+        offset = as_scalar(self.offset, "output_map.offset")
+        gain = as_scalar(self.gain, "output_map.gain")
+        if gain == 0.0:
+            raise ParameterError("output_map.gain = 0.0 must be non-zero (the model would have no output)")
+        object.__setattr__(self, "offset", offset)
+        object.__setattr__(self, "gain", gain)
+
+    @property
+    def is_identity(self) -> bool:
+        """``True`` for ``offset = 0``, ``gain = 1`` (the map changes nothing)."""
+        return self.offset == 0.0 and self.gain == 1.0
+
+    def apply(self, h: FloatArray) -> FloatArray:
+        """``gain * h + offset`` (``h`` itself, not a copy, for the identity)."""
+        if self.is_identity:
+            return h
+        out: FloatArray = self.gain * h + self.offset
+        return out
+
+    def invert(self, y: FloatArray) -> FloatArray:
+        """``(y - offset) / gain``: the family's output that gives ``y``."""
+        if self.is_identity:
+            return y
+        out: FloatArray = (y - self.offset) / self.gain
+        return out
+
+    def to_dict(self) -> JSONDict:
+        return {"offset": self.offset, "gain": self.gain}
+
+    @classmethod
+    def from_any(cls, m: object) -> OutputMap:
+        """An ``OutputMap``, or a model file's ``{"offset": ..., "gain": ...}`` (absent keys:
+        the identity's values), or ``None`` (the identity)."""
+        if m is None:
+            return IDENTITY_MAP
+        if isinstance(m, OutputMap):
+            return m
+        if isinstance(m, dict):
+            unknown = sorted(set(m) - {"offset", "gain"})
+            if unknown:
+                raise ParameterError(f"output_map has unknown keys {unknown}; expected 'offset' and 'gain'")
+            return cls(m.get("offset", 0.0), m.get("gain", 1.0))
+        raise ParameterTypeError(f"output_map must be an OutputMap or {{'offset': ..., 'gain': ...}}, got {m!r}")
+
+
+#: The map that changes nothing: every model's default.
+IDENTITY_MAP = OutputMap()
 
 
 def _register(cls: _ModelType) -> _ModelType:
@@ -58,6 +141,7 @@ class HysteresisModel:
         self._compiled = _core.Model(self.family, list(self.dims), self._row)
         self._row.setflags(write=False)
         self.units = _units(units)
+        self._map = IDENTITY_MAP
         self._state = self.initial_state()
 
     # The compiled core model is not picklable: pickles carry the row, and it is rebuilt
@@ -80,6 +164,57 @@ class HysteresisModel:
     def parameters(self) -> JSONDict:
         """Named parameters (JSON-ready)."""
         raise NotImplementedError
+
+    # -- output map -------------------------------------------------------------------
+    @property
+    def output_map(self) -> OutputMap:
+        """The output map ``y = gain * h(v) + offset`` (:class:`OutputMap`; identity by default)."""
+        return self._map
+
+    def with_output_map(self, output_map: OutputMap | Mapping[str, float] | None = None, /, **kw: float) -> Self:
+        """A copy of this model with the given output map (an :class:`OutputMap`, a mapping,
+        or ``offset=``, ``gain=`` keywords; ``None``: the identity). The parameter row is
+        shared: the map is not part of it. The copy starts relaxed."""
+        if output_map is not None and kw:
+            raise ParameterTypeError("give output_map or offset=/gain= keywords, not both")
+        m = OutputMap.from_any(
+            dict(kw) if kw else (dict(output_map) if isinstance(output_map, Mapping) else output_map)
+        )
+        new = copy.copy(self)
+        new._map = m
+        new.units = dict(self.units)
+        new._state = self.initial_state()
+        return new
+
+    def mapped_row(self, input_range: tuple[float, float] | None = None) -> HysteresisModel:
+        """An equal model (same outputs, same inverse) whose parameter row holds the output
+        map, with the identity map: for consumers of the bare row (the compensated controllers
+        of the core, the exported C controller). ``self`` when the map is the identity.
+
+        The gain scales the parameters the output is linear in; the offset goes to the
+        family's constant term (GPI polynomial ``c0``, Preisach ``offset``; a PI becomes the
+        equal GPI with identity envelopes). ``ParameterError`` when the family cannot hold
+        the map (an offset on RDPI or Bouc–Wen; a negative gain on non-negative weights).
+        ``input_range``: the inputs the row will see (e.g. the amplifier's limits), the input
+        range of the GPI a PI becomes (default: unbounded)."""
+        if self._map.is_identity:
+            return self
+        why = ""
+        try:
+            folded = self._fold_map(self._map.offset, self._map.gain, input_range)
+        except ParameterError as e:
+            folded, why = None, f" ({e})"
+        if folded is None:
+            raise ParameterError(
+                f"output_map = (offset={self._map.offset}, gain={self._map.gain}) cannot be held in the "
+                f"parameter row of a {self.kind} model{why}; the core's compensated controllers invert the "
+                "family's row: use a pi, gpi/mpi or preisach model, or one fitted with offset=False (--no-offset)"
+            )
+        return folded
+
+    def _fold_map(self, offset: float, gain: float, input_range: tuple[float, float] | None) -> HysteresisModel | None:
+        """The model with the map folded into its row, or ``None`` if the family cannot hold it."""
+        return None
 
     # -- state ------------------------------------------------------------------------
     def initial_state(self) -> FloatArray:
@@ -128,7 +263,7 @@ class HysteresisModel:
         """
         v = as_record(input, "input")
         st = self.initial_state() if initial_state is None else self._checked_state(initial_state, "initial_state")
-        return self._compiled.simulate(v, st)
+        return self._map.apply(self._compiled.simulate(v, st))
 
     def response(
         self,
@@ -180,7 +315,7 @@ class HysteresisModel:
         v = as_record(input, "input")
         t = _time_base(v.size, fs, time)
         st = self.initial_state() if initial_state is None else self._checked_state(initial_state, "initial_state")
-        y = self._compiled.simulate(v, st)
+        y = self._map.apply(self._compiled.simulate(v, st))
         return Response(
             t,
             {"input": v, "output": y},
@@ -194,7 +329,7 @@ class HysteresisModel:
         """Apply one input sample, advance the internal state, return the output."""
         v = np.array([as_scalar(value, "value")])
         st = self._state.copy()
-        y = self._compiled.simulate(v, st)
+        y = self._map.apply(self._compiled.simulate(v, st))
         self._state = st
         return float(y[0])
 
@@ -204,13 +339,16 @@ class HysteresisModel:
 
     # -- files ----------------------------------------------------------------------
     def to_dict(self, *, include_state: bool = False) -> JSONDict:
-        """JSON-ready description: ``schema_version``, ``kind``, ``parameters``, ``units``."""
+        """JSON-ready description: ``schema_version``, ``kind``, ``parameters``, ``units``,
+        and ``output_map`` (``{"offset", "gain"}``) when the map is not the identity."""
         d: JSONDict = {
             "schema_version": SCHEMA_VERSION,
             "kind": self.kind,
             "parameters": self.parameters,
             "units": dict(self.units),
         }
+        if not self._map.is_identity:
+            d["output_map"] = self._map.to_dict()
         if include_state:
             d["state"] = self._state.tolist()
         return d
@@ -234,6 +372,7 @@ class HysteresisModel:
             and type(self) is type(other)
             and self.dims == other.dims
             and np.array_equal(self._row, other._row)
+            and self._map == other._map
         )
 
     # models compare by parameters and carry a mutable state: not hashable
@@ -241,6 +380,8 @@ class HysteresisModel:
 
     def __repr__(self) -> str:
         args = ", ".join(f"{k}={_short(v)}" for k, v in self.parameters.items())
+        if not self._map.is_identity:
+            args += f", output_map=(offset={self._map.offset:.6g}, gain={self._map.gain:.6g})"
         return f"{type(self).__name__}({args})"
 
 
@@ -303,6 +444,8 @@ def _model_from_dict(d: object) -> HysteresisModel:
         model = _REGISTRY[kind]._from_parameters(p, d.get("units"))
     except TypeError as e:
         raise ParameterError(f"parameters of kind {kind!r} are not valid: {e}") from None
+    if d.get("output_map") is not None:  # absent: the identity (files written before the map)
+        model = model.with_output_map(OutputMap.from_any(d["output_map"]))
     if "state" in d:
         model.state = d["state"]
     return model
@@ -315,7 +458,8 @@ def load_model(path: PathLike) -> HysteresisModel:
 
 
 class Inverse:
-    """Exact per-sample inverse of a model (docs/spec.md §2.1).
+    """Exact per-sample inverse of a model (docs/spec.md §2.1), output map included: the
+    desired output ``y`` is mapped back to ``(y - offset) / gain`` and the family inverted.
 
     At each sample the forward model's state is frozen, the input that produces the desired
     output is found by bracketing and safeguarded Newton, and the forward state is advanced
@@ -362,7 +506,7 @@ class Inverse:
         yd = as_record(desired, "desired")
         m = self.model
         st = m.initial_state() if initial_state is None else m._checked_state(initial_state, "initial_state")
-        return m._compiled.inverse(yd, st, 0.0)
+        return m._compiled.inverse(m._map.invert(yd), st, 0.0)
 
     def response(
         self,
@@ -413,7 +557,7 @@ class Inverse:
         t = _time_base(yd.size, fs, time)
         m = self.model
         st = m.initial_state() if initial_state is None else m._checked_state(initial_state, "initial_state")
-        v = m._compiled.inverse(yd, st, 0.0)
+        v = m._compiled.inverse(m._map.invert(yd), st, 0.0)
         return Response(
             t,
             {"desired": yd, "input": v},
@@ -428,7 +572,7 @@ class Inverse:
         m = self.model
         yd = np.array([as_scalar(desired, "desired")])
         st = self._state.copy()
-        v = m._compiled.inverse(yd, st, self._last_input)
+        v = m._compiled.inverse(m._map.invert(yd), st, self._last_input)
         self._state = st
         self._last_input = float(v[0])
         return self._last_input

@@ -45,6 +45,20 @@ def _with_creep(d: JSONDict, creep: Creep | None) -> JSONDict:
     return d
 
 
+def _scaled(creep: Creep | None, gain: float) -> Creep | None:
+    return None if creep is None else Creep(creep.ts, creep.taus, gain * creep.weights)
+
+
+def _no_output_map(model: HysteresisModel) -> None:
+    """The analytic inverses invert the family alone: refuse a model with an output map."""
+    m = model.output_map
+    if not m.is_identity:
+        raise ParameterError(
+            f"output_map = (offset={m.offset}, gain={m.gain}) is set: the analytic inverse does not cover it; "
+            "use inverse()"
+        )
+
+
 @_register
 class PI(HysteresisModel):
     """Prandtl–Ishlinskii model ``y = p0 v + sum_i w_i play_{r_i}[v]``.
@@ -98,11 +112,23 @@ class PI(HysteresisModel):
         p = dict(p)
         return cls(**{**p, "creep": creep_from(p.get("creep"))}, units=units)
 
+    def _fold_map(self, offset: float, gain: float, input_range: tuple[float, float] | None) -> HysteresisModel | None:
+        # the equal GPI: identity envelopes, polynomial offset + p0 v
+        return GeneralizedPI(
+            self.thresholds,
+            gain * self.weights,
+            (offset, gain * self.p0, 0.0, 0.0),
+            input_range=(-np.inf, np.inf) if input_range is None else input_range,
+            creep=_scaled(self.creep, gain),
+            units=self.units,
+        )
+
     def loading_curve(self, s: npt.ArrayLike) -> FloatArray:
-        """Initial loading curve ``phi(s) = p0 s + sum_i w_i max(s - r_i, 0)``."""
+        """Initial loading curve ``phi(s) = p0 s + sum_i w_i max(s - r_i, 0)``, through the
+        model's output map."""
         x = as_record(np.atleast_1d(s), "s", min_length=0)
         played: FloatArray = np.maximum(x[:, None] - self.thresholds[None, :], 0.0) @ self.weights
-        return self.p0 * x + played
+        return self.output_map.apply(self.p0 * x + played)
 
     def analytic_inverse(self) -> PI:
         """The inverse PI model (docs/spec.md §2.1): driving it with ``y_d`` gives ``v``.
@@ -112,6 +138,7 @@ class PI(HysteresisModel):
         """
         if self.creep is not None:
             raise ParameterError("creep is set: the analytic PI inverse does not cover creep; use inverse()")
+        _no_output_map(self)
         p0i, ri, wi = _core.pi_analytic_inverse(self.p0, self.thresholds, self.weights)
         return PI(ri, wi, p0i, units={"input": self.units.get("output", ""), "output": self.units.get("input", "")})
 
@@ -298,6 +325,19 @@ class GeneralizedPI(HysteresisModel):
         p["creep"] = creep_from(p.get("creep"))
         return cls(**p, units=units)
 
+    def _fold_map(self, offset: float, gain: float, input_range: tuple[float, float] | None) -> HysteresisModel | None:
+        poly = gain * np.asarray(self.polynomial) + np.array([offset, 0.0, 0.0, 0.0])
+        return GeneralizedPI(
+            self.thresholds,
+            gain * self.weights,
+            poly,
+            self.rising,
+            self.falling,
+            self.input_range,
+            creep=_scaled(self.creep, gain),
+            units=self.units,
+        )
+
     def analytic_inverse(self) -> EnvelopeInverse:
         """``v = g^{-1}(PI^{-1}[y])`` for equal envelopes, ``P = 0`` and a zero first
         threshold with positive weight (which plays the role of ``p0``)."""
@@ -309,6 +349,7 @@ class GeneralizedPI(HysteresisModel):
             )
         if self.creep is not None:
             raise ParameterError("creep is set: no analytic inverse; use inverse()")
+        _no_output_map(self)
         if self.thresholds.size == 0 or self.thresholds[0] != 0.0:
             raise ParameterError("thresholds[0] must be 0 (its weight is the linear term) for the analytic inverse")
         pi = PI(self.thresholds[1:], self.weights[1:], self.weights[0])
@@ -453,6 +494,21 @@ class RateDependentPI(HysteresisModel):
             [[self.ts, self.p0, self.beta, self.filter_tau], self.thresholds, self.weights, self.rate_weights, tail]
         )
         super().__init__([n, m], row, units=units)
+
+    def _fold_map(self, offset: float, gain: float, input_range: tuple[float, float] | None) -> HysteresisModel | None:
+        if offset != 0.0:
+            return None  # no constant term
+        return RateDependentPI(
+            self.thresholds,
+            gain * self.weights,
+            self.ts,
+            gain * self.p0,
+            self.beta,
+            gain * self.rate_weights,
+            self.filter_tau,
+            creep=_scaled(self.creep, gain),
+            units=self.units,
+        )
 
     @property
     def parameters(self) -> JSONDict:

@@ -87,6 +87,17 @@ class Preisach(HysteresisModel):
         row = np.concatenate([[lo, hi, self.offset, self.slope], self.weights])
         super().__init__([self.levels, self.memory], row, units=units)
 
+    def _fold_map(self, offset: float, gain: float, input_range: tuple[float, float] | None) -> HysteresisModel | None:
+        return Preisach(
+            self.levels,
+            self.input_range,
+            gain * self.weights,
+            gain * self.offset + offset,
+            gain * self.slope,
+            self.memory,
+            units=self.units,
+        )
+
     def weight_matrix(self) -> FloatArray:
         """Weights as an ``(L, L)`` lower-triangular array (alpha rows, beta columns)."""
         m = np.zeros((self.levels, self.levels))

@@ -13,7 +13,7 @@ Examples
 --------
 >>> from piezohyst.benchmarks import BENCHMARKS
 >>> [b.name for b in BENCHMARKS]
-['pi_batch', 'closed_loop', 'identify_mpi', 'c_step', 'control', 'demo']
+['pi_batch', 'closed_loop', 'identify_mpi', 'c_step', 'control', 'demo', 'load_csv']
 """
 
 from __future__ import annotations
@@ -334,6 +334,35 @@ def _demo_rows(d: Json) -> list[Row]:
     return rows
 
 
+def _load_csv_rows(d: Json) -> list[Row]:
+    med = d["median_seconds"]
+    speedup = d["speedup_vs_numpy_loadtxt"]
+    mem = d["peak_memory_over_file"]
+    what = f"{d['rows']:,} rows × {d['columns']} columns CSV ({d['file_bytes'] / 1e6:.0f} MB)"
+    return [
+        _row(
+            f"load_record, {what}: median wall time",
+            med["load_record"],
+            "s",
+            "numpy.loadtxt",
+            med["numpy_loadtxt"],
+            ratio=speedup,
+            ratio_label="faster",
+            target="≥ 2× faster",
+            passed=speedup >= 2.0,
+        ),
+        _row(
+            f"load_record, {what}: peak memory / file size",
+            mem,
+            "×",
+            "— (a memory target)",
+            None,
+            target="≤ 4×",
+            passed=mem <= 4.0,
+        ),
+    ]
+
+
 BENCHMARKS: tuple[Benchmark, ...] = (
     Benchmark(
         "pi_batch",
@@ -359,6 +388,13 @@ BENCHMARKS: tuple[Benchmark, ...] = (
     Benchmark("c_step", "c_step.py", "ns per step from C", ("--rounds", "1"), _c_step_rows),
     Benchmark("control", "control.py", "seed 1 / seed 2 control tables, tuning time", ("--quick",), _control_rows),
     Benchmark("demo", "demo.py", "wall time of piezohyst demo", ("--modes", "quick"), _demo_rows),
+    Benchmark(
+        "load_csv",
+        "load_csv.py",
+        "load_record vs numpy.loadtxt on a large CSV",
+        ("--rows", "200000", "--repeats", "2"),
+        _load_csv_rows,
+    ),
 )
 _BY_NAME = {b.name: b for b in BENCHMARKS}
 

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import re
 from collections.abc import Callable, Hashable, Mapping, Sequence
 from pathlib import Path
 from types import ModuleType
@@ -47,6 +48,9 @@ import numpy.typing as npt
 
 from .._validate import as_int, as_record, as_scalar
 from ..errors import DataError, ParameterError, ParameterTypeError
+from .textio import PYARROW_HINT
+from .textio import TextTable as TextTable
+from .units import UnitConversion, conversion_for, parse_unit, split_annotation
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import pandas as pd
@@ -55,7 +59,15 @@ FloatArray = npt.NDArray[np.float64]
 #: A column of a source: a name (str), a 0-based index (int), or not given.
 ColumnSpec = str | int | None
 
-__all__ = ["TIME_RTOL", "Record", "load_record", "load_yan9a_model_record"]
+__all__ = [
+    "MAX_ARRAY_BYTES_ENV",
+    "PYARROW_HINT",
+    "TIME_RTOL",
+    "Record",
+    "UnitConversion",
+    "load_record",
+    "load_yan9a_model_record",
+]
 
 #: Default relative tolerance on the time steps of a time column (of the median step).
 TIME_RTOL = 1e-6
@@ -65,7 +77,17 @@ NPZ_SUFFIXES = (".npz",)
 NPY_SUFFIXES = (".npy",)
 MAT_SUFFIXES = (".mat",)
 HDF5_SUFFIXES = (".h5", ".hdf5", ".he5")
-SUPPORTED_SUFFIXES = TEXT_SUFFIXES + NPZ_SUFFIXES + NPY_SUFFIXES + MAT_SUFFIXES + HDF5_SUFFIXES
+PARQUET_SUFFIXES = (".parquet", ".pq")
+SUPPORTED_SUFFIXES = TEXT_SUFFIXES + NPZ_SUFFIXES + NPY_SUFFIXES + MAT_SUFFIXES + HDF5_SUFFIXES + PARQUET_SUFFIXES
+
+#: The environment variable that raises (or lowers) the bound on the decompressed size of one
+#: array read from an NPZ, MAT or HDF5 file, in bytes (also the ``max_bytes`` argument).
+MAX_ARRAY_BYTES_ENV = "PIEZOHYST_MAX_ARRAY_BYTES"
+#: The default bound: 1 GiB (134 million float64 samples).
+MAX_ARRAY_BYTES = 1 << 30
+
+#: A step at least this many median steps long is a gap (a missing stretch), not jitter.
+GAP_STEPS = 1.5
 
 H5PY_HINT = "reading HDF5 / MATLAB v7.3 needs h5py: pip install h5py"
 
@@ -95,6 +117,10 @@ class Record:
         Where the record came from (file path; ``[a:b]`` appended by :meth:`trim`).
     columns : dict
         The source columns used: ``{"input": ..., "output": ...[, "time": ...]}``.
+    units : dict
+        How each column was converted on loading, role -> :class:`UnitConversion`
+        ``(source, si, scale, origin)``: e.g. ``{"time": ("ms", "s", 0.001, "header")}``; the
+        arrays hold the converted (SI) values. Empty for a record built by hand.
 
     Examples
     --------
@@ -114,6 +140,7 @@ class Record:
     time: FloatArray | None = None
     source: str = ""
     columns: dict[str, str] = dataclasses.field(default_factory=dict)
+    units: dict[str, UnitConversion] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self) -> None:
         u = as_record(self.input, "input", min_length=2)
@@ -139,6 +166,15 @@ class Record:
             if not isinstance(k, str) or not isinstance(v, str):
                 raise ParameterTypeError(f"columns must map str to str, got {k!r}: {v!r}")
             columns[k] = v
+        if not isinstance(self.units, Mapping):
+            raise ParameterTypeError(
+                f"units must be a mapping of role -> UnitConversion, got {type(self.units).__name__}"
+            )
+        units: dict[str, UnitConversion] = {}
+        for k, c in self.units.items():
+            if not isinstance(k, str) or not isinstance(c, tuple) or len(c) != 4:
+                raise ParameterTypeError(f"units must map a role to a UnitConversion, got {k!r}: {c!r}")
+            units[k] = UnitConversion(str(c[0]), str(c[1]), float(c[2]), str(c[3]))
         u.flags.writeable = False
         y.flags.writeable = False
         object.__setattr__(self, "input", u)
@@ -146,6 +182,7 @@ class Record:
         object.__setattr__(self, "fs", fs)
         object.__setattr__(self, "time", t)
         object.__setattr__(self, "columns", columns)
+        object.__setattr__(self, "units", units)
 
     @property
     def n(self) -> int:
@@ -159,6 +196,11 @@ class Record:
 
     def __len__(self) -> int:
         return self.n
+
+    def si_units(self) -> dict[str, str]:
+        """The unit of each signal as held (after conversion): ``{"input": "V", "output": "m"}``
+        (``""`` where the source said nothing), the form a model's ``units`` takes."""
+        return {role: self.units[role].si for role in ("input", "output") if role in self.units}
 
     def __repr__(self) -> str:
         return (
@@ -185,6 +227,7 @@ class Record:
             None if self.time is None else self.time[a:b],
             f"{self.source}[{a}:{b}]",
             dict(self.columns),
+            dict(self.units),
         )
 
     def trim(self, start: int = 0, stop: int | None = None) -> Record:
@@ -252,9 +295,23 @@ def _check_increasing(t: FloatArray, name: str) -> FloatArray:
 
 
 def fs_from_time(t: FloatArray, name: str, rtol: float) -> float:
-    """The sample rate of a strictly increasing, uniform time axis (seconds)."""
+    """The sample rate of a strictly increasing, uniform time axis (seconds).
+
+    Robust to rounded and jittered time stamps within ``rtol``: every step must lie within
+    ``rtol`` of the median step, a step of ``GAP_STEPS`` median steps or more is a gap (an error
+    naming its row), and the rate is the slope of the least-squares line ``t = t0 + k / fs``
+    over the sample index ``k``, each stamp within ``rtol`` steps of it."""
     d = _check_increasing(t, name)
     med = float(np.median(d))
+    gaps = np.flatnonzero(d >= max(GAP_STEPS, 1.0 + 2.0 * rtol) * med)
+    if gaps.size:
+        k = int(gaps[0])
+        raise ParameterError(
+            f"{name} has a gap at row {k + 1}: {name}[{k + 1}] - {name}[{k}] = {d[k]:.9g} s is {d[k] / med:.3g} "
+            f"median steps ({med:.9g} s), about {max(round(d[k] / med) - 1, 1)} samples missing; a record with "
+            f"a missing stretch is not resampled silently: load the parts on either side of row {k + 1} "
+            f"(trim), or fill the gap"
+        )
     dev = np.abs(d - med)
     bad = np.flatnonzero(dev > rtol * med)
     if bad.size:
@@ -265,7 +322,21 @@ def fs_from_time(t: FloatArray, name: str, rtol: float) -> float:
             f"(time_rtol = {rtol:g}); resample the record first (it is not resampled silently), "
             f"or raise time_rtol if the time stamps are merely rounded"
         )
-    return (t.size - 1) / float(t[-1] - t[0])
+    idx = np.arange(t.size, dtype=np.float64)
+    kc = idx - idx.mean()
+    tc = t - t[0]
+    step = float(np.dot(kc, tc - tc.mean()) / np.dot(kc, kc))
+    resid = tc - tc.mean() - step * kc
+    worst = int(np.argmax(np.abs(resid)))
+    if abs(resid[worst]) > max(rtol, 1e-9) * step:
+        raise ParameterError(
+            f"{name} does not follow a uniform clock: {name}[{worst}] is {abs(resid[worst]) / step:.3g} steps off "
+            f"the least-squares line t = t0 + k / fs (time_rtol = {rtol:g}); the sample rate drifts: resample "
+            f"the record first, or raise time_rtol"
+        )
+    if abs(resid[worst]) <= 1e-6 * step:  # exact stamps: the span gives the rate to the last bit
+        return (t.size - 1) / float(t[-1] - t[0])
+    return 1.0 / step
 
 
 # --------------------------------------------------------------------------------------
@@ -328,137 +399,6 @@ class ColumnSource(Protocol[_Key]):
         ...
 
 
-class TextTable:
-    kind = "text"
-
-    def __init__(self, path: Path, delimiter: str | None, header: bool | str) -> None:
-        self.source = str(path)
-        raw = path.read_bytes()
-        if b"\x00" in raw:
-            raise DataError(f"{path}: contains NUL bytes: a binary file, not delimited text")
-        try:
-            text = raw.decode("utf-8-sig")
-        except UnicodeDecodeError:
-            text = raw.decode("latin-1")
-        lines = text.splitlines()
-        first = None  # index of the first non-comment, non-blank line
-        for i, line in enumerate(lines):
-            s = line.strip()
-            if s and s[0] not in "#%":
-                first = i
-                break
-        if first is None:
-            what = "is empty" if not text.strip() else "has no data lines (only comments)"
-            raise DataError(f"{path}: {what}")
-        if delimiter is None:
-            s = lines[first]
-            delimiter = "\t" if "\t" in s else "," if "," in s else ";" if ";" in s else " "
-        self.delimiter: str = delimiter
-        names = None
-        fields = self._split(lines[first])
-        numeric = all(_is_number(f) for f in fields)
-        data_start = first
-        if header is True or (header == "auto" and not numeric):
-            names = [_unquote(f) for f in fields]
-            data_start = first + 1
-        elif header == "auto" and first > 0 and lines[first - 1].strip()[:1] in ("#", "%"):
-            # a commented header right above the data, as numpy.savetxt(header=...) writes
-            candidate = self._split(lines[first - 1].strip().lstrip("#%"))
-            if len(candidate) == len(fields) and not all(_is_number(f) for f in candidate):
-                names = [_unquote(f) for f in candidate]
-        self.names = names
-        self.ncols = len(names) if names is not None else len(fields)
-        self.rows: list[list[str]] = []
-        self.line_numbers: list[int] = []
-        for i in range(data_start, len(lines)):
-            s = lines[i].strip()
-            if not s or s[0] in "#%":
-                continue
-            row = self._split(lines[i])
-            if len(row) != self.ncols:
-                where = "the header" if data_start > first else f"line {first + 1}"
-                raise DataError(
-                    f"{path}: line {i + 1} has {len(row)} fields, expected {self.ncols} as on {where} "
-                    f"(delimiter {self.delimiter!r})"
-                )
-            self.rows.append(row)
-            self.line_numbers.append(i + 1)
-        if not self.rows:
-            raise DataError(f"{path}: has no data rows")
-
-    def _split(self, line: str) -> list[str]:
-        if self.delimiter.isspace() and self.delimiter != "\t":
-            return line.split()
-        return [f.strip() for f in line.rstrip().split(self.delimiter)]
-
-    def columns(self) -> list[tuple[int, str]]:
-        return [(j, self._label(j)) for j in range(self.ncols)]
-
-    def _label(self, j: int) -> str:
-        return self.names[j] if self.names is not None else f"column {j}"
-
-    def resolve(self, role: str, spec: str | int) -> tuple[int, str]:
-        if isinstance(spec, int):
-            if spec >= self.ncols:
-                raise DataError(
-                    f"{self.source}: {role} = {spec} is out of range: the file has {self.ncols} columns "
-                    f"(0-based indices 0..{self.ncols - 1})"
-                )
-            return spec, self._label(spec)
-        if self.names is None:
-            raise DataError(
-                f"{self.source}: {role} = {spec!r} names a column, but the file has no header line; "
-                f"use a 0-based column index 0..{self.ncols - 1} (or header=True)"
-            )
-        hits = [j for j, n in enumerate(self.names) if n == spec]
-        if not hits:
-            raise DataError(f"{self.source}: {role} = {spec!r} is not a column; the columns are {self.names}")
-        if len(hits) > 1:
-            raise DataError(f"{self.source}: {role} = {spec!r} names columns {hits}; use a 0-based index")
-        return hits[0], spec
-
-    def read(self, role: str, key: int, label: str) -> FloatArray:
-        cells = [row[key] for row in self.rows]
-        try:
-            values = np.fromiter(map(float, cells), dtype=np.float64, count=len(cells))
-        except ValueError:
-            values = np.empty(len(cells))
-            for i, c in enumerate(cells):
-                try:
-                    values[i] = float(_unquote(c))
-                except ValueError:
-                    raise DataError(
-                        f"{self.source}: line {self.line_numbers[i]} (sample {i}), {role} column "
-                        f"{label!r} (index {key}): {c!r} is not a number"
-                    ) from None
-        bad = np.flatnonzero(~np.isfinite(values))
-        if bad.size:
-            i = int(bad[0])
-            raise DataError(
-                f"{self.source}: {role}[{i}] = {values[i]} is not finite (line {self.line_numbers[i]}, "
-                f"column {label!r})"
-            )
-        return values
-
-    def close(self) -> None:
-        """Nothing to release: the file was read whole."""
-
-
-def _unquote(s: str) -> str:
-    s = s.strip()
-    if len(s) >= 2 and s[0] == s[-1] and s[0] in "\"'":
-        return s[1:-1].strip()
-    return s
-
-
-def _is_number(s: str) -> bool:
-    try:
-        float(_unquote(s))
-    except ValueError:
-        return False
-    return True
-
-
 #: Any numeric array read from a container (float, int or unsigned dtype).
 AnyArray = npt.NDArray[Any]
 
@@ -476,12 +416,14 @@ class _ContainerTable:
         lookup: Callable[[str], AnyArray],
         matrix_name: str | None,
         close: Callable[[], None] | None = None,
+        unit: Callable[[str], str | None] | None = None,
     ) -> None:
         self.source = source
         self.kind = kind
         self.variables = variables  # name -> shape, numeric arrays only (for listings)
         self._lookup = lookup  # name -> np.ndarray (raises KeyError)
         self._close = close
+        self._unit = unit
         self.matrix: AnyArray | None = None
         self.matrix_name = matrix_name
         if matrix_name is not None:
@@ -516,6 +458,12 @@ class _ContainerTable:
         if a.dtype.kind not in "fiu":
             raise ParameterTypeError(f"{self.source}: {role} = {name!r} must hold real numbers, got dtype {a.dtype}")
         return a
+
+    def unit_of(self, key: int | str) -> str | None:
+        """The unit stored with a named array (an HDF5 ``units`` attribute), if any."""
+        if isinstance(key, int) or self._unit is None:
+            return None
+        return self._unit(key)
 
     def columns(self) -> list[tuple[int | str, str]]:
         if self.matrix is not None:
@@ -575,16 +523,83 @@ def _dict_lookup(arrays: Mapping[str, object]) -> Callable[[str], AnyArray]:
     return lookup
 
 
-def open_npz(path: Path, dataset: str | None) -> _ContainerTable:
+def _max_bytes(max_bytes: object) -> int:
+    """The bound on one array's decompressed size: ``max_bytes``, else the environment
+    variable ``PIEZOHYST_MAX_ARRAY_BYTES``, else 1 GiB."""
+    if max_bytes is not None:
+        return as_int(max_bytes, "max_bytes", minimum=1)
+    env = os.environ.get(MAX_ARRAY_BYTES_ENV, "").strip()
+    if not env:
+        return MAX_ARRAY_BYTES
+    try:
+        value = int(float(env)) if re.fullmatch(r"\d+(?:\.\d*)?(?:[eE]\+?\d+)?", env) else -1
+    except (ValueError, OverflowError):
+        value = -1
+    if value < 1:
+        raise ParameterError(f"{MAX_ARRAY_BYTES_ENV} = {env!r} must be a number of bytes >= 1 (e.g. 4000000000)")
+    return value
+
+
+def _check_size(source: str, what: str, nbytes: int, limit: int) -> None:
+    """A clear error, before reading, when an array would take more than ``limit`` bytes."""
+    if nbytes > limit:
+        raise DataError(
+            f"{source}: {what} would take {nbytes:,} bytes when read (decompressed), over the limit of "
+            f"{limit:,} bytes; if the file is trusted, raise the limit with the environment variable "
+            f"{MAX_ARRAY_BYTES_ENV}=<bytes> or load_record(..., max_bytes=<bytes>)"
+        )
+
+
+def _npy_header(fp: Any) -> tuple[tuple[int, ...], np.dtype[Any]]:
+    version = np.lib.format.read_magic(fp)
+    if version == (1, 0):
+        shape, _, dtype = np.lib.format.read_array_header_1_0(fp)
+    else:  # 2.0 and 3.0 share the header layout (3.0 allows UTF-8 in field names)
+        shape, _, dtype = np.lib.format.read_array_header_2_0(fp)
+    return tuple(int(k) for k in shape), np.dtype(dtype)
+
+
+def open_npz(path: Path, dataset: str | None, limit: int = MAX_ARRAY_BYTES) -> _ContainerTable:
+    """An NPZ archive: member headers read to list the arrays; only the arrays named are
+    decompressed, each after its size (from its header) is checked against ``limit``."""
     try:
         z = np.load(path, allow_pickle=False)
         if isinstance(z, np.ndarray):
             raise ParameterError("it holds a single array (.npy format), not an archive")
-        with z:
-            arrays = {k: np.asarray(z[k]) for k in z.files}
     except Exception as e:  # a corrupt archive raises from zipfile, zlib, numpy.lib.format ...
         raise DataError(f"{path}: not a readable NPZ archive ({type(e).__name__}: {e})") from None
-    return _ContainerTable(str(path), "NPZ", _numeric_shapes(arrays), _dict_lookup(arrays), dataset)
+    headers: dict[str, tuple[tuple[int, ...], np.dtype[Any]]] = {}
+    try:
+        for member in z.zip.namelist():
+            key = member[:-4] if member.endswith(".npy") else member
+            if key not in z.files:
+                continue
+            with z.zip.open(member) as fp:
+                headers[key] = _npy_header(fp)
+    except Exception as e:
+        z.close()
+        raise DataError(f"{path}: not a readable NPZ archive ({type(e).__name__}: {e})") from None
+    shapes = {k: sh for k, (sh, dt) in headers.items() if dt.kind in "fiu" and int(np.prod(sh)) > 0}
+
+    def lookup(name: str) -> AnyArray:
+        if name not in headers:
+            raise KeyError(name)
+        shape, dtype = headers[name]
+        if dtype.kind not in "fiu":
+            return np.empty((0,), dtype=dtype if not dtype.hasobject else np.dtype("U1"))
+        _check_size(
+            str(path), f"NPZ member {name!r} of shape {shape} ({dtype})", int(np.prod(shape)) * dtype.itemsize, limit
+        )
+        try:
+            return np.asarray(z[name])
+        except Exception as e:
+            raise DataError(f"{path}: NPZ member {name!r} is not readable ({type(e).__name__}: {e})") from None
+
+    try:
+        return _ContainerTable(str(path), "NPZ", shapes, lookup, dataset, close=z.close)
+    except BaseException:
+        z.close()
+        raise
 
 
 def open_npy(path: Path, dataset: str | None) -> _ContainerTable:
@@ -613,8 +628,16 @@ def _flatten_mat(d: Mapping[str, object], prefix: str, out: dict[str, AnyArray])
             out[name] = np.asarray(v)
 
 
-def open_mat(path: Path, dataset: str | None) -> _ContainerTable:
-    from scipy.io import loadmat
+_MAT_ITEMSIZE = {
+    "double": 8, "single": 4, "int8": 1, "uint8": 1, "int16": 2, "uint16": 2,
+    "int32": 4, "uint32": 4, "int64": 8, "uint64": 8, "logical": 1, "char": 2,
+}  # fmt: skip
+
+
+def open_mat(path: Path, dataset: str | None, limit: int = MAX_ARRAY_BYTES) -> _ContainerTable:
+    """A MATLAB file: v7.3 through :func:`open_hdf5`; v4-v7 through scipy, after the declared
+    size of every numeric variable (:func:`scipy.io.whosmat`) is checked against ``limit``."""
+    from scipy.io import loadmat, whosmat
     from scipy.io.matlab import matfile_version
 
     try:
@@ -622,9 +645,15 @@ def open_mat(path: Path, dataset: str | None) -> _ContainerTable:
     except Exception as e:
         raise DataError(f"{path}: not a MATLAB .mat file ({type(e).__name__}: {e})") from None
     if major == 2:
-        return open_hdf5(path, dataset, matlab=True)
+        return open_hdf5(path, dataset, matlab=True, limit=limit)
     try:
+        for name, shape, cls in whosmat(str(path)):
+            if cls in _MAT_ITEMSIZE:
+                size = int(np.prod([int(k) for k in shape])) * _MAT_ITEMSIZE[cls]
+                _check_size(str(path), f"MATLAB variable {name!r} of shape {tuple(shape)} ({cls})", size, limit)
         d = loadmat(str(path), simplify_cells=True)
+    except DataError:
+        raise
     except Exception as e:
         raise DataError(
             f"{path}: not a readable MATLAB v{4 if major == 0 else 5} file ({type(e).__name__}: {e})"
@@ -650,8 +679,9 @@ def _import_h5py() -> ModuleType:
 class _Hdf5Source:
     """An open HDF5 file (closed by the caller) exposing numeric datasets by path."""
 
-    def __init__(self, path: Path, matlab: bool) -> None:
+    def __init__(self, path: Path, matlab: bool, limit: int = MAX_ARRAY_BYTES) -> None:
         h5py = _import_h5py()
+        self.limit = limit
         self.kind = "MATLAB v7.3" if matlab else "HDF5"
         try:
             self.file = h5py.File(path, "r")
@@ -680,14 +710,68 @@ class _Hdf5Source:
             raise DataError(f"{path}: not a readable {self.kind} file ({type(e).__name__}: {e})") from None
         self.shapes = shapes
 
+    def _check_links(self, key: str, name: str, depth: int = 0) -> None:
+        """Refuse a path through an external link (a soft link is followed, within the file)."""
+        h5py = self.h5py
+        cur = ""
+        for part in key.strip("/").split("/"):
+            cur = f"{cur}/{part}"
+            try:
+                link = self.file.get(cur, getlink=True)
+            except (KeyError, ValueError, TypeError):
+                raise KeyError(name) from None
+            if link is None:
+                raise KeyError(name)
+            if isinstance(link, h5py.ExternalLink):
+                raise DataError(
+                    f"{self.file.filename}: {name!r} goes through an external link ({cur!r} -> file "
+                    f"{link.filename!r}, {link.path!r}); links to other files are not followed: only the "
+                    f"file named is read"
+                )
+            if isinstance(link, h5py.SoftLink):
+                if depth > 16:
+                    raise DataError(f"{self.file.filename}: {name!r}: soft links nested more than 16 deep")
+                self._check_links(str(link.path), name, depth + 1)
+
+    def unit(self, name: str) -> str | None:
+        """The ``units`` (or ``unit``) attribute of a dataset, if it has one."""
+        key = name.replace(".", "/") if self.matlab else name
+        try:
+            self._check_links(key, name)
+            value = self.file[key].attrs.get("units", self.file[key].attrs.get("unit"))
+        except (KeyError, ValueError, TypeError, OSError, DataError):
+            return None
+        if isinstance(value, np.ndarray) and value.size == 1:
+            value = value.ravel()[0]
+        if isinstance(value, bytes):
+            value = value.decode("utf-8", errors="replace")
+        return value if isinstance(value, str) and value.isprintable() and len(value) <= 32 else None
+
     def lookup(self, name: str) -> AnyArray:
         key = name.replace(".", "/") if self.matlab else name
+        self._check_links(key, name)
         try:
             obj = self.file[key]
         except (KeyError, ValueError):
             raise KeyError(name) from None
         if not isinstance(obj, self.h5py.Dataset):
             raise KeyError(name)
+        src = self.file.filename
+        if obj.external:
+            raise DataError(
+                f"{src}: dataset {name!r} keeps its data in external raw storage ({obj.external[0][0]!r}); "
+                f"data outside the file named is not read"
+            )
+        if obj.is_virtual:
+            raise DataError(
+                f"{src}: dataset {name!r} is a virtual dataset (mapped from other datasets or files); "
+                f"it is not read: only data stored in the file named is"
+            )
+        if obj.dtype.kind not in "fiu":
+            return np.empty((0,), dtype=obj.dtype if obj.dtype.kind not in "OV" else np.dtype("U1"))
+        _check_size(
+            src, f"dataset {name!r} of shape {obj.shape} ({obj.dtype})", int(obj.size) * obj.dtype.itemsize, self.limit
+        )
         try:
             a = np.asarray(obj[()])
         except Exception as e:
@@ -701,13 +785,104 @@ class _Hdf5Source:
         return a
 
 
-def open_hdf5(path: Path, dataset: str | None, matlab: bool = False) -> _ContainerTable:
-    src = _Hdf5Source(path, matlab)
+def open_hdf5(path: Path, dataset: str | None, matlab: bool = False, limit: int = MAX_ARRAY_BYTES) -> _ContainerTable:
+    """An HDF5 file (or MATLAB v7.3): datasets by path. Only what is named is read: external
+    links, external raw storage and virtual datasets are refused, and a dataset's size is
+    checked against ``limit`` before it is read."""
+    src = _Hdf5Source(path, matlab, limit)
     try:
-        return _ContainerTable(str(path), src.kind, src.shapes, src.lookup, dataset, close=src.file.close)
+        return _ContainerTable(
+            str(path), src.kind, src.shapes, src.lookup, dataset, close=src.file.close, unit=src.unit
+        )
     except BaseException:
         src.file.close()
         raise
+
+
+class ParquetTable:
+    """A Parquet file (through pyarrow): its numeric columns by name or 0-based index; only the
+    columns named are read, each after its uncompressed size is checked against ``limit``."""
+
+    kind = "Parquet"
+
+    def __init__(self, path: Path, limit: int = MAX_ARRAY_BYTES) -> None:
+        try:
+            import pyarrow.parquet as pq
+        except ImportError:
+            raise ImportError(PYARROW_HINT.replace("text records", "Parquet files")) from None
+        self.source = str(path)
+        self.limit = limit
+        try:
+            self.file = pq.ParquetFile(path)
+            self.names: list[str] = [str(n) for n in self.file.schema_arrow.names]
+            meta = self.file.metadata
+            self.sizes = [
+                sum(int(meta.row_group(g).column(j).total_uncompressed_size) for g in range(meta.num_row_groups))
+                for j in range(meta.num_columns)
+            ]
+        except Exception as e:
+            raise DataError(f"{path}: not a readable Parquet file ({type(e).__name__}: {e})") from None
+        self.ncols = len(self.names)
+
+    def columns(self) -> list[tuple[int, str]]:
+        return list(enumerate(self.names))
+
+    def unit_of(self, key: int) -> str | None:
+        """A ``unit`` / ``units`` entry of the column's field metadata, if any."""
+        meta = self.file.schema_arrow.field(key).metadata or {}
+        value = meta.get(b"unit", meta.get(b"units"))
+        if not isinstance(value, bytes):
+            return None
+        text = value.decode("utf-8", errors="replace")
+        return text if text.isprintable() and len(text) <= 32 else None
+
+    def resolve(self, role: str, spec: str | int) -> tuple[int, str]:
+        if isinstance(spec, int):
+            if spec >= self.ncols:
+                raise DataError(
+                    f"{self.source}: {role} = {spec} is out of range: the file has {self.ncols} columns "
+                    f"(0-based indices 0..{self.ncols - 1})"
+                )
+            return spec, self.names[spec]
+        hits = [j for j, n in enumerate(self.names) if n == spec]
+        if not hits:
+            hits = [j for j, n in enumerate(self.names) if split_annotation(n)[0] == spec]
+        if not hits:
+            raise DataError(f"{self.source}: {role} = {spec!r} is not a column; the columns are {self.names}")
+        if len(hits) > 1:
+            raise DataError(f"{self.source}: {role} = {spec!r} names columns {hits}; use a 0-based index")
+        return hits[0], self.names[hits[0]]
+
+    def read(self, role: str, key: int, label: str) -> FloatArray:
+        import pyarrow as pa
+
+        if key < len(self.sizes):
+            _check_size(self.source, f"column {label!r}", self.sizes[key], self.limit)
+        try:
+            col = self.file.read(columns=[self.names[key]]).column(0)
+        except Exception as e:
+            raise DataError(f"{self.source}: column {label!r} is not readable ({type(e).__name__}: {e})") from None
+        if not (pa.types.is_integer(col.type) or pa.types.is_floating(col.type)):
+            raise ParameterTypeError(f"{self.source}: {role} = {label!r} must hold real numbers, got type {col.type}")
+        if col.null_count:
+            i = int(np.flatnonzero(np.asarray(col.is_null()))[0])
+            raise DataError(f"{self.source}: {role}[{i}] is missing (null) in column {label!r}")
+        x = np.asarray(col.to_numpy(), dtype=np.float64)
+        bad = np.flatnonzero(~np.isfinite(x))
+        if bad.size:
+            i = int(bad[0])
+            raise DataError(f"{self.source}: {role}[{i}] = {x[i]} is not finite ({label!r})")
+        return x
+
+    def close(self) -> None:
+        """Release the file."""
+        self.file = None
+
+
+def open_parquet(path: Path, dataset: str | None, limit: int = MAX_ARRAY_BYTES) -> ParquetTable:
+    if dataset is not None:
+        raise ParameterError(f"dataset = {dataset!r} does not apply to a Parquet file (columns by name or index)")
+    return ParquetTable(path, limit)
 
 
 # --------------------------------------------------------------------------------------
@@ -725,6 +900,10 @@ def load_record(
     header: bool | str = "auto",
     dataset: str | None = None,
     time_rtol: float = TIME_RTOL,
+    time_unit: str | None = None,
+    input_unit: str | None = None,
+    output_unit: str | None = None,
+    max_bytes: int | None = None,
 ) -> Record:
     """Load a measured record (input, output, sample rate) from a file.
 
@@ -732,8 +911,8 @@ def load_record(
     ----------
     path : str or os.PathLike
         The file; its extension selects the reader: ``.csv .tsv .txt .dat .asc`` (delimited
-        text), ``.npz``, ``.npy``, ``.mat`` (v4/v5/v7, or v7.3 with h5py), ``.h5 .hdf5 .he5``
-        (with h5py).
+        text, parsed by pyarrow), ``.npz``, ``.npy``, ``.mat`` (v4/v5/v7, or v7.3 with h5py),
+        ``.h5 .hdf5 .he5`` (with h5py), ``.parquet .pq`` (pyarrow).
     input, output, time : str or int, optional
         The columns to use. A **str** names a column: a header name of a text file, a key
         of an NPZ archive, a MATLAB variable (struct fields as ``"s.field"``), an HDF5
@@ -747,18 +926,33 @@ def load_record(
         Sample rate in Hz. Either ``fs`` or ``time`` is required; with both, they must
         agree to ``time_rtol`` (relative) and ``fs`` is used.
     delimiter : str, optional
-        Text files: the field separator; by default the first data line decides: tab,
-        else comma, else semicolon, else runs of whitespace (also ``delimiter=" "``).
+        Text files: the field separator; by default sniffed from the first lines: tab,
+        semicolon, comma or runs of whitespace (also ``delimiter=" "``), whichever splits
+        them into the same number of fields. A decimal comma (``0,5;1,25``), a UTF-8 or UTF-16
+        byte-order mark and quoted fields are recognised.
     header : {"auto", True, False}
         Text files: whether the first non-comment line holds column names. ``"auto"``:
-        yes if any of its fields is not a number; a ``#`` comment line right above the
-        data with one name per column (as ``numpy.savetxt(header=...)`` writes) also
-        names the columns. Lines starting with ``#`` or ``%`` and blank lines are skipped.
+        yes if any of its fields is neither a number nor empty (``,0,-1.6,0`` is data); a
+        ``#`` comment line right above the data with one name per column (as
+        ``numpy.savetxt(header=...)`` writes) also names the columns. Lines starting with
+        ``#``, ``%`` or (unless ``;`` separates fields) ``;`` and blank lines are skipped.
     dataset : str, optional
         NPZ/MAT/HDF5: a 2-D matrix (rows are samples; MATLAB's orientation for ``.mat``
         files, also v7.3) whose columns integer ``input``/``output``/``time`` address.
     time_rtol : float
-        Relative tolerance of the time steps against their median step (default 1e-6).
+        Relative tolerance of the time stamps (default 1e-6; raise it for rounded or jittered
+        stamps): every step within ``time_rtol`` of the median step, every stamp within
+        ``time_rtol`` steps of the least-squares line ``t = t0 + k / fs`` whose slope gives the
+        rate. A step of 1.5 median steps or more is a gap — an error naming its row.
+    time_unit, input_unit, output_unit : str, optional
+        The unit of a column (``"ms"``, ``"us"``; ``"mV"``, ``"kV"``; ``"um"``, ``"µm"``,
+        ``"nm"``, ``"mm"``; ...). By default a unit annotating the column name is used —
+        ``"t [ms]"``, ``"x (um)"``, ``"disp_um"`` — and a time column without one is in
+        seconds. Values are converted to SI (s, V, m, N, A); ``Record.units`` says from what.
+        A unit the loader does not know, annotated in a name, is recorded and not converted.
+    max_bytes : int, optional
+        NPZ/MAT/HDF5: the bound on the (decompressed) size of one array, checked before it
+        is read; default the environment variable ``PIEZOHYST_MAX_ARRAY_BYTES``, else 1 GiB.
 
     Returns
     -------
@@ -807,6 +1001,11 @@ def load_record(
     }
     fs_given = None if fs is None else as_scalar(fs, "fs", positive=True)
     rtol = as_scalar(time_rtol, "time_rtol", positive=True)
+    given_units = {"input": input_unit, "output": output_unit, "time": time_unit}
+    for role, unit in given_units.items():
+        if unit is not None:
+            parse_unit(unit, role)
+    limit = _max_bytes(max_bytes)
     if delimiter is not None:
         if not isinstance(delimiter, str):
             raise ParameterTypeError(f"delimiter must be a str, got {delimiter!r}")
@@ -828,7 +1027,7 @@ def load_record(
     if suffix in TEXT_SUFFIXES:
         if dataset is not None:
             raise ParameterError(f"dataset = {dataset!r} applies to NPZ/MAT/HDF5 files; {p} is a text file")
-        return _assemble(TextTable(p, delimiter, header), specs, fs_given, rtol)
+        return _assemble(TextTable(p, delimiter, header), specs, fs_given, rtol, given_units)
     else:
         if suffix not in SUPPORTED_SUFFIXES:
             raise DataError(f"{p}: unsupported file extension {p.suffix!r}; supported: {' '.join(SUPPORTED_SUFFIXES)}")
@@ -836,22 +1035,29 @@ def load_record(
             raise ParameterError(
                 f"delimiter = {delimiter!r}, header = {header!r}: these apply to text files only, not {p.suffix!r}"
             )
+        table: ColumnSource[Any]  # keys: column indices or array names
         if suffix in NPZ_SUFFIXES:
-            table = open_npz(p, dataset)
+            table = open_npz(p, dataset, limit)
         elif suffix in NPY_SUFFIXES:
             table = open_npy(p, dataset)
         elif suffix in MAT_SUFFIXES:
-            table = open_mat(p, dataset)
+            table = open_mat(p, dataset, limit)
+        elif suffix in PARQUET_SUFFIXES:
+            table = open_parquet(p, dataset, limit)
         else:
-            table = open_hdf5(p, dataset)
+            table = open_hdf5(p, dataset, limit=limit)
     try:
-        return _assemble(table, specs, fs_given, rtol)
+        return _assemble(table, specs, fs_given, rtol, given_units)  # type: ignore[misc]
     finally:
         table.close()
 
 
 def _assemble(
-    table: ColumnSource[_Key], specs: Mapping[str, ColumnSpec], fs_given: float | None, rtol: float
+    table: ColumnSource[_Key],
+    specs: Mapping[str, ColumnSpec],
+    fs_given: float | None,
+    rtol: float,
+    given_units: Mapping[str, str | None] | None = None,
 ) -> Record:
     src = table.source
     resolved: dict[str, tuple[_Key, str]] = {}
@@ -885,7 +1091,22 @@ def _assemble(
             if key in seen:
                 raise DataError(f"{src}: {seen[key]} and {role} are the same column {label!r}")
             seen[key] = role
+    prepare = getattr(table, "prepare", None)
+    if prepare is not None:  # a text table parses every column asked for in one pass
+        prepare([resolved[role][0] for role in _ROLES if role in resolved])
     arrays = {role: table.read(role, *resolved[role]) for role in _ROLES if role in resolved}
+    given = given_units or {}
+    unit_of = getattr(table, "unit_of", None)  # a unit stored with the column in the file, if any
+    units = {
+        role: conversion_for(
+            role, resolved[role][1], given.get(role), None if unit_of is None else unit_of(resolved[role][0])
+        )
+        for role in _ROLES
+        if role in resolved
+    }
+    for role, conv in units.items():
+        if conv.scale != 1.0:
+            arrays[role] = arrays[role] * conv.scale
     n = arrays["input"].size
     for role in ("output", "time"):
         if role in arrays and arrays[role].size != n:
@@ -913,7 +1134,7 @@ def _assemble(
         raise DataError(f"{src}: the sample rate is unknown: pass fs=<Hz> or time=<time column>")
     columns = {role: resolved[role][1] for role in _ROLES if role in resolved}
     try:
-        return Record(arrays["input"], arrays["output"], fs, arrays.get("time"), src, columns)
+        return Record(arrays["input"], arrays["output"], fs, arrays.get("time"), src, columns, units)
     except (ValueError, TypeError) as e:
         raise type(e)(f"{src}: {e}") from None
 
