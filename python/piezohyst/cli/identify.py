@@ -434,10 +434,7 @@ def _identify(args: argparse.Namespace) -> int:
         "fs": rec.fs,
         "units": _units_report(rec),
     }
-<<<<<<< HEAD
     fit["preprocessing"] = preprocessing
-    doc = _model_document(res, args.model, train.fs)
-=======
     output_map = getattr(res.model, "output_map", None)  # cemf, boucwen-benchmark: none
     fit["output_map"] = None if output_map is None else output_map.to_dict()
     doc = _model_document(res, kind, train.fs)
@@ -451,7 +448,6 @@ def _identify(args: argparse.Namespace) -> int:
         fit["assessment"] = {**assessment, "note": honest["note"]} if honest["note"] else assessment
     if league is not None:
         fit["league"] = league
->>>>>>> main
     if res.partial:
         doc["partial"] = True  # Ctrl-C stopped the optimizer: the best model found before it
     doc["fit"] = fit
@@ -553,7 +549,6 @@ def _model_document(res: IdentificationResult, kind: str, fs: float) -> dict[str
     return res.model.to_dict()
 
 
-<<<<<<< HEAD
 def _preprocess(
     args: argparse.Namespace, rec: Record, train: _Range | None, validate: _Range | None
 ) -> tuple[Record, dict[str, Any], _Range | None, _Range | None]:
@@ -669,7 +664,8 @@ def _summary(report: dict[str, Any]) -> str:
         d = report["decimate"]
         parts.append(f"decimated by {d['factor']} to {d['fs_out']:g} Hz")
     return "; ".join(parts)
-=======
+
+
 def _honest_options(
     args: argparse.Namespace,
     rec: Record,
@@ -810,4 +806,3 @@ def _print_distrust(assessment: dict[str, Any]) -> None:
         print("  likely cause: none of offset, drift, delay, swapped columns, sample rate found", file=sys.stderr)
     for cause in causes:
         print(f"  likely cause: {cause['cause']}: {cause['evidence']}", file=sys.stderr)
->>>>>>> main
