@@ -98,7 +98,7 @@ def test_lag_fixes_the_fit(clean):
     after = heldout_error(out, y0[: out.n])
     assert report["lag"]["samples"] == k and report["steps"] == ["lag"]
     assert out.n == N - k
-    # measured: 1.37 % -> 0.011 %
+    # measured: 1.35 % -> 0.011 %
     assert before > 1.0 and after < 0.05 and before / after > 50
 
 
@@ -140,7 +140,7 @@ def test_drift_removal_fixes_the_fit(clean):
     after = heldout_error(out, y0)
     # the drift's total change is recovered to 1 % although the input's response is fitted with it
     assert report["drift"]["change"] == pytest.approx(drift[-1], rel=0.01)
-    # measured: 6.9 % -> 0.012 %
+    # measured: 7.2 % -> 0.012 %
     assert before > 5.0 and after < 0.03
 
 
@@ -176,8 +176,8 @@ def test_lead_in_is_found_and_dropping_it_fixes_the_fit(clean):
     out, report = preprocess(rec, lead_in="auto")
     assert report["lead_in"]["samples"] == start and report["index"] == {"start": start, "step": 1}
     after = heldout_error(out, y_true[start:])
-    # measured: 1.53 % -> 0.032 %
-    assert before > 1.0 and after < 0.05
+    # measured: 0.285 % -> 0.032 % (1.53 % before PI had an output offset to absorb the settled level)
+    assert before > 0.2 and after < 0.05 and before / after > 5
 
 
 def test_no_lead_in_and_a_constant_input():
@@ -205,7 +205,7 @@ def test_glitches_are_flagged_and_replacing_them_fixes_the_fit(clean):
     out, report = preprocess(rec, outliers="drop")
     assert out.n == N and report["outliers"]["replaced"] == "linear interpolation"
     after = heldout_error(out, y0)
-    # measured: 0.108 % -> 0.014 %
+    # measured: 0.112 % -> 0.013 %
     assert before > 0.08 and after < 0.02 and before / after > 5
 
 
@@ -234,7 +234,7 @@ def test_decimation_filters_what_would_alias():
     truth = y0[::q]
     e_naive = heldout_error(naive, truth)
     e_dec = heldout_error(out, truth)
-    # measured: 1.32 % (aliased) -> 0.0006 %
+    # measured: 1.44 % (aliased) -> 0.001 %
     assert e_naive > 1.0 and e_dec < 0.01
     assert decimate(rec, 1) is rec
     with pytest.raises(ParameterError, match="factor = 0"):
