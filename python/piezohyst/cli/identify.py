@@ -36,7 +36,7 @@ from .common import (
 if TYPE_CHECKING:
     from ..identify.core import IdentificationResult
     from ..signals.data import Record
-    from .common import FloatArray, _Columns
+    from .common import FloatArray, _Columns, _Range
 
 #: Model kinds of ``piezohyst identify``: those of :func:`piezohyst.identify`, from its registry
 #: (:data:`piezohyst.identify.KINDS`), in its order.
@@ -194,6 +194,45 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         "time constants) by variable projection: --optimizer over them, least squares inside",
     )
     i.add_argument("--creep", metavar="M", type=int, default=0, help="pi/gpi/mpi/rdpi: add M creep lags (default 0)")
+    # preprocessing (issue 14, item 2): piezohyst.signals.preprocess on DATA (and a --validate file)
+    i.add_argument(
+        "--lag",
+        metavar="auto|N",
+        default="0",
+        help="input->output delay in samples removed before the fit (the output is advanced; 'auto' or "
+        "'auto:M' estimates it up to M samples, default M: 20 ms of samples, at least 10) (default: 0)",
+    )
+    i.add_argument(
+        "--drift",
+        metavar="none|remove[:K]",
+        default="none",
+        help="'remove' a slow polynomial drift of the output (degree K, default 1), fitted together with "
+        "a rate-independent function of the input; creep is modelled instead by --creep (default: none)",
+    )
+    i.add_argument(
+        "--lead-in",
+        metavar="auto|none|N",
+        default="none",
+        help="drop a quiet lead-in before the excitation: 'auto' finds where the input starts to move, N "
+        "drops N samples (default: none)",
+    )
+    i.add_argument(
+        "--outliers",
+        choices=("none", "flag", "drop"),
+        default="none",
+        help="glitches of the output (running median + MAD): 'flag' reports their rows (JSON "
+        "preprocessing.outliers.rows) and warns; 'drop' replaces them by linear interpolation (samples are "
+        "kept: the model needs a continuous time axis) (default: none)",
+    )
+    i.add_argument(
+        "--decimate",
+        metavar="N",
+        type=int,
+        default=1,
+        help="keep every N-th sample after a zero-phase FIR anti-alias filter, on both channels (default: 1). "
+        "With any preprocessing, --train/--validate count rows of DATA; they are mapped to the processed "
+        "record (JSON preprocessing.index: processed sample j is row start + j*step)",
+    )
     i.add_argument(
         "--offset",
         action=argparse.BooleanOptionalAction,
@@ -309,6 +348,7 @@ def _identify(args: argparse.Namespace) -> int:
     if fs is None and args.time is None:
         raise _Fail("the sample rate is unknown: give --fs HZ or --time COL")
     rec = _load(data, **columns)
+    rec, preprocessing, train_spec, val_spec = _preprocess(args, rec, train_spec, val_spec)
     n = rec.n
     val: Record | None = None
     val_where: _Where
@@ -332,6 +372,7 @@ def _identify(args: argparse.Namespace) -> int:
         a, b = (0, n) if train_spec is None else _resolve_range(train_spec, n, "--train", args.train)
         if val_file is not None:
             val = _load(val_file, **columns)
+            val = _preprocess_file(args, val, preprocessing)
             if abs(val.fs - rec.fs) > 1e-6 * rec.fs:
                 raise _Fail(
                     f"--validate = '{val_file}' is sampled at {val.fs:.9g} Hz, DATA at {rec.fs:.9g} Hz; "
@@ -393,6 +434,7 @@ def _identify(args: argparse.Namespace) -> int:
         "fs": rec.fs,
         "units": _units_report(rec),
     }
+    fit["preprocessing"] = preprocessing
     output_map = getattr(res.model, "output_map", None)  # cemf, boucwen-benchmark: none
     fit["output_map"] = None if output_map is None else output_map.to_dict()
     doc = _model_document(res, kind, train.fs)
@@ -505,6 +547,123 @@ def _model_document(res: IdentificationResult, kind: str, fs: float) -> dict[str
 
     assert isinstance(res.model, HysteresisModel)  # the linear families and Bouc-Wen
     return res.model.to_dict()
+
+
+def _preprocess(
+    args: argparse.Namespace, rec: Record, train: _Range | None, validate: _Range | None
+) -> tuple[Record, dict[str, Any], _Range | None, _Range | None]:
+    """``--lag --drift --lead-in --outliers --decimate`` applied to DATA; the ``--train`` /
+    ``--validate`` ranges (rows of DATA) mapped into the processed record."""
+    from ..signals.preprocess import preprocess, processed_index
+
+    options: dict[str, Any] = {}
+    lag = str(args.lag).strip()
+    if lag == "auto" or lag.startswith("auto:"):
+        options["lag"] = "auto"
+        if lag != "auto":
+            m = lag[5:]
+            if not m.isdigit():
+                raise _Fail(f"--lag = '{args.lag}': auto:M needs M, the largest lag searched, a number of samples")
+            options["max_lag"] = int(m)
+    else:
+        try:
+            options["lag"] = int(lag)
+        except ValueError:
+            raise _Fail(f"--lag = '{args.lag}' must be 'auto', 'auto:M' or an integer number of samples") from None
+    drift = str(args.drift)
+    if drift == "remove" or drift.startswith("remove:"):
+        options["drift"] = "remove"
+        if drift != "remove":
+            if not drift[7:].isdigit():
+                raise _Fail(f"--drift = '{args.drift}': remove:K needs K, the polynomial degree (1 to 5)")
+            options["drift_order"] = int(drift[7:])
+    elif drift != "none":
+        raise _Fail(f"--drift = '{args.drift}' must be 'none', 'remove' or 'remove:K'")
+    lead = str(args.lead_in)
+    if lead in ("auto", "none"):
+        options["lead_in"] = lead
+    elif lead.isdigit():
+        options["lead_in"] = int(lead)
+    else:
+        raise _Fail(f"--lead-in = '{args.lead_in}' must be 'auto', 'none' or a number of samples")
+    options["outliers"] = args.outliers
+    if args.decimate < 1:
+        raise _Fail(f"--decimate = {args.decimate} must be >= 1")
+    options["decimate"] = args.decimate
+    try:
+        out, report = preprocess(rec, **options)
+    except (ValueError, TypeError) as e:
+        raise _Fail(f"preprocessing DATA: {e}") from None
+    _warn_outliers(report, "DATA")
+    if report["steps"] and not args.json:
+        print(f"preprocessing: {_summary(report)}")
+    if report["steps"]:
+        report["ranges_of_data"] = {"train": None if train is None else list(train)}
+        report["ranges_of_data"]["validate"] = None if validate is None else list(validate)
+
+        def mapped(r: _Range | None) -> _Range | None:
+            if r is None:
+                return None
+            a, b = (None if x is None else min(processed_index(report, x), out.n) for x in r)
+            return a, b
+
+        train, validate = mapped(train), mapped(validate)
+    return out, report, train, validate
+
+
+def _preprocess_file(args: argparse.Namespace, val: Record, report: dict[str, Any]) -> Record:
+    """The same preprocessing on a --validate file, with DATA's lag (not estimated again)."""
+    from ..signals.preprocess import preprocess
+
+    if not report["steps"]:
+        return val
+    lag = 0 if report["lag"] is None else int(report["lag"]["samples"])
+    lead = str(args.lead_in)
+    drift = report["drift"]
+    try:
+        out, rep = preprocess(
+            val,
+            lag=lag,
+            drift="none" if drift is None else "remove",
+            drift_order=1 if drift is None else int(drift["order"]),
+            lead_in=lead if lead in ("auto", "none") else int(lead),
+            outliers=args.outliers,
+            decimate=args.decimate,
+        )
+    except (ValueError, TypeError) as e:
+        raise _Fail(f"preprocessing --validate = '{args.validate}': {e}") from None
+    _warn_outliers(rep, f"--validate = '{args.validate}'")
+    report["validation_file"] = rep
+    return out
+
+
+def _warn_outliers(report: dict[str, Any], where: str) -> None:
+    o = report["outliers"]
+    if o is not None and o["count"]:
+        rows = ", ".join(str(r) for r in o["rows"][:10]) + (" ..." if o["count"] > 10 else "")
+        what = "replaced by linear interpolation" if o["replaced"] else "left in (--outliers drop replaces them)"
+        print(
+            f"piezohyst identify: warning: {o['count']} glitch(es) in the output of {where}, rows {rows}: {what}",
+            file=sys.stderr,
+        )
+
+
+def _summary(report: dict[str, Any]) -> str:
+    """One line saying what the preprocessing did."""
+    parts = []
+    if report["outliers"] is not None:
+        o = report["outliers"]
+        parts.append(f"{o['count']} glitch(es) " + ("interpolated over" if o["replaced"] else "flagged"))
+    if report["lead_in"] is not None:
+        parts.append(f"lead-in of {report['lead_in']['samples']} samples dropped")
+    if report["lag"] is not None:
+        parts.append(f"lag {report['lag']['samples']} samples ({report['lag']['mode']}) removed")
+    if report["drift"] is not None:
+        parts.append(f"drift of order {report['drift']['order']} removed (change {report['drift']['change']:.4g})")
+    if report["decimate"] is not None:
+        d = report["decimate"]
+        parts.append(f"decimated by {d['factor']} to {d['fs_out']:g} Hz")
+    return "; ".join(parts)
 
 
 def _honest_options(

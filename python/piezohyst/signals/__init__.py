@@ -1,22 +1,42 @@
-"""Signals: measured records and their file readers (:mod:`.data`), reference trajectories
-(:mod:`.references`) and tracking/hysteresis metrics (:mod:`.metrics`) and :class:`.Response`, the result of every
-time simulation."""
+"""Signals: measured records and their file readers (:mod:`.data`), their preprocessing
+(:mod:`.preprocess`), reference trajectories (:mod:`.references`) and tracking/hysteresis metrics
+(:mod:`.metrics`) and :class:`.Response`, the result of every time simulation."""
 
 from .data import Record, load_record, load_yan9a_model_record
 from .metrics import hysteresis_percent, linearity_error, max_error, rmse, tracking_metrics
+from .preprocess import (
+    apply_lag,
+    decimate,
+    estimate_lag,
+    find_excitation_start,
+    flag_outliers,
+    preprocess,
+    processed_index,
+    remove_drift,
+    replace_outliers,
+)
 from .references import chirp, multisine, sine, staircase, triangle, variable_amplitude_sine
 from .response import Response
 
 __all__ = [
     "Record",
     "Response",
+    "apply_lag",
     "chirp",
+    "decimate",
+    "estimate_lag",
+    "find_excitation_start",
+    "flag_outliers",
     "hysteresis_percent",
     "linearity_error",
     "load_record",
     "load_yan9a_model_record",
     "max_error",
     "multisine",
+    "preprocess",
+    "processed_index",
+    "remove_drift",
+    "replace_outliers",
     "rmse",
     "sine",
     "staircase",
