@@ -76,7 +76,8 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
             "and 'piezohyst track --stage' read; boucwen-benchmark writes its eight parameters (kind\n"
             '"boucwen-benchmark", with fs and the upsampling factor); it is simulated over DATA from the\n'
             "record's start (at rest, as the benchmark's generator), and --train / --validate ranges of DATA\n"
-            "select the samples scored. 'piezohyst simulate' reads neither file.\n\n"
+            "select the samples scored. 'piezohyst simulate' runs both (the stage open loop, the oscillator at\n"
+            "its fs); load_model reads the boucwen-benchmark file, Stage.from_file the stage file.\n\n"
             "exit status: 0 on success, 2 on bad input (one line on stderr naming the argument)."
         ),
     )
