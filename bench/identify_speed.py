@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import HERE, extension_digest, machine_info  # noqa: E402
+from common import HERE, extension_digest, machine_info
 
 
 def preisach_record(n: int = 10_000) -> tuple[np.ndarray, np.ndarray]:
