@@ -28,6 +28,7 @@ import argparse
 import json
 import sys
 import time
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -130,6 +131,7 @@ def main() -> None:
     args = ap.parse_args()
     result = {
         "benchmark": "identify_speed (issue 14 item 7)",
+        "timestamp_utc": datetime.now(UTC).isoformat(timespec="seconds"),
         "machine": machine_info(),
         "extension_sha256": extension_digest(),
         "cases": [bench_preisach(args.quick), bench_huber_fit()],
