@@ -515,7 +515,7 @@ class _StageStub:
 def demo_input_range(model: HysteresisModel) -> tuple[float, float]:
     """The input range ``example.c`` drives the model over: the model's own input range when
     it has one (a finite GPI/MPI ``input_range``, Preisach grid), else ``[0, 2 max threshold]``
-    for the PI family (GPI included), else ``[-1, 1]``."""
+    for the PI family, else ``[-1, 1]``."""
     row = model.to_row()
     fam = model.family
     groups = _groups(fam, model.dims)
@@ -523,7 +523,7 @@ def demo_input_range(model: HysteresisModel) -> tuple[float, float]:
         lo, hi = (row[groups[g]] for g in _INPUT_RANGE_GROUPS[fam])
         if np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)):
             return float(lo[0]), float(hi[0])
-    if fam in ("pi", "rdpi", "gpi"):  # a GPI here has an open input range
+    if fam in ("pi", "rdpi"):
         r = row[groups["r"]]  # the thresholds, increasing
         if r.size and r[-1] > 0:
             return 0.0, float(2 * r[-1])
