@@ -127,7 +127,8 @@ def test_mpi_identify_then_simulate_bit_identical(data, tmp_path):
     assert report["data"]["fs"] == pytest.approx(FS)
 
     doc = json.loads((tmp_path / "mpi.json").read_text())
-    assert doc["kind"] == "gpi" and doc["schema_version"] == ph.SCHEMA_VERSION
+    # the kind actually fitted (issue 14): an MPI file says mpi (ModifiedPI, the GPI family)
+    assert doc["kind"] == "mpi" and doc["schema_version"] == ph.SCHEMA_VERSION
     assert doc["fit"]["train"] == report["train"] and doc["fit"]["validation"] == report["validation"]
     assert doc["fit"]["method"] == "ls"
     assert (tmp_path / "mpi.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -150,7 +151,7 @@ def test_mpi_identify_then_simulate_bit_identical(data, tmp_path):
     )
     assert sim.returncode == 0, sim.stderr
     summary = json.loads(sim.stdout)
-    assert summary["samples"] == N and summary["out"] == "pred.csv" and summary["model"] == "gpi"
+    assert summary["samples"] == N and summary["out"] == "pred.csv" and summary["model"] == "mpi"
     assert 0 < summary["error"]["rmse_percent"] < 0.35
 
     _t, v = mpi_signal()

@@ -19,7 +19,7 @@ from ..errors import ParameterError
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from ..models.model import HysteresisModel
+    from ..models.model import AnyModel
     from ..signals.data import Record
 
 #: A float array (signals, columns of records).
@@ -259,7 +259,7 @@ def _pct(x: float) -> str:
     return f"{x:.4g} %"
 
 
-def _read_model(path: Path) -> HysteresisModel:
+def _read_model(path: Path) -> AnyModel:
     from ..models.model import model_from_dict
 
     try:

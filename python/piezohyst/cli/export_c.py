@@ -61,9 +61,16 @@ def _export_c_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
 
 def _export_c(args: argparse.Namespace) -> None:
     from ..export import c as X
+    from ..models.boucwen_benchmark import BoucWenBenchmark
 
     model_path = _existing_file(args.model, "MODEL")
     model = _read_model(model_path)
+    if isinstance(model, BoucWenBenchmark):
+        raise _Fail(
+            f"MODEL = '{model_path}': kind 'boucwen-benchmark' (the Noel-Schoukens oscillator) has no C "
+            f"export: the C library runs the hysteresis families (pi, gpi/mpi, rdpi, preisach, boucwen, "
+            f"creep, duhem, dahl); simulate it with 'piezohyst simulate'"
+        )
     controller = None
     if args.controller is not None:
         cpath = _existing_file(args.controller, "CONTROLLER")

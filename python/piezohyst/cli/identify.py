@@ -88,7 +88,8 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
             "and 'piezohyst track --stage' read; boucwen-benchmark writes its eight parameters (kind\n"
             '"boucwen-benchmark", with fs and the upsampling factor); it is simulated over DATA from the\n'
             "record's start (at rest, as the benchmark's generator), and --train / --validate ranges of DATA\n"
-            "select the samples scored. 'piezohyst simulate' reads neither file.\n\n"
+            "select the samples scored. 'piezohyst simulate' runs both (the stage open loop, the oscillator at\n"
+            "its fs); load_model reads the boucwen-benchmark file, Stage.from_file the stage file.\n\n"
             "validation: a --validate range of DATA is simulated with the model's state carried: the model\n"
             "runs from the start of --train through the validation range and only that range is scored\n"
             "(--validate-from rest: from rest, as before; a --validate FILE always starts from rest).\n"

@@ -31,7 +31,8 @@ from .common import (
 )
 
 if TYPE_CHECKING:
-    from ..models.model import HysteresisModel
+    from ..models.model import AnyModel
+    from ..plant.stage import Stage
     from .common import FloatArray, _RecordOptions
 
 
@@ -45,7 +46,10 @@ def _simulate_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
             "Simulate a model file (as written by 'piezohyst identify' or HysteresisModel.save) on the input\n"
             "signal of a record, from the relaxed initial state, and write CSV with the columns time (when\n"
             "known), input, output: exactly the numbers of load_model(MODEL).simulate(input), written so\n"
-            "that they read back bit for bit.\n\n" + _FORMATS.replace("DATA formats", "INPUT formats")
+            "that they read back bit for bit. Every 'identify --model' kind's file simulates: a\n"
+            "boucwen-benchmark file at its own fs (input force in N, output displacement in m), a cemf\n"
+            "stage file open loop (input = voltage command, output = position: Stage.simulate(input).position).\n\n"
+            + _FORMATS.replace("DATA formats", "INPUT formats")
         ),
         epilog=(
             "examples:\n"
@@ -126,11 +130,53 @@ def _simulate_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     s.add_argument("--debug", dest="sub_debug", action="store_true", help="show a traceback on errors")
 
 
-def _model_ts(model: HysteresisModel) -> float | None:
+def _model_ts(model: AnyModel | Stage) -> float | None:
+    from ..models.boucwen_benchmark import BoucWenBenchmark
+    from ..plant.stage import Stage
+
+    if isinstance(model, BoucWenBenchmark):
+        return 1.0 / model.fs
+    if isinstance(model, Stage):
+        return model.sample_time
     ts = getattr(model, "ts", None)
     if ts is None:
         ts = getattr(getattr(model, "creep", None), "ts", None)
     return None if ts is None else float(ts)
+
+
+def _read_simulated(path: Path) -> AnyModel | Stage:
+    """What MODEL holds: a model file (every ``identify --model`` kind; a ``boucwen-benchmark``
+    file simulates at its own ``fs``) or a stage file (``identify --model cemf``, run open
+    loop: the input is the voltage command, the output the position)."""
+    import json
+
+    from ..plant.stage import Stage
+
+    try:
+        d = json.loads(path.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError):
+        d = None  # _read_model names what is wrong with the file
+    if isinstance(d, dict) and d.get("kind") == "stage":
+        try:
+            return Stage.from_dict(d)
+        except (ValueError, TypeError) as e:
+            raise _Fail(f"MODEL = '{path}': {e}") from None
+    return _read_model(path)
+
+
+def _run(model: AnyModel | Stage, v: FloatArray) -> FloatArray:
+    """The model's output for ``v`` from rest (a stage: its open-loop position)."""
+    from ..plant.stage import Stage
+
+    if isinstance(model, Stage):
+        return model.simulate(v).position
+    return model.simulate(v)
+
+
+def _kind(model: AnyModel | Stage) -> str:
+    from ..plant.stage import Stage
+
+    return "stage" if isinstance(model, Stage) else model.kind
 
 
 def _read_input(
@@ -233,7 +279,7 @@ def _simulate(args: argparse.Namespace) -> None:
     if to_stdout and args.json:
         raise _Fail("--json prints a summary on standard output; give --out FILE for the CSV")
     out = None if to_stdout else _writable(args.out, "--out", args.force)
-    model = _read_model(model_path)
+    model = _read_simulated(model_path)
 
     opts = _record_options(args)
     measured = None
@@ -284,7 +330,7 @@ def _simulate(args: argparse.Namespace) -> None:
 
     t0 = time.perf_counter()
     try:
-        y = model.simulate(v)
+        y = _run(model, v)
     except (ValueError, TypeError) as e:
         raise _Fail(f"INPUT = '{input_path}': {e}") from None
     wall = time.perf_counter() - t0
@@ -306,7 +352,7 @@ def _simulate(args: argparse.Namespace) -> None:
 
     summary = {
         "out": str(out),
-        "model": model.kind,
+        "model": _kind(model),
         "model_file": str(model_path),
         "input_file": str(input_path),
         "columns": dict(columns),
@@ -323,7 +369,7 @@ def _simulate(args: argparse.Namespace) -> None:
     if args.json:
         print(json.dumps(summary, indent=2, allow_nan=False))
         return
-    print(f"{model.kind} simulated on {v.size} samples of {input_path.name} in {wall:.3g} s -> {out}")
+    print(f"{_kind(model)} simulated on {v.size} samples of {input_path.name} in {wall:.3g} s -> {out}")
     print(f"  output {summary['output']['min']:.6g} .. {summary['output']['max']:.6g}")
     if measured is not None:
         m = summary["error"]

@@ -95,9 +95,15 @@ def _track(args: argparse.Namespace) -> int:
 
     def hysteresis_model() -> HysteresisModel:
         if args.model:
-            from ..models.model import load_model
+            from ..models.model import HysteresisModel, load_model
 
-            return load_model(args.model)
+            loaded = load_model(args.model)
+            if not isinstance(loaded, HysteresisModel):
+                raise _Fail(
+                    f"--model = '{args.model}' is a {loaded.kind} model, not a hysteresis model of the stage's "
+                    f"actuator (pi, gpi/mpi, rdpi, preisach, boucwen, ...)"
+                )
+            return loaded
         from ..identify.core import identify_mpi
 
         t = np.arange(int(2.0 * fs)) / fs

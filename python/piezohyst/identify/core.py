@@ -383,6 +383,8 @@ def _fit_linear(
 ) -> FitResult:
     """:func:`fit_linear` of validated records (equal lengths) with a checked loss."""
     t0 = time.perf_counter() if t0 is None else t0
+    if isinstance(model, Preisach):  # its own offset constant: no column to add
+        return _fit_preisach(model, v, y, loss, delta, t0)
     A, lb, ub, build = _design(model, v, offset)
     scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-300)  # equilibrate the columns
     A = A / scale
@@ -394,6 +396,85 @@ def _fit_linear(
         solves += k
     fitted = build(z / scale)
     return FitResult(fitted, _fit_metrics(fitted.simulate(v), y), time.perf_counter() - t0, solves)
+
+
+def _fit_preisach(
+    model: Preisach, v: FloatArray, y: FloatArray, loss: str, delta: float | None, t0: float
+) -> FitResult:
+    """:func:`fit_linear` of a Preisach grid, on the distinct relay patterns the record excites.
+
+    A cell's regressor is its relay's state over the record (0 or 1). Cells the record never
+    switches (a constant column: the offset's) and cells that always switch together (equal
+    columns) cannot be told apart by any record with this history: the problem is solved over
+    the distinct non-constant columns only (a ``p x p`` non-negative least squares through the
+    Gram matrix's Cholesky factor, :func:`_bounded_lstsq_gram`; BVLS on the whole ``N x L^2/2``
+    matrix took minutes), each group's weight is shared equally by its cells (the smoothest
+    density that fits) and never-switched cells get weight 0 (their effect is the offset's)."""
+    lb, _, build = _layout(model)
+    A = _core.regressors(model.family, list(model.dims), model.to_row(), v)
+    head = A.shape[1] - model.weights.size  # offset and slope, then one column per cell
+    cells = A[:, head:]
+    # distinct relay patterns: the columns as packed bits (a relay is 0 or 1)
+    bits = np.packbits(cells.T > 0.5, axis=1)
+    patterns, first, group = np.unique(bits, axis=0, return_index=True, return_inverse=True)
+    group = group.ravel()
+    constant = np.all(cells[:, first] == cells[:1, first], axis=0)
+    kept = np.flatnonzero(~constant)
+    B = np.concatenate([A[:, :head], cells[:, first[kept]]], axis=1)
+    blb = np.concatenate([lb[:head], lb[head:][first[kept]]])
+    scale = np.maximum(np.sqrt(np.mean(B**2, axis=0)), 1e-300)
+    B = B / scale
+    bounds = (blb * scale, np.full(blb.size, np.inf))
+    z = _bounded_lstsq_gram(B, y, bounds)
+    solves = 1
+    if loss == "huber":
+        z, k = _irls_huber(B, y, bounds, z, delta, _bounded_lstsq_gram)
+        solves += k
+    zb = z / scale
+    total = np.zeros(patterns.shape[0])
+    total[kept] = zb[head:]
+    counts = np.bincount(group, minlength=patterns.shape[0])
+    theta = np.concatenate([zb[:head], total[group] / counts[group]])
+    fitted = build(theta)
+    return FitResult(fitted, _fit_metrics(fitted.simulate(v), y), time.perf_counter() - t0, solves)
+
+
+def _bounded_lstsq_gram(A: FloatArray, y: FloatArray, bounds: tuple[FloatArray, FloatArray]) -> FloatArray:
+    """``argmin ||A z - y||`` with ``z >= lower`` (lower 0 or ``-inf``; no upper bounds), for
+    a tall ``A`` of equilibrated, distinct columns: through the Gram matrix's Cholesky factor
+    ``R`` (``A^T A = R^T R``, ``R^T d = A^T y``; same minimizer, ``p x p``), the unbounded
+    columns projected out and SciPy's NNLS on the rest. A Gram matrix that is numerically
+    singular gets a ridge of ``1e-10`` of its mean diagonal (columns nearly collinear: any
+    split of their weight fits the record as well)."""
+    from scipy.linalg import LinAlgError, cholesky, qr, solve_triangular
+    from scipy.optimize import nnls
+
+    lower, _ = bounds
+    free = np.isneginf(lower)
+    G = A.T @ A
+    b = A.T @ y
+    ridge = 0.0
+    for _ in range(8):
+        try:
+            R = cholesky(G + ridge * np.eye(G.shape[0]), lower=False, check_finite=False)
+            break
+        except LinAlgError:
+            ridge = max(10 * ridge, 1e-10 * float(np.mean(np.diag(G))))
+    else:
+        raise ParameterError("the regressors are not finite: no least-squares solution")
+    d = solve_triangular(R, b, trans="T", check_finite=False)
+    z = np.zeros(A.shape[1])
+    F, W = R[:, free], R[:, ~free]
+    if F.shape[1]:
+        Q, RF = qr(F, mode="economic", check_finite=False)
+        PW, Pd = W - Q @ (Q.T @ W), d - Q @ (Q.T @ d)
+    else:
+        PW, Pd = W, d
+    w = nnls(PW, Pd, maxiter=50 * max(W.shape[1], 1))[0] if W.shape[1] else np.zeros(0)
+    z[~free] = w
+    if F.shape[1]:
+        z[free] = solve_triangular(RF, Q.T @ (d - W @ w), check_finite=False)
+    return z
 
 
 def _irls_huber(

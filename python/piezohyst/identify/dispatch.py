@@ -21,7 +21,7 @@ from ..errors import ParameterError, ParameterTypeError
 from ..models.boucwen_benchmark import FS, UPSAMPLE, BoucWenBenchmark
 from ..models.creep import Creep
 from ..models.differential import BoucWen
-from ..models.pi import PI, RateDependentPI
+from ..models.pi import PI, GeneralizedPI, ModifiedPI, RateDependentPI
 from ..optimize.core import minimize
 from .boucwen_benchmark import identify_boucwen_benchmark
 from .core import (
@@ -406,24 +406,27 @@ def _identify(
                 f"identify() got unexpected keyword arguments {unknown} for model = {model!r}, "
                 f"structure = 'fit' (accepted: {list(_VP_OPTIONS)})"
             )
-        return identify_vp(
-            input,
-            output,
+        return _named(
+            identify_vp(
+                input,
+                output,
+                model,
+                fs=fs,
+                operators=operators,
+                creep=creep,
+                optimizer="de" if optimizer == "ls" else optimizer,
+                rng=rng,
+                max_iterations=max_iterations,
+                population_size=population_size,
+                validate=None if validate is None else (validate[0], validate[1]),  # 3-tuples refused above
+                progress=progress,
+                callback=callback,
+                loss=loss,
+                huber_delta=delta,
+                offset=offset,
+                **options,
+            ),
             model,
-            fs=fs,
-            operators=operators,
-            creep=creep,
-            optimizer="de" if optimizer == "ls" else optimizer,
-            rng=rng,
-            max_iterations=max_iterations,
-            population_size=population_size,
-            validate=None if validate is None else (validate[0], validate[1]),  # 3-tuples refused above
-            progress=progress,
-            callback=callback,
-            loss=loss,
-            huber_delta=delta,
-            offset=offset,
-            **options,
         )
     if options and not kind.options:
         raise ParameterTypeError(f"identify() got unexpected keyword arguments {sorted(options)} for model = {model!r}")
@@ -455,7 +458,15 @@ def _identify(
         bool(offset),
         weights,
     )
-    return kind.fit(call)
+    return _named(kind.fit(call), model)
+
+
+def _named(res: IdentificationResult, model: str) -> IdentificationResult:
+    """The result with its model named as the kind fitted: an ``mpi`` fit is a
+    :class:`~piezohyst.models.pi.ModifiedPI` (kind ``"mpi"`` in files and reports)."""
+    if model == "mpi" and isinstance(res.model, GeneralizedPI) and not isinstance(res.model, ModifiedPI):
+        return replace(res, model=ModifiedPI.from_gpi(res.model))
+    return res
 
 
 def _assess(

@@ -54,7 +54,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING, Any, TypeAlias
+from typing import TYPE_CHECKING, Any, Literal, TypeAlias
 
 import numpy as np
 import numpy.typing as npt
@@ -456,8 +456,9 @@ def identify_vp(
         Gauss–Newton polish (SciPy ``least_squares``, ``trf``, within the bounds): a short
         screening run from each of the ``starts`` best distinct candidates the search evaluated
         and from the default fixed structure, then to convergence from the best of them; with
-        ``loss="huber"``, L-BFGS-B on the Huber cost from the search's best instead. The
-        polished structure replaces the search's best only if it costs less.
+        ``loss="huber"``, from the search's best only, with SciPy's ``loss="huber"`` on the
+        projected residual (``f_scale`` the Huber threshold; at most ``20 (D + 1)``
+        residuals). The polished structure replaces the search's best only if it costs less.
     starts : int
         Distinct search candidates screened by the polish (>= 0; default 3).
     validate : (input, output), optional
@@ -488,8 +489,8 @@ def identify_vp(
     >>> res.method, bool(res.train["rmse_percent"] < 0.01)
     ('vp-de+polish', True)
     """
-    from ..optimize.core import minimize, polish_lbfgsb
-    from .core import IdentificationResult, _check_loss, _fit_linear, _fit_metrics
+    from ..optimize.core import minimize
+    from .core import IdentificationResult, _check_loss, _fit_linear, _fit_metrics, default_huber_delta
 
     t0 = time.perf_counter()
     loss, delta = _check_loss(loss, huber_delta)
@@ -593,8 +594,17 @@ def identify_vp(
             nfev += k + 1
             extra: dict[str, Any] = {"screened": np.array(screened)}
         else:
-            x1, f1, nfev = polish_lbfgsb(cost_batch, x, before, lower, upper, {})
-            message, extra = "L-BFGS-B on the Huber cost", {}
+            # Gauss-Newton with SciPy's Huber loss on the projected (IRLS-weighted) residual:
+            # D + 1 residuals a step and few steps, where L-BFGS-B on the cost needed 2 D + 1
+            # a step and hundreds in all
+            r0 = problem.residual(full(x))
+            scale = problem.delta if problem.delta is not None or r0 is None else float(default_huber_delta(r0))
+            x1, k, message = _gauss_newton(
+                problem, full, x, lower, upper, max_nfev=20 * (len(names) + 1), loss="huber", f_scale=scale or 1.0
+            )
+            f1 = problem.cost(full(x1))
+            nfev = k + 2
+            extra = {}
         evaluations += nfev
         if f1 < before:
             x = x1
@@ -673,6 +683,8 @@ def _gauss_newton(
     lower: FloatArray,
     upper: FloatArray,
     max_nfev: int | None = None,
+    loss: Literal["linear", "huber"] = "linear",
+    f_scale: float = 1.0,
 ) -> tuple[FloatArray, int, str]:
     """SciPy ``least_squares`` (``trf``, 2-point Jacobian, within the bounds) on the
     projected residual. An invalid structure returns a large constant residual, a wall the
@@ -702,5 +714,7 @@ def _gauss_newton(
         ftol=1e-12,
         gtol=1e-12,
         max_nfev=50 * (x0.size + 1) if max_nfev is None else max_nfev,
+        loss=loss,
+        f_scale=f_scale,
     )
     return np.clip(sol.x, lower, upper), n_calls, str(sol.message)

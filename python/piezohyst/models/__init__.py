@@ -8,7 +8,16 @@ from .boucwen_benchmark import BoucWenBenchmark
 from .creep import Creep
 from .differential import BoucWen, Dahl, Duhem
 from .model import SCHEMA_VERSION, HysteresisModel, Inverse, OutputMap, load_model, model_from_dict
-from .pi import PI, Envelope, EnvelopeInverse, GeneralizedPI, GeneralizedPlay, PlayOperator, RateDependentPI
+from .pi import (
+    PI,
+    Envelope,
+    EnvelopeInverse,
+    GeneralizedPI,
+    GeneralizedPlay,
+    ModifiedPI,
+    PlayOperator,
+    RateDependentPI,
+)
 from .preisach import Preisach
 
 __all__ = [
@@ -25,6 +34,7 @@ __all__ = [
     "GeneralizedPlay",
     "HysteresisModel",
     "Inverse",
+    "ModifiedPI",
     "OutputMap",
     "PlayOperator",
     "Preisach",

@@ -69,17 +69,24 @@ Examples
 
 from __future__ import annotations
 
-from typing import Literal, overload
+import json
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, Literal, overload
 
 import numpy as np
 import numpy.typing as npt
 
 from .. import _core
+from .._io import PathLike, write_atomic
 from .._validate import as_int, as_record, as_scalar, as_vector
 from ..errors import ParameterError
 from ..signals.response import Response
 
 FloatArray = npt.NDArray[np.float64]
+
+#: Version of the model-file layout (that of :data:`piezohyst.models.model.SCHEMA_VERSION`).
+SCHEMA_VERSION = 1
 
 __all__ = ["FS", "INTERPOLATIONS", "UPSAMPLE", "BoucWenBenchmark", "decimate", "upsample"]
 
@@ -163,6 +170,9 @@ def decimate(y: npt.ArrayLike, factor: int) -> FloatArray:
     return _core.boucwen_benchmark_decimate(x, r)
 
 
+_PARAMETER_NAMES = ("mass", "damping", "stiffness", "alpha", "beta", "gamma", "delta", "nu")
+
+
 class BoucWenBenchmark:
     """The benchmark system with overridable parameters (defaults: the true system).
 
@@ -182,6 +192,12 @@ class BoucWenBenchmark:
         Loop-shape parameters.
     nu : float
         Smoothness exponent (>= 1).
+    fs, upsample : float, int
+        The record's sampling rate (Hz) and the integration steps per sample that
+        :meth:`simulate` and :meth:`response` use when not given (defaults: the benchmark's
+        750 Hz and 20); a model file (:meth:`save`, ``piezohyst identify --model
+        boucwen-benchmark``) keeps them, so ``load_model(file).simulate(u)`` runs at the
+        rate the model was identified at.
 
     Examples
     --------
@@ -198,6 +214,11 @@ class BoucWenBenchmark:
     piezohyst.errors.ParameterError: mass = 0.0 must be > 0
     """
 
+    #: The name in model files.
+    kind = "boucwen-benchmark"
+    #: Units of the input (force) and output (displacement).
+    units: Mapping[str, str] = {"input": "N", "output": "m"}
+
     def __init__(
         self,
         mass: float = 2.0,
@@ -208,7 +229,12 @@ class BoucWenBenchmark:
         gamma: float = 0.8,
         delta: float = -1.1,
         nu: float = 1.0,
+        *,
+        fs: float = FS,
+        upsample: int = UPSAMPLE,
     ) -> None:
+        self.fs = as_scalar(fs, "fs", positive=True)
+        self.upsample = as_int(upsample, "upsample", minimum=1)
         self.mass = as_scalar(mass, "mass", positive=True)
         self.damping = as_scalar(damping, "damping", nonnegative=True)
         self.stiffness = as_scalar(stiffness, "stiffness", nonnegative=True)
@@ -241,6 +267,46 @@ class BoucWenBenchmark:
     def __repr__(self) -> str:
         args = ", ".join(f"{k}={v!r}" for k, v in self.parameters.items())
         return f"BoucWenBenchmark({args})"
+
+    def __eq__(self, other: object) -> bool:
+        return (
+            isinstance(other, BoucWenBenchmark)
+            and self.parameters == other.parameters
+            and (self.fs, self.upsample) == (other.fs, other.upsample)
+        )
+
+    __hash__ = None  # type: ignore[assignment]
+
+    # -- files ------------------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        """The model-file layout (what ``piezohyst identify --model boucwen-benchmark`` writes):
+        ``schema_version``, ``kind``, the eight ``parameters``, ``fs``, ``upsample``, ``units``."""
+        return {
+            "schema_version": SCHEMA_VERSION,
+            "kind": self.kind,
+            "parameters": self.parameters,
+            "fs": self.fs,
+            "upsample": self.upsample,
+            "units": dict(self.units),
+        }
+
+    def save(self, path: PathLike, *, overwrite: bool = False) -> Path:
+        """Write the model file atomically (read back by :func:`piezohyst.load_model`)."""
+        return write_atomic(path, json.dumps(self.to_dict(), indent=2, allow_nan=False), overwrite=overwrite)
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> BoucWenBenchmark:
+        """The model of a :meth:`to_dict` description (``fs`` and ``upsample`` default to the
+        benchmark's when absent); unknown parameter names are a ``ParameterError``."""
+        p = d.get("parameters")
+        if not isinstance(p, dict):
+            raise ParameterError("parameters must be a JSON object")
+        unknown = sorted(set(p) - set(_PARAMETER_NAMES))
+        if unknown:
+            raise ParameterError(
+                f"parameters of kind 'boucwen-benchmark' has unknown names {unknown}; expected {list(_PARAMETER_NAMES)}"
+            )
+        return cls(**p, fs=d.get("fs", FS), upsample=d.get("upsample", UPSAMPLE))
 
     def initial_state(self, initial_state: npt.ArrayLike | None = None, u0: float = 0.0) -> FloatArray:
         """The core's state ``[y, y', y'', z]`` from ``initial_state = (y0, dy0, z0)``
@@ -318,8 +384,8 @@ class BoucWenBenchmark:
     def simulate(
         self,
         u: npt.ArrayLike,
-        fs: float = FS,
-        upsample: int = UPSAMPLE,
+        fs: float | None = None,
+        upsample: int | None = None,
         initial_state: npt.ArrayLike | None = None,
         *,
         interpolation: str = "fft",
@@ -329,8 +395,8 @@ class BoucWenBenchmark:
     def simulate(
         self,
         u: npt.ArrayLike,
-        fs: float = FS,
-        upsample: int = UPSAMPLE,
+        fs: float | None = None,
+        upsample: int | None = None,
         initial_state: npt.ArrayLike | None = None,
         *,
         interpolation: str = "fft",
@@ -340,8 +406,8 @@ class BoucWenBenchmark:
     def simulate(
         self,
         u: npt.ArrayLike,
-        fs: float = FS,
-        upsample: int = UPSAMPLE,
+        fs: float | None = None,
+        upsample: int | None = None,
         initial_state: npt.ArrayLike | None = None,
         *,
         interpolation: str = "fft",
@@ -350,8 +416,8 @@ class BoucWenBenchmark:
     def simulate(
         self,
         u: npt.ArrayLike,
-        fs: float = FS,
-        upsample: int = UPSAMPLE,
+        fs: float | None = None,
+        upsample: int | None = None,
         initial_state: npt.ArrayLike | None = None,
         *,
         interpolation: str = "fft",
@@ -368,10 +434,11 @@ class BoucWenBenchmark:
         ----------
         u : array_like
             Force record, N, at ``fs``.
-        fs : float
-            Sampling rate of ``u`` and of the output, Hz (> 0).
-        upsample : int
-            Integration steps per sample (>= 1); the benchmark uses 20.
+        fs : float, optional
+            Sampling rate of ``u`` and of the output, Hz (> 0); default: the model's ``fs``.
+        upsample : int, optional
+            Integration steps per sample (>= 1); default: the model's ``upsample`` (the
+            benchmark uses 20).
         initial_state : array_like of 3 floats, optional
             ``(y0, dy0, z0)`` in m, m/s, N at the first sample; at rest by default.
         interpolation : {"fft", "linear", "zoh"}
@@ -409,8 +476,8 @@ class BoucWenBenchmark:
     def response(
         self,
         u: npt.ArrayLike,
-        fs: float = FS,
-        upsample: int = UPSAMPLE,
+        fs: float | None = None,
+        upsample: int | None = None,
         initial_state: npt.ArrayLike | None = None,
         *,
         interpolation: str = "fft",
@@ -450,7 +517,7 @@ class BoucWenBenchmark:
         """
         x, y, z, state = self._run(u, fs, upsample, initial_state, interpolation, with_z=True)
         assert z is not None
-        rate = as_scalar(fs, "fs", positive=True)
+        rate = self.fs if fs is None else as_scalar(fs, "fs", positive=True)
         return Response(
             np.arange(x.size, dtype=np.float64) / rate,
             {"u": x, "y": y, "z": z},
@@ -463,8 +530,8 @@ class BoucWenBenchmark:
     def _run(
         self,
         u: npt.ArrayLike,
-        fs: float,
-        upsample: int,
+        fs: float | None,
+        upsample: int | None,
         initial_state: npt.ArrayLike | None,
         interpolation: str,
         *,
@@ -473,8 +540,8 @@ class BoucWenBenchmark:
         """``(u, y, z, state)`` of :meth:`simulate`: the checked input, the decimated outputs
         (``z`` only ``with_z``) and the core's state at the last integration step."""
         x = as_record(u, "u")
-        rate = as_scalar(fs, "fs", positive=True)
-        r = as_int(upsample, "upsample", minimum=1)
+        rate = self.fs if fs is None else as_scalar(fs, "fs", positive=True)
+        r = self.upsample if upsample is None else as_int(upsample, "upsample", minimum=1)
         if interpolation not in INTERPOLATIONS:
             raise ParameterError(
                 f"interpolation = {interpolation!r} is unknown; expected one of {', '.join(INTERPOLATIONS)}"

@@ -23,8 +23,18 @@ from .._io import PathLike, load_json_file, malformed_as, write_atomic
 from .._validate import as_record, as_scalar
 from ..errors import ParameterError, ParameterTypeError
 from ..signals.response import Response
+from .boucwen_benchmark import BoucWenBenchmark
 
-__all__ = ["IDENTITY_MAP", "SCHEMA_VERSION", "HysteresisModel", "Inverse", "OutputMap", "load_model", "model_from_dict"]
+__all__ = [
+    "IDENTITY_MAP",
+    "SCHEMA_VERSION",
+    "AnyModel",
+    "HysteresisModel",
+    "Inverse",
+    "OutputMap",
+    "load_model",
+    "model_from_dict",
+]
 
 FloatArray = npt.NDArray[np.float64]
 #: A JSON object: a model description as written to or parsed from a model file.
@@ -422,21 +432,41 @@ def _units(units: object) -> dict[str, str]:
     return dict(units)
 
 
-def model_from_dict(d: JSONDict) -> HysteresisModel:
-    """Rebuild a model from :meth:`HysteresisModel.to_dict` output."""
+#: What a model file holds: a hysteresis model, or the Bouc–Wen benchmark oscillator
+#: (``kind = "boucwen-benchmark"``, simulated at its own ``fs``).
+AnyModel = HysteresisModel | BoucWenBenchmark
+
+#: Files that are not model files but that ``piezohyst`` commands write next to them: what
+#: reads each instead.
+_OTHER_FILES = {
+    "stage": "a stage file (piezohyst identify --model cemf, the plant): read it with "
+    "piezohyst.plant.Stage.from_file; 'piezohyst simulate' runs it open loop, "
+    "'piezohyst stage info --stage' and 'piezohyst track --stage' read it",
+}
+
+
+def model_from_dict(d: JSONDict) -> AnyModel:
+    """Rebuild a model from :meth:`HysteresisModel.to_dict` output (or
+    :meth:`BoucWenBenchmark.to_dict`'s)."""
     with malformed_as("the model description"):
         return _model_from_dict(d)
 
 
-def _model_from_dict(d: object) -> HysteresisModel:
+def _model_from_dict(d: object) -> AnyModel:
     if not isinstance(d, dict):
         raise ParameterTypeError(f"a model description must be a JSON object, got {type(d).__name__}")
     version = d.get("schema_version")
     if version != SCHEMA_VERSION:
         raise ParameterError(f"schema_version = {version!r} is not supported (this version reads {SCHEMA_VERSION})")
     kind = d.get("kind")
+    if kind == BoucWenBenchmark.kind:
+        return BoucWenBenchmark.from_dict(d)
+    if isinstance(kind, str) and kind in _OTHER_FILES:
+        raise ParameterError(f"kind = {kind!r} is not a hysteresis model but {_OTHER_FILES[kind]}")
     if kind not in _REGISTRY:
-        raise ParameterError(f"kind = {kind!r} is unknown; expected one of {sorted(_REGISTRY)}")
+        raise ParameterError(
+            f"kind = {kind!r} is unknown; expected one of {sorted([*_REGISTRY, BoucWenBenchmark.kind])}"
+        )
     p = d.get("parameters")
     if not isinstance(p, dict):
         raise ParameterError("parameters must be a JSON object")
@@ -451,9 +481,12 @@ def _model_from_dict(d: object) -> HysteresisModel:
     return model
 
 
-def load_model(path: PathLike) -> HysteresisModel:
-    """Read a model file written by :meth:`HysteresisModel.save` (``DataError`` naming the
-    file if it is not one)."""
+def load_model(path: PathLike) -> AnyModel:
+    """Read a model file written by :meth:`HysteresisModel.save` or ``piezohyst identify``
+    (every ``--model`` kind but ``cemf``, whose stage file
+    :meth:`piezohyst.plant.Stage.from_file` reads; ``DataError`` naming the file if it is not
+    a model file). A ``boucwen-benchmark`` file gives a :class:`BoucWenBenchmark` that
+    simulates at the file's ``fs``."""
     return load_json_file(path, "model file", model_from_dict)
 
 

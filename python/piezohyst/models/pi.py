@@ -27,6 +27,7 @@ __all__ = [
     "Envelope",
     "GeneralizedPI",
     "GeneralizedPlay",
+    "ModifiedPI",
     "PlayOperator",
     "RateDependentPI",
     "mpi_seed2",
@@ -354,6 +355,29 @@ class GeneralizedPI(HysteresisModel):
             raise ParameterError("thresholds[0] must be 0 (its weight is the linear term) for the analytic inverse")
         pi = PI(self.thresholds[1:], self.weights[1:], self.weights[0])
         return EnvelopeInverse(pi.analytic_inverse(), self.rising)
+
+
+@_register
+class ModifiedPI(GeneralizedPI):
+    """A :class:`GeneralizedPI` fitted as the modified PI (MPI) of seed 2: the same model and
+    parameters, named ``"mpi"`` in model files and reports (``identify(..., "mpi")``,
+    ``piezohyst identify --model mpi``), so a file says which kind was fitted."""
+
+    kind = "mpi"
+
+    @classmethod
+    def from_gpi(cls, model: GeneralizedPI) -> ModifiedPI:
+        """The same parameters, units, creep and output map as ``model``, named ``"mpi"``."""
+        return cls(
+            model.thresholds,
+            model.weights,
+            model.polynomial,
+            model.rising,
+            model.falling,
+            model.input_range,
+            creep=model.creep,
+            units=model.units,
+        ).with_output_map(model.output_map)
 
 
 class EnvelopeInverse:

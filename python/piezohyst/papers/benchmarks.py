@@ -13,7 +13,7 @@ Examples
 --------
 >>> from piezohyst.benchmarks import BENCHMARKS
 >>> [b.name for b in BENCHMARKS]
-['pi_batch', 'closed_loop', 'identify_mpi', 'c_step', 'control', 'demo', 'load_csv']
+['pi_batch', 'closed_loop', 'identify_mpi', 'c_step', 'control', 'demo', 'load_csv', 'identify_speed']
 """
 
 from __future__ import annotations
@@ -363,6 +363,26 @@ def _load_csv_rows(d: Json) -> list[Row]:
     ]
 
 
+def _identify_speed_rows(d: Json) -> list[Row]:
+    rows: list[Row] = []
+    for c in d["cases"]:
+        base = c.get("baseline_wall_s")
+        rows.append(
+            _row(
+                f"{c['case']}: wall time (train RMSE {c['train_rmse_percent']:.4g} %)",
+                c["wall_s"],
+                "s",
+                c["baseline"].split(":")[0],
+                base,
+                ratio=None if base is None else base / c["wall_s"],
+                ratio_label="faster",
+                target=f"≤ {c['target_s']:.0f} s",
+                passed=c["wall_s"] <= c["target_s"],
+            )
+        )
+    return rows
+
+
 BENCHMARKS: tuple[Benchmark, ...] = (
     Benchmark(
         "pi_batch",
@@ -394,6 +414,13 @@ BENCHMARKS: tuple[Benchmark, ...] = (
         "load_record vs numpy.loadtxt on a large CSV",
         ("--rows", "200000", "--repeats", "2"),
         _load_csv_rows,
+    ),
+    Benchmark(
+        "identify_speed",
+        "identify_speed.py",
+        "Preisach 48 levels and huber + structure fit, against baselines in the same run",
+        ("--quick",),
+        _identify_speed_rows,
     ),
 )
 _BY_NAME = {b.name: b for b in BENCHMARKS}

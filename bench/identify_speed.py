@@ -1,0 +1,145 @@
+"""Identification speed of issue 14 item 7, each case against a named baseline measured in this run.
+
+Usage (from the project root, after the extension is built):
+
+    .venv/bin/python bench/identify_speed.py [--out bench/results/identify_speed.json] [--quick]
+
+Cases (wall clock, ``time.perf_counter``, one process, the same record for a case and its baseline):
+
+``preisach48``
+    ``identify(v, y, "preisach", levels=48)`` on a 10,000-sample decaying-amplitude record (a
+    sine of 20 periods whose amplitude decays by e^-2.5 over the record, output of a 7-play PI
+    plus 0.1 % noise): the solver on the distinct relay patterns (Gram matrix, NNLS).
+    Baseline ``bvls-full``: the previous solver, SciPy ``lsq_linear(method="bvls")`` on the whole
+    equilibrated ``10,000 x 1,178`` regressor matrix (the same regressors from ``_core.regressors``).
+    Target: <= 5 s.
+``huber-fit``
+    ``identify(v, y, "mpi", structure="fit", loss="huber", rng=0)`` on a 10,000-sample MPI record
+    with glitches on 1 % of the samples. Baseline ``squared-fit``: the same call with the
+    squared loss. Target: <= 10 s.
+
+Each case records its wall time, its baseline's, and the training RMSE (% of range) of both, so
+a faster result that fits worse shows. ``--quick`` skips the slow ``bvls-full`` baseline.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import HERE, extension_digest, machine_info
+
+
+def preisach_record(n: int = 10_000) -> tuple[np.ndarray, np.ndarray]:
+    from piezohyst.models import PI
+
+    t = np.arange(n)
+    v = 5.0 + 5.0 * np.sin(2 * np.pi * 20 * t / n) * np.exp(-2.5 * t / n)
+    truth = PI(np.arange(1, 8) * 0.6, [0.4, 0.2, 0.1, 0.08, 0.05, 0.03, 0.02], p0=0.5)
+    y = truth.simulate(v)
+    y = y + 1e-3 * np.ptp(y) * np.random.default_rng(0).standard_normal(n)
+    return v, y
+
+
+def mpi_record(n: int = 10_000) -> tuple[np.ndarray, np.ndarray]:
+    from piezohyst.papers import mpi_seed2
+
+    t = np.linspace(0.0, 1.0, n)
+    v = 0.5 - 0.5 * np.cos(2 * np.pi * 20 * t) * (0.65 + 0.35 * np.sin(2 * np.pi * 2 * t))
+    v = np.clip(v * (1 + 0.05 * np.sin(2 * np.pi * 53 * t)), 0.0, 1.0)
+    y = mpi_seed2().simulate(v)
+    rng = np.random.default_rng(0)
+    y = y + 0.002 * np.ptp(y) * rng.standard_normal(n)
+    y[::100] += 0.2 * np.ptp(y)  # glitches on 1 % of the samples
+    return v, y
+
+
+def rmse_percent(model: Any, v: np.ndarray, y: np.ndarray) -> float:
+    e = model.simulate(v) - y
+    return float(np.sqrt(np.mean(e**2)) / np.ptp(y) * 100)
+
+
+def bench_preisach(quick: bool) -> dict[str, Any]:
+    from scipy.optimize import lsq_linear
+
+    from piezohyst import _core, identify
+    from piezohyst.models import Preisach
+
+    v, y = preisach_record()
+    t0 = time.perf_counter()
+    fit = identify(v, y, "preisach", levels=48)
+    wall = time.perf_counter() - t0
+    out: dict[str, Any] = {
+        "case": "identify(preisach, levels=48), 10,000 samples",
+        "wall_s": wall,
+        "train_rmse_percent": fit.train["rmse_percent"],
+        "target_s": 5.0,
+        "baseline": "bvls-full: scipy lsq_linear(method='bvls') on the whole equilibrated regressor matrix",
+    }
+    if quick:
+        out["baseline_wall_s"] = None
+        return out
+    template = Preisach(48, (float(v.min()), float(v.max())), np.zeros(48 * 49 // 2))
+    t0 = time.perf_counter()
+    A = _core.regressors(template.family, list(template.dims), template.to_row(), v)
+    scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-300)
+    lb = np.concatenate([[-np.inf], np.zeros(A.shape[1] - 1)]) * scale
+    z = lsq_linear(A / scale, y, bounds=(lb, np.full(lb.size, np.inf)), method="bvls", lsmr_tol=None).x
+    z = np.maximum(z / scale, [-np.inf, *np.zeros(A.shape[1] - 1)])
+    base = Preisach(48, template.input_range, z[2:], z[0], z[1])
+    out["baseline_wall_s"] = time.perf_counter() - t0
+    out["baseline_train_rmse_percent"] = rmse_percent(base, v, y)
+    out["speedup"] = out["baseline_wall_s"] / wall
+    return out
+
+
+def bench_huber_fit() -> dict[str, Any]:
+    from piezohyst import identify
+
+    v, y = mpi_record()
+    t0 = time.perf_counter()
+    fit = identify(v, y, "mpi", structure="fit", loss="huber", rng=0)
+    wall = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    base = identify(v, y, "mpi", structure="fit", rng=0)
+    base_wall = time.perf_counter() - t0
+    return {
+        "case": "identify(mpi, structure='fit', loss='huber'), 10,000 samples, glitches on 1 %",
+        "wall_s": wall,
+        "train_rmse_percent": fit.train["rmse_percent"],
+        "evaluations": fit.evaluations,
+        "target_s": 10.0,
+        "baseline": "squared-fit: the same call with loss='squared'",
+        "baseline_wall_s": base_wall,
+        "baseline_train_rmse_percent": base.train["rmse_percent"],
+        "ratio_to_baseline": wall / base_wall,
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--out", default=str(HERE / "results" / "identify_speed.json"))
+    ap.add_argument("--quick", action="store_true", help="skip the slow bvls-full baseline")
+    args = ap.parse_args()
+    result = {
+        "benchmark": "identify_speed (issue 14 item 7)",
+        "timestamp_utc": datetime.now(UTC).isoformat(timespec="seconds"),
+        "machine": machine_info(),
+        "extension_sha256": extension_digest(),
+        "cases": [bench_preisach(args.quick), bench_huber_fit()],
+    }
+    text = json.dumps(result, indent=2)
+    Path(args.out).write_text(text + "\n")
+    print(text)
+
+
+if __name__ == "__main__":
+    main()
