@@ -114,7 +114,8 @@ def test_identified_file_loads_simulates_and_exports(tmp_path, capsys, record, c
         "identify", path, "--model", kind, "--fs", FS, "--train", ":3000", "--validate", "3000:",
         "--out", mfile, "--json", *OPTIONS.get(kind, []),
     )  # fmt: skip
-    assert code == 0, err
+    # 3: fitted and written, but not trustworthy (a short search, a coarse grid): the file is under test
+    assert code in (0, 3), err
     report = json.loads(out)
     assert report["model"] == kind  # the kind actually fitted: mpi names mpi
     model = ph.load_model(mfile)

@@ -425,12 +425,20 @@ def _fit_preisach(
     scale = np.maximum(np.sqrt(np.mean(B**2, axis=0)), 1e-300)
     B = B / scale
     bounds = (blb * scale, np.full(blb.size, np.inf))
-    z = _bounded_lstsq_gram(B, y, bounds)
+    # the normal equations square the conditioning: solve for the output in units of its RMS, so
+    # a record in other units (a gain) gives the same fit to rounding, not to the solver's tolerance
+    # (and about its mean when the first column is the free offset's constant one: a record with
+    # an offset then gives the same fit to rounding too)
+    centre = float(np.mean(y)) if np.all(A[:, 0] == 1.0) and lb[0] == -np.inf else 0.0
+    unit = float(np.sqrt(np.mean((y - centre) ** 2))) or 1.0
+    yn = (y - centre) / unit
+    z = _bounded_lstsq_gram(B, yn, bounds)
     solves = 1
     if loss == "huber":
-        z, k = _irls_huber(B, y, bounds, z, delta, _bounded_lstsq_gram)
+        z, k = _irls_huber(B, yn, bounds, z, None if delta is None else delta / unit, _bounded_lstsq_gram)
         solves += k
-    zb = z / scale
+    zb = z * unit / scale
+    zb[0] += centre
     total = np.zeros(patterns.shape[0])
     total[kept] = zb[head:]
     counts = np.bincount(group, minlength=patterns.shape[0])
