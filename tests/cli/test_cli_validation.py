@@ -63,7 +63,7 @@ def test_clean_record_exit_0_and_the_kind_fitted_is_named(tmp_path):
     out = identify(write(tmp_path / "clean.csv", v, y), "--out", "m.json", cwd=tmp_path)
     assert out.returncode == 0, out.stderr
     report = json.loads(out.stdout)
-    assert report["model"] == "mpi" and report["file_kind"] == "gpi"  # an MPI is saved as a GPI model file
+    assert report["model"] == "mpi" and report["file_kind"] == "mpi"  # the file names the kind fitted (ModifiedPI)
     assert report["assessment"]["validate_from"] == "carried" and report["assessment"]["trusted"]
     assert report["data"]["train"]["samples"] == 2000 and report["data"]["validation"]["samples"] == N - 2000
     assert report["validation"]["rmse_percent"] < 0.1
