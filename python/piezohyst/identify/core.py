@@ -454,8 +454,7 @@ def _bounded_lstsq_gram(A: FloatArray, y: FloatArray, bounds: tuple[FloatArray, 
     columns projected out and SciPy's NNLS on the rest. A Gram matrix that is numerically
     singular gets a ridge of ``1e-10`` of its mean diagonal (columns nearly collinear: any
     split of their weight fits the record as well)."""
-    from scipy.linalg import LinAlgError, cholesky, qr, solve_triangular
-    from scipy.optimize import nnls
+    from scipy.linalg import LinAlgError, cholesky, solve_triangular
 
     lower, _ = bounds
     free = np.isneginf(lower)
@@ -471,17 +470,27 @@ def _bounded_lstsq_gram(A: FloatArray, y: FloatArray, bounds: tuple[FloatArray, 
     else:
         raise ParameterError("the regressors are not finite: no least-squares solution")
     d = solve_triangular(R, b, trans="T", check_finite=False)
-    z = np.zeros(A.shape[1])
+    return _mixed_nnls(R, d, free)
+
+
+def _mixed_nnls(R: FloatArray, d: FloatArray, free: npt.NDArray[np.bool_]) -> FloatArray:
+    """``argmin ||R z - d||`` with ``z[~free] >= 0`` and ``z[free]`` unbounded: the free
+    columns are projected out (QR), the rest is SciPy's NNLS, then the free part by back
+    substitution. Exact, and much cheaper than BVLS for the small systems of the search."""
+    from scipy.linalg import qr, solve_triangular
+    from scipy.optimize import nnls
+
+    z = np.zeros(R.shape[1])
     F, W = R[:, free], R[:, ~free]
     if F.shape[1]:
         Q, RF = qr(F, mode="economic", check_finite=False)
         PW, Pd = W - Q @ (Q.T @ W), d - Q @ (Q.T @ d)
     else:
         PW, Pd = W, d
-    w = nnls(PW, Pd, maxiter=50 * max(W.shape[1], 1))[0] if W.shape[1] else np.zeros(0)
-    z[~free] = w
+    b = nnls(PW, Pd, maxiter=50 * max(W.shape[1], 1))[0] if W.shape[1] else np.zeros(0)
+    z[~free] = b
     if F.shape[1]:
-        z[free] = solve_triangular(RF, Q.T @ (d - W @ w), check_finite=False)
+        z[free] = solve_triangular(RF, Q.T @ (d - W @ b), check_finite=False)
     return z
 
 

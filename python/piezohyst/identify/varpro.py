@@ -364,6 +364,8 @@ def _small_bounded_lstsq(A: FloatArray, y: FloatArray, lb: FloatArray, ub: Float
         return z
     free = np.isneginf(lb)
     if np.all(np.isposinf(ub)) and np.all(free | (lb == 0.0)):
+        from .core import _mixed_nnls
+
         return _mixed_nnls(R, d, free)
     return np.clip(lsq_linear(R, d, bounds=(lb, ub), method="bvls", lsmr_tol=None).x, lb, ub)
 
@@ -373,27 +375,6 @@ def _small_solve(A: FloatArray, y: FloatArray, bounds: tuple[FloatArray, FloatAr
     reweighted problem through :func:`_small_bounded_lstsq`: the IRLS of the Huber loss at the
     cost of ``p x p`` solves."""
     return _small_bounded_lstsq(A, y, bounds[0], bounds[1])
-
-
-def _mixed_nnls(R: FloatArray, d: FloatArray, free: npt.NDArray[np.bool_]) -> FloatArray:
-    """``argmin ||R z - d||`` with ``z[~free] >= 0`` and ``z[free]`` unbounded: the free
-    columns are projected out (QR), the rest is SciPy's NNLS, then the free part by back
-    substitution. Exact, and much cheaper than BVLS for the small systems of the search."""
-    from scipy.linalg import qr, solve_triangular
-    from scipy.optimize import nnls
-
-    z = np.zeros(R.shape[1])
-    F, W = R[:, free], R[:, ~free]
-    if F.shape[1]:
-        Q, RF = qr(F, mode="economic", check_finite=False)
-        PW, Pd = W - Q @ (Q.T @ W), d - Q @ (Q.T @ d)
-    else:
-        PW, Pd = W, d
-    b = nnls(PW, Pd, maxiter=50 * max(W.shape[1], 1))[0] if W.shape[1] else np.zeros(0)
-    z[~free] = b
-    if F.shape[1]:
-        z[free] = solve_triangular(RF, Q.T @ (d - W @ b), check_finite=False)
-    return z
 
 
 def identify_vp(
