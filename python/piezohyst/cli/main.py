@@ -11,8 +11,11 @@ is never replaced without ``--force``.
 from __future__ import annotations
 
 import argparse
+import atexit
+import os
 import sys
 from collections.abc import Callable, Sequence
+from typing import NoReturn
 
 from ..errors import PiezohystError
 from .bench import _bench, _bench_parser
@@ -24,7 +27,7 @@ from .simulate import _simulate, _simulate_parser
 from .stage import _stage_info, _stage_parser
 from .track import _track, _track_parser
 
-__all__ = ["main"]
+__all__ = ["main", "run"]
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -81,5 +84,31 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
 
 
+def run(argv: Sequence[str] | None = None) -> NoReturn:
+    """The process entry point (the ``piezohyst`` script, ``python -m piezohyst``): :func:`main`,
+    then the exit with its code, skipping the interpreter's native teardown.
+
+    Why: pyarrow's idle I/O threads can race C++ static destructors at interpreter exit and abort
+    the finished process (SIGABRT, "terminate called without an active exception"; apache/arrow
+    issue 34314), turning a clean exit code into -6. The command's files are closed by then;
+    Python's own exit handlers still run and the standard streams are flushed.
+    """
+    try:
+        code: int = main(argv)
+    except SystemExit as e:  # argparse's usage errors and --help
+        if e.code is None or isinstance(e.code, int):
+            code = e.code or 0
+        else:
+            print(e.code, file=sys.stderr)
+            code = 1
+    atexit._run_exitfuncs()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a closed pipe: nothing left to tell
+            pass
+    os._exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    run()
