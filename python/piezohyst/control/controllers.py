@@ -23,6 +23,14 @@ import numpy.typing as npt
 from .. import _core
 from .._validate import as_int, as_scalar
 from ..errors import ParameterError, ParameterTypeError
+from ..signals.lti import (
+    polynomial_tf,
+    require_control,
+    scipy_state_space,
+    scipy_transfer_function,
+    siso_polynomials,
+    state_space,
+)
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..models.model import HysteresisModel
@@ -111,6 +119,56 @@ class VelocityObserver:
         delay = stage.sensor.delay if self.delay is None else as_scalar(self.delay, "observer_delay", nonnegative=True)
         return [bw, stage.sample_time, float(delay)]
 
+    def _matrices(self, sample_time: float, delay: float | None) -> tuple[FloatArray, ...]:
+        ts = as_scalar(sample_time, "sample_time", positive=True)
+        bw = as_scalar(self.bandwidth, "observer_bandwidth", positive=True)
+        if bw >= 0.5 / ts:
+            raise ParameterError(f"observer_bandwidth = {bw} Hz must be below the Nyquist frequency {0.5 / ts:g} Hz")
+        given = self.delay if delay is None else delay
+        dly = 0.0 if given is None else as_scalar(given, "observer_delay", nonnegative=True)
+        p = math.exp(-2.0 * math.pi * bw * ts)
+        gx, gv = 1.0 - p * p, (1.0 - p) ** 2 / ts
+        # the state before a reading q = [x, v]; the update s = F q + G y; the report H s
+        f = np.array([[1.0 - gx, (1.0 - gx) * ts], [-gv, 1.0 - gv * ts]])
+        g = np.array([[gx], [gv]])
+        h = np.array([[1.0, dly * ts], [0.0, 1.0]])
+        return f, g, h @ f, h @ g
+
+    def to_control(self, sample_time: float, *, delay: float | None = None) -> Any:
+        """The observer as a discrete python-control ``StateSpace`` at ``sample_time`` (s):
+        input the reading ``measured`` (m), outputs the estimates ``position`` (m, projected
+        ``delay`` samples ahead) and ``velocity`` (m/s), as the core runs it
+        (``crates/core/src/control/mod.rs``). ``delay`` defaults to this observer's ``delay``,
+        else 0 (a stage's sensor delay is known only with the stage: ``observer.core(stage)``).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst import VelocityObserver
+        >>> sys = VelocityObserver(bandwidth=300.0).to_control(1e-4)
+        >>> sys.dt, sys.output_labels
+        (0.0001, ['position', 'velocity'])
+        >>> np.abs(sys.poles()).round(6).tolist()       # the double pole exp(-2 pi bandwidth Ts)
+        [0.828204, 0.828204]
+        """
+        a, b, c, d = self._matrices(sample_time, delay)
+        return state_space(
+            a,
+            b,
+            c,
+            d,
+            sample_time,
+            inputs=["measured"],
+            outputs=["position", "velocity"],
+            states=["x", "v"],
+            name="velocity_observer",
+        )
+
+    def to_scipy(self, sample_time: float, *, delay: float | None = None) -> Any:
+        """:meth:`to_control` as a ``scipy.signal.StateSpace`` (a ``dlti``)."""
+        a, b, c, d = self._matrices(sample_time, delay)
+        return scipy_state_space(a, b, c, d, as_scalar(sample_time, "sample_time", positive=True))
+
 
 @dataclass(frozen=True)
 class OpenLoop:
@@ -157,6 +215,63 @@ class OpenLoop:
             None,
             None,
         )
+
+    def _polynomials(self) -> tuple[list[float], list[float]]:
+        if self.gain is None:
+            raise ParameterError("gain = None is the stage's 1 / static_gain: give the gain (V/m) to convert it")
+        g = as_scalar(self.gain, "gain")
+        return [g * as_scalar(self.c2, "c2"), g * as_scalar(self.c1, "c1"), g], [1.0]
+
+    def to_control(self) -> Any:
+        """The feedforward ``x_d -> u`` as a continuous python-control ``TransferFunction``
+        ``gain (c2 s^2 + c1 s + 1)`` (improper when ``c1`` or ``c2`` is non-zero: the core is
+        given the reference's derivatives). The ``offset`` and the limits are not linear and
+        are left out; ``gain`` must be given (not the stage's default).
+
+        >>> from piezohyst import OpenLoop
+        >>> tf = OpenLoop(gain=7e6, c1=1e-4).to_control()
+        >>> [c.tolist() for c in (tf.num[0][0], tf.den[0][0])]
+        [[700.0, 7000000.0], [1.0]]
+        """
+        num, den = self._polynomials()
+        return polynomial_tf(num, den, inputs=["reference"], outputs=["command"], name="open_loop")
+
+    def to_scipy(self) -> Any:
+        """:meth:`to_control` as a ``scipy.signal.TransferFunction``: only without ``c1``,
+        ``c2`` (scipy's systems are proper)."""
+        num, den = self._polynomials()
+        if num[0] != 0 or num[1] != 0:
+            raise ParameterError(
+                f"c1 = {self.c1}, c2 = {self.c2}: the feedforward is improper, which scipy.signal cannot hold; "
+                "use to_control()"
+            )
+        return scipy_transfer_function(num[2:], den)
+
+    @classmethod
+    def from_control(cls, sys: object, **fields: Any) -> OpenLoop:
+        """The feedforward ``gain (c2 s^2 + c1 s + 1)`` equal to ``sys``: a continuous
+        transfer function whose denominator is a constant and whose numerator has degree at
+        most 2 and a non-zero constant term. ``fields`` sets the rest (``offset``, ``u_min``,
+        ``u_max``).
+
+        >>> import control
+        >>> from piezohyst import OpenLoop
+        >>> OpenLoop.from_control(control.tf([2.0, 4.0, 8.0], [2.0]))
+        OpenLoop(gain=4.0, offset=0.0, c1=0.5, c2=0.25, u_min=None, u_max=None)
+        """
+        num, den, dt = siso_polynomials(sys, "sys")
+        if dt is not None:
+            raise ParameterError(f"sys is discrete (dt = {dt} s); the open-loop feedforward is continuous")
+        if den.size != 1 or num.size > 3:
+            raise ParameterError(
+                f"sys must be gain (c2 s^2 + c1 s + 1): a constant denominator and a numerator of degree <= 2; "
+                f"got degrees {num.size - 1} / {den.size - 1}"
+            )
+        c = np.concatenate([np.zeros(3 - num.size), num])
+        if c[2] == 0.0:
+            raise ParameterError("sys has no static gain (its numerator's constant term is 0)")
+        gain = float(c[2])
+        return cls(gain=gain, c1=float(c[1] / gain), c2=float(c[0] / gain), **fields)
 
 
 @dataclass(frozen=True)
@@ -209,6 +324,199 @@ class PID:
             None,
             None,
         )
+
+    def _gains(self) -> tuple[float, float, float, float]:
+        kp, ki, kd = (as_scalar(getattr(self, n), n, nonnegative=True) for n in ("kp", "ki", "kd"))
+        return kp, ki, kd, as_scalar(self.tau_d, "tau_d", positive=True)
+
+    def _polynomials(self, sample_time: float | None) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """``(num_y, den_y, num_r, den_r)``, highest power first: ``u = C_r r - C_y y`` as the
+        core runs it (``crates/core/src/control/mod.rs``, ``Pid``), without limits and offset;
+        a term whose gain is 0 leaves its pole out (a PI is ``(kp s + ki) / s``)."""
+        kp, ki, kd, tau = self._gains()
+        ff = 0.0 if self.ff_gain is None else as_scalar(self.ff_gain, "ff_gain")
+        if sample_time is None:
+            # C_y = kp + ki / s + kd s / (tau s + 1), C_r = ff + kp + ki / s
+            integral = ([ki], [1.0, 0.0])
+            derivative = ([kd, 0.0], [tau, 1.0])
+        else:
+            ts = as_scalar(sample_time, "sample_time", positive=True)
+            a = tau / (tau + ts)
+            # backward Euler: ki Ts z / (z - 1), kd / (tau + Ts) (z - 1) / (z - a)
+            integral = ([ki * ts, 0.0], [1.0, -1.0])
+            derivative = ([kd / (tau + ts), -kd / (tau + ts)], [1.0, -a])
+        terms_y = [([kp], [1.0])] + ([integral] if ki else []) + ([derivative] if kd else [])
+        terms_r = [([ff + kp], [1.0])] + ([integral] if ki else [])
+        return (*_rational_sum(terms_y), *_rational_sum(terms_r))
+
+    def to_control(self, sample_time: float | None = None, *, two_dof: bool = False) -> Any:
+        """The PID as a python-control ``TransferFunction``, without its limits (anti-windup,
+        saturation) and its ``offset``, which are not linear.
+
+        Parameters
+        ----------
+        sample_time : float, optional
+            ``None``: the continuous PID ``C(s) = kp + ki / s + kd s / (tau_d s + 1)``. A
+            sample time (s; the stage's ``sample_time``): the discrete law the core runs at that
+            rate, ``C(z) = kp + ki Ts z / (z - 1) + kd / (tau_d + Ts) (z - 1) / (z - a)`` with
+            ``a = tau_d / (tau_d + Ts)`` (the backward-Euler image of ``C(s)``), ``dt`` set.
+        two_dof : bool
+            ``False``: the feedback ``C`` from the error ``e = r - y`` to ``u`` (the loop gain
+            is ``C P``; the derivative acts on the measurement, which changes the response to
+            the reference only). ``True``: both inputs, ``u = C_r r - C_y y`` with ``C_r = ff_gain
+            + kp + ki / s`` (no derivative; ``ff_gain = None`` is taken as 0) and ``C_y = C``:
+            a 1x2 system with inputs ``reference`` and ``measured``.
+
+        Examples
+        --------
+        >>> from piezohyst import PID
+        >>> c = PID(kp=2.0, ki=10.0, kd=0.5, tau_d=0.01).to_control()
+        >>> [x.round(6).tolist() for x in (c.num[0][0], c.den[0][0])]
+        [[0.52, 2.1, 10.0], [0.01, 1.0, 0.0]]
+        >>> PID(kp=2.0, ki=10.0).to_control(1e-3).dt
+        0.001
+        """
+        num_y, den_y, num_r, den_r = self._polynomials(sample_time)
+        if not two_dof:
+            return polynomial_tf(num_y, den_y, sample_time, inputs=["error"], outputs=["command"], name="pid")
+        # a state space (python-control converts a MIMO transfer function only with slycot):
+        # C_r and C_y realized each, side by side, u = C_r r - C_y y
+        ct = require_control()
+        step = 0 if sample_time is None else sample_time
+        r_part, y_part = (ct.ss(ct.tf(n, d, step)) for n, d in ((num_r, den_r), (num_y, den_y)))
+        a = _block_diagonal([r_part.A, y_part.A])
+        b = _block_diagonal([r_part.B, -y_part.B])
+        c = np.hstack([r_part.C, y_part.C])
+        d = np.hstack([r_part.D, -y_part.D])
+        return state_space(a, b, c, d, sample_time, inputs=["reference", "measured"], outputs=["command"], name="pid")
+
+    def to_scipy(self, sample_time: float | None = None) -> Any:
+        """The feedback ``C`` of :meth:`to_control` as a ``scipy.signal.TransferFunction``
+        (a ``dlti`` with ``sample_time``)."""
+        num_y, den_y, _, _ = self._polynomials(sample_time)
+        return scipy_transfer_function(num_y, den_y, sample_time)
+
+    @classmethod
+    def from_control(cls, sys: object, **fields: Any) -> PID:
+        """The PID whose feedback :meth:`to_control` is ``sys``: a continuous transfer function
+        of the form ``kp + ki / s + kd s / (tau_d s + 1)`` (denominator ``s (tau_d s + 1)``,
+        ``s``, ``tau_d s + 1`` or a constant), or a discrete one of the form the core runs
+        (denominator ``(z - 1)(z - a)``, ``z - 1``, ``z - a`` or a constant, ``0 < a < 1``; the
+        sample time is the system's ``dt``). Gains must come out non-negative and ``tau_d``
+        positive; anything else raises ``ParameterError`` saying why. ``fields`` sets the rest:
+        ``ff_gain`` defaults to 0 (the transfer function is pure feedback), ``tau_d`` of a PID
+        without derivative to 1e-4 s.
+
+        Examples
+        --------
+        >>> import control
+        >>> from piezohyst import PID
+        >>> s = control.tf("s")
+        >>> pid = PID.from_control(2 + 10 / s + 0.5 * s / (0.01 * s + 1))
+        >>> round(pid.kp, 9), round(pid.ki, 9), round(pid.kd, 9), round(pid.tau_d, 9)
+        (2.0, 10.0, 0.5, 0.01)
+        """
+        num, den, dt = siso_polynomials(sys, "sys")
+        kp, ki, kd, tau = _pid_gains(num, den, dt)
+        values: dict[str, Any] = {"kp": kp, "ki": ki, "kd": kd, "ff_gain": 0.0}
+        if tau is not None:
+            values["tau_d"] = tau
+        values.update(fields)
+        pid = cls(**values)
+        pid._gains()
+        return pid
+
+
+def _block_diagonal(blocks: Sequence[npt.ArrayLike]) -> FloatArray:
+    """The block-diagonal matrix of ``blocks`` (2-D; empty blocks allowed)."""
+    mats = [np.atleast_2d(np.asarray(m, dtype=np.float64)) for m in blocks]
+    rows = sum(m.shape[0] for m in mats)
+    cols = sum(m.shape[1] for m in mats)
+    out = np.zeros((rows, cols))
+    i = j = 0
+    for m in mats:
+        out[i : i + m.shape[0], j : j + m.shape[1]] = m
+        i += m.shape[0]
+        j += m.shape[1]
+    return out
+
+
+def _rational_sum(terms: Sequence[tuple[Sequence[float], Sequence[float]]]) -> tuple[FloatArray, FloatArray]:
+    """``sum num_i / den_i`` as one ``(num, den)``, highest power first."""
+    num: FloatArray = np.zeros(1)
+    den: FloatArray = np.ones(1)
+    for n_i, d_i in terms:
+        n_arr, d_arr = np.asarray(n_i, dtype=np.float64), np.asarray(d_i, dtype=np.float64)
+        num = np.asarray(np.polyadd(np.polymul(num, d_arr), np.polymul(n_arr, den)), dtype=np.float64)
+        den = np.asarray(np.polymul(den, d_arr), dtype=np.float64)
+    lead = int(np.argmax(num != 0)) if np.any(num) else num.size - 1  # exact leading zeros only
+    return num[lead:], den
+
+
+def _pid_gains(num: FloatArray, den: FloatArray, dt: float | None) -> tuple[float, float, float, float | None]:
+    """``(kp, ki, kd, tau_d or None)`` of a feedback transfer function of PID form
+    (``num``/``den`` highest power first, ``den`` monic; ``dt`` the sample time or ``None``)."""
+    form = (
+        "kp + ki / s + kd s / (tau_d s + 1)"
+        if dt is None
+        else "kp + ki Ts z / (z - 1) + kd / (tau_d + Ts) (z - 1) / (z - a)"
+    )
+
+    def refuse(why: str) -> ParameterError:
+        return ParameterError(f"sys is not of PID form {form}: {why}")
+
+    if den.size > 3 or num.size > den.size:
+        raise refuse(f"numerator degree {num.size - 1}, denominator degree {den.size - 1}")
+    roots = np.roots(den) if den.size > 1 else np.zeros(0, dtype=np.complex128)
+    if np.any(roots.imag != 0):
+        raise refuse(f"complex poles {roots.tolist()}")
+    poles = sorted(roots.real.tolist(), reverse=True)
+    p_int = 0.0 if dt is None else 1.0
+    size = max([1.0, *(abs(r) for r in poles)])
+    integrator = bool(poles) and abs(poles[0] - p_int) <= 1e-9 * size
+    rest = poles[1:] if integrator else poles
+    if len(rest) > 1:
+        raise refuse(f"poles {poles}")
+    filt = rest[0] if rest else None
+    if filt is not None and not ((filt < 0) if dt is None else (0 < filt < 1)):
+        raise refuse(f"the derivative filter's pole {filt} must be {'< 0' if dt is None else 'in (0, 1)'}")
+    # the exact denominator, and the numerator of each term over it, powers ascending
+    poly = np.polynomial.polynomial
+    d_int = [-p_int, 1.0] if integrator else [1.0]
+    d_filt = [-filt, 1.0] if filt is not None else [1.0]
+    columns = [poly.polymul(d_int, d_filt)]  # kp
+    if integrator:  # ki / s -> (s - p_f); ki Ts z / (z - 1) -> z (z - a)
+        columns.append(poly.polymul(d_filt, [0.0, 1.0]) if dt is not None else np.asarray(d_filt, dtype=float))
+    if filt is not None:  # kd s / (tau s + 1) = (kd / tau) s / (s + 1 / tau); g (z - 1) / (z - a)
+        columns.append(poly.polymul([0.0, 1.0] if dt is None else [-1.0, 1.0], d_int))
+    n = den.size
+    mat = np.zeros((n, len(columns)))
+    for j, col in enumerate(columns):
+        mat[: len(col), j] = col
+    rhs = np.zeros(n)
+    rhs[: num.size] = num[::-1]
+    # compare on the system's frequency scale: s -> w s (the filter pole's magnitude)
+    w = abs(filt) if (dt is None and filt is not None) else 1.0
+    weights = w ** np.arange(n, dtype=np.float64)
+    sol, *_ = np.linalg.lstsq(mat * weights[:, None], rhs * weights, rcond=None)
+    resid = (mat @ sol - rhs) * weights
+    if np.max(np.abs(resid)) > 1e-9 * max(float(np.max(np.abs(rhs * weights))), 1e-300):
+        raise refuse("its numerator is not a combination of the PID's terms over its denominator")
+    kp, k = float(sol[0]), 1
+    ki = 0.0
+    if integrator:
+        ki = float(sol[k]) / (1.0 if dt is None else dt)
+        k += 1
+    tau: float | None = None
+    kd = 0.0
+    if filt is not None:
+        tau = -1.0 / filt if dt is None else filt * dt / (1.0 - filt)
+        kd = float(sol[k]) * (tau if dt is None else tau + dt)
+    largest = max(abs(kp), abs(ki), abs(kd))
+    for name, value in (("kp", kp), ("ki", ki), ("kd", kd)):
+        if value < -1e-9 * largest:
+            raise ParameterError(f"sys gives {name} = {value:.6g}: the PID's gains are non-negative")
+    return max(kp, 0.0), max(ki, 0.0), max(kd, 0.0), tau
 
 
 def _stage_parameters(params: object) -> StageParameters:

@@ -25,10 +25,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 from .._validate import as_int, as_scalar
 from ..errors import ParameterError, ParameterTypeError
+from ..signals.lti import state_space
+from . import linear
 
 __all__ = ["A7075_YOUNGS_MODULUS", "CemfCoefficients", "FlexureStage", "LeafSpring", "seed1_stage"]
 
@@ -127,6 +129,31 @@ class CemfCoefficients(NamedTuple):
     M: float
     B: float
     K: float
+
+    def to_control(self) -> Any:
+        """``1 / (M s^2 + B s + K)`` from the voltage ``Vin - Vh`` (V) to the position (m), a
+        continuous python-control ``StateSpace``.
+
+        >>> c = CemfCoefficients(M=0.00714, B=13.07, K=7.333e6)
+        >>> bool(abs(c.to_control().dcgain() - 1 / 7.333e6) < 1e-20)
+        True
+        """
+        part = linear.LinearPart(self.M, self.B, self.K, 1.0, 1.0, (), (), 0.0)
+        sys = linear.linear_system(part)
+        return state_space(
+            sys.a, sys.b, sys.c, sys.d, inputs=["voltage"], outputs=["position"], states=sys.states, name="cemf_plant"
+        )
+
+    @classmethod
+    def from_control(cls, sys: object) -> CemfCoefficients:
+        """The coefficients whose plant :meth:`to_control` is ``sys``, a continuous
+        ``b0 / (s^2 + a1 s + a0)`` without zeros: ``M = 1 / b0``, ``B = a1 / b0``, ``K = a0 / b0``.
+
+        >>> import control
+        >>> CemfCoefficients.from_control(control.tf([1.0], [0.5, 2.0, 8.0]))
+        CemfCoefficients(M=0.5, B=2.0, K=8.0)
+        """
+        return cls(*linear.second_order_from_control(sys, 1.0))
 
 
 @dataclass(frozen=True)
@@ -234,6 +261,29 @@ class FlexureStage:
     def f_n(self) -> float:
         """Undamped natural frequency ``sqrt(keq / meq) / (2 pi)`` [Hz]."""
         return self.omega_n / (2.0 * math.pi)
+
+    def to_control(self, tem: float | None = None) -> Any:
+        """The lumped plant ``meq x'' + beq x' + keq x = F`` as a continuous python-control
+        ``StateSpace`` from the force ``F`` (N) to the position (m); with ``tem`` (N/V) from the
+        piezo voltage ``Vin - Vh`` (V) instead (``F = Tem (Vin - Vh)``).
+
+        >>> s = FlexureStage.seed1()
+        >>> f"{s.to_control().dcgain():.4g} m/N"
+        '1.364e-08 m/N'
+        """
+        gain = 1.0 if tem is None else as_scalar(tem, "tem", positive=True)
+        part = linear.LinearPart(self.meq, self.beq, self.keq, gain, gain, (), (), 0.0)
+        sys = linear.linear_system(part)
+        return state_space(
+            sys.a,
+            sys.b,
+            sys.c,
+            sys.d,
+            inputs=["force" if tem is None else "voltage"],
+            outputs=["position"],
+            states=sys.states,
+            name="flexure_stage",
+        )
 
     def cemf_coefficients(self, tem: float) -> CemfCoefficients:
         """CEMF-normalized plant ``M = meq/Tem, B = beq/Tem, K = keq/Tem`` (docs/spec.md §2.6).

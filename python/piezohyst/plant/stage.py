@@ -30,9 +30,12 @@ from .. import _core
 from .._io import load_json_file, malformed_as
 from .._validate import as_int, as_record, as_scalar, as_vector
 from ..errors import ParameterError, ParameterTypeError
+from ..signals.lti import scipy_state_space, state_space
 from ..signals.response import Response
+from . import linear
 
 FloatArray: TypeAlias = npt.NDArray[np.float64]
+ComplexArray: TypeAlias = npt.NDArray[np.complex128]
 
 __all__ = ["Amplifier", "Sensor", "Stage", "StageInfo", "StageParameters", "StageResponse", "virtual_stage"]
 
@@ -131,6 +134,29 @@ class StageParameters:
     def static_gain(self) -> float:
         """``Tem / k``: position per volt without hysteresis or creep, m/V."""
         return self.tem / self.stiffness
+
+    # -- linear part (piezohyst.plant.linear) ---------------------------------------------
+    def frequency_response(self, f: npt.ArrayLike, *, creep: bool = True, cemf: bool = False) -> ComplexArray:
+        """The linear part's frequency response from the drive voltage to the position (m/V)
+        at ``f`` (Hz), evaluated from the parameters (:mod:`piezohyst.plant.linear`: mechanics
+        and ``creep`` lags; the CEMF hysteresis by its slope at rest with ``cemf=True``)."""
+        return linear.frequency_response(linear.linear_part(self, creep=creep, cemf=cemf), f)
+
+    def to_control(self, *, creep: bool = True, cemf: bool = False) -> Any:
+        """The linear part as a continuous python-control ``StateSpace`` from the drive voltage
+        ``command`` (V) to the ``position`` (m); see :meth:`frequency_response`.
+
+        >>> from piezohyst import virtual_stage
+        >>> sys = virtual_stage().params.to_control(creep=False)
+        >>> sys.nstates, sys.input_labels, sys.output_labels
+        (2, ['command'], ['position'])
+        """
+        return _to_control(linear.linear_system(linear.linear_part(self, creep=creep, cemf=cemf)), "stage_parameters")
+
+    def to_scipy(self, *, creep: bool = True, cemf: bool = False) -> Any:
+        """:meth:`to_control` as a ``scipy.signal.StateSpace`` (an ``lti``)."""
+        sys = linear.linear_system(linear.linear_part(self, creep=creep, cemf=cemf))
+        return scipy_state_space(sys.a, sys.b, sys.c, sys.d)
 
 
 class StageResponse(Response):
@@ -424,6 +450,140 @@ class Stage:
             k = bad[0]
             raise ParameterError(f"{name}[{k}] = {u[k]} V is outside the amplifier range [{a.v_min}, {a.v_max}] V")
 
+    # -- linear part (piezohyst.plant.linear) ---------------------------------------------
+    def frequency_response(
+        self, f: npt.ArrayLike, *, creep: bool = True, amplifier: bool = True, cemf: bool = False
+    ) -> ComplexArray:
+        """The frequency response of the stage's linear part, command (V) to position (m), at
+        the frequencies ``f`` (Hz), evaluated analytically from the parameters::
+
+            H(s) = (g + Tem sum_j c_j / (tau_j s + 1)) / ((tau_a s + 1) (m s^2 + b s + k))
+
+        the amplifier's lag (``amplifier``; not its limits or slew rate), the mechanics and
+        the creep lags (``creep``); the electrostriction and the CEMF hysteresis are left out,
+        or the hysteresis enters by its slope at the demagnetized rest state (``cemf=True``:
+        the small-signal model around rest). See :mod:`piezohyst.plant.linear`.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst import virtual_stage
+        >>> h = virtual_stage().frequency_response([1.0, 1e3, 5e3])
+        >>> np.abs(h).round(9).tolist()         # m/V: flat, then the amplifier and the resonance
+        [1.47e-07, 1.41e-07, 1.044e-06]
+        """
+        return linear.frequency_response(self._linear_part(creep, amplifier, cemf), f)
+
+    def _linear_part(self, creep: bool, amplifier: bool, cemf: bool) -> linear.LinearPart:
+        return linear.linear_part(self.params, self.amplifier if amplifier else None, creep=creep, cemf=cemf)
+
+    def _linear_system(
+        self, discrete: bool, measured: bool, creep: bool, amplifier: bool, cemf: bool
+    ) -> linear.LinearSystem:
+        if measured and not discrete:
+            raise ParameterError("measured=True needs discrete=True (the sensor's delay is whole samples)")
+        part = self._linear_part(creep, amplifier, cemf)
+        if not discrete:
+            return linear.linear_system(part)
+        return linear.linear_system(part, sample_time=self.sample_time, delay=self.sensor.delay if measured else 0)
+
+    def to_control(
+        self,
+        *,
+        discrete: bool = False,
+        measured: bool = False,
+        creep: bool = True,
+        amplifier: bool = True,
+        cemf: bool = False,
+    ) -> Any:
+        """The stage's linear part as a python-control ``StateSpace``, input ``command`` (V),
+        output ``position`` (m): the system whose response :meth:`frequency_response` gives.
+
+        Parameters
+        ----------
+        discrete : bool
+            ``False``: continuous. ``True``: the zero-order-hold discretization at the stage's
+            ``sample_time`` (``dt``), the command held over each sample as :meth:`simulate`
+            holds it: for a stage without hysteresis, electrostriction and creep it gives
+            :meth:`simulate`'s positions to rounding.
+        measured : bool
+            With ``discrete``: the output is the sensor's reading ``measured``, the position
+            delayed by the sensor's ``delay`` samples (its noise and quantization are not
+            linear and are left out).
+        creep, amplifier, cemf : bool
+            Keep the creep lags, keep the amplifier's lag, add the CEMF's slope at rest (see
+            :meth:`frequency_response`).
+
+        Returns
+        -------
+        control.StateSpace
+            States ``va`` (amplifier voltage, V; with an amplifier lag), ``x`` (m), ``v``
+            (m/s), ``w0 ...`` (creep lags, V), then ``delay1 ...`` (m) when ``measured``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst import virtual_stage
+        >>> stage = virtual_stage()
+        >>> sys = stage.to_control()
+        >>> sys.nstates, sys.input_labels, sys.output_labels
+        (8, ['command'], ['position'])
+        >>> f = np.array([10.0, 5e3])
+        >>> bool(np.allclose(sys(2j * np.pi * f).ravel(), stage.frequency_response(f), rtol=1e-9))
+        True
+        >>> stage.to_control(discrete=True, measured=True).dt
+        0.0001
+        """
+        sys = self._linear_system(discrete, measured, creep, amplifier, cemf)
+        return _to_control(sys, self.name or "stage")
+
+    def to_scipy(
+        self,
+        *,
+        discrete: bool = False,
+        measured: bool = False,
+        creep: bool = True,
+        amplifier: bool = True,
+        cemf: bool = False,
+    ) -> Any:
+        """:meth:`to_control` as a ``scipy.signal.StateSpace`` (an ``lti``, or a ``dlti`` with
+        ``dt`` when ``discrete``).
+
+        >>> from piezohyst import virtual_stage
+        >>> virtual_stage().to_scipy(discrete=True).dt
+        0.0001
+        """
+        sys = self._linear_system(discrete, measured, creep, amplifier, cemf)
+        return scipy_state_space(sys.a, sys.b, sys.c, sys.d, sys.dt)
+
+    @classmethod
+    def from_control(cls, sys: object, *, base: Stage | None = None) -> Stage:
+        """A stage whose linear part is the second-order system ``sys``: a python-control
+        ``StateSpace`` / ``TransferFunction`` or a ``scipy.signal.lti`` equal to
+        ``Tem / (m s^2 + b s + k)`` (continuous, one input and output, no zeros).
+
+        ``base`` gives everything else — ``Tem`` (the transfer function fixes only ``m / Tem``,
+        ``b / Tem``, ``k / Tem``), hysteresis, creep, amplifier, sensor, loop rate — and only its
+        mass, damping and stiffness are replaced. Without ``base`` the stage is linear: no
+        hysteresis, electrostriction or creep, an ideal amplifier (-20..150 V), an ideal sensor,
+        ``Tem = 1`` N/V, so that ``Stage.from_control(sys).to_control()`` is ``sys`` again.
+        Anything not of that form raises ``ParameterError`` saying what it is.
+
+        Examples
+        --------
+        >>> import control
+        >>> from piezohyst import Stage
+        >>> stage = Stage.from_control(control.tf([1.0], [0.01, 20.0, 4e6]))
+        >>> round(stage.params.natural_frequency, 3), round(stage.params.damping_ratio, 4)
+        (3183.099, 0.05)
+        """
+        if base is None:
+            base = cls(StageParameters(mass=1.0, damping=0.0, stiffness=1.0, tem=1.0), name="linear stage")
+        elif not isinstance(base, Stage):
+            raise ParameterTypeError(f"base must be a Stage, got {type(base).__name__}")
+        mass, damping, stiffness = linear.second_order_from_control(sys, base.params.tem)
+        return base.with_(params=replace(base.params, mass=mass, damping=damping, stiffness=stiffness))
+
     # -- measurements ---------------------------------------------------------------------
     def info(self) -> StageInfo:
         """Measure stroke, hysteresis at 1 Hz over the full 0..v_max range, first resonance and
@@ -487,6 +647,12 @@ class Stage:
         xs = np.interp(probes, t, x)
         slope = np.polyfit(np.log10(probes), xs, 1)[0]
         return float(100 * slope / xs[0])
+
+
+def _to_control(sys: linear.LinearSystem, name: str) -> Any:
+    return state_space(
+        sys.a, sys.b, sys.c, sys.d, sys.dt, inputs=["command"], outputs=[sys.output], states=sys.states, name=name
+    )
 
 
 def _loop_width(u: FloatArray, x: FloatArray) -> tuple[float, float]:
