@@ -81,6 +81,7 @@ from .. import _core
 from .._io import PathLike, write_atomic
 from .._validate import as_int, as_record, as_scalar, as_vector
 from ..errors import ParameterError
+from ..signals.matfile import write_mat
 from ..signals.response import Response
 
 FloatArray = npt.NDArray[np.float64]
@@ -291,8 +292,18 @@ class BoucWenBenchmark:
         }
 
     def save(self, path: PathLike, *, overwrite: bool = False) -> Path:
-        """Write the model file atomically (read back by :func:`piezohyst.load_model`)."""
+        """Write the model file atomically (read back by :func:`piezohyst.load_model`); a path
+        ending in ``.mat`` writes the MATLAB file of :meth:`to_mat`."""
+        if Path(path).suffix.lower() == ".mat":
+            return self.to_mat(path, overwrite=overwrite)
         return write_atomic(path, json.dumps(self.to_dict(), indent=2, allow_nan=False), overwrite=overwrite)
+
+    def to_mat(self, path: PathLike, *, overwrite: bool = False) -> Path:
+        """Write the model to the MATLAB file ``path`` (read back exactly by
+        :func:`piezohyst.load_model`): the struct ``model`` with ``schema_version``, ``kind``,
+        ``family`` (``"boucwen-benchmark"``), the eight ``parameters``, ``fs``, ``upsample``,
+        ``units`` (layout: :mod:`piezohyst.signals.matfile`)."""
+        return write_mat(path, "model", {**self.to_dict(), "family": self.kind}, overwrite=overwrite)
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> BoucWenBenchmark:

@@ -22,6 +22,7 @@ from .. import _core
 from .._io import PathLike, load_json_file, malformed_as, write_atomic
 from .._validate import as_record, as_scalar
 from ..errors import ParameterError, ParameterTypeError
+from ..signals.matfile import load_mat_file, write_mat
 from ..signals.response import Response
 from .boucwen_benchmark import BoucWenBenchmark
 
@@ -368,9 +369,49 @@ class HysteresisModel:
         return json.dumps(self.to_dict(include_state=include_state), indent=2, allow_nan=False)
 
     def save(self, path: PathLike, *, overwrite: bool = False, include_state: bool = False) -> Path:
-        """Write the model file atomically; an existing file is kept unless ``overwrite``."""
+        """Write the model file atomically; an existing file is kept unless ``overwrite``. A
+        path ending in ``.mat`` writes the MATLAB file of :meth:`to_mat`, any other JSON."""
+        if Path(path).suffix.lower() == ".mat":
+            return self.to_mat(path, overwrite=overwrite, include_state=include_state)
         text = self.to_json(include_state=include_state)
         return write_atomic(path, text, overwrite=overwrite)
+
+    def to_mat(self, path: PathLike, *, overwrite: bool = False, include_state: bool = False) -> Path:
+        """Write the model to the MATLAB file ``path`` (read back exactly by
+        :func:`load_model`): the struct ``model`` with
+
+        - ``schema_version`` (int), ``kind`` (the model-file name, ``"gpi"``), ``family`` (the
+          core's family);
+        - ``parameters``: a struct of the named parameters (vectors as 1 x N doubles; a GPI's
+          unbounded ``input_range`` ends are NaN; envelopes and creep as structs);
+        - ``output_map``: ``offset`` and ``gain`` (``y = gain * h(v) + offset``);
+        - ``units``: a struct ``input``, ``output`` (``''`` for unitless);
+        - ``state`` (with ``include_state``).
+
+        The layout of the file: :mod:`piezohyst.signals.matfile`.
+
+        Examples
+        --------
+        >>> import tempfile, pathlib
+        >>> from piezohyst import PI, load_model
+        >>> m = PI([0.0, 0.5], [1.0, 0.25], p0=0.1, units={"input": "V", "output": "m"})
+        >>> path = m.to_mat(pathlib.Path(tempfile.mkdtemp()) / "pi.mat")
+        >>> load_model(path) == m
+        True
+        """
+        d = self.to_dict(include_state=include_state)
+        d["family"] = self.family
+        d["output_map"] = self._map.to_dict()
+        return write_mat(path, "model", d, overwrite=overwrite)
+
+    @classmethod
+    def from_dict(cls, d: JSONDict) -> HysteresisModel:
+        """The model of a :meth:`to_dict` description (:func:`model_from_dict`), which must be a
+        ``cls`` (``ParameterError`` naming the kind otherwise)."""
+        model = model_from_dict(d)
+        if not isinstance(model, cls):
+            raise ParameterError(f"kind = {d.get('kind')!r} is not a {cls.__name__}")
+        return model
 
     @classmethod
     def _from_parameters(cls, p: JSONDict, units: Any) -> Self:
@@ -486,8 +527,23 @@ def load_model(path: PathLike) -> AnyModel:
     (every ``--model`` kind but ``cemf``, whose stage file
     :meth:`piezohyst.plant.Stage.from_file` reads; ``DataError`` naming the file if it is not
     a model file). A ``boucwen-benchmark`` file gives a :class:`BoucWenBenchmark` that
-    simulates at the file's ``fs``."""
+    simulates at the file's ``fs``. A ``.mat`` file is read as the MATLAB file of
+    :meth:`HysteresisModel.to_mat` (exactly), anything else as JSON."""
+    if Path(path).suffix.lower() == ".mat":
+        return load_mat_file(path, "model", "model file", _model_from_mat)
     return load_json_file(path, "model file", model_from_dict)
+
+
+def _model_from_mat(d: JSONDict) -> AnyModel:
+    """A model from the struct :meth:`HysteresisModel.to_mat` writes: its ``family`` must be
+    the one its ``kind`` builds."""
+    d = dict(d)
+    family = d.pop("family", None)
+    model = model_from_dict(d)
+    expected = getattr(model, "family", None)
+    if family is not None and expected is not None and family != expected:
+        raise ParameterError(f"family = {family!r} does not match kind = {d.get('kind')!r} (family {expected!r})")
+    return model
 
 
 class Inverse:

@@ -21,7 +21,8 @@ import math
 from dataclasses import dataclass, field, replace
 from importlib import resources
 from os import PathLike
-from typing import Any, TypeAlias
+from pathlib import Path
+from typing import Any, Self, TypeAlias
 
 import numpy as np
 import numpy.typing as npt
@@ -31,6 +32,7 @@ from .._io import load_json_file, malformed_as
 from .._validate import as_int, as_record, as_scalar, as_vector
 from ..errors import ParameterError, ParameterTypeError
 from ..signals.lti import scipy_state_space, state_space
+from ..signals.matfile import load_mat_file, write_mat
 from ..signals.response import Response
 from . import linear
 
@@ -40,6 +42,31 @@ ComplexArray: TypeAlias = npt.NDArray[np.complex128]
 __all__ = ["Amplifier", "Sensor", "Stage", "StageInfo", "StageParameters", "StageResponse", "virtual_stage"]
 
 MAX_CREEP = 8
+
+#: The SI unit of every number of a stage file (:meth:`Stage.to_dict`), by its name.
+STAGE_UNITS = {
+    "mass": "kg",
+    "stiffness": "N/m",
+    "damping": "N s/m",
+    "tem": "N/V",
+    "capacitance": "F",
+    "alpha": "V/C (charge drive), V/V (voltage drive)",
+    "beta": "1/C (charge drive), 1/V (voltage drive)",
+    "gamma": "1/C (charge drive), 1/V (voltage drive)",
+    "electrostriction": "1/V",
+    "creep_taus": "s",
+    "creep_weights": "V/V",
+    "amplifier_min": "V",
+    "amplifier_max": "V",
+    "amplifier_bandwidth": "Hz",
+    "amplifier_slew_rate": "V/s",
+    "sensor_quantization": "m",
+    "sensor_noise_std": "m",
+    "sensor_delay": "samples",
+    "sample_time": "s",
+    "substeps": "1",
+    "tolerance": "1",
+}
 
 
 @dataclass(frozen=True)
@@ -198,6 +225,21 @@ class StageResponse(Response):
             title=title,
         )
 
+    @classmethod
+    def _from_mat_fields(
+        cls,
+        time: FloatArray,
+        signals: dict[str, FloatArray],
+        inputs: list[str],
+        units: dict[str, str],
+        final_state: FloatArray | None,
+        title: str,
+        extra: dict[str, Any],
+    ) -> Self:
+        s = signals
+        state = np.zeros(0) if final_state is None else final_state
+        return cls(time, s["command"], s["voltage"], s["position"], s["cemf"], state, title=title)
+
     @property
     def command(self) -> FloatArray:
         """Voltage command held over each sample, V."""
@@ -326,8 +368,26 @@ class Stage:
 
     @classmethod
     def from_file(cls, path: str | PathLike[str]) -> Stage:
-        """Read a stage file (JSON, the layout of the packaged virtual stage)."""
+        """Read a stage file (JSON, the layout of the packaged virtual stage; a ``.mat`` file:
+        the MATLAB file of :meth:`to_mat`)."""
+        if str(path).lower().endswith(".mat"):
+            return load_mat_file(path, "stage", "stage file", cls.from_dict)
         return load_json_file(path, "stage file", cls.from_dict)
+
+    def to_mat(self, path: str | PathLike[str], *, overwrite: bool = False) -> Path:
+        """Write the stage to the MATLAB file ``path`` (read back exactly by
+        :meth:`from_file`): the struct ``stage`` with the fields of the stage-file layout
+        (:meth:`to_dict`: ``mechanics``, ``cemf``, ``electrostriction``, ``creep``,
+        ``amplifier``, ``sensor``, ``loop``; an unlimited bandwidth or slew rate is the text
+        ``'inf'``) and ``units`` (layout: :mod:`piezohyst.signals.matfile`).
+
+        >>> import tempfile, pathlib
+        >>> from piezohyst import Stage, virtual_stage
+        >>> path = virtual_stage().to_mat(pathlib.Path(tempfile.mkdtemp()) / "stage.mat")
+        >>> Stage.from_file(path) == virtual_stage()
+        True
+        """
+        return write_mat(path, "stage", {**self.to_dict(), "units": dict(STAGE_UNITS)}, overwrite=overwrite)
 
     def to_dict(self) -> dict[str, Any]:
         p = self.params

@@ -271,6 +271,59 @@ class Record:
             )
         return self._slice(a, b), self._slice(c, d)
 
+    def to_mat(self, path: str | os.PathLike[str], *, overwrite: bool = False) -> Path:
+        """Write the record to the MATLAB file ``path``, read back exactly by :meth:`from_mat`:
+        the struct ``record`` with ``input``, ``output`` (N x 1 doubles, SI), ``fs`` (Hz),
+        ``time`` (N x 1 s, or ``[]`` without a measured time axis), ``source``, ``columns``
+        (role -> source column) and ``units`` (role -> ``source``, ``si``, ``scale``,
+        ``origin``). :func:`load_record` reads it too: ``load_record(path,
+        input="record.input", output="record.output", fs=...)``. Layout of the file:
+        :mod:`piezohyst.signals.matfile`.
+
+        Examples
+        --------
+        >>> import tempfile, pathlib
+        >>> import numpy as np
+        >>> from piezohyst.data import Record
+        >>> rec = Record(np.sin(np.arange(5.0)), np.cos(np.arange(5.0)), fs=200.0, source="run 1")
+        >>> path = rec.to_mat(pathlib.Path(tempfile.mkdtemp()) / "run.mat")
+        >>> back = Record.from_mat(path)
+        >>> np.array_equal(back.output, rec.output), back.fs, back.source
+        (True, 200.0, 'run 1')
+        """
+        from .matfile import write_mat
+
+        value: dict[str, object] = {
+            "input": self.input.reshape(-1, 1),
+            "output": self.output.reshape(-1, 1),
+            "fs": self.fs,
+            "time": None if self.time is None else self.time.reshape(-1, 1),
+            "source": self.source,
+            "columns": dict(self.columns),
+            "units": {role: dict(c._asdict()) for role, c in self.units.items()},
+        }
+        return write_mat(path, "record", value, overwrite=overwrite)
+
+    @classmethod
+    def from_mat(cls, path: str | os.PathLike[str]) -> Record:
+        """Read a record :meth:`to_mat` wrote, exactly (``DataError`` naming the file when it
+        is not one)."""
+        from .matfile import load_mat_file
+
+        def build(d: dict[str, Any]) -> Record:
+            t = d["time"]
+            return cls(
+                np.asarray(d["input"], dtype=np.float64).ravel(),
+                np.asarray(d["output"], dtype=np.float64).ravel(),
+                d["fs"],
+                None if t is None else np.asarray(t, dtype=np.float64).ravel(),
+                d["source"],
+                d["columns"],
+                {role: UnitConversion(**c) for role, c in d["units"].items()},
+            )
+
+        return load_mat_file(path, "record", "record file", build)
+
     def to_pandas(self) -> pd.DataFrame:
         """A :class:`pandas.DataFrame` with columns ``time`` (the measured time, or
         ``arange(n) / fs``), ``input`` and ``output``. Needs pandas."""
