@@ -8,7 +8,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import Field
 from functools import cached_property, lru_cache
-from typing import TYPE_CHECKING, Any, ClassVar, Protocol, TypeAlias
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol, Self, TypeAlias
 
 import numpy as np
 import numpy.typing as npt
@@ -18,6 +18,7 @@ from .._validate import as_record
 from ..errors import ParameterError, ParameterTypeError
 from ..signals.metrics import tracking_metrics
 from ..signals.response import Response
+from ..signals.results import require_pandas
 from .controllers import is_controller
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -154,6 +155,41 @@ class ClosedLoopResult(Response):
         """Sensor reading the controller used at each sample, m."""
         return self.signals["measured"]
 
+    def _mat_fields(self) -> dict[str, Any]:
+        return {
+            "sample_time": self.sample_time,
+            "controller": self.controller,
+            "skip_samples": self.skip_samples,
+            "terms": list(self.terms),
+        }
+
+    @classmethod
+    def _from_mat_fields(
+        cls,
+        time: FloatArray,
+        signals: dict[str, FloatArray],
+        inputs: list[str],
+        units: dict[str, str],
+        final_state: FloatArray | None,
+        title: str,
+        extra: dict[str, Any],
+    ) -> Self:
+        s = signals
+        terms = {str(k): s[f"term_{k}"] for k in extra["terms"]}
+        state = np.zeros(0) if final_state is None else final_state
+        return cls(
+            float(extra["sample_time"]),
+            s["reference"],
+            s["command"],
+            s["voltage"],
+            s["position"],
+            s["measured"],
+            terms,
+            state,
+            str(extra["controller"]),
+            int(extra["skip_samples"]),
+        )
+
     def _with_skip(self, k: int) -> ClosedLoopResult:
         """The same run with ``metrics`` leaving out the first ``k`` samples."""
         return type(self)(
@@ -184,11 +220,9 @@ class ClosedLoopResult(Response):
         return self.reference - self.position
 
     def to_pandas(self) -> pd.DataFrame:
-        """The signals as a ``pandas.DataFrame`` indexed by time (needs pandas)."""
-        try:
-            import pandas as pd
-        except ImportError:
-            raise ImportError("to_pandas() needs pandas, which is not installed") from None
+        """The signals and the tracking error as a ``pandas.DataFrame`` indexed by time (needs
+        pandas: without it an ``ImportError`` says ``pip install pandas``)."""
+        pd = require_pandas(type(self).__name__)
         cols = {
             "reference": self.reference,
             "command": self.command,

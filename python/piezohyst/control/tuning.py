@@ -101,6 +101,9 @@ class TuningResult(RunReport):
     def _headline(self) -> str:
         return f"{type(self.controller).__name__} tuned: RMSE {self.rmse:.4g} m"
 
+    def _scores(self) -> dict[str, float]:
+        return {"rmse (m)": float(self.rmse)}
+
 
 def tune(
     controller: ControllerLike,

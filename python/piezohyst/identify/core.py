@@ -101,6 +101,10 @@ class FitResult(RunReport):
             f"({m['rmse_percent']:.3g} % of range), max error {m['max_error']:.4g} ({m['max_error_percent']:.3g} %)"
         )
 
+    def _scores(self) -> dict[str, float]:
+        m = self.metrics
+        return {"rmse (% of range)": m["rmse_percent"], "max error (% of range)": m["max_error_percent"]}
+
 
 def fit_metrics(predicted: npt.ArrayLike, measured: npt.ArrayLike) -> Metrics:
     """RMSE and max error of the free-run simulation, also in % of the measured range."""
@@ -656,6 +660,16 @@ class IdentificationResult(RunReport):
         if self.validation is not None:
             text += f", validation rmse {self.validation['rmse']:.4g} ({self.validation['rmse_percent']:.3g} %)"
         return text + (" (partial)" if self.partial else "")
+
+    def _scores(self) -> dict[str, float]:
+        spans = {"train": self.train, "validation": self.validation}
+        return {
+            f"{span} {label} (% of range)": m[key]
+            for span, m in spans.items()
+            if m is not None
+            for label, key in (("rmse", "rmse_percent"), ("max error", "max_error_percent"))
+            if key in m
+        }
 
     def simulate(self, input: npt.ArrayLike) -> FloatArray:
         """The identified model's free-run output for an input record (for ``cemf``: positions

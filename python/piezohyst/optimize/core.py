@@ -53,6 +53,7 @@ import numpy.typing as npt
 
 from .._validate import as_int, as_scalar
 from ..errors import ComputationError, ParameterError, ParameterTypeError
+from ..signals.results import DataclassMatFile, html_table, require_pandas
 from .report import RunReport
 
 #: Largest population an optimizer takes: each generation evaluates every member (a batch
@@ -60,6 +61,8 @@ from .report import RunReport
 MAX_POPULATION = 100_000
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
+    import pandas as pd
+    from matplotlib.figure import Figure
     from scipy.optimize import Bounds
 
 __all__ = [
@@ -215,6 +218,9 @@ class OptimizeResult(RunReport):
         fun = "none" if self.x is None else f"{self.fun:.6g}"
         return f"{self.method or 'optimizer'}: fun {fun} after {self.nit} iterations ({self.message})"
 
+    def _scores(self) -> dict[str, float]:
+        return {"fun": float(self.fun)}
+
     @property
     def interrupted(self) -> bool:
         """The run was stopped by Ctrl-C (``KeyboardInterrupt``): ``x`` is the best point
@@ -223,8 +229,12 @@ class OptimizeResult(RunReport):
 
 
 @dataclass(frozen=True)
-class IntermediateResult:
+class IntermediateResult(DataclassMatFile):
     """What ``callback(intermediate_result)`` receives after each iteration.
+
+    As every result (:mod:`piezohyst.signals.results`): ``to_pandas()`` (one row), ``plot()``
+    (the best candidate so far, one bar per parameter), the notebook display and ``.mat``
+    files (``to_mat``, ``from_mat``).
 
     Attributes
     ----------
@@ -245,6 +255,37 @@ class IntermediateResult:
     nit: int
     nfev: int
     mean_cost: float
+
+    def _row(self) -> dict[str, float]:
+        row = {"fun": float(self.fun), "nit": float(self.nit), "nfev": float(self.nfev), "mean_cost": self.mean_cost}
+        if self.x is not None:
+            row.update({f"x[{j}]": float(v) for j, v in enumerate(np.ravel(self.x))})
+        return row
+
+    def to_pandas(self) -> pd.DataFrame:
+        """One row: ``fun``, ``nit``, ``nfev``, ``mean_cost`` and ``x[j]`` (needs pandas: without
+        it an ``ImportError`` says ``pip install pandas``)."""
+        pd = require_pandas(type(self).__name__)
+        return pd.DataFrame([self._row()], index=pd.Index([self.nit], name="iteration"))
+
+    def plot(self, *, ax: Any = None) -> Figure:
+        """The best candidate so far, one bar per parameter (on ``ax`` if given)."""
+        import matplotlib.pyplot as plt
+
+        if ax is None:
+            fig, ax = plt.subplots(figsize=(6, 3.0))
+        else:
+            fig = ax.figure
+        x = np.zeros(0) if self.x is None else np.ravel(self.x)
+        ax.bar(np.arange(x.size), x)
+        ax.set_xlabel("parameter")
+        ax.set_ylabel("best x")
+        ax.set_title(f"iteration {self.nit}: fun {self.fun:.6g}", fontsize="small")
+        return fig
+
+    def _repr_html_(self) -> str:
+        rows = [(k, f"{v:.6g}") for k, v in self._row().items()]
+        return html_table(f"IntermediateResult after {self.nit} iterations", rows)
 
 
 # --------------------------------------------------------------------------------------------

@@ -5,17 +5,19 @@ spent (``evaluations``; a linear least-squares fit counts one), what happened pe
 (``history``: a dict of arrays, one row per iteration, empty when the method does not iterate)
 and whether it was stopped before its end (``partial``: Ctrl-C, a callback, a signal — the
 result is then the best found before the stop). :class:`RunReport` gives all of them the same
-``to_pandas()``, ``plot()`` and notebook display.
+``to_pandas()``, ``plot()``, notebook display and ``.mat`` files: the result protocol of
+:mod:`piezohyst.signals.results`.
 """
 
 from __future__ import annotations
 
-import html
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
+
+from ..signals.results import DataclassMatFile, html_table, require_pandas
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import pandas as pd
@@ -24,9 +26,11 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 __all__ = ["RunReport"]
 
 
-class RunReport:
+class RunReport(DataclassMatFile):
     """Mixin of the result classes: subclasses provide ``wall_time``, ``evaluations``,
-    ``history`` and ``partial`` (as fields or properties) and a ``_headline()``."""
+    ``history`` and ``partial`` (as fields or properties), a ``_headline()`` and their
+    ``_scores()``. With :class:`~piezohyst.signals.results.DataclassMatFile` every run report
+    is written to and read from MATLAB files (``to_mat``, ``from_mat``)."""
 
     # Declared as read-only properties for the type checker only: a subclass provides each as a
     # dataclass field or as a property (a real property here would become a dataclass default).
@@ -65,41 +69,52 @@ class RunReport:
             cols = {k: v for k, v in cols.items() if v.size == n}
         return cols
 
+    def _scores(self) -> dict[str, float]:
+        """The result's headline numbers by label (a fit's error in % of the range, a tuning's
+        RMSE): what :meth:`plot` draws for a method without iterations and what the notebook
+        display lists. Subclasses fill it."""
+        return {}
+
     def to_pandas(self) -> pd.DataFrame:
         """The per-iteration history as a ``pandas.DataFrame`` indexed by iteration (needs
-        pandas); empty for a method that does not iterate."""
-        try:
-            import pandas as pd
-        except ImportError:
-            raise ImportError("to_pandas() needs pandas, which is not installed") from None
+        pandas: without it an ``ImportError`` says ``pip install pandas``); no rows for a
+        method that does not iterate."""
+        pd = require_pandas(type(self).__name__)
         cols = self._history_columns()
         n = next(iter(cols.values())).size if cols else 0
         return pd.DataFrame(cols, index=pd.RangeIndex(1, n + 1, name="iteration"))
 
     def plot(self, *, ax: Any = None) -> Figure:
-        """Convergence: the best cost so far against the iteration (log scale)."""
+        """Convergence: the best cost so far against the iteration (log scale); for a method
+        without iterations (a linear fit) its headline numbers as bars. On ``ax`` if given."""
         import matplotlib.pyplot as plt
 
         cols = self._history_columns()
-        if "best_cost" not in cols:
-            raise ValueError(f"{type(self).__name__} has no per-iteration best_cost to plot (history: {list(cols)})")
         if ax is None:
             fig, ax = plt.subplots(figsize=(6, 3.5))
         else:
             fig = ax.figure
-        best = cols["best_cost"]
-        ax.semilogy(np.arange(1, best.size + 1), best, lw=1.2, label=self._headline())
-        ax.set_xlabel("iteration")
-        ax.set_ylabel("best cost")
-        ax.legend(loc="upper right")
+        if "best_cost" in cols:
+            best = cols["best_cost"]
+            ax.semilogy(np.arange(1, best.size + 1), best, lw=1.2, label=self._headline())
+            ax.set_xlabel("iteration")
+            ax.set_ylabel("best cost")
+            ax.legend(loc="upper right")
+            return fig
+        scores = self._scores()
+        ax.barh(list(scores), list(scores.values()))
+        ax.invert_yaxis()
+        ax.set_title(self._headline(), fontsize="small")
+        if not scores:
+            ax.text(0.5, 0.5, "no per-iteration history", ha="center", va="center", transform=ax.transAxes)
         return fig
 
     def _repr_html_(self) -> str:
-        rows = [
+        rows = [(k, f"{v:.4g}") for k, v in self._scores().items()]
+        rows += [
             ("wall time", f"{self.wall_time:.3g} s"),
             ("evaluations", str(self.evaluations)),
             ("iterations", str(len(next(iter(self._history_columns().values()), [])))),
             ("partial", "yes (stopped early: best so far)" if self.partial else "no"),
         ]
-        cells = "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>" for k, v in rows)
-        return f"<div><p>{html.escape(self._headline())}</p><table>{cells}</table></div>"
+        return html_table(self._headline(), rows)

@@ -23,14 +23,17 @@ array([0.e+00, 1.e-06, 2.e-06])
 
 from __future__ import annotations
 
-import html
 from collections.abc import Iterable, Mapping, Sequence
-from typing import TYPE_CHECKING
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Self
 
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import ParameterError
+from .._io import PathLike
+from ..errors import DataError, ParameterError
+from .matfile import read_mat, write_mat
+from .results import html_table, require_pandas
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import pandas as pd
@@ -168,12 +171,89 @@ class Response:
         return np.vstack([self.signals[n] for n in names])
 
     def to_pandas(self) -> pd.DataFrame:
-        """The signals as a ``pandas.DataFrame`` indexed by time (needs pandas)."""
-        try:
-            import pandas as pd
-        except ImportError:
-            raise ImportError("to_pandas() needs pandas, which is not installed") from None
+        """The signals as a ``pandas.DataFrame`` indexed by time (needs pandas: without it an
+        ``ImportError`` says ``pip install pandas``)."""
+        pd = require_pandas(type(self).__name__)
         return pd.DataFrame(dict(self.signals), index=pd.Index(self.time, name="time"))
+
+    # -- .mat files --------------------------------------------------------------------
+    def _mat_fields(self) -> dict[str, Any]:
+        """What :meth:`to_mat` stores besides the signals (subclasses add theirs)."""
+        return {}
+
+    @classmethod
+    def _from_mat_fields(
+        cls,
+        time: FloatArray,
+        signals: dict[str, FloatArray],
+        inputs: list[str],
+        units: dict[str, str],
+        final_state: FloatArray | None,
+        title: str,
+        extra: dict[str, Any],
+    ) -> Self:
+        """The response :meth:`to_mat` wrote, built through the constructor (subclasses whose
+        constructor differs override this)."""
+        return cls(time, signals, inputs=inputs, units=units, final_state=final_state, title=title)
+
+    def to_mat(self, path: PathLike, *, overwrite: bool = True) -> Path:
+        """Write the response to the MATLAB file ``path``: the struct ``result`` with
+
+        - ``python_class``: the response's class (``piezohyst.signals.response.Response``, ...);
+        - ``time``: N x 1 double, s;
+        - ``signals``: a struct of N x 1 doubles, one field per signal (signal names that are
+          not MATLAB names: a struct of cells ``keys`` and ``values``);
+        - ``inputs``: cell of the input signals' names; ``units``: struct signal -> unit;
+        - ``final_state``: the state the run ended in (``[]`` when none); ``title``;
+        - ``extra``: what the class adds (a closed loop's ``sample_time``, ``controller``,
+          ``skip_samples``, ``terms``).
+
+        :meth:`from_mat` reads it back exactly (see :mod:`piezohyst.signals.matfile`).
+
+        Examples
+        --------
+        >>> import tempfile, pathlib, numpy as np
+        >>> from piezohyst.signals import Response
+        >>> r = Response([0.0, 1e-3], {"voltage": [0.0, 1.0]}, units={"voltage": "V"}, title="demo")
+        >>> path = r.to_mat(pathlib.Path(tempfile.mkdtemp()) / "run.mat")
+        >>> back = Response.from_mat(path)
+        >>> back.title, back.units, np.array_equal(back.voltage, r.voltage)
+        ('demo', {'voltage': 'V'}, True)
+        """
+        value = {
+            "python_class": f"{type(self).__module__}.{type(self).__qualname__}",
+            "time": self.time.reshape(-1, 1),
+            "signals": {k: v.reshape(-1, 1) for k, v in self.signals.items()},
+            "inputs": list(self.input_names),
+            "units": dict(self.units),
+            "final_state": self.final_state,
+            "title": self.title,
+            "extra": self._mat_fields(),
+        }
+        return write_mat(path, "result", value, overwrite=overwrite)
+
+    @classmethod
+    def from_mat(cls, path: PathLike) -> Self:
+        """Read a response :meth:`to_mat` wrote, as its own class (``DataError`` when the file
+        holds something else)."""
+        d = read_mat(path, "result")
+        name = d.get("python_class")
+        found = _response_class(name)
+        if found is None or not issubclass(found, cls):
+            raise DataError(f"{path} holds a {name!r}, not a {cls.__name__}")
+        try:
+            signals = {str(k): np.asarray(v, dtype=np.float64).ravel() for k, v in d["signals"].items()}
+            return found._from_mat_fields(
+                np.asarray(d["time"], dtype=np.float64).ravel(),
+                signals,
+                [str(n) for n in d["inputs"]],
+                {str(k): str(v) for k, v in d["units"].items()},
+                None if d["final_state"] is None else np.asarray(d["final_state"], dtype=np.float64),
+                str(d["title"]),
+                dict(d.get("extra") or {}),
+            )
+        except (KeyError, TypeError, AttributeError) as e:
+            raise DataError(f"{path}: the response is malformed ({type(e).__name__}: {e})") from None
 
     def plot(self, signals: Sequence[str] | None = None, *, ax: Axes | Iterable[Axes] | None = None) -> Figure:
         """One panel per unit: the named ``signals`` (default all) against time.
@@ -230,11 +310,15 @@ class Response:
         return f"{type(self).__name__}({title}{self.n_time} samples over {self._duration():.4g} s; signals {names})"
 
     def _repr_html_(self) -> str:
-        head = html.escape(repr(self))
-        cells = "".join(
-            "<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in row) + "</tr>" for row in self._summary_rows()
-        )
-        return (
-            f"<div><p>{head}</p><table><thead><tr><th>signal</th><th>role</th><th>unit</th>"
-            f"<th>min</th><th>max</th><th>rms</th></tr></thead><tbody>{cells}</tbody></table></div>"
-        )
+        return html_table(repr(self), self._summary_rows(), header=("signal", "role", "unit", "min", "max", "rms"))
+
+
+def _response_class(name: object) -> type[Response] | None:
+    """The subclass of :class:`Response` (or itself) whose qualified name is ``name``."""
+    stack: list[type[Response]] = [Response]
+    while stack:
+        c = stack.pop()
+        if f"{c.__module__}.{c.__qualname__}" == name:
+            return c
+        stack.extend(c.__subclasses__())
+    return None

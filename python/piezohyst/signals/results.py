@@ -1,0 +1,216 @@
+"""The one protocol of every result class, and what the classes share to satisfy it.
+
+A result — of a simulation (:class:`~piezohyst.signals.Response`, ``StageResponse``,
+``ClosedLoopResult``), of a fit, an identification, a tuning or an optimization (the
+:class:`~piezohyst.optimize.RunReport` family: ``FitResult``, ``IdentificationResult``,
+``ValidatedResult``, ``TuningResult``, ``OptimizeResult``) or an optimizer's callback
+(``IntermediateResult``) — has:
+
+- ``to_pandas()``: its data as a ``pandas.DataFrame`` (pandas is optional: without it an
+  ``ImportError`` says ``pip install pandas``);
+- ``plot(...)``: a matplotlib figure of it;
+- ``_repr_html_()``: a small HTML table, every text escaped (the notebook display);
+- ``to_mat(path)``: a MATLAB ``.mat`` file (:mod:`piezohyst.signals.matfile`), and the class
+  method ``from_mat(path)`` reading it back exactly.
+
+:class:`Result` states it; ``tests/test_results_protocol.py`` finds every public class named
+``...Result``, ``...Response`` or ``...Report`` in the package and fails on one that does not
+follow it. :class:`DataclassMatFile` gives a frozen dataclass its ``to_mat``/``from_mat``: each
+field stored by value, piezohyst objects inside (models, stage parameters, controllers) by
+their class and their own description.
+
+Examples
+--------
+>>> from piezohyst.signals.results import Result, html_table
+>>> from piezohyst.signals import Response
+>>> isinstance(Response([0.0, 1.0], {"x": [1.0, 2.0]}), Result)
+True
+>>> html_table("a <b>", [("rmse", "1 < 2")])
+'<div><p>a &lt;b&gt;</p><table><tr><th>rmse</th><td>1 &lt; 2</td></tr></table></div>'
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import html
+import importlib
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from types import ModuleType
+from typing import Any, ClassVar, Protocol, Self, runtime_checkable
+
+import numpy as np
+
+from .._io import PathLike
+from ..errors import DataError, ParameterTypeError
+from .matfile import read_mat, write_mat
+
+__all__ = [
+    "PANDAS_HINT",
+    "DataclassMatFile",
+    "Result",
+    "decode_object",
+    "encode_object",
+    "html_table",
+    "require_pandas",
+]
+
+#: What to do when pandas is missing (it is optional).
+PANDAS_HINT = "pip install pandas"
+
+#: The field of a struct that names the Python class of the object it holds.
+CLASS_FIELD = "python_class"
+
+
+@runtime_checkable
+class Result(Protocol):
+    """What every result class of piezohyst provides (see the module docstring)."""
+
+    to_pandas: Callable[[], Any]
+    plot: Callable[..., Any]
+    _repr_html_: Callable[[], str]
+    to_mat: Callable[..., Path]
+    from_mat: Callable[..., Any]
+
+
+def require_pandas(owner: str) -> ModuleType:
+    """The ``pandas`` module, or ``ImportError`` naming ``owner.to_pandas()`` and saying how to
+    install it."""
+    try:
+        import pandas
+    except ImportError:
+        raise ImportError(f"{owner}.to_pandas() needs pandas, which is not installed: {PANDAS_HINT}") from None
+    module: ModuleType = pandas
+    return module
+
+
+def html_table(title: str, rows: Sequence[Sequence[str]], header: Sequence[str] | None = None) -> str:
+    """A small HTML table: ``title`` above, one ``<tr>`` per ``(name, value)`` row (or, with
+    ``header``, one cell per column of each row); every text escaped."""
+    esc = html.escape
+    head = ""
+    if header is not None:
+        head = "<thead><tr>" + "".join(f"<th>{esc(h)}</th>" for h in header) + "</tr></thead>"
+        body = "".join("<tr>" + "".join(f"<td>{esc(c)}</td>" for c in row) + "</tr>" for row in rows)
+        return f"<div><p>{esc(title)}</p><table>{head}<tbody>{body}</tbody></table></div>"
+    body = "".join(f"<tr><th>{esc(k)}</th><td>{esc(v)}</td></tr>" for k, v in rows)
+    return f"<div><p>{esc(title)}</p><table>{body}</table></div>"
+
+
+# -- piezohyst objects inside a result -----------------------------------------------------
+def _class_path(obj: object) -> str:
+    cls = type(obj)
+    return f"{cls.__module__}.{cls.__qualname__}"
+
+
+def encode_object(value: object) -> Any:
+    """``value`` as plain data for a ``.mat`` file: numbers, strings, arrays, lists and dicts as
+    they are; a piezohyst object with ``to_dict()`` and a class method ``from_dict`` (a model,
+    a stage) or a dataclass (stage parameters, a controller) as a struct naming its class
+    (``python_class``) with its description; anything else raises ``ParameterTypeError``."""
+    if value is None or isinstance(value, (bool, int, float, str, np.generic, np.ndarray)):
+        return value
+    if isinstance(value, Mapping):
+        return {k: encode_object(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        items = [encode_object(v) for v in value]
+        return tuple(items) if isinstance(value, tuple) else items
+    cls = type(value)
+    if not cls.__module__.startswith("piezohyst."):
+        raise ParameterTypeError(f"a {cls.__name__} cannot be stored in a .mat file")
+    to_dict = getattr(value, "to_dict", None)
+    if callable(to_dict) and callable(getattr(cls, "from_dict", None)):
+        return {CLASS_FIELD: _class_path(value), "description": encode_object(to_dict())}
+    if dataclasses.is_dataclass(value):
+        fields = {f.name: encode_object(getattr(value, f.name)) for f in dataclasses.fields(value) if f.init}
+        return {CLASS_FIELD: _class_path(value), "fields": fields}
+    raise ParameterTypeError(
+        f"a {cls.__name__} cannot be stored in a .mat file (no to_dict/from_dict, not a dataclass)"
+    )
+
+
+def _resolve(path: object) -> type:
+    if not isinstance(path, str) or not path.startswith("piezohyst."):
+        raise DataError(f"{CLASS_FIELD} = {path!r} is not a class of piezohyst")
+    module_name, _, name = path.rpartition(".")
+    try:
+        cls = getattr(importlib.import_module(module_name), name)
+    except (ImportError, AttributeError):
+        raise DataError(f"{CLASS_FIELD} = {path!r} names no class of this version of piezohyst") from None
+    if not isinstance(cls, type):
+        raise DataError(f"{CLASS_FIELD} = {path!r} is not a class")
+    return cls
+
+
+def decode_object(value: object) -> Any:
+    """The inverse of :func:`encode_object`: structs naming a ``python_class`` become that
+    object again (only classes of piezohyst are built)."""
+    if isinstance(value, dict):
+        if CLASS_FIELD in value:
+            cls = _resolve(value[CLASS_FIELD])
+            if "description" in value:
+                build: Callable[[Any], Any] = cls.from_dict  # type: ignore[attr-defined]
+                return build(decode_object(value["description"]))
+            if not dataclasses.is_dataclass(cls):
+                raise DataError(f"{CLASS_FIELD} = {value[CLASS_FIELD]!r} is not a dataclass")
+            fields = value.get("fields", {})
+            return cls(**{k: decode_object(v) for k, v in fields.items()})
+        return {k: decode_object(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [decode_object(v) for v in value]
+    if isinstance(value, tuple):
+        return tuple(decode_object(v) for v in value)
+    return value
+
+
+def _is_function(value: object) -> bool:
+    """A function-like field (``simulator``): callable, and not an object :func:`encode_object`
+    stores (a class, a dataclass, an object with ``to_dict``)."""
+    return (
+        callable(value)
+        and not isinstance(value, type)
+        and not dataclasses.is_dataclass(value)
+        and not hasattr(value, "to_dict")
+    )
+
+
+class DataclassMatFile:
+    """``to_mat``/``from_mat`` for a result that is a frozen dataclass: a struct ``result`` with
+    ``python_class`` (the result's class) and one field per dataclass field. Fields that hold
+    functions (an identification's ``simulator``) are left out and take their default when
+    read back; the others come back exactly (:func:`encode_object`)."""
+
+    #: Fields not written (callables); they take their default on reading.
+    _mat_skip: ClassVar[tuple[str, ...]] = ()
+
+    def to_mat(self, path: PathLike, *, overwrite: bool = True) -> Path:
+        """Write this result to the MATLAB file ``path`` (see :mod:`piezohyst.signals.matfile`):
+        the struct ``result`` with ``python_class`` and one field per attribute of the result
+        (metrics as structs, histories as arrays, a model as its class and its description)."""
+        me: Any = self
+        if not dataclasses.is_dataclass(me):
+            raise ParameterTypeError(f"{type(self).__name__} is not a dataclass")
+        fields = {
+            f.name: encode_object(getattr(self, f.name))
+            for f in dataclasses.fields(me)
+            if f.init and f.name not in self._mat_skip and not _is_function(getattr(self, f.name))
+        }
+        return write_mat(path, "result", {CLASS_FIELD: _class_path(self), "fields": fields}, overwrite=overwrite)
+
+    @classmethod
+    def from_mat(cls, path: PathLike) -> Self:
+        """Read a result :meth:`to_mat` wrote (``DataError`` when the file holds another class)."""
+        d = read_mat(path, "result")
+        p = Path(path)
+        found = _resolve(d.get(CLASS_FIELD))
+        if not issubclass(found, cls):
+            raise DataError(f"{p} holds a {found.__name__}, not a {cls.__name__}")
+        fields = d.get("fields", {})
+        if not isinstance(fields, dict):
+            raise DataError(f"{p}: result.fields is not a struct")
+        try:
+            out = found(**{k: decode_object(v) for k, v in fields.items()})
+        except TypeError as e:
+            raise DataError(f"{p}: the fields do not make a {found.__name__}: {e}") from None
+        assert isinstance(out, cls)
+        return out
