@@ -141,6 +141,18 @@ class VelocityObserver:
         (``crates/core/src/control/mod.rs``). ``delay`` defaults to this observer's ``delay``,
         else 0 (a stage's sensor delay is known only with the stage: ``observer.core(stage)``).
 
+        Parameters
+        ----------
+        sample_time : float
+            The controller's sample time, s (``> 0``; the bandwidth must lie below Nyquist).
+        delay : float, optional
+            Samples the position estimate is projected ahead (``>= 0``).
+
+        Returns
+        -------
+        control.StateSpace
+            Discrete (``dt = sample_time``), states ``x``, ``v`` before each reading.
+
         Examples
         --------
         >>> import numpy as np
@@ -165,7 +177,25 @@ class VelocityObserver:
         )
 
     def to_scipy(self, sample_time: float, *, delay: float | None = None) -> Any:
-        """:meth:`to_control` as a ``scipy.signal.StateSpace`` (a ``dlti``)."""
+        """:meth:`to_control` as a ``scipy.signal.StateSpace`` (a ``dlti``).
+
+        Parameters
+        ----------
+        sample_time : float
+            The controller's sample time, s.
+        delay : float, optional
+            Samples the position estimate is projected ahead.
+
+        Returns
+        -------
+        scipy.signal.StateSpace
+
+        Examples
+        --------
+        >>> from piezohyst import VelocityObserver
+        >>> VelocityObserver(300.0).to_scipy(1e-4).dt
+        0.0001
+        """
         a, b, c, d = self._matrices(sample_time, delay)
         return scipy_state_space(a, b, c, d, as_scalar(sample_time, "sample_time", positive=True))
 
@@ -228,6 +258,13 @@ class OpenLoop:
         given the reference's derivatives). The ``offset`` and the limits are not linear and
         are left out; ``gain`` must be given (not the stage's default).
 
+        Returns
+        -------
+        control.TransferFunction
+            Input ``reference`` (m), output ``command`` (V).
+
+        Examples
+        --------
         >>> from piezohyst import OpenLoop
         >>> tf = OpenLoop(gain=7e6, c1=1e-4).to_control()
         >>> [c.tolist() for c in (tf.num[0][0], tf.den[0][0])]
@@ -238,7 +275,18 @@ class OpenLoop:
 
     def to_scipy(self) -> Any:
         """:meth:`to_control` as a ``scipy.signal.TransferFunction``: only without ``c1``,
-        ``c2`` (scipy's systems are proper)."""
+        ``c2`` (scipy's systems are proper; ``ParameterError`` otherwise).
+
+        Returns
+        -------
+        scipy.signal.TransferFunction
+
+        Examples
+        --------
+        >>> from piezohyst import OpenLoop
+        >>> OpenLoop(gain=7e6).to_scipy().num.tolist()
+        [7000000.0]
+        """
         num, den = self._polynomials()
         if num[0] != 0 or num[1] != 0:
             raise ParameterError(
@@ -254,6 +302,19 @@ class OpenLoop:
         most 2 and a non-zero constant term. ``fields`` sets the rest (``offset``, ``u_min``,
         ``u_max``).
 
+        Parameters
+        ----------
+        sys : control.LTI or scipy.signal.lti
+            The feedforward, input metres, output volts.
+        **fields
+            The other fields of :class:`OpenLoop`.
+
+        Returns
+        -------
+        OpenLoop
+
+        Examples
+        --------
         >>> import control
         >>> from piezohyst import OpenLoop
         >>> OpenLoop.from_control(control.tf([2.0, 4.0, 8.0], [2.0]))
@@ -392,7 +453,23 @@ class PID:
 
     def to_scipy(self, sample_time: float | None = None) -> Any:
         """The feedback ``C`` of :meth:`to_control` as a ``scipy.signal.TransferFunction``
-        (a ``dlti`` with ``sample_time``)."""
+        (a ``dlti`` with ``sample_time``).
+
+        Parameters
+        ----------
+        sample_time : float, optional
+            ``None``: continuous; a sample time (s): the discrete law the core runs.
+
+        Returns
+        -------
+        scipy.signal.TransferFunction
+
+        Examples
+        --------
+        >>> from piezohyst import PID
+        >>> PID(kp=2.0, ki=10.0).to_scipy().den.tolist()
+        [1.0, 0.0]
+        """
         num_y, den_y, _, _ = self._polynomials(sample_time)
         return scipy_transfer_function(num_y, den_y, sample_time)
 
@@ -406,6 +483,17 @@ class PID:
         positive; anything else raises ``ParameterError`` saying why. ``fields`` sets the rest:
         ``ff_gain`` defaults to 0 (the transfer function is pure feedback), ``tau_d`` of a PID
         without derivative to 1e-4 s.
+
+        Parameters
+        ----------
+        sys : control.LTI or scipy.signal.lti
+            The feedback controller, input the error (m), output volts.
+        **fields
+            The other fields of :class:`PID` (``ff_gain``, ``offset``, ``u_min``, ``u_max``).
+
+        Returns
+        -------
+        PID
 
         Examples
         --------

@@ -302,7 +302,29 @@ class BoucWenBenchmark:
         """Write the model to the MATLAB file ``path`` (read back exactly by
         :func:`piezohyst.load_model`): the struct ``model`` with ``schema_version``, ``kind``,
         ``family`` (``"boucwen-benchmark"``), the eight ``parameters``, ``fs``, ``upsample``,
-        ``units`` (layout: :mod:`piezohyst.signals.matfile`)."""
+        ``units`` (layout: :mod:`piezohyst.signals.matfile`).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write (``.mat``), atomically.
+        overwrite : bool
+            Replace an existing file (default ``False``: ``OutputExistsError``).
+
+        Returns
+        -------
+        pathlib.Path
+            The file written.
+
+        Examples
+        --------
+        >>> import tempfile, pathlib
+        >>> from piezohyst import load_model
+        >>> from piezohyst.models import BoucWenBenchmark
+        >>> path = BoucWenBenchmark().to_mat(pathlib.Path(tempfile.mkdtemp()) / "bw.mat")
+        >>> load_model(path).parameters == BoucWenBenchmark().parameters
+        True
+        """
         return write_mat(path, "model", {**self.to_dict(), "family": self.kind}, overwrite=overwrite)
 
     @classmethod

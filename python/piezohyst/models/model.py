@@ -390,6 +390,20 @@ class HysteresisModel:
 
         The layout of the file: :mod:`piezohyst.signals.matfile`.
 
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write (``.mat``), atomically.
+        overwrite : bool
+            Replace an existing file (default ``False``: ``OutputExistsError``).
+        include_state : bool
+            Also store the internal state of :meth:`step` (default ``False``).
+
+        Returns
+        -------
+        pathlib.Path
+            The file written.
+
         Examples
         --------
         >>> import tempfile, pathlib
@@ -407,7 +421,24 @@ class HysteresisModel:
     @classmethod
     def from_dict(cls, d: JSONDict) -> HysteresisModel:
         """The model of a :meth:`to_dict` description (:func:`model_from_dict`), which must be a
-        ``cls`` (``ParameterError`` naming the kind otherwise)."""
+        ``cls`` (``ParameterError`` naming the kind otherwise).
+
+        Parameters
+        ----------
+        d : dict
+            A model description (``schema_version``, ``kind``, ``parameters``, ...).
+
+        Returns
+        -------
+        HysteresisModel
+
+        Examples
+        --------
+        >>> from piezohyst import PI
+        >>> m = PI([0.5], [1.0], p0=1.0)
+        >>> PI.from_dict(m.to_dict()) == m
+        True
+        """
         model = model_from_dict(d)
         if not isinstance(model, cls):
             raise ParameterError(f"kind = {d.get('kind')!r} is not a {cls.__name__}")

@@ -264,12 +264,44 @@ class IntermediateResult(DataclassMatFile):
 
     def to_pandas(self) -> pd.DataFrame:
         """One row: ``fun``, ``nit``, ``nfev``, ``mean_cost`` and ``x[j]`` (needs pandas: without
-        it an ``ImportError`` says ``pip install pandas``)."""
+        it an ``ImportError`` says ``pip install pandas``).
+
+        Returns
+        -------
+        pandas.DataFrame
+            Indexed by the iteration.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.optimize import IntermediateResult
+        >>> r = IntermediateResult(np.array([0.1, 0.2]), 0.05, 3, 24, 0.4)
+        >>> r.to_pandas().columns.tolist()  # doctest: +SKIP
+        ['fun', 'nit', 'nfev', 'mean_cost', 'x[0]', 'x[1]']
+        """
         pd = require_pandas(type(self).__name__)
         return pd.DataFrame([self._row()], index=pd.Index([self.nit], name="iteration"))
 
     def plot(self, *, ax: Any = None) -> Figure:
-        """The best candidate so far, one bar per parameter (on ``ax`` if given)."""
+        """The best candidate so far, one bar per parameter.
+
+        Parameters
+        ----------
+        ax : matplotlib.axes.Axes, optional
+            The axes to draw on (default: a new figure).
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.optimize import IntermediateResult
+        >>> fig = IntermediateResult(np.array([0.1, 0.2]), 0.05, 3, 24, 0.4).plot()
+        >>> len(fig.axes[0].patches)
+        2
+        """
         import matplotlib.pyplot as plt
 
         if ax is None:

@@ -78,7 +78,21 @@ class RunReport(DataclassMatFile):
     def to_pandas(self) -> pd.DataFrame:
         """The per-iteration history as a ``pandas.DataFrame`` indexed by iteration (needs
         pandas: without it an ``ImportError`` says ``pip install pandas``); no rows for a
-        method that does not iterate."""
+        method that does not iterate.
+
+        Returns
+        -------
+        pandas.DataFrame
+            One column per history series (a candidate per iteration split into ``name[j]``).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.optimize import minimize
+        >>> res = minimize(lambda X: np.sum(X**2, axis=1), [(-1.0, 1.0)] * 2, max_iterations=3, rng=0)
+        >>> res.to_pandas().index.name  # doctest: +SKIP
+        'iteration'
+        """
         pd = require_pandas(type(self).__name__)
         cols = self._history_columns()
         n = next(iter(cols.values())).size if cols else 0
@@ -86,7 +100,25 @@ class RunReport(DataclassMatFile):
 
     def plot(self, *, ax: Any = None) -> Figure:
         """Convergence: the best cost so far against the iteration (log scale); for a method
-        without iterations (a linear fit) its headline numbers as bars. On ``ax`` if given."""
+        without iterations (a linear fit) its headline numbers as bars.
+
+        Parameters
+        ----------
+        ax : matplotlib.axes.Axes, optional
+            The axes to draw on (default: a new figure).
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.optimize import minimize
+        >>> res = minimize(lambda X: np.sum(X**2, axis=1), [(-1.0, 1.0)] * 2, max_iterations=3, rng=0)
+        >>> res.plot().axes[0].get_ylabel()
+        'best cost'
+        """
         import matplotlib.pyplot as plt
 
         cols = self._history_columns()

@@ -134,6 +134,13 @@ class CemfCoefficients(NamedTuple):
         """``1 / (M s^2 + B s + K)`` from the voltage ``Vin - Vh`` (V) to the position (m), a
         continuous python-control ``StateSpace``.
 
+        Returns
+        -------
+        control.StateSpace
+            States ``x`` (m), ``v`` (m/s).
+
+        Examples
+        --------
         >>> c = CemfCoefficients(M=0.00714, B=13.07, K=7.333e6)
         >>> bool(abs(c.to_control().dcgain() - 1 / 7.333e6) < 1e-20)
         True
@@ -149,6 +156,17 @@ class CemfCoefficients(NamedTuple):
         """The coefficients whose plant :meth:`to_control` is ``sys``, a continuous
         ``b0 / (s^2 + a1 s + a0)`` without zeros: ``M = 1 / b0``, ``B = a1 / b0``, ``K = a0 / b0``.
 
+        Parameters
+        ----------
+        sys : control.LTI or scipy.signal.lti
+            The plant, input volts, output metres (``ParameterError`` for another form).
+
+        Returns
+        -------
+        CemfCoefficients
+
+        Examples
+        --------
         >>> import control
         >>> CemfCoefficients.from_control(control.tf([1.0], [0.5, 2.0, 8.0]))
         CemfCoefficients(M=0.5, B=2.0, K=8.0)
@@ -267,6 +285,18 @@ class FlexureStage:
         ``StateSpace`` from the force ``F`` (N) to the position (m); with ``tem`` (N/V) from the
         piezo voltage ``Vin - Vh`` (V) instead (``F = Tem (Vin - Vh)``).
 
+        Parameters
+        ----------
+        tem : float, optional
+            Electromechanical transformation ratio ``Tem`` (N/V, ``> 0``); ``None``: force input.
+
+        Returns
+        -------
+        control.StateSpace
+            States ``x`` (m), ``v`` (m/s).
+
+        Examples
+        --------
         >>> s = FlexureStage.seed1()
         >>> f"{s.to_control().dcgain():.4g} m/N"
         '1.364e-08 m/N'

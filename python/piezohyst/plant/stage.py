@@ -164,15 +164,53 @@ class StageParameters:
 
     # -- linear part (piezohyst.plant.linear) ---------------------------------------------
     def frequency_response(self, f: npt.ArrayLike, *, creep: bool = True, cemf: bool = False) -> ComplexArray:
-        """The linear part's frequency response from the drive voltage to the position (m/V)
-        at ``f`` (Hz), evaluated from the parameters (:mod:`piezohyst.plant.linear`: mechanics
-        and ``creep`` lags; the CEMF hysteresis by its slope at rest with ``cemf=True``)."""
+        """The linear part's frequency response from the drive voltage to the position (m/V),
+        evaluated from the parameters (:mod:`piezohyst.plant.linear`), without an amplifier
+        (:meth:`Stage.frequency_response` adds one).
+
+        Parameters
+        ----------
+        f : array_like
+            Frequencies, Hz (finite, ``>= 0``).
+        creep : bool
+            Keep the creep lags (default ``True``).
+        cemf : bool
+            Add the CEMF hysteresis by its slope at the demagnetized rest state (the
+            small-signal model around rest; default ``False``: left out).
+
+        Returns
+        -------
+        ndarray of complex
+            ``H(j 2 pi f)``, m/V.
+
+        Examples
+        --------
+        >>> from piezohyst import virtual_stage
+        >>> p = virtual_stage().params
+        >>> h = p.frequency_response([0.0], creep=False)
+        >>> round(float(h[0].real / p.static_gain), 12)       # Tem / k
+        1.0
+        """
         return linear.frequency_response(linear.linear_part(self, creep=creep, cemf=cemf), f)
 
     def to_control(self, *, creep: bool = True, cemf: bool = False) -> Any:
         """The linear part as a continuous python-control ``StateSpace`` from the drive voltage
-        ``command`` (V) to the ``position`` (m); see :meth:`frequency_response`.
+        ``command`` (V) to the ``position`` (m): the system of :meth:`frequency_response`.
 
+        Parameters
+        ----------
+        creep : bool
+            Keep the creep lags (default ``True``).
+        cemf : bool
+            Add the CEMF's slope at rest (default ``False``).
+
+        Returns
+        -------
+        control.StateSpace
+            States ``x`` (m), ``v`` (m/s), ``w0 ...`` (creep lags, V).
+
+        Examples
+        --------
         >>> from piezohyst import virtual_stage
         >>> sys = virtual_stage().params.to_control(creep=False)
         >>> sys.nstates, sys.input_labels, sys.output_labels
@@ -181,7 +219,25 @@ class StageParameters:
         return _to_control(linear.linear_system(linear.linear_part(self, creep=creep, cemf=cemf)), "stage_parameters")
 
     def to_scipy(self, *, creep: bool = True, cemf: bool = False) -> Any:
-        """:meth:`to_control` as a ``scipy.signal.StateSpace`` (an ``lti``)."""
+        """:meth:`to_control` as a ``scipy.signal.StateSpace`` (an ``lti``).
+
+        Parameters
+        ----------
+        creep : bool
+            Keep the creep lags (default ``True``).
+        cemf : bool
+            Add the CEMF's slope at rest (default ``False``).
+
+        Returns
+        -------
+        scipy.signal.StateSpace
+
+        Examples
+        --------
+        >>> from piezohyst import virtual_stage
+        >>> virtual_stage().params.to_scipy(creep=False).A.shape
+        (2, 2)
+        """
         sys = linear.linear_system(linear.linear_part(self, creep=creep, cemf=cemf))
         return scipy_state_space(sys.a, sys.b, sys.c, sys.d)
 
@@ -381,6 +437,20 @@ class Stage:
         ``amplifier``, ``sensor``, ``loop``; an unlimited bandwidth or slew rate is the text
         ``'inf'``) and ``units`` (layout: :mod:`piezohyst.signals.matfile`).
 
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write (``.mat``), atomically.
+        overwrite : bool
+            Replace an existing file (default ``False``: ``OutputExistsError``).
+
+        Returns
+        -------
+        pathlib.Path
+            The file written.
+
+        Examples
+        --------
         >>> import tempfile, pathlib
         >>> from piezohyst import Stage, virtual_stage
         >>> path = virtual_stage().to_mat(pathlib.Path(tempfile.mkdtemp()) / "stage.mat")
@@ -524,6 +594,22 @@ class Stage:
         or the hysteresis enters by its slope at the demagnetized rest state (``cemf=True``:
         the small-signal model around rest). See :mod:`piezohyst.plant.linear`.
 
+        Parameters
+        ----------
+        f : array_like
+            Frequencies, Hz (finite, ``>= 0``).
+        creep : bool
+            Keep the creep lags (default ``True``).
+        amplifier : bool
+            Keep the amplifier's lag (default ``True``).
+        cemf : bool
+            Add the CEMF hysteresis by its slope at rest (default ``False``: left out).
+
+        Returns
+        -------
+        ndarray of complex
+            ``H(j 2 pi f)``, m/V.
+
         Examples
         --------
         >>> import numpy as np
@@ -609,6 +695,21 @@ class Stage:
         """:meth:`to_control` as a ``scipy.signal.StateSpace`` (an ``lti``, or a ``dlti`` with
         ``dt`` when ``discrete``).
 
+        Parameters
+        ----------
+        discrete : bool
+            The zero-order-hold system at the stage's ``sample_time`` (default continuous).
+        measured : bool
+            With ``discrete``: the sensor's delayed reading as the output.
+        creep, amplifier, cemf : bool
+            Keep the creep lags, keep the amplifier's lag, add the CEMF's slope at rest.
+
+        Returns
+        -------
+        scipy.signal.StateSpace
+
+        Examples
+        --------
         >>> from piezohyst import virtual_stage
         >>> virtual_stage().to_scipy(discrete=True).dt
         0.0001
@@ -628,6 +729,17 @@ class Stage:
         hysteresis, electrostriction or creep, an ideal amplifier (-20..150 V), an ideal sensor,
         ``Tem = 1`` N/V, so that ``Stage.from_control(sys).to_control()`` is ``sys`` again.
         Anything not of that form raises ``ParameterError`` saying what it is.
+
+        Parameters
+        ----------
+        sys : control.LTI or scipy.signal.lti
+            The second-order system, input volts, output metres.
+        base : Stage, optional
+            The stage whose mechanics are replaced (default: the linear stage above).
+
+        Returns
+        -------
+        Stage
 
         Examples
         --------

@@ -280,6 +280,18 @@ class Record:
         input="record.input", output="record.output", fs=...)``. Layout of the file:
         :mod:`piezohyst.signals.matfile`.
 
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write (``.mat``), atomically.
+        overwrite : bool
+            Replace an existing file (default ``False``: ``OutputExistsError``).
+
+        Returns
+        -------
+        pathlib.Path
+            The file written.
+
         Examples
         --------
         >>> import tempfile, pathlib
@@ -307,7 +319,25 @@ class Record:
     @classmethod
     def from_mat(cls, path: str | os.PathLike[str]) -> Record:
         """Read a record :meth:`to_mat` wrote, exactly (``DataError`` naming the file when it
-        is not one)."""
+        is not one).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The ``.mat`` file.
+
+        Returns
+        -------
+        Record
+
+        Examples
+        --------
+        >>> import tempfile, pathlib
+        >>> from piezohyst.data import Record
+        >>> path = Record([0.0, 1.0], [2.0, 3.0], fs=10.0).to_mat(pathlib.Path(tempfile.mkdtemp()) / "r.mat")
+        >>> Record.from_mat(path).output.tolist()
+        [2.0, 3.0]
+        """
         from .matfile import load_mat_file
 
         def build(d: dict[str, Any]) -> Record:

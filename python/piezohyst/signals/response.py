@@ -172,7 +172,19 @@ class Response:
 
     def to_pandas(self) -> pd.DataFrame:
         """The signals as a ``pandas.DataFrame`` indexed by time (needs pandas: without it an
-        ``ImportError`` says ``pip install pandas``)."""
+        ``ImportError`` says ``pip install pandas``).
+
+        Returns
+        -------
+        pandas.DataFrame
+            One column per signal.
+
+        Examples
+        --------
+        >>> from piezohyst.signals import Response
+        >>> Response([0.0, 1.0], {"x": [1.0, 2.0]}).to_pandas().columns.tolist()  # doctest: +SKIP
+        ['x']
+        """
         pd = require_pandas(type(self).__name__)
         return pd.DataFrame(dict(self.signals), index=pd.Index(self.time, name="time"))
 
@@ -210,6 +222,18 @@ class Response:
 
         :meth:`from_mat` reads it back exactly (see :mod:`piezohyst.signals.matfile`).
 
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write (``.mat``), atomically.
+        overwrite : bool
+            Replace an existing file (default ``True``).
+
+        Returns
+        -------
+        pathlib.Path
+            The file written.
+
         Examples
         --------
         >>> import tempfile, pathlib, numpy as np
@@ -235,7 +259,26 @@ class Response:
     @classmethod
     def from_mat(cls, path: PathLike) -> Self:
         """Read a response :meth:`to_mat` wrote, as its own class (``DataError`` when the file
-        holds something else)."""
+        holds something else).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The ``.mat`` file.
+
+        Returns
+        -------
+        Response
+            Of the class written (``StageResponse``, ``ClosedLoopResult``, ...).
+
+        Examples
+        --------
+        >>> import tempfile, pathlib
+        >>> from piezohyst.signals import Response
+        >>> path = Response([0.0, 1.0], {"x": [1.0, 2.0]}).to_mat(pathlib.Path(tempfile.mkdtemp()) / "r.mat")
+        >>> Response.from_mat(path).x.tolist()
+        [1.0, 2.0]
+        """
         d = read_mat(path, "result")
         name = d.get("python_class")
         found = _response_class(name)

@@ -185,8 +185,32 @@ class DataclassMatFile:
 
     def to_mat(self, path: PathLike, *, overwrite: bool = True) -> Path:
         """Write this result to the MATLAB file ``path`` (see :mod:`piezohyst.signals.matfile`):
-        the struct ``result`` with ``python_class`` and one field per attribute of the result
-        (metrics as structs, histories as arrays, a model as its class and its description)."""
+        the struct ``result`` with ``python_class`` and a struct ``fields``, one field per
+        attribute of the result (metrics as structs, histories as arrays, a model as its class
+        and its description).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write (``.mat``), atomically.
+        overwrite : bool
+            Replace an existing file (default ``True``).
+
+        Returns
+        -------
+        pathlib.Path
+            The file written.
+
+        Examples
+        --------
+        >>> import tempfile, pathlib
+        >>> import numpy as np
+        >>> from piezohyst.optimize import minimize
+        >>> res = minimize(lambda X: np.sum(X**2, axis=1), [(-1.0, 1.0)] * 2, max_iterations=3, rng=0)
+        >>> path = res.to_mat(pathlib.Path(tempfile.mkdtemp()) / "opt.mat")
+        >>> type(res).from_mat(path).fun == res.fun
+        True
+        """
         me: Any = self
         if not dataclasses.is_dataclass(me):
             raise ParameterTypeError(f"{type(self).__name__} is not a dataclass")
@@ -199,7 +223,29 @@ class DataclassMatFile:
 
     @classmethod
     def from_mat(cls, path: PathLike) -> Self:
-        """Read a result :meth:`to_mat` wrote (``DataError`` when the file holds another class)."""
+        """Read a result :meth:`to_mat` wrote, exactly (``DataError`` when the file holds
+        another class). Function fields (an identification's ``simulator``) take their default.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The ``.mat`` file.
+
+        Returns
+        -------
+        object
+            The result, of the class written (a subclass of ``cls``).
+
+        Examples
+        --------
+        >>> import tempfile, pathlib
+        >>> import numpy as np
+        >>> from piezohyst.optimize import OptimizeResult, minimize
+        >>> res = minimize(lambda X: np.sum(X**2, axis=1), [(-1.0, 1.0)] * 2, max_iterations=3, rng=0)
+        >>> back = OptimizeResult.from_mat(res.to_mat(pathlib.Path(tempfile.mkdtemp()) / "opt.mat"))
+        >>> np.array_equal(back.history["best_cost"], res.history["best_cost"])
+        True
+        """
         d = read_mat(path, "result")
         p = Path(path)
         found = _resolve(d.get(CLASS_FIELD))
