@@ -31,10 +31,13 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/ for models_zoo
+# the repository root, for tests.models_zoo (not tests/ itself: its folders, such as
+# tests/control/, would shadow packages of the same name, python-control's 'control')
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+from tests.models_zoo import drive, zoo
 
 import piezohyst as ph
-from models_zoo import drive, zoo
 from piezohyst import _core
 from piezohyst.export_c import CONTROLLER_KINDS, FAMILY_CODES
 
