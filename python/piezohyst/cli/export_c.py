@@ -7,6 +7,7 @@ import json
 import math
 from pathlib import Path
 
+from ..outputs import check_output_dir
 from .common import (
     _check_count,
     _existing_file,
@@ -83,11 +84,11 @@ def _export_c(args: argparse.Namespace) -> None:
         lo, hi = args.input_range
         if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
             raise _Fail(f"--input-range = {lo:g} {hi:g} must be finite with LO < HI")
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise _Fail(f"--out = '{out}' exists and is not a directory")
-    if not out.exists() and not (out.parent if str(out.parent) else Path(".")).is_dir():
-        raise _Fail(f"--out = '{out}': directory '{out.parent}' does not exist")
+    names = ["piezohyst_model.h", "piezohyst_model.c", "example.c"]
+    names += ["piezohyst_controller.h", "piezohyst_controller.c"] if controller is not None else []
+    names += ["piezohyst.h"] if X.header_path() is not None else []
+    inputs = {"MODEL": model_path, "CONTROLLER": args.controller}
+    out = check_output_dir(args.out, name="--out", overwrite=args.force, names=names, inputs=inputs)
     source = model_path.name + (f" and {Path(args.controller).name}" if controller is not None else "")
     try:
         written = X.export_c(
@@ -98,10 +99,11 @@ def _export_c(args: argparse.Namespace) -> None:
             source=source,
             input_range=args.input_range,
             steps=args.steps,
+            name="--out",
         )
-    except FileExistsError as e:
-        raise _Fail(str(e)) from None
     except ValueError as e:
+        if str(e).startswith("--out"):  # the output folder (piezohyst.outputs), not the model
+            raise
         raise _Fail(f"{'CONTROLLER' if controller is not None else 'MODEL'}: {e}") from None
     lib = X.library_path()
     sources = "example.c piezohyst_model.c" + (" piezohyst_controller.c" if controller is not None else "")

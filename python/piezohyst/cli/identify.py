@@ -5,13 +5,15 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import signal
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypedDict
 
-from .._io import write_atomic
 from ..errors import ParameterError
 from ..identify.dispatch import KINDS
+from ..outputs import write_atomic
+from . import stops
 from .common import (
     _FORMATS,
     _add_record_options,
@@ -333,8 +335,9 @@ def _identify(args: argparse.Namespace) -> int:
     data = _existing_file(args.data, "DATA")
     train_spec = None if args.train is None else _parse_range(args.train, "--train")
     val_spec, val_file = _parse_validate(args.validate)
-    out = _writable(args.out, "--out", args.force)
-    plot = None if args.plot is None else _writable(args.plot, "--plot", args.force)
+    inputs = {"DATA": data, "--validate": val_file}
+    out = _writable(args.out, "--out", args.force, inputs)
+    plot = None if args.plot is None else _writable(args.plot, "--plot", args.force, inputs)
     if plot is not None and plot.resolve() == out.resolve():
         raise _Fail(f"--plot = '{args.plot}' is the same file as --out")
 
@@ -449,11 +452,12 @@ def _identify(args: argparse.Namespace) -> int:
         fit["assessment"] = {**assessment, "note": honest["note"]} if honest["note"] else assessment
     if league is not None:
         fit["league"] = league
-    if res.partial:
-        doc["partial"] = True  # Ctrl-C stopped the optimizer: the best model found before it
+    partial = res.partial or stops.received() is not None  # a stop signal: the best model found before it
+    if partial:
+        doc["partial"] = fit["partial"] = True  # a stop signal: the best model found before it
     doc["fit"] = fit
     text = json.dumps(doc, indent=2, allow_nan=False) + "\n"
-    write_atomic(out, text, overwrite=args.force, name="--out")
+    write_atomic(out, text, overwrite=args.force, name="--out", inputs=inputs)
     if plot is not None:
         import matplotlib
 
@@ -474,7 +478,11 @@ def _identify(args: argparse.Namespace) -> int:
             fig = res.plot(train.input, train.output)
         try:
             write_atomic(
-                plot, writer=lambda tmp: fig.savefig(tmp, format="png", dpi=110), overwrite=args.force, name="--plot"
+                plot,
+                writer=lambda tmp: fig.savefig(tmp, format="png", dpi=110),
+                overwrite=args.force,
+                name="--plot",
+                inputs=inputs,
             )
         finally:
             plt.close(fig)
@@ -510,12 +518,14 @@ def _identify(args: argparse.Namespace) -> int:
             _print_whiteness(assessment)
         if plot is not None:
             print(f"  figure: {plot}")
-    if res.partial:
+    if partial:
+        signum = stops.received() or signal.SIGINT
         print(
-            f'piezohyst identify: interrupted: {out} holds the best model found before Ctrl-C, marked "partial": true',
+            f"piezohyst identify: interrupted: {out} holds the best model found before {stops.describe(signum)}, "
+            f'marked "partial": true',
             file=sys.stderr,
         )
-        return 130
+        return stops.exit_code()
     if assessment and not assessment["trusted"]:
         _print_distrust(assessment)
         return 3
@@ -760,6 +770,9 @@ def _auto(
             continue
         if creep:
             kw["creep"] = creep
+        if stops.received() is not None:  # a stop signal: rank what was fitted before it
+            results.append((kind, creep, None, f"not fitted: stopped by {stops.describe(stops.received() or 0)}"))
+            continue
         try:
             fitted = identify(v, y, model=kind, **{**common, "progress": False}, diagnosis=False, **kw)
             results.append((kind, creep, fitted, None))
@@ -768,7 +781,7 @@ def _auto(
     table, best = league_table(results, v.size)
     kind, creep, res, _ = results[best]
     assert res is not None  # league_table picks a fitted one
-    if not getattr(res, "assessment", {}).get("trusted", True):  # the winner's diagnosis
+    if not getattr(res, "assessment", {}).get("trusted", True) and stops.received() is None:  # the winner's diagnosis
         kw = {**extra, "creep": creep} if creep else dict(extra)
         res = identify(v, y, model=kind, **{**common, "progress": False}, **kw)
     return kind, res, table
