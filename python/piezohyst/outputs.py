@@ -577,6 +577,9 @@ def output_set(
     staging = Path(tempfile.mkdtemp(dir=parent if beside else out, prefix=prefix, suffix=_STAGE_SUFFIX))
     pattern = _stage_pattern(out)
     try:
+        # the folder as a plain mkdir makes it (mkdtemp's is private), or as the one it replaces
+        own = os.stat(out) if exists else None
+        os.chmod(staging, stat.S_IMODE(own.st_mode) if own is not None else 0o777 & ~_umask())
         yield staging
         staged = sorted(os.listdir(staging))
         for n in staged:
@@ -593,7 +596,8 @@ def output_set(
                 _check_entry(out / n, name, overwrite, inputs, force_hint)
             remove = [n for n in previous if n not in staged and overwrite and os.path.lexists(out / n)]
             current = {e for e in os.listdir(out) if pattern.fullmatch(e) is None}
-            if beside and current <= set(staged) | set(previous) and _exchange(staging, out):
+            swap = beside and own is not None and own.st_uid == os.geteuid()  # a swap cannot keep the owner
+            if swap and current <= set(staged) | set(previous) and _exchange(staging, out):
                 _fsync_dir(parent)
             else:
                 _commit_files(staging, out, staged, remove)

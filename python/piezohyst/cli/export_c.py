@@ -45,8 +45,17 @@ def _export_c_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         nargs="?",
         help="a controller file (piezohyst.export_c.save_controller)",
     )
-    e.add_argument("--out", metavar="DIR", required=True, help="output directory (created if missing)")
-    e.add_argument("--force", action="store_true", help="overwrite existing files in DIR")
+    e.add_argument(
+        "--out",
+        metavar="DIR",
+        required=True,
+        help="output directory (created if missing; the files are put in place together, or not at all)",
+    )
+    e.add_argument(
+        "--force",
+        action="store_true",
+        help="replace an earlier export in DIR (as a set: none of its files is left beside the new ones)",
+    )
     e.add_argument(
         "--input-range",
         metavar=("LO", "HI"),

@@ -101,7 +101,11 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
             "model was fitted (and written) but is not trustworthy: validation RMSE > 5 % of range, or a\n"
             "residual far from white (most autocorrelation lags outside the 95 % band with RMSE > 1 %);\n"
             'a diagnosis on stderr (and under "assessment" in --json) names the likely cause: offset,\n'
-            "drift, delay, swapped columns, sample rate / time unit."
+            "drift, delay, swapped columns, sample rate / time unit. Ctrl-C, SIGTERM and SIGHUP during the\n"
+            'fit save the best model so far, marked "partial": true, and exit 130, 143 and 129.\n\n'
+            "--out / --plot: regular files only (never DATA or a --validate file, not a FIFO, device or\n"
+            "directory), checked before the fit; an existing file or a symbolic link is replaced only with\n"
+            "--force (the link itself, never what it points to)."
         ),
     )
     i.add_argument("data", metavar="DATA", help="the record file (see the formats above)")
