@@ -4,6 +4,7 @@ SIGTERM and SIGHUP do the same on the command line, exiting 143 and 129 (issue 2
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import signal
@@ -63,6 +64,20 @@ def test_identify_vp_interrupted_is_partial(monkeypatch):
     _interrupt_after(monkeypatch, 3)
     res = ph.identify(v, y, model="mpi", structure="fit", optimizer="de", rng=0, max_iterations=20, population_size=6)
     assert res.partial and np.isfinite(res.train["rmse_percent"])
+
+
+def test_a_hung_up_terminal_does_not_lose_the_best_so_far(monkeypatch):
+    """SIGHUP from a closed terminal: the progress bar's writes fail (EIO) as the optimizer
+    stops; the run still returns its best point, marked interrupted."""
+
+    class HungUp(io.StringIO):
+        def write(self, s):
+            raise OSError(5, "Input/output error")
+
+    monkeypatch.setattr(sys, "stderr", HungUp())
+    _interrupt_after(monkeypatch, 4)
+    res = optimize.minimize(lambda X: np.sum(X**2, axis=1), [(-1, 1)] * 2, method="de", rng=0, progress=True)
+    assert res.interrupted and res.partial and res.history["best_cost"].shape == (3,) and np.isfinite(res.fun)
 
 
 def test_tune_interrupted_is_partial(monkeypatch):

@@ -561,7 +561,8 @@ def output_set(
         force_hint=force_hint,
     )
     previous = _set_names(previous, name)
-    parent = _parent(out)
+    out = Path(os.path.abspath(out))  # "." has a name and a parent
+    parent = out.parent
     if parents:
         parent.mkdir(parents=True, exist_ok=True)
     _clean_stale(out)

@@ -305,3 +305,34 @@ def test_demo_force_replaces_the_whole_old_report(tmp_path, capsys, monkeypatch)
     assert code == 0, err
     assert sorted(p.name for p in a.iterdir()) == ["index.html", "new.png", "report.md", "results.json"]
     assert json.loads((a / "results.json").read_text())["figures"] == {"new": "new.png"}
+
+
+def test_identify_auto_stopped_by_a_signal_ranks_what_was_fitted(folder, capsys, monkeypatch):
+    """--model auto: a SIGTERM swallowed by a candidate's optimizer (kept its best) stops the
+    league there; the winner among the fitted is saved marked partial, exit 143."""
+    from piezohyst.identify import dispatch
+
+    real = dispatch.identify
+    calls = []
+
+    def identify(*a, **k):
+        calls.append(k.get("model"))
+        if len(calls) == 2:
+            try:  # as a population optimizer does: the signal stops it, the best is kept
+                signal.raise_signal(signal.SIGTERM)
+            except KeyboardInterrupt:
+                pass
+        return real(*a, **k)
+
+    monkeypatch.setattr(dispatch, "identify", identify)
+    out = folder / "auto.json"
+    argv = [a if a != "pi" else "auto" for a in _identify(folder, out)]
+    code, _, err = run_cli(capsys, *argv, "--validate", "400:")
+    assert code == 143, err
+    assert len(calls) == 2  # no candidate after the signal
+    doc = json.loads(out.read_text())
+    assert doc["partial"] is True and doc["fit"]["partial"] is True
+    stopped = [row for row in doc["fit"]["league"] if row.get("error") == "stopped by SIGTERM"]
+    assert len(stopped) == len(doc["fit"]["league"]) - 2
+    assert "holds the best model found before SIGTERM" in err
+    assert ph.load_model(out).kind == "pi"

@@ -774,8 +774,9 @@ def _auto(
             continue
         if creep:
             kw["creep"] = creep
-        if stops.received() is not None:  # a stop signal: rank what was fitted before it
-            results.append((kind, creep, None, f"not fitted: stopped by {stops.describe(stops.received() or 0)}"))
+        signum = stops.received()
+        if signum is not None:  # a stop signal: rank what was fitted before it
+            results.append((kind, creep, None, f"stopped by {stops.describe(signum)}"))
             continue
         try:
             fitted = identify(v, y, model=kind, **{**common, "progress": False}, diagnosis=False, **kw)
