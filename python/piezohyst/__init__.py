@@ -14,8 +14,10 @@ Python interface, batch evaluation, files and the command line, in sub-packages 
   Bouc–Wen benchmark workflow and the provenance presets (``mpi_seed2``, ``seed1_stage``);
 - ``cli``: the command line, one module per command.
 
-Shared private helpers stay at the top: ``errors`` (the exception hierarchy), ``_validate``
-(argument checks), ``_io`` (atomic writes, JSON files) and ``_core`` (the Rust core). The
+Shared helpers stay at the top: ``errors`` (the exception hierarchy), ``_validate``
+(argument checks), ``_io`` (JSON files in), ``outputs`` (the output policy every writer
+follows: regular files only, never an input, atomic files and sets) and ``_core`` (the Rust
+core). The
 library (every sub-package but ``papers`` and ``cli``) never imports ``papers`` or ``cli``;
 ``tests/test_architecture.py`` holds the rules.
 

@@ -1,75 +1,22 @@
-"""Atomic file output: every file piezohyst writes goes through :func:`write_atomic`.
-
-A temporary file is written in the destination's directory, flushed to disk, given the
-permissions a plain ``open(path, "w")`` would give (``mkstemp`` makes it private), and moved
-into place with ``os.replace``: a reader sees the old file or the new one, never half of
-one, and an interrupted write (Ctrl-C, a full disk, an exception in a plotting call) leaves
-the old file untouched and no temporary behind.
+"""Files in and out: JSON files read into objects (:func:`load_json_file`); every file written
+goes through :func:`write_atomic`, the output policy of :mod:`piezohyst.outputs` (re-exported
+here for the package's writers).
 """
 
 from __future__ import annotations
 
 import contextlib
 import json
-import os
-import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, TypeVar
 
-from .errors import DataError, OutputExistsError, ParameterError, PiezohystError
+from .errors import DataError, ParameterError, PiezohystError
+from .outputs import PathLike, write_atomic
 
 _T = TypeVar("_T")
 
-#: What a file path argument may be.
-PathLike = str | os.PathLike[str]
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def write_atomic(
-    path: PathLike,
-    data: str | bytes | None = None,
-    *,
-    writer: Callable[[str], None] | None = None,
-    overwrite: bool = True,
-    name: str = "path",
-) -> Path:
-    """Write ``data`` (text is UTF-8 with ``\\n`` line ends) or let ``writer(temp_path)`` write
-    the file, then move it to ``path`` atomically.
-
-    With ``overwrite=False`` an existing ``path`` is kept and :class:`OutputExistsError`
-    (a :class:`FileExistsError`) names the argument ``name``.
-    """
-    if (data is None) == (writer is None):
-        raise TypeError("write_atomic needs exactly one of data and writer")
-    target = Path(path)
-    if not overwrite and target.exists():
-        raise OutputExistsError(f"{name} = '{target}' exists; pass --force (or overwrite=True) to replace it")
-    parent = target.parent if str(target.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(dir=parent, prefix=f".{target.name}.", suffix=".tmp")
-    try:
-        os.fchmod(fd, 0o666 & ~_umask())
-        if writer is None:
-            assert data is not None  # exactly one of data and writer, checked above
-            raw = data.encode("utf-8") if isinstance(data, str) else bytes(data)
-            with os.fdopen(fd, "wb") as f:
-                f.write(raw)
-                f.flush()
-                os.fsync(f.fileno())
-        else:
-            os.close(fd)
-            writer(tmp)
-        os.replace(tmp, target)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return target
+__all__ = ["PathLike", "load_json_file", "malformed_as", "write_atomic"]
 
 
 def load_json_file(path: PathLike, what: str, build: Callable[[Any], _T]) -> _T:

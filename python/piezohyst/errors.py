@@ -25,7 +25,8 @@ class                         builtin             C status (``crates/capi``)
 ============================  ==================  =========================================
 
 The command line prints ``piezohyst <command>: error: <message>`` on one line and exits
-with status 2 for any of these (``--debug`` shows the traceback); Ctrl-C exits with 130.
+with status 2 for any of these (``--debug`` shows the traceback); Ctrl-C, SIGTERM and SIGHUP
+exit with 130, 143 and 129 (``128 + signal``), keeping the best result so far where there is one.
 
 Examples
 --------

@@ -13,8 +13,8 @@ from typing import TYPE_CHECKING, NoReturn, TypedDict, Unpack
 import numpy as np
 import numpy.typing as npt
 
-from .._io import write_atomic
 from ..errors import ParameterError
+from ..outputs import Inputs, check_output, write_atomic
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -135,9 +135,9 @@ def _column_help(role: str, default: str) -> str:
     return f"{role} column, by name or 0-based index ({default})"
 
 
-def _atomic_savefig(fig: Figure, path: str | Path) -> None:
+def _atomic_savefig(fig: Figure, path: str | Path, name: str = "--plot", force: bool = False) -> None:
     fmt = Path(path).suffix.lstrip(".").lower() or "png"
-    write_atomic(path, writer=lambda tmp: fig.savefig(tmp, dpi=110, format=fmt))
+    write_atomic(path, writer=lambda tmp: fig.savefig(tmp, dpi=110, format=fmt), overwrite=force, name=name)
 
 
 def _column(spec: str | None) -> str | int | None:
@@ -173,16 +173,10 @@ def _existing_file(path: str | Path, name: str) -> Path:
     return p
 
 
-def _writable(path: str | Path, name: str, force: bool) -> Path:
-    p = Path(path)
-    if p.is_dir():
-        raise _Fail(f"{name} = '{path}' is a directory; give a file name")
-    if p.exists() and not force:
-        raise _Fail(f"{name} = '{path}' exists; pass --force to overwrite it")
-    parent = p.parent if str(p.parent) else Path(".")
-    if not parent.is_dir():
-        raise _Fail(f"{name} = '{path}': directory '{parent}' does not exist")
-    return p
+def _writable(path: str | Path, name: str, force: bool, inputs: Inputs | None = None) -> Path:
+    """An output file of the command, checked before any work (:func:`piezohyst.outputs.check_output`:
+    a regular file, not one of ``inputs``, replaced only with --force, in a writable directory)."""
+    return check_output(path, name=name, overwrite=force, inputs=inputs)
 
 
 _RANGE = re.compile(r"\s*([^:]*?)\s*:\s*([^:]*?)\s*")

@@ -29,6 +29,6 @@ def _demo(args: argparse.Namespace) -> None:
     from ..papers.demo import run_demo
 
     quiet = _quiet if args.json else print
-    numbers = run_demo(args.out, force=args.force, quick=args.quick, seed=args.seed, print_fn=quiet)
+    numbers = run_demo(args.out, force=args.force, quick=args.quick, seed=args.seed, print_fn=quiet, name="--out")
     if args.json:
         print(json.dumps(numbers, indent=2))

@@ -7,6 +7,7 @@ import json
 import math
 from pathlib import Path
 
+from ..outputs import check_output_dir
 from .common import (
     _check_count,
     _existing_file,
@@ -44,8 +45,17 @@ def _export_c_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         nargs="?",
         help="a controller file (piezohyst.export_c.save_controller)",
     )
-    e.add_argument("--out", metavar="DIR", required=True, help="output directory (created if missing)")
-    e.add_argument("--force", action="store_true", help="overwrite existing files in DIR")
+    e.add_argument(
+        "--out",
+        metavar="DIR",
+        required=True,
+        help="output directory (created if missing; the files are put in place together, or not at all)",
+    )
+    e.add_argument(
+        "--force",
+        action="store_true",
+        help="replace an earlier export in DIR (as a set: none of its files is left beside the new ones)",
+    )
     e.add_argument(
         "--input-range",
         metavar=("LO", "HI"),
@@ -83,11 +93,11 @@ def _export_c(args: argparse.Namespace) -> None:
         lo, hi = args.input_range
         if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
             raise _Fail(f"--input-range = {lo:g} {hi:g} must be finite with LO < HI")
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise _Fail(f"--out = '{out}' exists and is not a directory")
-    if not out.exists() and not (out.parent if str(out.parent) else Path(".")).is_dir():
-        raise _Fail(f"--out = '{out}': directory '{out.parent}' does not exist")
+    names = ["piezohyst_model.h", "piezohyst_model.c", "example.c"]
+    names += ["piezohyst_controller.h", "piezohyst_controller.c"] if controller is not None else []
+    names += ["piezohyst.h"] if X.header_path() is not None else []
+    inputs = {"MODEL": model_path, "CONTROLLER": args.controller}
+    out = check_output_dir(args.out, name="--out", overwrite=args.force, names=names, inputs=inputs)
     source = model_path.name + (f" and {Path(args.controller).name}" if controller is not None else "")
     try:
         written = X.export_c(
@@ -98,10 +108,11 @@ def _export_c(args: argparse.Namespace) -> None:
             source=source,
             input_range=args.input_range,
             steps=args.steps,
+            name="--out",
         )
-    except FileExistsError as e:
-        raise _Fail(str(e)) from None
     except ValueError as e:
+        if str(e).startswith("--out"):  # the output folder (piezohyst.outputs), not the model
+            raise
         raise _Fail(f"{'CONTROLLER' if controller is not None else 'MODEL'}: {e}") from None
     lib = X.library_path()
     sources = "example.c piezohyst_model.c" + (" piezohyst_controller.c" if controller is not None else "")

@@ -5,13 +5,15 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import signal
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypedDict
 
-from .._io import write_atomic
 from ..errors import ParameterError
 from ..identify.dispatch import KINDS
+from ..outputs import write_atomic
+from . import stops
 from .common import (
     _FORMATS,
     _add_record_options,
@@ -99,7 +101,11 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
             "model was fitted (and written) but is not trustworthy: validation RMSE > 5 % of range, or a\n"
             "residual far from white (most autocorrelation lags outside the 95 % band with RMSE > 1 %);\n"
             'a diagnosis on stderr (and under "assessment" in --json) names the likely cause: offset,\n'
-            "drift, delay, swapped columns, sample rate / time unit."
+            "drift, delay, swapped columns, sample rate / time unit. Ctrl-C, SIGTERM and SIGHUP during the\n"
+            'fit save the best model so far, marked "partial": true, and exit 130, 143 and 129.\n\n'
+            "--out / --plot: regular files only (never DATA or a --validate file, not a FIFO, device or\n"
+            "directory), checked before the fit; an existing file or a symbolic link is replaced only with\n"
+            "--force (the link itself, never what it points to)."
         ),
     )
     i.add_argument("data", metavar="DATA", help="the record file (see the formats above)")
@@ -333,8 +339,9 @@ def _identify(args: argparse.Namespace) -> int:
     data = _existing_file(args.data, "DATA")
     train_spec = None if args.train is None else _parse_range(args.train, "--train")
     val_spec, val_file = _parse_validate(args.validate)
-    out = _writable(args.out, "--out", args.force)
-    plot = None if args.plot is None else _writable(args.plot, "--plot", args.force)
+    inputs = {"DATA": data, "--validate": val_file}
+    out = _writable(args.out, "--out", args.force, inputs)
+    plot = None if args.plot is None else _writable(args.plot, "--plot", args.force, inputs)
     if plot is not None and plot.resolve() == out.resolve():
         raise _Fail(f"--plot = '{args.plot}' is the same file as --out")
 
@@ -449,11 +456,12 @@ def _identify(args: argparse.Namespace) -> int:
         fit["assessment"] = {**assessment, "note": honest["note"]} if honest["note"] else assessment
     if league is not None:
         fit["league"] = league
-    if res.partial:
-        doc["partial"] = True  # Ctrl-C stopped the optimizer: the best model found before it
+    partial = res.partial or stops.received() is not None  # a stop signal: the best model found before it
+    if partial:
+        doc["partial"] = fit["partial"] = True  # a stop signal: the best model found before it
     doc["fit"] = fit
     text = json.dumps(doc, indent=2, allow_nan=False) + "\n"
-    write_atomic(out, text, overwrite=args.force, name="--out")
+    write_atomic(out, text, overwrite=args.force, name="--out", inputs=inputs)
     if plot is not None:
         import matplotlib
 
@@ -474,7 +482,11 @@ def _identify(args: argparse.Namespace) -> int:
             fig = res.plot(train.input, train.output)
         try:
             write_atomic(
-                plot, writer=lambda tmp: fig.savefig(tmp, format="png", dpi=110), overwrite=args.force, name="--plot"
+                plot,
+                writer=lambda tmp: fig.savefig(tmp, format="png", dpi=110),
+                overwrite=args.force,
+                name="--plot",
+                inputs=inputs,
             )
         finally:
             plt.close(fig)
@@ -510,12 +522,14 @@ def _identify(args: argparse.Namespace) -> int:
             _print_whiteness(assessment)
         if plot is not None:
             print(f"  figure: {plot}")
-    if res.partial:
+    if partial:
+        signum = stops.received() or signal.SIGINT
         print(
-            f'piezohyst identify: interrupted: {out} holds the best model found before Ctrl-C, marked "partial": true',
+            f"piezohyst identify: interrupted: {out} holds the best model found before {stops.describe(signum)}, "
+            f'marked "partial": true',
             file=sys.stderr,
         )
-        return 130
+        return stops.exit_code()
     if assessment and not assessment["trusted"]:
         _print_distrust(assessment)
         return 3
@@ -760,6 +774,10 @@ def _auto(
             continue
         if creep:
             kw["creep"] = creep
+        signum = stops.received()
+        if signum is not None:  # a stop signal: rank what was fitted before it
+            results.append((kind, creep, None, f"stopped by {stops.describe(signum)}"))
+            continue
         try:
             fitted = identify(v, y, model=kind, **{**common, "progress": False}, diagnosis=False, **kw)
             results.append((kind, creep, fitted, None))
@@ -768,7 +786,7 @@ def _auto(
     table, best = league_table(results, v.size)
     kind, creep, res, _ = results[best]
     assert res is not None  # league_table picks a fitted one
-    if not getattr(res, "assessment", {}).get("trusted", True):  # the winner's diagnosis
+    if not getattr(res, "assessment", {}).get("trusted", True) and stops.received() is None:  # the winner's diagnosis
         kw = {**extra, "creep": creep} if creep else dict(extra)
         res = identify(v, y, model=kind, **{**common, "progress": False}, **kw)
     return kind, res, table

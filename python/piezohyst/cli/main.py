@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import atexit
 import os
+import signal
 import sys
 from collections.abc import Callable, Sequence
 from typing import NoReturn
@@ -25,6 +26,7 @@ from .export_c import _export_c, _export_c_parser
 from .identify import _identify, _identify_parser
 from .simulate import _simulate, _simulate_parser
 from .stage import _stage_info, _stage_parser
+from .stops import Interrupted, describe, exit_code, handled, received
 from .track import _track, _track_parser
 
 __all__ = ["main", "run"]
@@ -65,23 +67,36 @@ def main(argv: Sequence[str] | None = None) -> int:
         else "piezohyst"
     )
     try:
-        return _COMMANDS[args.command](args) or 0
-    except KeyboardInterrupt:
+        with handled():
+            return _COMMANDS[args.command](args) or 0
+    except KeyboardInterrupt as e:
         if debug:
             raise
-        print(f"{prog}: interrupted", file=sys.stderr)
-        return 130
+        # a stop signal (Interrupted) or a KeyboardInterrupt a command raised to say what it kept
+        detail = "" if isinstance(e, Interrupted) or not str(e) else f": {' '.join(str(e).split())}"
+        _say(f"{prog}: interrupted by {describe(received() or signal.SIGINT)}{detail}")
+        return exit_code()
     except MemoryError as e:
         if debug:
             raise
-        print(f"{prog}: error: out of memory ({' '.join(str(e).split()) or 'MemoryError'})", file=sys.stderr)
+        _say(f"{prog}: error: out of memory ({' '.join(str(e).split()) or 'MemoryError'})")
         return 2
     except (PiezohystError, ValueError, TypeError, OSError, ImportError) as e:
         if debug:
             raise
+        if isinstance(e, OSError) and received() is not None:
+            return exit_code()  # a hang-up closed the terminal: the stop, not the write, is the news
         msg = " ".join(str(e).split())  # one line, whatever the message
-        print(f"{prog}: error: {msg}", file=sys.stderr)
+        _say(f"{prog}: error: {msg}")
         return 2
+
+
+def _say(line: str) -> None:
+    """One line on stderr; nothing when stderr is gone (a hung-up terminal, a closed pipe)."""
+    try:
+        print(line, file=sys.stderr)
+    except (OSError, ValueError):
+        pass
 
 
 def run(argv: Sequence[str] | None = None) -> NoReturn:

@@ -11,7 +11,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .._io import write_atomic
+from ..outputs import write_atomic
 from .common import (
     _FORMATS,
     _add_record_options,
@@ -278,7 +278,8 @@ def _simulate(args: argparse.Namespace) -> None:
     to_stdout = args.out == "-"
     if to_stdout and args.json:
         raise _Fail("--json prints a summary on standard output; give --out FILE for the CSV")
-    out = None if to_stdout else _writable(args.out, "--out", args.force)
+    inputs = {"MODEL": model_path, "INPUT": input_path}
+    out = None if to_stdout else _writable(args.out, "--out", args.force, inputs)
     model = _read_simulated(model_path)
 
     opts = _record_options(args)
@@ -345,7 +346,7 @@ def _simulate(args: argparse.Namespace) -> None:
     if out is None:  # "--out -"
         sys.stdout.write(text)
         return
-    write_atomic(out, text, overwrite=args.force, name="--out")
+    write_atomic(out, text, overwrite=args.force, name="--out", inputs=inputs)
 
     def stats(a: FloatArray) -> dict[str, float]:
         return {"min": float(np.min(a)), "max": float(np.max(a)), "mean": float(np.mean(a)), "range": float(np.ptp(a))}

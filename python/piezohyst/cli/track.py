@@ -5,13 +5,13 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .common import (
     _atomic_savefig,
     _Fail,
     _Parser,
+    _writable,
 )
 
 if TYPE_CHECKING:
@@ -90,8 +90,8 @@ def _track(args: argparse.Namespace) -> int:
         _, ref = refs.triangle(args.freq, amp, args.duration, fs, offset=off)
     else:
         _, ref = refs.variable_amplitude_sine(args.freq, amp, args.duration, fs, offset=off)
-    if args.plot and Path(args.plot).exists() and not args.force:
-        raise _Fail(f"--plot {args.plot} exists; pass --force to overwrite it")
+    if args.plot:
+        _writable(args.plot, "--plot", args.force, {"--stage": args.stage, "--model": args.model})
 
     def hysteresis_model() -> HysteresisModel:
         if args.model:
@@ -137,7 +137,7 @@ def _track(args: argparse.Namespace) -> int:
 
         matplotlib.use("Agg")
         fig = res.plot(zoom=(args.skip, args.skip + min(0.5 / args.freq, args.duration - args.skip)))
-        _atomic_savefig(fig, args.plot)
+        _atomic_savefig(fig, args.plot, "--plot", args.force)
     if args.json:
         doc = {"controller": kind, "reference": args.reference, "freq_hz": args.freq, "metrics": m}
         if foreign is not None:

@@ -43,7 +43,8 @@ import numpy.typing as npt
 from .. import _core
 from .._io import PathLike, load_json_file, malformed_as, write_atomic
 from ..control.controllers import CoreSpec, FloatArray, IlcSpec, Limits, PackedController, is_controller
-from ..errors import OutputExistsError, ParameterError, ParameterTypeError
+from ..errors import ParameterError, ParameterTypeError
+from ..outputs import output_set
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..models.model import HysteresisModel
@@ -53,6 +54,7 @@ __all__ = [
     "CONTROLLER_KINDS",
     "CONTROLLER_PARAMS",
     "CONTROLLER_SCHEMA_VERSION",
+    "EXPORT_FILES",
     "FAMILY_CODES",
     "ExportedController",
     "controller_from_dict",
@@ -72,6 +74,15 @@ FAMILY_CODES, CONTROLLER_KINDS = _core.layout_codes()
 CONTROLLER_PARAMS: dict[str, tuple[str, ...]] = {
     kind: tuple(_core.controller_layout(kind)["slots"]) for kind in CONTROLLER_KINDS
 }
+#: Every file :func:`export_c` may write into its folder (a set: a new export replaces them all).
+EXPORT_FILES = (
+    "piezohyst_model.h",
+    "piezohyst_model.c",
+    "piezohyst_controller.h",
+    "piezohyst_controller.c",
+    "example.c",
+    "piezohyst.h",
+)
 #: Version of the controller-file layout.
 CONTROLLER_SCHEMA_VERSION = 1
 _FORMAT = "piezohyst-controller"
@@ -772,12 +783,16 @@ def export_c(
     source: str = "Python",
     input_range: Sequence[float] | None = None,
     steps: int | None = None,
+    name: str = "out_dir",
 ) -> list[Path]:
     """Write the C initializers of ``model`` (and ``controller``, an
     :class:`ExportedController` or a controller file's dict) into ``out_dir`` with
-    ``piezohyst.h`` and ``example.c``. Existing files are kept unless ``force``; each file is
-    written atomically. A controller behind an inverse model must have been built on
-    ``model``. Returns the written paths."""
+    ``piezohyst.h`` and ``example.c``. Existing files are kept unless ``force``. The files are
+    written as a set (:func:`piezohyst.outputs.output_set`): an interrupted or failed export
+    leaves the folder as it was; with ``force`` a file of an earlier export that this one does
+    not write (a controller's) is removed with the old set. A controller behind an inverse
+    model must have been built on ``model``. ``name`` is the argument messages name. Returns
+    the written paths."""
     model = _as_model(model)
     controller = _as_exported(controller)
     if controller is not None and controller.inverse is not None:
@@ -791,8 +806,6 @@ def export_c(
                 f"export the model the controller was built on"
             )
     out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise ParameterError(f"out = '{out}' exists and is not a directory")
     files = _model_files(model, source)
     if controller is not None:
         files.update(_controller_files(controller, source))
@@ -801,23 +814,22 @@ def export_c(
     files["example.c"] = _example_c(model, controller, plan, str(lib) if lib else "path/to/libpiezohyst.a")
     header = header_path()
     names = list(files) + (["piezohyst.h"] if header else [])
-    if not force:
-        for name in names:
-            if (out / name).exists():
-                raise OutputExistsError(f"'{out / name}' exists; pass --force to overwrite it")
-    out.mkdir(parents=True, exist_ok=True)
-    written: list[Path] = []
-    for name, text in files.items():
-        write_atomic(out / name, text)
-        written.append(out / name)
-    if header:
-
-        def copy_header(tmp: str, header: Path = header) -> None:
-            shutil.copyfile(header, tmp)
-
-        write_atomic(out / "piezohyst.h", writer=copy_header)
-        written.append(out / "piezohyst.h")
-    return written
+    # the folder gets the new set whole or keeps the old one (piezohyst.outputs.output_set);
+    # a file of an earlier export this one does not write (a controller) goes with the old set
+    with output_set(
+        out,
+        name=name,
+        overwrite=force,
+        names=names,
+        previous=EXPORT_FILES,
+        parents=True,
+        force_hint="--force" if name.startswith("--") else "force=True",
+    ) as tmp:
+        for n, text in files.items():
+            (tmp / n).write_text(text, encoding="utf-8")
+        if header:
+            shutil.copyfile(header, tmp / "piezohyst.h")
+    return [out / n for n in names]
 
 
 def _as_model(model: object) -> HysteresisModel:

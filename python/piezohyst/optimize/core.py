@@ -1133,13 +1133,24 @@ METHODS: dict[str, type[Optimizer]] = {"css": CSS, "pso": PSO, "mpso": MPSO, "de
 # minimize
 # --------------------------------------------------------------------------------------------
 class _ProgressBar:
-    """A dependency-free progress line on stderr, rewritten with ``\\r`` at most ~10 times/s."""
+    """A dependency-free progress line on stderr, rewritten with ``\\r`` at most ~10 times/s.
+    A stream that fails (a terminal hung up: SIGHUP, then EIO) ends the bar, never the run: the
+    best result so far must still reach the caller."""
 
     def __init__(self, name: str, total: int, stream: IO[str] | None = None, width: int = 30) -> None:
         self.name, self.total, self.width = name, total, width
-        self.stream = sys.stderr if stream is None else stream
+        self.stream: IO[str] | None = sys.stderr if stream is None else stream
         self._last = -math.inf
         self._shown = False
+
+    def _write(self, text: str) -> None:
+        if self.stream is None:
+            return
+        try:
+            self.stream.write(text)
+            self.stream.flush()
+        except (OSError, ValueError):  # a closed or hung-up stream
+            self.stream = None
 
     def update(self, it: int, best: float, force: bool = False) -> None:
         now = time.perf_counter()
@@ -1148,14 +1159,12 @@ class _ProgressBar:
         self._last = now
         n = int(self.width * it / self.total)
         bar = "#" * n + "-" * (self.width - n)
-        self.stream.write(f"\r{self.name} [{bar}] {it}/{self.total}  best {best:.6g}")
-        self.stream.flush()
+        self._write(f"\r{self.name} [{bar}] {it}/{self.total}  best {best:.6g}")
         self._shown = True
 
     def close(self) -> None:
         if self._shown:
-            self.stream.write("\n")
-            self.stream.flush()
+            self._write("\n")
 
 
 def _method_class(method: str | type[Optimizer]) -> type[Optimizer]:

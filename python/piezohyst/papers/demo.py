@@ -16,6 +16,7 @@ Same ``seed`` → same numbers (whatever the thread count).
 from __future__ import annotations
 
 import json
+import re
 import sys
 import time
 from collections.abc import Callable
@@ -24,14 +25,17 @@ from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..errors import OutputExistsError, ParameterError
+from ..errors import ParameterError
 from ..models.model import HysteresisModel
+from ..outputs import check_output_dir, output_set
 from ..plant.stage import virtual_stage
 from . import experiments as ex
+from .report import write_report
 
 if TYPE_CHECKING:
-    from ..identify.core import IdentificationResult
-    from ..plant.stage import StageParameters
+    from ..control.simulation import ClosedLoopResult
+    from ..identify.core import FitResult, IdentificationResult
+    from ..plant.stage import Stage, StageParameters
 
 __all__ = ["REPORT_FILES", "run_demo"]
 
@@ -65,23 +69,79 @@ def run_demo(
     seed: int | np.integer[Any] = 0,
     progress: bool = True,
     print_fn: Callable[[str], object] = print,
+    name: str = "out_dir",
 ) -> dict[str, Any]:
     """Run the demo and write the report; return every number (also in ``results.json``).
 
     Raises ``FileExistsError`` if ``out_dir`` already holds a report and ``force`` is false.
+    The folder is checked before the run starts and the report is put in place as a set
+    (:func:`piezohyst.outputs.output_set`): a run stopped by Ctrl-C or a signal, or one that
+    fails, leaves ``out_dir`` as it was; with ``force`` the new report replaces the old one
+    whole (no figure of the old run is left beside the new). ``name`` is the argument the
+    messages name.
     """
-    from .._io import write_atomic
-    from .report import write_report
-
     out_dir = Path(out_dir)
-    existing = [f for f in REPORT_FILES if (out_dir / f).exists()]
-    if existing and not force:
-        raise OutputExistsError(f"{out_dir / existing[0]} exists; pass --force to overwrite the report")
+    hint = "--force" if name.startswith("--") else "--force (force=True)"
+    check_output_dir(out_dir, name=name, overwrite=force, names=REPORT_FILES, parents=True, force_hint=hint)
     if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
         raise ParameterError(f"seed = {seed!r} must be a non-negative int")
     stream = sys.stderr if progress else None
     steps = _Steps(5, stream)
     t_start = time.perf_counter()
+    try:
+        results, runs1, runs2, mpi_fit, stage = _experiments(steps, quick=quick, seed=seed, progress=progress)
+    except KeyboardInterrupt:
+        raise KeyboardInterrupt(f"the report was not written; '{out_dir}' is as it was") from None
+
+    steps.start(f"write the report to {out_dir}")
+    with output_set(
+        out_dir,
+        name=name,
+        overwrite=force,
+        names=REPORT_FILES,
+        previous=_previous_report(out_dir),
+        parents=True,
+        force_hint=hint,
+    ) as tmp:
+        figures = write_report(tmp, results, runs1=runs1, runs2=runs2, mpi_fit=mpi_fit, stage=stage)
+        results["figures"] = figures
+        results["wall_s"] = time.perf_counter() - t_start
+        (tmp / "results.json").write_text(json.dumps(results, indent=1, default=float), encoding="utf-8")
+    steps.done()
+    print_fn(f"report: {out_dir / 'index.html'} (and report.md, results.json); {results['wall_s']:.0f} s in all")
+    return results
+
+
+def _previous_report(out_dir: Path) -> list[str]:
+    """The files of the report already in ``out_dir`` (its fixed files and the figures its
+    ``results.json`` lists): what a new report replaces."""
+    names = list(REPORT_FILES)
+    try:
+        old = json.loads((out_dir / "results.json").read_text(encoding="utf-8"))
+        figures = old.get("figures", {}) if isinstance(old, dict) else {}
+        names += [f for f in figures.values() if isinstance(f, str) and re.fullmatch(r"[\w.-]+\.png", f)]
+    except (OSError, ValueError, AttributeError):
+        pass
+    return names
+
+
+def _stop_if_partial(*partial: bool) -> None:
+    """An optimizer or a tuning stopped early by Ctrl-C or a signal (it keeps its best so far):
+    the demo stops too, rather than report numbers from a cut run."""
+    if any(partial):
+        raise KeyboardInterrupt
+
+
+def _experiments(
+    steps: _Steps, *, quick: bool, seed: int | np.integer[Any], progress: bool
+) -> tuple[
+    dict[str, Any],
+    dict[tuple[str, str], ClosedLoopResult],
+    dict[tuple[str, str, str], ClosedLoopResult],
+    FitResult,
+    Stage,
+]:
+    """Steps 1-4 of the demo: every number of the report and the runs its figures show."""
     stage = virtual_stage()
     rng = np.random.default_rng(seed)
     iters = 25 if quick else 100
@@ -108,6 +168,7 @@ def run_demo(
             progress=progress,
             polish=method == "css",
         )
+        _stop_if_partial(ident.partial)
         assert ident.history is not None  # a population optimizer's run
         convergence[method] = {
             "best_cost": [float(c) for c in ident.history["best_cost"]],
@@ -134,6 +195,7 @@ def run_demo(
         vp, t_vp = ex.timed(
             identify, u, y, "mpi", structure="fit", optimizer="mpso", rng=seed, creep=3, fs=fs, max_iterations=30
         )
+        _stop_if_partial(vp.partial)
         assert isinstance(vp.model, HysteresisModel)  # the MPI model
         mpi_vp = {
             "method": vp.method,
@@ -146,6 +208,7 @@ def run_demo(
 
     steps.start("seed 1: tune the SMC on the identified model; open loop, SMC, SMC + CEMF")
     s1, runs1 = ex.seed1_case_studies(stage, model, rng, tuning_iterations=10 if quick else 30, keep_runs=True)
+    _stop_if_partial(*s1["tuning_partial"].values())
     steps.done(" ".join(f"{k}: cut {v['CEMF cut %']:.0f} %" for k, v in s1["rmse_um"]["tuned for SMC+CEMF"].items()))
 
     steps.start("seed 2: inverse-MPI feedforward and adaptive backstepping SMC")
@@ -156,7 +219,6 @@ def run_demo(
         f"{t4['feedforward+ABSMC']['normalized_max_error']:.4f}"
     )
 
-    steps.start(f"write the report to {out_dir}")
     k = model.stiffness / model.tem
     results: dict[str, Any] = {
         "seed": seed,
@@ -192,10 +254,4 @@ def run_demo(
         "seed1": s1,
         "seed2": s2,
     }
-    figures = write_report(out_dir, results, runs1=runs1, runs2=runs2, mpi_fit=mpi_fit, stage=stage)
-    results["figures"] = figures
-    results["wall_s"] = time.perf_counter() - t_start
-    write_atomic(out_dir / "results.json", json.dumps(results, indent=1, default=float))
-    steps.done()
-    print_fn(f"report: {out_dir / 'index.html'} (and report.md, results.json); {results['wall_s']:.0f} s in all")
-    return results
+    return results, runs1, runs2, mpi_fit, stage

@@ -288,6 +288,7 @@ def seed1_case_studies(
         "tuning_nfev": {k: t.nfev for k, t in tunings.items()},
         "tuning_rmse_on_model_um": {k: t.rmse * 1e6 for k, t in tunings.items()},
         "tuning_history": {k: [float(x) for x in t.history["best_cost"]] for k, t in tunings.items()},
+        "tuning_partial": {k: t.partial for k, t in tunings.items()},
         "amplitude_um": 5.0,
         "offset_um": 7.0,
         "rmse_um": rows,
