@@ -6,23 +6,23 @@ catch without knowing piezohyst (``ValueError``, ``TypeError``, ``RuntimeError``
 piezohyst.PiezohystError`` catches exactly what piezohyst itself rejected. Every message
 names the argument (or file and line) and the offending value.
 
-============================  ==================  =========================================
-class                         builtin             C status (``crates/capi``)
-============================  ==================  =========================================
-:class:`ParameterError`       ``ValueError``      ``PHS_ERR_INVALID_PARAMETER``,
-                                                  ``PHS_ERR_NOT_FINITE``,
-                                                  ``PHS_ERR_NOT_INCREASING``,
-                                                  ``PHS_ERR_BAD_LENGTH``,
-                                                  ``PHS_ERR_UNKNOWN_KIND``
-:class:`NotInvertibleError`   ``ValueError``      ``PHS_ERR_NOT_INVERTIBLE``
-:class:`UnreachableError`     ``ValueError``      ``PHS_ERR_UNREACHABLE``
-:class:`ParameterTypeError`   ``TypeError``       (C is typed; ``PHS_ERR_NULL_POINTER``)
-:class:`DataError`            ``ValueError``      (files are read in Python only)
-:class:`ComputationError`     ``RuntimeError``    ``PHS_ERR_NOT_FINITE`` on a result
-:class:`OutputExistsError`    ``FileExistsError`` (no files in C)
-:class:`ResourceLimitError`   ``MemoryError``     (C never allocates)
-:class:`InternalError`        ``RuntimeError``    ``PHS_ERR_INTERNAL``
-============================  ==================  =========================================
+============================  ===================  =========================================
+class                         builtin              C status (``crates/capi``)
+============================  ===================  =========================================
+:class:`ParameterError`       ``ValueError``       ``PHS_ERR_INVALID_PARAMETER``,
+                                                   ``PHS_ERR_NOT_FINITE``,
+                                                   ``PHS_ERR_NOT_INCREASING``,
+                                                   ``PHS_ERR_BAD_LENGTH``,
+                                                   ``PHS_ERR_UNKNOWN_KIND``
+:class:`NotInvertibleError`   ``ValueError``       ``PHS_ERR_NOT_INVERTIBLE``
+:class:`UnreachableError`     ``ValueError``       ``PHS_ERR_UNREACHABLE``
+:class:`ParameterTypeError`   ``TypeError``        (C is typed; ``PHS_ERR_NULL_POINTER``)
+:class:`DataError`            ``ValueError``       (files are read in Python only)
+:class:`ComputationError`     ``RuntimeError``     ``PHS_ERR_NOT_FINITE`` on a result
+:class:`OutputExistsError`    ``FileExistsError``  (no files in C)
+:class:`ResourceLimitError`   ``MemoryError``      (C never allocates)
+:class:`InternalError`        ``RuntimeError``     ``PHS_ERR_INTERNAL``
+============================  ===================  =========================================
 
 The command line prints ``piezohyst <command>: error: <message>`` on one line and exits
 with status 2 for any of these (``--debug`` shows the traceback); Ctrl-C exits with 130.
