@@ -92,7 +92,7 @@ $(DOCS_BUILT): $(BUILT) pyproject.toml
 	touch $@
 
 docs: $(DOCS_BUILT)
-	rm -rf $(DOCS_OUT) docs/api/generated docs/gallery
+	rm -rf $(DOCS_OUT) docs/api/generated docs/gallery docs/sg_execution_times.rst
 	MPLBACKEND=Agg $(BIN)/python -m sphinx -W --keep-going -q -b html docs $(DOCS_OUT)
 
 # Chromium from Debian's packages, for the browser checks (a no-op where it is installed)

@@ -70,6 +70,8 @@ sphinx_gallery_conf = {
     "plot_gallery": "True",
     "capture_repr": (),
     "min_reported_time": 1,
+    # the execution-times page loads DataTables from a CDN: the site must read offline
+    "write_computation_times": False,
 }
 
 html_theme = "pydata_sphinx_theme"
