@@ -26,7 +26,23 @@ __all__ = ["RunReport"]
 
 class RunReport:
     """Mixin of the result classes: subclasses provide ``wall_time``, ``evaluations``,
-    ``history`` and ``partial`` (as fields or properties) and a ``_headline()``."""
+    ``history`` and ``partial`` (as fields or properties) and a ``_headline()``.
+
+    :class:`OptimizeResult`, :class:`~piezohyst.identify.FitResult`,
+    :class:`~piezohyst.identify.IdentificationResult` and
+    :class:`~piezohyst.control.TuningResult` are ``RunReport``s: each has ``.to_pandas()``
+    (the history per iteration), ``.plot()`` (convergence) and a notebook display.
+
+    Examples
+    --------
+    >>> from piezohyst import minimize
+    >>> from piezohyst.optimize import RunReport
+    >>> res = minimize(lambda X: (X**2).sum(axis=1), [(-1, 1)], max_iterations=10, rng=0)
+    >>> isinstance(res, RunReport), res.evaluations, res.partial
+    (True, 200, False)
+    >>> "<table>" in res._repr_html_()
+    True
+    """
 
     # Declared as read-only properties for the type checker only: a subclass provides each as a
     # dataclass field or as a property (a real property here would become a dataclass default).
@@ -67,7 +83,23 @@ class RunReport:
 
     def to_pandas(self) -> pd.DataFrame:
         """The per-iteration history as a ``pandas.DataFrame`` indexed by iteration (needs
-        pandas); empty for a method that does not iterate."""
+        pandas); empty for a method that does not iterate.
+
+        Returns
+        -------
+        pandas.DataFrame
+
+        Examples
+        --------
+        >>> from piezohyst import minimize
+        >>> res = minimize(lambda X: (X**2).sum(axis=1), [(-1, 1)], max_iterations=10, rng=0)
+        >>> try:
+        ...     df = res.to_pandas()
+        ... except ImportError:           # pandas is optional
+        ...     df = None
+        >>> df is None or (len(df) == 10 and "best_cost" in df.columns)
+        True
+        """
         try:
             import pandas as pd
         except ImportError:
@@ -77,7 +109,27 @@ class RunReport:
         return pd.DataFrame(cols, index=pd.RangeIndex(1, n + 1, name="iteration"))
 
     def plot(self, *, ax: Any = None) -> Figure:
-        """Convergence: the best cost so far against the iteration (log scale)."""
+        """Convergence: the best cost so far against the iteration (log scale).
+
+        Parameters
+        ----------
+        ax : matplotlib.axes.Axes, optional
+            Axes to draw on (default: a new figure).
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+
+        Examples
+        --------
+        >>> import matplotlib.pyplot as plt
+        >>> from piezohyst import minimize
+        >>> res = minimize(lambda X: (X**2).sum(axis=1) + 1e-3, [(-1, 1)], max_iterations=10, rng=0)
+        >>> fig = res.plot()
+        >>> fig.axes[0].get_xlabel()
+        'iteration'
+        >>> plt.close(fig)
+        """
         import matplotlib.pyplot as plt
 
         cols = self._history_columns()
