@@ -158,6 +158,10 @@ def _readonly(a: npt.ArrayLike) -> FloatArray:
 class OptimizeResult(RunReport):
     """The outcome of a run (modelled on :class:`scipy.optimize.OptimizeResult`).
 
+    As a :class:`~piezohyst.optimize.RunReport`: ``evaluations`` is ``nfev`` and ``partial``
+    is ``True`` when the run was interrupted or stopped by the callback (``x`` is then the
+    best point found before the stop).
+
     Parameters
     ----------
     x : ndarray, shape (D,)
@@ -185,10 +189,6 @@ class OptimizeResult(RunReport):
         :meth:`Optimizer.result` from the first ``ask()`` to the last ``tell()``.
     method : str
         The optimizer's name.
-
-    As a :class:`~piezohyst.optimize.RunReport`: ``evaluations`` is ``nfev`` and ``partial``
-    is ``True`` when the run was interrupted or stopped by the callback (``x`` is then the
-    best point found before the stop).
 
     Examples
     --------
