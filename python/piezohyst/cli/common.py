@@ -4,11 +4,10 @@ readers of data and model files."""
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import re
 from pathlib import Path
-from typing import TYPE_CHECKING, NoReturn, TypedDict, Unpack
+from typing import TYPE_CHECKING, Any, NoReturn, TypedDict, Unpack
 
 import numpy as np
 import numpy.typing as npt
@@ -259,15 +258,13 @@ def _pct(x: float) -> str:
     return f"{x:.4g} %"
 
 
-def _read_model(path: Path) -> AnyModel:
+def _read_model(path: Path, d: Any = None) -> AnyModel:
+    """The model in the file ``path`` (``d``: its content, when already read)."""
+    from .._io import read_json_file
     from ..models.model import model_from_dict
 
-    try:
-        d = json.loads(path.read_text())
-    except UnicodeDecodeError:
-        raise _Fail(f"MODEL = '{path}' is not a text (JSON) file") from None
-    except json.JSONDecodeError as e:
-        raise _Fail(f"MODEL = '{path}' is not valid JSON: {e}") from None
+    if d is None:
+        d = read_json_file(path, "MODEL =")  # DataError: not JSON, too big, too deep, NaN, control characters
     if isinstance(d, dict):
         d = {k: v for k, v in d.items() if k != "fit"}  # the fit report is not part of the model
     try:

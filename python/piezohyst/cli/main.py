@@ -17,6 +17,7 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import NoReturn
 
+from .._io import printable
 from ..errors import PiezohystError
 from .bench import _bench, _bench_parser
 from .common import _Parser
@@ -79,7 +80,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (PiezohystError, ValueError, TypeError, OSError, ImportError) as e:
         if debug:
             raise
-        msg = " ".join(str(e).split())  # one line, whatever the message
+        msg = printable(" ".join(str(e).split()))  # one line, no terminal escapes, whatever the message
         print(f"{prog}: error: {msg}", file=sys.stderr)
         return 2
 

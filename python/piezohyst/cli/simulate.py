@@ -148,20 +148,16 @@ def _read_simulated(path: Path) -> AnyModel | Stage:
     """What MODEL holds: a model file (every ``identify --model`` kind; a ``boucwen-benchmark``
     file simulates at its own ``fs``) or a stage file (``identify --model cemf``, run open
     loop: the input is the voltage command, the output the position)."""
-    import json
-
+    from .._io import read_json_file
     from ..plant.stage import Stage
 
-    try:
-        d = json.loads(path.read_text())
-    except (UnicodeDecodeError, json.JSONDecodeError):
-        d = None  # _read_model names what is wrong with the file
+    d = read_json_file(path, "MODEL =")  # DataError: not JSON, too big, too deep, NaN, control characters
     if isinstance(d, dict) and d.get("kind") == "stage":
         try:
             return Stage.from_dict(d)
         except (ValueError, TypeError) as e:
             raise _Fail(f"MODEL = '{path}': {e}") from None
-    return _read_model(path)
+    return _read_model(path, d)
 
 
 def _run(model: AnyModel | Stage, v: FloatArray) -> FloatArray:
