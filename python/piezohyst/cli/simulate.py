@@ -18,10 +18,12 @@ from .common import (
     _check_fs,
     _column,
     _column_help,
+    _count_arg,
     _existing_file,
     _Fail,
     _load,
     _named,
+    _number_arg,
     _parse_range,
     _Parser,
     _pct,
@@ -83,7 +85,7 @@ def _simulate_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     g.add_argument(
         "--fs",
         metavar="HZ",
-        type=float,
+        type=_number_arg,
         help="sample rate in Hz (> 0), for the time column of the CSV; must agree with the sample "
         "time of a model that has one (rdpi, creep). Default: the model's, else no time column",
     )
@@ -107,7 +109,7 @@ def _simulate_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     s.add_argument(
         "--lag",
         metavar="N",
-        type=int,
+        type=_count_arg,
         default=0,
         help="the --output column lags the input by N samples (a sensor delay): compare "
         "output[k + N] with the simulation at k (default 0)",
@@ -115,7 +117,7 @@ def _simulate_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     s.add_argument(
         "--score-from",
         metavar="K",
-        type=int,
+        type=_count_arg,
         default=0,
         help="leave the first K simulated samples out of the comparison with --output (the "
         "model's warm-up from the relaxed state; default 0)",

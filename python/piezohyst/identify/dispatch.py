@@ -37,6 +37,7 @@ from .core import (
     _fit_metrics,
     _mpi_template,
     _preisach_template,
+    check_samples,
     identify_cemf,
     minimize_huber,
 )
@@ -707,6 +708,7 @@ def _identify_boucwen(
     method = "de" if optimizer == "ls" else optimizer
     family = BoucWen(1.0, 1.0, 0.0).family
     bounds = _boucwen_bounds(v, y)
+    check_samples(v.size, sum(lo < hi for lo, hi in bounds) + bool(offset), "a Bouc-Wen model")
 
     # the rows stay inside the box, where every Bouc-Wen row is valid (n = 1, finite)
     # the offset that is best for the loss: mean (squared), median (huber), mid-range (linf)

@@ -501,11 +501,14 @@ def identify_vp(
     problem.offset = bool(offset)
     names, lower, upper, fixed = _search_box(problem.table, bounds)
     unknowns = (4 if model in ("gpi", "mpi") else 1) + n * (2 if model == "rdpi" else 1) + creep
-    if v.size < unknowns + len(names):
-        raise ParameterError(
-            f"the record has {v.size} samples, fewer than the {unknowns + len(names)} parameters "
-            f"({unknowns} linear, {len(names)} structure)"
-        )
+    from .core import check_samples
+
+    check_samples(
+        v.size,
+        unknowns + len(names),
+        f"this {model} model ({unknowns} linear, {len(names)} structure)",
+        "fewer operators or creep lags",
+    )
     if isinstance(optimizer, str) and optimizer == "ls":
         optimizer = "de"
     if not isinstance(polish, bool):

@@ -1052,6 +1052,12 @@ def load_record(
         table.close()
 
 
+def _keys(columns: Sequence[tuple[Hashable, str]]) -> str:
+    """The keys of columns, for a message: ``columns 1, 2`` or ``'u', 'v'``."""
+    keys = [k for k, _ in columns]
+    return "columns " + ", ".join(str(k) for k in keys) if all(isinstance(k, int) for k in keys) else repr(keys)
+
+
 def _assemble(
     table: ColumnSource[_Key],
     specs: Mapping[str, ColumnSpec],
@@ -1071,6 +1077,11 @@ def _assemble(
         labels = [lab for _, lab in cols]
         for r in list(missing):
             hit = [(k, lab) for k, lab in cols if lab == r]
+            if len(hit) > 1:  # never guess which: the header is ambiguous
+                raise DataError(
+                    f"{src}: {r} not given and the header names {len(hit)} columns {r!r} ({_keys(hit)}): "
+                    f"ambiguous; pass {r}= a 0-based column index"
+                )
             if len(hit) == 1 and hit[0][0] not in {k for k, _ in resolved.values()}:
                 resolved[r] = hit[0]
                 missing.remove(r)
@@ -1082,6 +1093,18 @@ def _assemble(
                     f"{src}: {missing[0]} not given and not inferable from the {len(cols)} columns "
                     f"{labels}; pass {missing[0]}= a column name or 0-based index"
                 )
+            names = [lab for _, lab in free]
+            for r, (_k, lab) in zip(missing, free, strict=True):
+                if names.count(lab) > 1 or (lab in _ROLES and lab != r):
+                    why = (
+                        f"{names.count(lab)} columns are named {lab!r}"
+                        if names.count(lab) > 1
+                        else (f"column {lab!r} would be taken as {r}")
+                    )
+                    raise DataError(
+                        f"{src}: {', '.join(missing)} not given and {why} ({_keys(free)}): ambiguous; pass "
+                        f"{'= and '.join(missing)}= column names or 0-based indices"
+                    )
             for r, c in zip(missing, free, strict=False):
                 resolved[r] = c
     seen: dict[_Key, str] = {}
