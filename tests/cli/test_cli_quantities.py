@@ -231,3 +231,34 @@ def test_held_out_validation_file_does_not_warn(record_files):
     code, out, err = cli([*argv, "--train", "0:2000", "--validate", "held_out.npz", "--out", "m.json"], record_files)
     assert code in (0, 3) and "warning" not in err
     assert "independent" not in json.loads(out)["data"]["validation"]
+
+
+# ------------------------------------------------------------------------ extremes
+
+
+@pytest.mark.parametrize(("scale", "says"), [(1e301, "reaches 1.11e+301"), (1e-310, "spans 9.27e-311")])
+def test_an_extreme_record_is_one_line_without_warnings(tmp_path, scale, says):
+    t = np.arange(2000) / 1000
+    v = 0.5 + 0.4 * np.sin(2 * np.pi * 5 * t)
+    y = ph.papers.mpi_seed2().simulate(v)
+    np.savetxt(tmp_path / "x.csv", np.c_[t, v, y * scale], delimiter=",", header="t,v,y", comments="")
+    for kind in ("pi", "mpi", "preisach", "boucwen"):
+        argv = ["identify", "x.csv", "--time", "t", "--model", kind, "--out", "m.json", "--iterations", "2"]
+        code, _out, err = cli(argv, tmp_path)
+        assert code == 2, (kind, err)
+        assert err.count("\n") == 1 and "Warning" not in err, err
+        assert f"output {says}" in err and "rescale the record" in err, err
+
+
+def test_simulate_summarizes_values_near_the_largest_double(tmp_path):
+    model = ph.PI([0.0], [1.0], p0=0.0)  # the identity: the output is the input
+    model.save(tmp_path / "m.json")
+    v = np.array([9e307, 9e307, -9e307, 8e307, 9e307])  # their sum and their range exceed 1.8e308
+    np.savetxt(tmp_path / "x.csv", np.c_[v], delimiter=",", header="v", comments="")
+    argv = ["simulate", "m.json", "x.csv", "--input", "v", "--fs", "1", "--out", "o.csv", "--json"]
+    code, out, err = cli(argv, tmp_path)
+    assert code == 0, err
+    summary = json.loads(out)["output"]
+    assert summary["range"] is None  # 3.4e308 is beyond the largest double: null, not an error
+    assert summary["mean"] == pytest.approx(np.mean(v / 1e308) * 1e308)
+    assert summary["min"] == -9e307 and summary["max"] == 9e307

@@ -345,8 +345,13 @@ def _simulate(args: argparse.Namespace) -> None:
         return
     write_atomic(out, text, overwrite=args.force, name="--out")
 
-    def stats(a: FloatArray) -> dict[str, float]:
-        return {"min": float(np.min(a)), "max": float(np.max(a)), "mean": float(np.mean(a)), "range": float(np.ptp(a))}
+    def stats(a: FloatArray) -> dict[str, float | None]:
+        # on the record scaled to a largest magnitude of 1: a mean of values near 1e308 does not
+        # overflow; a range beyond the largest double (values near +-1e308) is null in the JSON
+        s = float(np.max(np.abs(a))) or 1.0
+        mean, span = s * float(np.mean(a / s)), s * float(np.ptp(a / s))
+        finite_span = span if np.isfinite(span) else None
+        return {"min": float(np.min(a)), "max": float(np.max(a)), "mean": mean, "range": finite_span}
 
     summary = {
         "out": str(out),

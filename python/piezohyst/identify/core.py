@@ -115,11 +115,46 @@ def _fit_metrics(predicted: npt.ArrayLike, measured: FloatArray) -> Metrics:
     p = as_record(predicted, "predicted", copy=False)
     if p.size != measured.size:
         raise ParameterError(f"predicted has {p.size} samples, measured has {measured.size}; they must match")
-    e = p - measured
-    span = float(np.ptp(measured)) or 1.0
-    rmse = float(np.sqrt(np.mean(e**2)))
-    emax = float(np.max(np.abs(e)))
-    return {"rmse": rmse, "max_error": emax, "rmse_percent": 100 * rmse / span, "max_error_percent": 100 * emax / span}
+    # on the records scaled by their largest magnitude: values near 1e300 do not overflow the
+    # squares and subnormal ones (1e-310) do not vanish from them (RMSE 0 beside a max error)
+    scale = max(float(np.max(np.abs(p))), float(np.max(np.abs(measured))))
+    if scale == 0.0:
+        return {"rmse": 0.0, "max_error": 0.0, "rmse_percent": 0.0, "max_error_percent": 0.0}
+    m = measured / scale
+    e = p / scale - m
+    rmse, emax = float(np.sqrt(np.mean(e**2))), float(np.max(np.abs(e)))
+    span = float(np.ptp(m)) or 1.0 / scale  # a constant record: percent of one output unit
+    return {
+        "rmse": rmse * scale,
+        "max_error": emax * scale,
+        "rmse_percent": 100 * rmse / span,
+        "max_error_percent": 100 * emax / span,
+    }
+
+
+#: The magnitudes a fit works with. Its regressors (the MPI polynomial cubes the input) are
+#: squared and summed over the record: |x| <= 1e40 keeps cubes (1e120), their squares (1e240)
+#: and sums of 1e9 of them finite; a range >= 1e-40 keeps their squares normal (a subnormal
+#: square loses its digits, 1e-310 squared is 0). Records outside are rescaled by their unit.
+FIT_MAX_MAGNITUDE = 1e40
+FIT_MIN_RANGE = 1e-40
+
+
+def check_fit_scale(x: FloatArray, name: str) -> None:
+    """Refuse a training record outside the magnitudes a fit works with (:data:`FIT_MAX_MAGNITUDE`,
+    :data:`FIT_MIN_RANGE`), naming the limit, before any numpy or SciPy warning."""
+    big = float(np.max(np.abs(x)))
+    if big > FIT_MAX_MAGNITUDE:
+        raise ParameterError(
+            f"{name} reaches {big:.3g}: a fit works on values within +-{FIT_MAX_MAGNITUDE:.0e} (its squares and "
+            "cubes must stay finite); rescale the record (its values, or its unit: --input-unit / --output-unit)"
+        )
+    span = float(np.ptp(x))
+    if 0.0 < span < FIT_MIN_RANGE:
+        raise ParameterError(
+            f"{name} spans {span:.3g}: a fit needs a range of at least {FIT_MIN_RANGE:.0e} (its squares must not "
+            "underflow); rescale the record (its values, or its unit: --input-unit / --output-unit)"
+        )
 
 
 #: Fewest samples a fit takes per parameter it estimates. For least squares with white noise
@@ -356,6 +391,8 @@ def _fit_output(
     y = as_record(output, "output", min_length=2)
     if y.size != v.size:
         raise ParameterError(f"output has {y.size} samples, input has {v.size}; they must match")
+    check_fit_scale(v, "input")
+    check_fit_scale(y, "output")
     return _fit_linear(model, v, y, loss, delta, t0, bool(offset))
 
 
@@ -865,6 +902,8 @@ def identify_cemf(
     x = as_record(position, "position", min_length=2)
     if x.size != u.size:
         raise ParameterError(f"position has {x.size} samples, voltage has {u.size}; they must match")
+    check_fit_scale(u, "voltage")
+    check_fit_scale(x, "position")
     fs = float(fs)
     if not fs > 0:
         raise ParameterError(f"fs = {fs} must be > 0")

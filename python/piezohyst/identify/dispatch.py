@@ -37,6 +37,7 @@ from .core import (
     _fit_metrics,
     _mpi_template,
     _preisach_template,
+    check_fit_scale,
     check_samples,
     identify_cemf,
     minimize_huber,
@@ -599,6 +600,8 @@ def _free_run(fit: Callable[[_Call, FloatArray, FloatArray], _Fitted]) -> Callab
         y = as_record(c.output, "output", min_length=2)
         if y.size != v.size:
             raise ParameterError(f"output has {y.size} samples, input has {v.size}; they must match")
+        check_fit_scale(v, "input")
+        check_fit_scale(y, "output")
         fitted, method, history, partial, evaluations = fit(c, v, y)
         if c.loss in ("huber", "linf"):
             method += "+" + c.loss

@@ -479,6 +479,10 @@ def identify_vp(
     y = as_record(output, "output", min_length=2)
     if y.size != v.size:
         raise ParameterError(f"output has {y.size} samples, input has {v.size}; they must match")
+    from .core import check_fit_scale
+
+    check_fit_scale(v, "input")
+    check_fit_scale(y, "output")
     if not np.ptp(v) > 0:
         raise ParameterError("input is constant: there is no hysteresis to identify")
     n = as_int(operators, "operators", minimum=1)

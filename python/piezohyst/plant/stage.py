@@ -27,7 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .. import _core
-from .._io import check_parameter_tree, json_text, load_json_file, malformed_as
+from .._io import check_parameter_tree, json_text, load_json_file, malformed_as, printable
 from .._validate import as_int, as_record, as_scalar, as_vector
 from ..errors import ParameterError, ParameterTypeError
 from ..signals.response import Response
@@ -250,6 +250,14 @@ class Stage:
             raise ParameterError(f"tolerance = {tol} must be > 0 (inf: never refine)")
         if not isinstance(self.params, StageParameters):
             raise ParameterTypeError(f"params must be StageParameters, got {type(self.params).__name__}")
+        if not isinstance(self.amplifier, Amplifier):
+            raise ParameterTypeError(f"amplifier must be an Amplifier, got {type(self.amplifier).__name__}")
+        if not isinstance(self.sensor, Sensor):
+            raise ParameterTypeError(f"sensor must be a Sensor, got {type(self.sensor).__name__}")
+        if not isinstance(self.name, str):
+            raise ParameterTypeError(f"name must be a string, got {type(self.name).__name__}")
+        if printable(self.name) != self.name:  # printed by `piezohyst stage info`
+            raise ParameterError(f"name = {printable(repr(self.name))} holds a control character; a name is plain text")
 
     # -- files --------------------------------------------------------------------------
     @classmethod
