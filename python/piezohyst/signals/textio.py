@@ -69,7 +69,10 @@ def _split(line: str, delimiter: str) -> list[str]:
     if delimiter == " ":
         return line.split()
     if '"' in line:
-        return [f.strip() for f in next(csv.reader([line.rstrip("\r\n")], delimiter=delimiter, quotechar='"'))]
+        try:
+            return [f.strip() for f in next(csv.reader([line.rstrip("\r\n")], delimiter=delimiter, quotechar='"'))]
+        except csv.Error:  # a carriage return inside the line: split plainly, the parser names the cell
+            pass
     return [f.strip() for f in line.rstrip().split(delimiter)]
 
 
