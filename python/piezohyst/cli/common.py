@@ -160,10 +160,11 @@ def _count_arg(text: str) -> int:
     return int(text)
 
 
-def _integer(text: str, name: str, what: str) -> int:
-    """An integer inside an option's value (``--lag 3``, ``auto:M``): ASCII digits only."""
-    if not _INT_TEXT.fullmatch(text.strip()):
-        raise _Fail(f"{name} = {text!r}: {what}{_why_not(text)}")
+def _integer(text: str, message: str, *, signed: bool = False) -> int:
+    """An integer inside an option's value (``--lag 3``, ``auto:M``): ASCII digits only (and a
+    sign when ``signed``); else ``_Fail(message)``, with why when it looked like a number."""
+    if not _INT_TEXT.fullmatch(text.strip()) or (not signed and text.strip()[:1] in "+-"):
+        raise _Fail(message + _why_not(text))
     return int(text)
 
 

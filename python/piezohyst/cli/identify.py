@@ -576,22 +576,28 @@ def _preprocess(
         options["lag"] = "auto"
         if lag != "auto":
             options["max_lag"] = _integer(
-                lag[5:], "--lag", "auto:M needs M, the largest lag searched, a number of samples"
+                lag[5:], f"--lag = '{args.lag}': auto:M needs M, the largest lag searched, a number of samples"
             )
     else:
-        options["lag"] = _integer(lag, "--lag", "must be 'auto', 'auto:M' or an integer number of samples")
+        options["lag"] = _integer(
+            lag, f"--lag = '{args.lag}' must be 'auto', 'auto:M' or an integer number of samples", signed=True
+        )
     drift = str(args.drift)
     if drift == "remove" or drift.startswith("remove:"):
         options["drift"] = "remove"
         if drift != "remove":
-            options["drift_order"] = _integer(drift[7:], "--drift", "remove:K needs K, the polynomial degree (1 to 5)")
+            options["drift_order"] = _integer(
+                drift[7:], f"--drift = '{args.drift}': remove:K needs K, the polynomial degree (1 to 5)"
+            )
     elif drift != "none":
         raise _Fail(f"--drift = '{args.drift}' must be 'none', 'remove' or 'remove:K'")
     lead = str(args.lead_in)
     if lead in ("auto", "none"):
         options["lead_in"] = lead
     else:
-        options["lead_in"] = _integer(lead, "--lead-in", "must be 'auto', 'none' or a number of samples")
+        options["lead_in"] = _integer(
+            lead, f"--lead-in = '{args.lead_in}' must be 'auto', 'none' or a number of samples"
+        )
     options["outliers"] = args.outliers
     if args.decimate < 1:
         raise _Fail(f"--decimate = {args.decimate} must be >= 1")
@@ -734,7 +740,9 @@ def _honest_options(
         if args.periodic == "auto":
             kw["periodic"] = "auto"
         else:
-            kw["periodic"] = _integer(args.periodic, "--periodic", "must be a period in samples (>= 1) or 'auto'")
+            kw["periodic"] = _integer(
+                args.periodic, f"--periodic = '{args.periodic}' must be a period in samples (>= 1) or 'auto'"
+            )
             if kw["periodic"] < 1:
                 raise _Fail(f"--periodic = '{args.periodic}' must be a period in samples (>= 1) or 'auto'")
     kw["loss"] = {"l2": "squared"}.get(args.loss, args.loss)

@@ -431,6 +431,7 @@ def league_table(
                     "kind": kind,
                     "creep": creep,
                     "error": err,
+                    "chosen": False,  # not fitted (too few samples for it, ...): never the winner
                 }
             )
     return rows, chosen
