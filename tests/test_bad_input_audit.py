@@ -162,6 +162,39 @@ RECIPES = {
         ["params", "input"],
         [],
     ),
+    "GeneralizedPI": (
+        ph.GeneralizedPI,
+        ([0.0, 0.1], [1.0, 0.5], (0.0, 1.0, 0.0, 0.0)),
+        dict(input_range=(0.0, 1.0)),
+        ["thresholds", "weights", "polynomial"],
+        [],
+    ),
+    "RateDependentPI": (
+        ph.RateDependentPI,
+        ([0.0, 0.1], [1.0, 0.5], 1e-3),
+        dict(p0=1.0, beta=0.1, filter_tau=0.01),
+        ["thresholds", "weights"],
+        ["ts", "p0", "beta", "filter_tau"],
+    ),
+    "Duhem": (ph.Duhem, (1.0, [0.0, 1.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]), {}, ["f", "g"], ["alpha"]),
+    "OutputMap": (ph.models.OutputMap, (), dict(offset=0.0, gain=1.0), [], ["offset", "gain"]),
+    "PlayOperator": (ph.models.PlayOperator, (0.1,), {}, [], ["threshold"]),
+    "ABSMC": (
+        ph.ABSMC,
+        (1.0, (1.0, 1.0)),
+        dict(c1=2e3, lam=2e3, ks=1e3, phi=1e-3, gamma_theta=(1e12, 1e6), gamma_d=1e6, d0=0.0, theta_range=3.0),
+        ["theta", "gamma_theta"],
+        ["b", "c1", "lam", "ks", "phi", "gamma_d", "d0", "theta_range", "d_max"],
+    ),
+    "ILC": (
+        ph.ILC,
+        (ph.PID(kp=1e6), 100),
+        dict(gain=0.5, forgetting=1.0, lead=3),
+        [],
+        ["period", "gain", "forgetting", "lead"],
+    ),
+    "InverseFeedforward": (ph.InverseFeedforward, (ph.papers.mpi_seed2(),), dict(c1=0.0, c2=0.0), [], ["c1", "c2"]),
+    "CemfFeedforward": (ph.CemfFeedforward, (STAGE.params,), dict(u_min=-20.0, u_max=150.0), [], ["u_min", "u_max"]),
     "model.simulate": (ph.papers.mpi_seed2().simulate, (V,), {}, ["input"], []),
     "inverse.simulate": (ph.PI([0.0, 0.1, 0.2], [1.0, 0.5, 0.2]).inverse().simulate, (np.abs(V),), {}, ["desired"], []),
     "stage.simulate": (STAGE.simulate, (np.full(300, 50.0),), {}, ["command"], []),
@@ -247,3 +280,123 @@ def test_zz_report_counts(capsys):
     with capsys.disabled():
         print(f"\nbad-input audit: {len(CALLS)} calls over {len(RECIPES)} entry points; outcomes {dict(OUTCOMES)}")
     assert len(CALLS) >= 400
+
+
+# -------------------------------------------------------------------------- constructors
+
+#: Every public constructor of control/ and models/ (and the plant's), with a valid recipe.
+CONSTRUCTORS = {
+    name: RECIPES[name]
+    for name in (
+        "PI",
+        "GeneralizedPI",
+        "RateDependentPI",
+        "Preisach",
+        "BoucWen",
+        "Dahl",
+        "Duhem",
+        "Creep",
+        "OutputMap",
+        "PlayOperator",
+        "BoucWenBenchmark",
+        "PID",
+        "OpenLoop",
+        "VelocityObserver",
+        "SMC",
+        "ABSMC",
+        "ILC",
+        "InverseFeedforward",
+        "CemfFeedforward",
+        "Amplifier",
+        "Sensor",
+        "StageParameters",
+        "Stage",
+    )
+}
+#: Arguments where infinity means something documented (an ideal amplifier, never refine).
+INFINITE_OK = {("Amplifier", "bandwidth"), ("Amplifier", "slew_rate"), ("Stage", "tolerance")}
+#: Arguments where None means "the default" (the stage's limits, the sensor's delay, ...).
+NONE_OK = {
+    ("ABSMC", "d_max"),
+    ("CemfFeedforward", "u_min"),
+    ("CemfFeedforward", "u_max"),
+    ("OpenLoop", "gain"),  # the stage's 1 / static gain
+    ("VelocityObserver", "delay"),  # the sensor's delay
+}
+
+
+def _constructor_calls():
+    out = []
+    for name, (cls, args, kwargs, _arrays, scalars) in CONSTRUCTORS.items():
+        params = _signature_names(cls)
+        for arg in scalars:
+            for kind, bad in (
+                ("nan", math.nan),
+                ("inf", math.inf),
+                ("-inf", -math.inf),
+                ("string", "abc"),
+                ("None", None),
+                ("list", [1.0, 2.0]),
+                ("bool", True),
+            ):
+                if (kind in ("inf",) and (name, arg) in INFINITE_OK) or (kind == "None" and (name, arg) in NONE_OK):
+                    continue
+                a, kw = list(args), dict(kwargs)
+                i = params.index(arg)
+                if arg in kw or i >= len(a):
+                    kw[arg] = bad
+                else:
+                    a[i] = bad
+                out.append((name, arg, kind, (lambda cls=cls, a=tuple(a), kw=kw: cls(*a, **kw))))
+    return out
+
+
+CONSTRUCTOR_CALLS = _constructor_calls()
+
+
+@pytest.mark.parametrize(
+    "name,arg,kind,build", CONSTRUCTOR_CALLS, ids=[f"{n}-{a}-{k}" for n, a, k, _ in CONSTRUCTOR_CALLS]
+)
+def test_constructors_refuse_what_is_not_a_number_when_built(name, arg, kind, build):
+    """Issue 20: ``PID(kp=nan)`` built without a word and failed (or drove a rail) later. A
+    constructor refuses NaN, an infinity, a string, None, a list or a bool for a number, at
+    once, naming the argument."""
+    with pytest.raises(ph.PiezohystError) as info:
+        build()
+    assert arg.split("_")[-1] in str(info.value), f"{name}({arg}={kind}): {info.value}"
+
+
+@pytest.mark.parametrize(
+    ("build", "message"),
+    [
+        (lambda: ph.PID(kp=math.nan), r"kp = nan is not finite"),
+        (lambda: ph.PID(kp=-1.0), r"kp = -1\.0 must be >= 0"),
+        (lambda: ph.PID(ki=-1.0), r"ki = -1\.0 must be >= 0"),
+        (lambda: ph.PID(tau_d=0.0), r"tau_d = 0\.0 must be > 0"),
+        (lambda: ph.PID(u_min=10.0, u_max=5.0), r"u_min = 10\.0 must be < u_max = 5\.0"),
+        (lambda: ph.ILC(ph.PID(kp=1.0), period=0), r"period = 0 must be >= 2"),
+        (lambda: ph.ILC(ph.PID(kp=1.0), period=10, lead=10), r"lead = 10 must be below the period 10"),
+        (lambda: ph.ILC(ph.PID(kp=1.0), period=10, forgetting=1.5), r"forgetting = 1\.5 must lie in \(0, 1\]"),
+        (lambda: ph.ILC("pid", period=10), r"inner must be a controller"),
+        (lambda: ph.ILC(ph.ILC(ph.PID(), period=10), period=10), r"inner must not itself be an ILC"),
+        (lambda: ph.VelocityObserver(bandwidth=-1.0), r"observer_bandwidth = -1\.0 must be > 0"),
+        (lambda: ph.SMC(STAGE.params, kv=-10.0, alpha=5.0), r"kv \+ alpha = -5\.0 must be > 0"),
+        (lambda: ph.SMC(STAGE.params, switching="bang"), r"switching = 'bang' must be"),
+        (lambda: ph.SMC(STAGE.params, cemf="yes"), r"cemf must be True or False"),
+        (lambda: ph.SMC(STAGE.params, observer=1000.0), r"observer must be a VelocityObserver"),
+        (lambda: ph.SMC(ph.papers.mpi_seed2()), r"model must be StageParameters"),
+        (lambda: ph.ABSMC(b=1.0, theta=(1.0, 1.0), theta_bounds=[[2.0, 0.0], [1.0, 1.0]]), r"theta_bounds\[0\]\[0\]"),
+        (lambda: ph.ABSMC(b=1.0, theta=(1.0, 1.0), regressor="x"), r"regressor = 'x' must be"),
+        (lambda: ph.InverseFeedforward(STAGE.params), r"model must be a hysteresis model"),
+        (lambda: ph.Compensated(ph.PID(), "mpi"), r"model must be a hysteresis model"),
+        (lambda: ph.Compensated(None, ph.papers.mpi_seed2()), r"inner must be a controller"),
+        (lambda: ph.Stage(STAGE.params, amplifier=150.0), r"amplifier must be an Amplifier"),
+        (lambda: ph.Stage(STAGE.params, sensor=None), r"sensor must be a Sensor"),
+        (lambda: ph.Stage(STAGE.params, name="stage\x1b[2J"), r"name = .* holds a control character"),
+        (lambda: ph.PI([0.1], [1.0], units={"output": "m\x1b[31m"}), r"units\['output'\] = .* control character"),
+        (lambda: ph.batch_simulate(ph.papers.mpi_seed2(), np.tile(ph.papers.mpi_seed2()._row, (2, 1)) + 1j, V), "real"),
+    ],
+)
+def test_documented_domains_are_checked_when_built(build, message):
+    with pytest.raises(ph.PiezohystError, match=message):
+        build()

@@ -124,3 +124,98 @@ def test_identify_cemf_stage_from_simulated_measurements():
         ph.identify_cemf([0.0, 1.0], [0.0, 1.0, 2.0], fs)
     with pytest.raises(ValueError, match="fs = -1.0 must be > 0"):
         ph.identify_cemf([0.0, 1.0], [0.0, 1.0], -1.0)
+
+
+@pytest.mark.parametrize(
+    ("kind", "kwargs", "parameters"),
+    [
+        ("pi", {}, 11),  # 9 weights, p0, offset
+        ("mpi", {}, 13),  # 9 weights, cubic polynomial
+        ("rdpi", {"fs": 100.0}, 20),
+        ("preisach", {"levels": 12}, 14),  # levels + offset and slope
+        ("boucwen", {"rng": 0, "max_iterations": 2}, 5),  # a, beta, gamma, d, offset (n fixed)
+    ],
+)
+def test_a_fit_needs_ten_samples_per_parameter(kind, kwargs, parameters):
+    """Issue 20: a 9-operator PI from 2 samples was "identified" without a word. At 10 samples
+    per parameter the training RMSE understates the held-out one by at most about 10 %."""
+    v = drive(2000)
+    y = ph.PI([0.1, 0.3, 0.6], [0.5, 0.2, 0.1], p0=0.8).simulate(v)
+    need = 10 * parameters
+    for n in (2, need - 1):
+        with pytest.raises(ph.ParameterError, match=rf"has {n} samples, too few to fit the {parameters} parameters"):
+            ph.identify(v[:n], y[:n], kind, **kwargs)
+    fit = ph.identify(v[:need], y[:need], kind, **kwargs)  # exactly enough
+    assert np.all(np.isfinite(fit.model.simulate(v)))
+
+
+def test_the_sample_check_covers_every_public_fit():
+    v = drive(2000)
+    y = ph.PI([0.1, 0.3, 0.6], [0.5, 0.2, 0.1], p0=0.8).simulate(v)
+    few = "too few to fit"
+    with pytest.raises(ph.ParameterError, match=few):
+        ph.identify_pi(v[:20], y[:20])
+    with pytest.raises(ph.ParameterError, match=few):
+        ph.identify_mpi(v[:20], y[:20])
+    with pytest.raises(ph.ParameterError, match=few):
+        ph.identify_preisach(v[:20], y[:20], levels=4)
+    with pytest.raises(ph.ParameterError, match=few):
+        ph.fit_linear(ph.PI([0.1, 0.3], [0, 0]), v[:30], y[:30])  # 4 parameters: 40 samples
+    ph.fit_linear(ph.PI([0.1, 0.3], [0, 0]), v[:40], y[:40])
+    with pytest.raises(ph.ParameterError, match=few):  # weighted and minimax fits too
+        ph.identify(v[:50], y[:50], "pi", weights=np.ones(50))
+    with pytest.raises(ph.ParameterError, match=few):
+        ph.identify(v[:50], y[:50], "pi", loss="linf")
+    with pytest.raises(ph.ParameterError, match=few):
+        ph.identify(v[:50], y[:50], "mpi", structure="fit", rng=0, max_iterations=2)
+
+
+@pytest.mark.parametrize("scale", [1e301, 1e-310])
+@pytest.mark.parametrize("kind", ["pi", "mpi", "preisach", "boucwen", "rdpi"])
+def test_records_beyond_the_fit_range_are_refused_before_any_warning(scale, kind, recwarn):
+    """Issue 20: values near 1e301 printed five numpy/SciPy warnings, then "weights[0] = nan";
+    subnormal values fitted to "RMSE 0 %". Both are refused first, naming the limit."""
+    v = drive(600)
+    y = ph.PI([0.1, 0.3, 0.6], [0.5, 0.2, 0.1], p0=0.8).simulate(v)
+    limit = r"within \+-1e\+40" if scale > 1 else r"a range of at least 1e-40"
+    with pytest.raises(ph.ParameterError, match=rf"input (reaches|spans) .*: a fit .*{limit}.*rescale the record"):
+        ph.identify(v * scale, y, kind, fs=100.0, rng=0, max_iterations=2)
+    with pytest.raises(ph.ParameterError, match=rf"output (reaches|spans) .*{limit}"):
+        ph.identify(v, y * scale, kind, fs=100.0, rng=0, max_iterations=2)
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+
+
+def test_every_public_fit_checks_the_range():
+    v = drive(600)
+    y = ph.PI([0.1, 0.3, 0.6], [0.5, 0.2, 0.1], p0=0.8).simulate(v)
+    for fit in (ph.identify_pi, ph.identify_mpi, ph.identify_preisach):
+        with pytest.raises(ph.ParameterError, match=r"output reaches \d\.\d+e\+301"):
+            fit(v, y * 1e301)
+    with pytest.raises(ph.ParameterError, match=r"input reaches"):
+        ph.fit_linear(ph.PI([0.1, 0.3], [0, 0]), v * 1e100, y)
+    with pytest.raises(ph.ParameterError, match=r"input reaches"):
+        ph.identify_vp(v * 1e100, y, "pi", rng=0, max_iterations=2)
+    # inside the range, a record rescaled by a power of two gives the same fit scaled (exactly)
+    a = ph.identify_pi(v, y).model
+    b = ph.identify_pi(v, y * 2.0**100).model
+    np.testing.assert_allclose(b.simulate(v), a.simulate(v) * 2.0**100, rtol=1e-9)
+
+
+def test_metrics_are_computed_on_normalized_data():
+    """RMSE and max error agree at any scale: no overflow to inf near 1e300, no underflow to 0
+    (beside a non-zero max error) for subnormal records."""
+    rng = np.random.default_rng(0)
+    measured = rng.standard_normal(1000)
+    predicted = measured + 0.1 * rng.standard_normal(1000)
+    ref = ph.fit_metrics(predicted, measured)
+    for scale in (1e300, 2.0**-1030, 1e-310):
+        m = ph.fit_metrics(predicted * scale, measured * scale)
+        # percentages are scale-free; subnormal inputs carry fewer digits (1e-310: about 11)
+        tol = 1e-12 if scale > 1e-300 else 1e-6
+        assert m["rmse_percent"] == pytest.approx(ref["rmse_percent"], rel=tol)
+        assert m["max_error_percent"] == pytest.approx(ref["max_error_percent"], rel=tol)
+        assert m["rmse"] > 0 and m["rmse"] <= m["max_error"]
+        assert m["rmse"] == pytest.approx(ref["rmse"] * scale, rel=tol)
+    assert ph.metrics.rms([3e300, -4e300]) == pytest.approx(np.sqrt(12.5) * 1e300)
+    assert ph.metrics.rms([3e-310, 4e-310]) > 0
+    assert ph.metrics.rmse([0.0, 0.0], [1e-310, -1e-310]) == pytest.approx(1e-310, rel=1e-3)

@@ -265,7 +265,7 @@ def test_vp_bad_input():
         ph.identify(v, y, "mpi", fit_range=(0, 10), **fit)
     with pytest.raises(ValueError, match="input is constant"):
         ph.identify(np.ones(50), y[:50], "mpi", **fit)
-    with pytest.raises(ValueError, match="the record has 12 samples, fewer than the 14 parameters"):
+    with pytest.raises(ValueError, match=r"the training record has 12 samples, too few to fit the 14 parameters"):
         ph.identify(v[:12], y[:12], "mpi", **fit)
     with pytest.raises(ValueError, match="output has 599 samples, input has 600"):
         ph.identify(v, y[1:], "mpi", **fit)

@@ -545,6 +545,29 @@ def test_missing_file_and_bad_path(tmp_path):
         load_record(3, input=0, output=1, fs=1.0)
 
 
+def test_duplicate_column_names_are_never_guessed(tmp_path):
+    """A header ``input,input``: asked by name, or left to the defaults, the ambiguity is an
+    error naming the columns (issue 20); by index it loads."""
+    t, u, y = signals()
+    p = write_csv(tmp_path / "dup.csv", ["t", "input", "input"], [t, u, y])
+    with pytest.raises(ph.DataError, match=r"input = 'input' names columns \[1, 2\]"):
+        load_record(p, input="input", output=2, time="t")
+    with pytest.raises(
+        ph.DataError, match=r"input not given and the header names 2 columns 'input' \(columns 1, 2\): ambiguous"
+    ):
+        load_record(p, time="t")
+    rec = load_record(p, input=1, output=2, time="t")
+    np.testing.assert_array_equal(rec.output, y)
+    # two columns of one name (not a role) are not assigned by position either
+    p = write_csv(tmp_path / "dup2.csv", ["t", "v", "v"], [t, u, y])
+    with pytest.raises(ph.DataError, match=r"2 columns are named 'v' \(columns 1, 2\): ambiguous"):
+        load_record(p, time="t")
+    # nor is a column named 'output' taken as the input
+    p = write_csv(tmp_path / "swap.csv", ["t", "output", "y"], [t, u, y])
+    with pytest.raises(ph.DataError, match=r"column 'output' would be taken as input \(columns 1\): ambiguous"):
+        load_record(p, time="t", output="y")
+
+
 def test_transposed_matrix_hint(tmp_path):
     f = tmp_path / "a.npz"
     np.savez(f, m=np.ones((3, 100)))

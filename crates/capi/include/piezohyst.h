@@ -59,8 +59,9 @@ enum PhsStatus
   PHS_ERR_NULL_POINTER = 1,
   // A length does not match: parameter count, dims count, scratch or state length.
   PHS_ERR_BAD_LENGTH = 2,
-  // A parameter or input is NaN or infinite, or a result is not finite (the model
-  // diverged for these parameters; the state must then be reset).
+  // A parameter, input or state slot is NaN or infinite (state untouched), or a step's
+  // result — its output or the state it leaves — is not finite (the model or controller
+  // diverged for these parameters and this state; the state must then be reset).
   PHS_ERR_NOT_FINITE = 3,
   // A parameter is out of its range (sign, bounds, structure option, unstable gains).
   PHS_ERR_INVALID_PARAMETER = 4,

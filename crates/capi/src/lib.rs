@@ -66,8 +66,9 @@ pub enum PhsStatus {
     PHS_ERR_NULL_POINTER = 1,
     /// A length does not match: parameter count, dims count, scratch or state length.
     PHS_ERR_BAD_LENGTH = 2,
-    /// A parameter or input is NaN or infinite, or a result is not finite (the model
-    /// diverged for these parameters; the state must then be reset).
+    /// A parameter, input or state slot is NaN or infinite (state untouched), or a step's
+    /// result — its output or the state it leaves — is not finite (the model or controller
+    /// diverged for these parameters and this state; the state must then be reset).
     PHS_ERR_NOT_FINITE = 3,
     /// A parameter is out of its range (sign, bounds, structure option, unstable gains).
     PHS_ERR_INVALID_PARAMETER = 4,
@@ -349,6 +350,11 @@ impl From<ModelError> for Why {
     fn from(e: ModelError) -> Self {
         Why::Model(e)
     }
+}
+
+/// The divergence of a step that left its state invalid: the first non-finite slot's value.
+fn diverged(st: &[f64]) -> Why {
+    Why::Diverged(st.iter().copied().find(|x| !x.is_finite()).unwrap_or(f64::NAN))
 }
 
 fn model_error_code(e: &ModelError) -> PhsStatus {
@@ -919,6 +925,7 @@ pub unsafe extern "C" fn phs_model_step(
         if !y.is_finite() {
             return Err(Why::Diverged(y));
         }
+        m.check_state(st).map_err(|_| diverged(st))?; // a finite output from a state that overflowed
         *y_out = y;
         Ok(())
     })
@@ -954,6 +961,7 @@ pub unsafe extern "C" fn phs_model_inverse_step(
         }
         m.check_state(st)?;
         let v = inverse_step(m, st, y_desired, guess, 0).map_err(|_| Why::Unreachable(y_desired))?;
+        m.check_state(st).map_err(|_| diverged(st))?;
         *v_out = v;
         Ok(())
     })
@@ -1179,6 +1187,9 @@ pub unsafe extern "C" fn phs_controller_step(
         if !u.is_finite() {
             return Err(Why::Diverged(u));
         }
+        // a saturated command from a state that overflowed (an integrator past 1.8e308): the
+        // next step would refuse the state; say so now, as a divergence
+        on_built!(c, c => c.check_state(st)).map_err(|_| diverged(st))?;
         *u_out = u;
         Ok(())
     })

@@ -17,6 +17,10 @@ use piezohyst::*;
 use proptest::prelude::*;
 use std::ptr;
 
+fn last_message() -> String {
+    unsafe { std::ffi::CStr::from_ptr(phs_last_error_message()) }.to_string_lossy().into_owned()
+}
+
 fn documented(code: PhsStatus) -> bool {
     (code as i32) >= 0 && (code as i32) < PHS_STATUS_COUNT && code != PHS_ERR_INTERNAL
 }
@@ -332,19 +336,25 @@ proptest! {
             let code = unsafe { phs_controller_step(&c, state.as_mut_ptr(), n, x, v, a, y, &mut u) };
             prop_assert!(documented(code), "step: {code:?}");
             let inputs_finite = [x, v, a, y].iter().all(|z| z.is_finite());
+            // a step that ran and diverged (garbage gains drove the state or the command past
+            // 1.8e308): PHS_ERR_NOT_FINITE "reset the state", the state may have changed
+            let diverged = code == PHS_ERR_NOT_FINITE && last_message().contains("reset the state");
             match code {
                 PHS_OK => prop_assert!(u.is_finite() && u >= u_lo && u <= u_hi, "u = {} outside [{}, {}]", u, u_lo, u_hi),
-                // a non-finite input, or a state that an earlier step drove to infinity
-                // (garbage gains): refused, never pinned to a rail
+                // a non-finite input, or a state that an earlier step drove to infinity:
+                // refused, never pinned to a rail
                 PHS_ERR_NOT_FINITE => prop_assert!(
-                    !inputs_finite || before.iter().any(|z| !z.is_finite()),
+                    !inputs_finite || before.iter().any(|z| !z.is_finite()) || diverged,
                     "finite inputs and state rejected"
                 ),
                 PHS_ERR_UNREACHABLE => prop_assert!(inputs_finite && !declared(x), "x_ref = {} refused", x),
                 other => prop_assert!(false, "step returned {other:?}"),
             }
-            if code != PHS_OK {
+            if code != PHS_OK && !diverged {
                 prop_assert!(state.iter().zip(&before).all(|(a, b)| a.to_bits() == b.to_bits()), "state touched");
+            }
+            if diverged {
+                break; // the state must be reset
             }
         }
     }

@@ -4,11 +4,10 @@ readers of data and model files."""
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import re
 from pathlib import Path
-from typing import TYPE_CHECKING, NoReturn, TypedDict, Unpack
+from typing import TYPE_CHECKING, Any, NoReturn, TypedDict, Unpack
 
 import numpy as np
 import numpy.typing as npt
@@ -96,7 +95,7 @@ def _add_record_options(p: argparse.ArgumentParser, output: bool = True) -> None
     p.add_argument(
         "--time-tolerance",
         metavar="REL",
-        type=float,
+        type=_number_arg,
         default=TIME_TOLERANCE,
         help="--time: how far rounded or jittered stamps may stray, relative to a step (default "
         f"{TIME_TOLERANCE:g}); the rate is a least-squares fit; a step of 1.5 steps or more is a gap (an error)",
@@ -140,12 +139,49 @@ def _atomic_savefig(fig: Figure, path: str | Path, name: str = "--plot", force: 
     write_atomic(path, writer=lambda tmp: fig.savefig(tmp, dpi=110, format=fmt), overwrite=force, name=name)
 
 
+#: A number on the command line: ASCII digits, one optional decimal point and exponent, or
+#: inf / nan (each option then says what range it takes). Python's float() and int() also take
+#: "1_000" (digit separators) and other scripts' digits ("١٢"): not numbers here.
+_FLOAT_TEXT = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|[+-]?(?:inf|infinity|nan)", re.I)
+_INT_TEXT = re.compile(r"[+-]?[0-9]+")
+
+
+def _number_arg(text: str) -> float:
+    """argparse ``type=`` of a real-valued option: a plain decimal number (see :data:`_FLOAT_TEXT`)."""
+    if not _FLOAT_TEXT.fullmatch(text.strip()):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number{_why_not(text)}")
+    return float(text)
+
+
+def _count_arg(text: str) -> int:
+    """argparse ``type=`` of an integer option: ASCII digits with an optional sign."""
+    if not _INT_TEXT.fullmatch(text.strip()):
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer{_why_not(text)}")
+    return int(text)
+
+
+def _integer(text: str, message: str, *, signed: bool = False) -> int:
+    """An integer inside an option's value (``--lag 3``, ``auto:M``): ASCII digits only (and a
+    sign when ``signed``); else ``_Fail(message)``, with why when it looked like a number."""
+    if not _INT_TEXT.fullmatch(text.strip()) or (not signed and text.strip()[:1] in "+-"):
+        raise _Fail(message + _why_not(text))
+    return int(text)
+
+
+def _why_not(text: str) -> str:
+    if "_" in text:
+        return " (digit separators '_' are not accepted: write 1000, not 1_000)"
+    if not text.isascii():
+        return " (digits 0-9 only)"
+    return ""
+
+
 def _column(spec: str | None) -> str | int | None:
-    """A column spec from the command line: an integer string is a 0-based index."""
+    """A column spec from the command line: an integer string (ASCII digits) is a 0-based index."""
     if spec is None:
         return None
     s = spec.strip()
-    if re.fullmatch(r"[+-]?\d+", s):
+    if _INT_TEXT.fullmatch(s):
         return int(s)
     return spec
 
@@ -191,7 +227,7 @@ def _parse_range(text: str, name: str) -> _Range:
     for part in m.groups():
         if part == "":
             out.append(None)
-        elif re.fullmatch(r"\+?\d+", part):
+        elif re.fullmatch(r"\+?[0-9]+", part):
             out.append(int(part))
         else:
             raise _Fail(f"{name} = '{text}': {part!r} is not a sample index (a non-negative integer)")
@@ -218,7 +254,7 @@ def _parse_validate(text: str | None) -> tuple[_Range | None, Path | None]:
     """``--validate``: a sample range of DATA, or a file. Returns ``(range, None)`` or ``(None, path)``."""
     if text is None:
         return None, None
-    if re.fullmatch(r"\s*\+?\d*\s*:\s*\+?\d*\s*", text):
+    if re.fullmatch(r"\s*\+?[0-9]*\s*:\s*\+?[0-9]*\s*", text):
         return _parse_range(text, "--validate"), None
     if Path(text).exists():
         return None, _existing_file(text, "--validate")
@@ -253,15 +289,13 @@ def _pct(x: float) -> str:
     return f"{x:.4g} %"
 
 
-def _read_model(path: Path) -> AnyModel:
+def _read_model(path: Path, d: Any = None) -> AnyModel:
+    """The model in the file ``path`` (``d``: its content, when already read)."""
+    from .._io import read_json_file
     from ..models.model import model_from_dict
 
-    try:
-        d = json.loads(path.read_text())
-    except UnicodeDecodeError:
-        raise _Fail(f"MODEL = '{path}' is not a text (JSON) file") from None
-    except json.JSONDecodeError as e:
-        raise _Fail(f"MODEL = '{path}' is not valid JSON: {e}") from None
+    if d is None:
+        d = read_json_file(path, "MODEL =")  # DataError: not JSON, too big, too deep, NaN, control characters
     if isinstance(d, dict):
         d = {k: v for k, v in d.items() if k != "fit"}  # the fit report is not part of the model
     try:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from .common import _Parser
+from .common import _count_arg, _Parser
 
 
 def _demo_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
@@ -17,7 +17,7 @@ def _demo_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     d.add_argument("--out", default="piezohyst-report", help="output directory (default: ./piezohyst-report)")
     d.add_argument("--force", action="store_true", help="overwrite an existing report")
     d.add_argument("--quick", action="store_true", help="smaller optimizer budgets (about 30 s)")
-    d.add_argument("--seed", type=int, default=0, help="seed of the measurements and optimizers (default 0)")
+    d.add_argument("--seed", type=_count_arg, default=0, help="seed of the measurements and optimizers (default 0)")
     d.add_argument("--json", action="store_true", help="print the numbers as JSON")
 
 

@@ -10,8 +10,10 @@ from pathlib import Path
 from ..outputs import check_output_dir
 from .common import (
     _check_count,
+    _count_arg,
     _existing_file,
     _Fail,
+    _number_arg,
     _Parser,
     _read_model,
 )
@@ -60,11 +62,13 @@ def _export_c_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         "--input-range",
         metavar=("LO", "HI"),
         nargs=2,
-        type=float,
+        type=_number_arg,
         help="input range the example drives the model over (default: the model's own range, e.g. an "
         "MPI input_range, else [0, 2 max threshold] for PI models, else [-1, 1])",
     )
-    e.add_argument("--steps", metavar="N", type=int, help="samples the example runs (default: 3 reference periods)")
+    e.add_argument(
+        "--steps", metavar="N", type=_count_arg, help="samples the example runs (default: 3 reference periods)"
+    )
     e.add_argument("--json", action="store_true", help="print the written files and the build command as JSON")
     e.add_argument("--debug", dest="sub_debug", action="store_true", help="show a traceback on errors")
 

@@ -5,10 +5,11 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import signal
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypedDict
+from typing import TYPE_CHECKING, Any, NotRequired, TypedDict
 
 from ..errors import ParameterError
 from ..identify.dispatch import KINDS
@@ -21,9 +22,12 @@ from .common import (
     _check_fs,
     _column,
     _column_help,
+    _count_arg,
     _existing_file,
     _Fail,
+    _integer,
     _load,
+    _number_arg,
     _parse_range,
     _parse_validate,
     _Parser,
@@ -46,10 +50,13 @@ _KINDS = KINDS
 
 
 class _Where(TypedDict):
-    """Where the validation data come from: a file and a sample range of it."""
+    """Where the validation data come from: a file and a sample range of it (and, for a file
+    that repeats the training data, ``independent: false`` with the ``warning``)."""
 
     source: str
     range: list[int]
+    independent: NotRequired[bool]
+    warning: NotRequired[str]
 
 
 _OPTIMIZERS = ("css", "pso", "mpso", "de", "ls")
@@ -137,7 +144,7 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         help=_column_help("output (measured)", "default: the column named 'output', else the second of exactly two"),
     )
     g = i.add_mutually_exclusive_group()
-    g.add_argument("--fs", metavar="HZ", type=float, help="sample rate in Hz (> 0); this or --time is required")
+    g.add_argument("--fs", metavar="HZ", type=_number_arg, help="sample rate in Hz (> 0); this or --time is required")
     g.add_argument(
         "--time",
         metavar="COL",
@@ -175,20 +182,20 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     i.add_argument(
         "--seed",
         metavar="N",
-        type=int,
+        type=_count_arg,
         help="random seed of the optimizer (same seed, same result; default: fresh randomness)",
     )
     i.add_argument(
         "--operators",
         metavar="N",
-        type=int,
+        type=_count_arg,
         default=9,
         help="pi/gpi/mpi/rdpi: number of play operators, thresholds spread over half the input range (default: 9)",
     )
     i.add_argument(
         "--levels",
         metavar="N",
-        type=int,
+        type=_count_arg,
         default=12,
         help="preisach: grid levels over the input range, N(N+1)/2 cells (default: 12)",
     )
@@ -200,7 +207,9 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         "'fit' also identifies the structure (threshold spread, envelopes, rate terms, creep "
         "time constants) by variable projection: --optimizer over them, least squares inside",
     )
-    i.add_argument("--creep", metavar="M", type=int, default=0, help="pi/gpi/mpi/rdpi: add M creep lags (default 0)")
+    i.add_argument(
+        "--creep", metavar="M", type=_count_arg, default=0, help="pi/gpi/mpi/rdpi: add M creep lags (default 0)"
+    )
     # preprocessing (issue 14, item 2): piezohyst.signals.preprocess on DATA (and a --validate file)
     i.add_argument(
         "--lag",
@@ -234,7 +243,7 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     i.add_argument(
         "--decimate",
         metavar="N",
-        type=int,
+        type=_count_arg,
         default=1,
         help="keep every N-th sample after a zero-phase FIR anti-alias filter, on both channels (default: 1). "
         "With any preprocessing, --train/--validate count rows of DATA; they are mapped to the processed "
@@ -257,7 +266,7 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     i.add_argument(
         "--warmup",
         metavar="N",
-        type=int,
+        type=_count_arg,
         default=0,
         help="samples at the start of each scored range (train, validation) left out of the score (default 0)",
     )
@@ -284,20 +293,20 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     i.add_argument(
         "--iterations",
         metavar="N",
-        type=int,
+        type=_count_arg,
         help="optimizer iterations (populations evaluated) (default: 200 for boucwen, 150 for cemf, "
         "30 for boucwen-benchmark)",
     )
     i.add_argument(
         "--population",
         metavar="N",
-        type=int,
+        type=_count_arg,
         help="optimizer population size (default: max(20, 5 x number of parameters))",
     )
     i.add_argument(
         "--capacitance",
         metavar="F",
-        type=float,
+        type=_number_arg,
         help="cemf: the stack's capacitance in farads, taken as known (default: 1.8e-6, seed 1's 1800 nF)",
     )
     i.add_argument(
@@ -387,6 +396,10 @@ def _identify(args: argparse.Namespace) -> int:
                     f"the records must share the sample rate"
                 )
             val_where = {"source": str(val_file), "range": [0, val.n]}
+            dependence = _not_independent(data, val_file, rec, val, (a, b))
+            if dependence is not None:  # scored on what it was fitted to: say so, keep going
+                val_where["independent"], val_where["warning"] = False, dependence
+                print(f"piezohyst identify: warning: --validate = '{val_file}' {dependence}", file=sys.stderr)
     train = rec.trim(a, b) if (a, b) != (0, n) else rec
     fit_input, fit_output = train.input, train.output
     validate: tuple[FloatArray, FloatArray] | tuple[FloatArray, FloatArray, tuple[int, int]] | None
@@ -576,31 +589,29 @@ def _preprocess(
     if lag == "auto" or lag.startswith("auto:"):
         options["lag"] = "auto"
         if lag != "auto":
-            m = lag[5:]
-            if not m.isdigit():
-                raise _Fail(f"--lag = '{args.lag}': auto:M needs M, the largest lag searched, a number of samples")
-            options["max_lag"] = int(m)
+            options["max_lag"] = _integer(
+                lag[5:], f"--lag = '{args.lag}': auto:M needs M, the largest lag searched, a number of samples"
+            )
     else:
-        try:
-            options["lag"] = int(lag)
-        except ValueError:
-            raise _Fail(f"--lag = '{args.lag}' must be 'auto', 'auto:M' or an integer number of samples") from None
+        options["lag"] = _integer(
+            lag, f"--lag = '{args.lag}' must be 'auto', 'auto:M' or an integer number of samples", signed=True
+        )
     drift = str(args.drift)
     if drift == "remove" or drift.startswith("remove:"):
         options["drift"] = "remove"
         if drift != "remove":
-            if not drift[7:].isdigit():
-                raise _Fail(f"--drift = '{args.drift}': remove:K needs K, the polynomial degree (1 to 5)")
-            options["drift_order"] = int(drift[7:])
+            options["drift_order"] = _integer(
+                drift[7:], f"--drift = '{args.drift}': remove:K needs K, the polynomial degree (1 to 5)"
+            )
     elif drift != "none":
         raise _Fail(f"--drift = '{args.drift}' must be 'none', 'remove' or 'remove:K'")
     lead = str(args.lead_in)
     if lead in ("auto", "none"):
         options["lead_in"] = lead
-    elif lead.isdigit():
-        options["lead_in"] = int(lead)
     else:
-        raise _Fail(f"--lead-in = '{args.lead_in}' must be 'auto', 'none' or a number of samples")
+        options["lead_in"] = _integer(
+            lead, f"--lead-in = '{args.lead_in}' must be 'auto', 'none' or a number of samples"
+        )
     options["outliers"] = args.outliers
     if args.decimate < 1:
         raise _Fail(f"--decimate = {args.decimate} must be >= 1")
@@ -624,6 +635,45 @@ def _preprocess(
 
         train, validate = mapped(train), mapped(validate)
     return out, report, train, validate
+
+
+def _not_independent(data: Path, val_file: Path, rec: Record, val: Record, train: tuple[int, int]) -> str | None:
+    """Why a --validate FILE is not independent of the training span of DATA (``None`` when it
+    is): the same file (or a link to it), a byte-identical copy, or the same samples in another
+    file (the whole record, or exactly the training span)."""
+    import numpy as np
+
+    a, b = train
+    why = None
+    try:
+        if os.path.samefile(data, val_file):
+            why = "is DATA itself (the same file)"
+        elif data.stat().st_size == val_file.stat().st_size and _digest(data) == _digest(val_file):
+            why = "is a byte-identical copy of DATA"
+    except OSError:
+        pass
+    if why is None:
+        spans = {"DATA": (rec.input, rec.output), "the training span": (rec.input[a:b], rec.output[a:b])}
+        for label, (u, y) in spans.items():
+            if u.size == val.n and np.array_equal(u, val.input) and np.array_equal(y, val.output):
+                why = f"holds the same samples as {label}"
+                break
+    if why is None:
+        return None
+    return (
+        f"{why}: the training span {a}:{b} is scored again, so the validation is not independent of the "
+        "training (hold out a span instead: --train A:B --validate B:C)"
+    )
+
+
+def _digest(path: Path) -> bytes:
+    import hashlib
+
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.digest()
 
 
 def _preprocess_file(args: argparse.Namespace, val: Record, report: dict[str, Any]) -> Record:
@@ -704,10 +754,9 @@ def _honest_options(
         if args.periodic == "auto":
             kw["periodic"] = "auto"
         else:
-            try:
-                kw["periodic"] = int(args.periodic)
-            except ValueError:
-                raise _Fail(f"--periodic = '{args.periodic}' must be a period in samples (>= 1) or 'auto'") from None
+            kw["periodic"] = _integer(
+                args.periodic, f"--periodic = '{args.periodic}' must be a period in samples (>= 1) or 'auto'"
+            )
             if kw["periodic"] < 1:
                 raise _Fail(f"--periodic = '{args.periodic}' must be a period in samples (>= 1) or 'auto'")
     kw["loss"] = {"l2": "squared"}.get(args.loss, args.loss)

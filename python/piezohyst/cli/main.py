@@ -18,6 +18,7 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import NoReturn
 
+from .._io import printable
 from ..errors import PiezohystError
 from .bench import _bench, _bench_parser
 from .common import _Parser
@@ -86,7 +87,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         if isinstance(e, OSError) and received() is not None:
             return exit_code()  # a hang-up closed the terminal: the stop, not the write, is the news
-        msg = " ".join(str(e).split())  # one line, whatever the message
+        msg = printable(" ".join(str(e).split()))  # one line, no terminal escapes, whatever the message
         _say(f"{prog}: error: {msg}")
         return 2
 

@@ -18,10 +18,12 @@ from .common import (
     _check_fs,
     _column,
     _column_help,
+    _count_arg,
     _existing_file,
     _Fail,
     _load,
     _named,
+    _number_arg,
     _parse_range,
     _Parser,
     _pct,
@@ -83,7 +85,7 @@ def _simulate_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     g.add_argument(
         "--fs",
         metavar="HZ",
-        type=float,
+        type=_number_arg,
         help="sample rate in Hz (> 0), for the time column of the CSV; must agree with the sample "
         "time of a model that has one (rdpi, creep). Default: the model's, else no time column",
     )
@@ -107,7 +109,7 @@ def _simulate_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     s.add_argument(
         "--lag",
         metavar="N",
-        type=int,
+        type=_count_arg,
         default=0,
         help="the --output column lags the input by N samples (a sensor delay): compare "
         "output[k + N] with the simulation at k (default 0)",
@@ -115,7 +117,7 @@ def _simulate_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     s.add_argument(
         "--score-from",
         metavar="K",
-        type=int,
+        type=_count_arg,
         default=0,
         help="leave the first K simulated samples out of the comparison with --output (the "
         "model's warm-up from the relaxed state; default 0)",
@@ -148,20 +150,16 @@ def _read_simulated(path: Path) -> AnyModel | Stage:
     """What MODEL holds: a model file (every ``identify --model`` kind; a ``boucwen-benchmark``
     file simulates at its own ``fs``) or a stage file (``identify --model cemf``, run open
     loop: the input is the voltage command, the output the position)."""
-    import json
-
+    from .._io import read_json_file
     from ..plant.stage import Stage
 
-    try:
-        d = json.loads(path.read_text())
-    except (UnicodeDecodeError, json.JSONDecodeError):
-        d = None  # _read_model names what is wrong with the file
+    d = read_json_file(path, "MODEL =")  # DataError: not JSON, too big, too deep, NaN, control characters
     if isinstance(d, dict) and d.get("kind") == "stage":
         try:
             return Stage.from_dict(d)
         except (ValueError, TypeError) as e:
             raise _Fail(f"MODEL = '{path}': {e}") from None
-    return _read_model(path)
+    return _read_model(path, d)
 
 
 def _run(model: AnyModel | Stage, v: FloatArray) -> FloatArray:
@@ -348,8 +346,13 @@ def _simulate(args: argparse.Namespace) -> None:
         return
     write_atomic(out, text, overwrite=args.force, name="--out", inputs=inputs)
 
-    def stats(a: FloatArray) -> dict[str, float]:
-        return {"min": float(np.min(a)), "max": float(np.max(a)), "mean": float(np.mean(a)), "range": float(np.ptp(a))}
+    def stats(a: FloatArray) -> dict[str, float | None]:
+        # on the record scaled to a largest magnitude of 1: a mean of values near 1e308 does not
+        # overflow; a range beyond the largest double (values near +-1e308) is null in the JSON
+        s = float(np.max(np.abs(a))) or 1.0
+        mean, span = s * float(np.mean(a / s)), s * float(np.ptp(a / s))
+        finite_span = span if np.isfinite(span) else None
+        return {"min": float(np.min(a)), "max": float(np.max(a)), "mean": mean, "range": finite_span}
 
     summary = {
         "out": str(out),

@@ -9,7 +9,9 @@ from typing import TYPE_CHECKING
 
 from .common import (
     _atomic_savefig,
+    _count_arg,
     _Fail,
+    _number_arg,
     _Parser,
     _writable,
 )
@@ -17,6 +19,7 @@ from .common import (
 if TYPE_CHECKING:
     from ..models.model import HysteresisModel
     from ..plant.stage import Stage
+    from ..signals.metrics import FloatArray
 
 _CONTROLLERS = ("open-loop", "pid", "inverse", "smc", "smc-cemf", "absmc")
 
@@ -43,19 +46,22 @@ def _track_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
             "  piezohyst track --controller absmc --reference sine --freq 80 --amp 8 --offset 9 --json\n\n"
             "exit status: 0 on success, 2 on bad input (one line on stderr naming the argument), 3 when\n"
             "--model looks like a model of another actuator: over the amplifier's voltage range its output\n"
-            "span is off the stage's by more than 3x, or its output unit is not m (the run is still made)."
+            "span is off the stage's by more than 3x or strays from the stage's position by more than 10 %\n"
+            "of its range (RMS), the reference is outside the model's output, or its output unit is not m\n"
+            "(input unit not V); the run is still made, the diagnosis names units and both ranges. --model\n"
+            "is read and checked with every controller (a warning when the controller does not use it)."
         ),
     )
     t.add_argument("--stage", metavar="FILE", help="stage file (JSON; default: the built-in virtual stage)")
     t.add_argument("--controller", required=True, choices=_CONTROLLERS, help="controller kind")
     t.add_argument("--reference", default="sine", choices=_REFERENCES, help="reference kind (default sine)")
-    t.add_argument("--freq", type=float, default=10.0, help="reference frequency, Hz (default 10)")
-    t.add_argument("--amp", type=float, default=5.0, help="reference amplitude, um (default 5)")
-    t.add_argument("--offset", type=float, default=8.0, help="reference centre, um (default 8)")
-    t.add_argument("--duration", type=float, default=1.0, help="seconds (default 1)")
-    t.add_argument("--skip", type=float, default=0.2, help="seconds left out of the metrics (default 0.2)")
+    t.add_argument("--freq", type=_number_arg, default=10.0, help="reference frequency, Hz (default 10)")
+    t.add_argument("--amp", type=_number_arg, default=5.0, help="reference amplitude, um (default 5)")
+    t.add_argument("--offset", type=_number_arg, default=8.0, help="reference centre, um (default 8)")
+    t.add_argument("--duration", type=_number_arg, default=1.0, help="seconds (default 1)")
+    t.add_argument("--skip", type=_number_arg, default=0.2, help="seconds left out of the metrics (default 0.2)")
     t.add_argument("--model", metavar="MODEL.json", help="hysteresis model file for inverse / absmc")
-    t.add_argument("--seed", type=int, default=0, help="sensor-noise seed (default 0)")
+    t.add_argument("--seed", type=_count_arg, default=0, help="sensor-noise seed (default 0)")
     t.add_argument("--json", action="store_true", help="print the metrics as JSON")
     t.add_argument("--plot", metavar="FILE.png", help="write the tracking figure (not overwritten without --force)")
     t.add_argument("--force", action="store_true", help="overwrite --plot")
@@ -70,6 +76,7 @@ def _track(args: argparse.Namespace) -> int:
 
     from ..control.controllers import ABSMC, PID, SMC, Compensated, InverseFeedforward, OpenLoop, VelocityObserver
     from ..control.tuning import track
+    from ..errors import ParameterError
     from ..plant.stage import Stage, virtual_stage
     from ..signals import references as refs
 
@@ -93,17 +100,30 @@ def _track(args: argparse.Namespace) -> int:
     if args.plot:
         _writable(args.plot, "--plot", args.force, {"--stage": args.stage, "--model": args.model})
 
-    def hysteresis_model() -> HysteresisModel:
-        if args.model:
-            from ..models.model import HysteresisModel, load_model
+    kind = args.controller
+    given: HysteresisModel | None = None
+    if args.model:  # read and validated whatever the controller: a broken file is an error
+        from ..models.model import HysteresisModel, load_model
 
-            loaded = load_model(args.model)
-            if not isinstance(loaded, HysteresisModel):
-                raise _Fail(
-                    f"--model = '{args.model}' is a {loaded.kind} model, not a hysteresis model of the stage's "
-                    f"actuator (pi, gpi/mpi, rdpi, preisach, boucwen, ...)"
-                )
-            return loaded
+        loaded = load_model(args.model)
+        if kind not in ("inverse", "absmc"):
+            print(
+                f"piezohyst track: warning: --model = '{args.model}' is not used by --controller {kind} "
+                "(only inverse and absmc use a model)",
+                file=sys.stderr,
+            )
+        elif not isinstance(loaded, HysteresisModel):
+            raise _Fail(
+                f"--model = '{args.model}' is a {loaded.kind} model, not a hysteresis model of the stage's "
+                f"actuator (pi, gpi/mpi, rdpi, preisach, boucwen, ...)"
+            )
+        else:
+            given = loaded
+    foreign = None if given is None else _foreign_model(given, args.model, stage, ref)
+
+    def hysteresis_model() -> HysteresisModel:
+        if given is not None:
+            return given
         from ..identify.core import identify_mpi
 
         t = np.arange(int(2.0 * fs)) / fs
@@ -115,7 +135,6 @@ def _track(args: argparse.Namespace) -> int:
         assert isinstance(model, HysteresisModel)  # an MPI model
         return model
 
-    kind = args.controller
     c: OpenLoop | PID | SMC | InverseFeedforward | Compensated
     if kind == "open-loop":
         c = OpenLoop()
@@ -129,8 +148,17 @@ def _track(args: argparse.Namespace) -> int:
         c = InverseFeedforward(hysteresis_model(), c1=stage.sample_time)
     else:
         c = Compensated(ABSMC.linearized(2000.0, 0.7, c1=2e3, lam=2e3, ks=5e3, gamma_d=1e4), hysteresis_model())
-    foreign = _foreign_model(args.model, stage) if args.model and kind in ("inverse", "absmc") else None
-    res = track(c, ref, stage=stage, rng=args.seed, skip=args.skip)
+    try:
+        res = track(c, ref, stage=stage, rng=args.seed, skip=args.skip)
+    except ParameterError as e:  # e.g. the inverse's limits: no output range at the amplifier limits
+        if foreign is None:
+            raise
+        reasons = foreign["reasons"]
+        assert isinstance(reasons, list)
+        raise _Fail(
+            f"--model = '{args.model}' cannot drive this stage ({e}): it looks like a model of another "
+            f"actuator: {'; '.join(reasons)}"
+        ) from None
     m = res.metrics
     if args.plot:
         import matplotlib
@@ -155,34 +183,73 @@ def _track(args: argparse.Namespace) -> int:
     return _distrust(foreign)
 
 
-def _foreign_model(path: str, stage: Stage) -> dict[str, object] | None:
-    """Whether the model file looks like a model of another actuator than ``stage``: its output
-    unit is not m, or over a slow 0 → v_max → 0 V sweep its output span is off the stage's by
-    more than 3x. ``None`` when it fits."""
+#: How far (RMS, in % of the stage's range) a model's output over the amplifier's voltage sweep
+#: may stray from the stage's position before it is "a model of another actuator". Models
+#: identified on the virtual stage stray 0.44 % (mpi), 0.49 % (pi), 0.98 % (preisach); 10 %
+#: leaves room for creep and dynamics a model does not carry, and flags a gain off by 1.2x
+#: (12.3 %) or an offset of a tenth of the stroke.
+_MISMATCH_PERCENT = 10.0
+
+
+def _foreign_model(model: HysteresisModel, path: str, stage: Stage, ref: FloatArray) -> dict[str, object] | None:
+    """Whether the model looks like a model of another actuator than ``stage``: its output unit
+    is not m or its input unit not V; over a slow 0 → v_max → 0 V sweep its output span is off
+    the stage's by more than 3x, or its output strays from the stage's position by more than
+    :data:`_MISMATCH_PERCENT` % of the stage's range (a gain, an offset, another unit); or the
+    reference lies outside what the model can produce over the amplifier's range. ``None``
+    when it fits. The diagnosis names the units and both output ranges."""
     import numpy as np
 
-    from ..models.model import load_model
-
-    model = load_model(path)
     fs = 1.0 / stage.sample_time
     n = max(int(0.1 * fs), 50)
     hi = stage.amplifier.v_max
     u = np.concatenate([np.linspace(0.0, hi, n), np.linspace(hi, 0.0, n)])
-    span_stage = float(np.ptp(stage.simulate(u).position))
-    span_model = float(np.ptp(model.simulate(u)))
+    x_stage = stage.simulate(u).position
+    x_model = model.simulate(u)
+    span_stage = float(np.ptp(x_stage))
+    span_model = float(np.ptp(x_model))
     ratio = span_model / span_stage if span_stage > 0 else float("inf")
-    unit = model.units.get("output", "")
+    scale = max(float(np.max(np.abs(x_stage))), float(np.max(np.abs(x_model))), 1e-300)  # no overflow
+    stray = (
+        100.0 * float(np.sqrt(np.mean(((x_model - x_stage) / scale) ** 2))) * scale / span_stage
+        if span_stage > 0
+        else float("inf")
+    )
+    unit_out = model.units.get("output", "")
+    unit_in = model.units.get("input", "")
     reasons = []
-    if unit and unit != "m":
-        reasons.append(f"its output unit is {unit!r}, the stage's position is in m")
+    if unit_out and unit_out != "m":
+        reasons.append(f"its output unit is {unit_out!r}, the stage's position is in m")
+    if unit_in and unit_in != "V":
+        reasons.append(f"its input unit is {unit_in!r}, the stage's amplifier takes V")
+    m_lo, m_hi, s_lo, s_hi = float(x_model.min()), float(x_model.max()), float(x_stage.min()), float(x_stage.max())
+    ranges = (
+        f"over 0..{hi:g} V its output spans [{m_lo:.4g}, {m_hi:.4g}], the stage's position [{s_lo:.4g}, {s_hi:.4g}] m"
+    )
     if not 1 / 3 <= ratio <= 3:
+        reasons.append(f"{ranges} (span {span_model:.4g} vs {span_stage:.4g}, {ratio:.3g}x)")
+    elif stray > _MISMATCH_PERCENT:
+        reasons.append(f"{ranges}: they differ by {stray:.3g} % of the stage's range (RMS)")
+    r_lo, r_hi = float(ref.min()), float(ref.max())
+    slack = 0.05 * (m_hi - m_lo)
+    if r_lo < m_lo - slack or r_hi > m_hi + slack:
         reasons.append(
-            f"over 0..{hi:g} V its output spans {span_model:.4g}, the stage's position {span_stage:.4g} m "
-            f"({ratio:.3g}x)"
+            f"the reference [{r_lo:.4g}, {r_hi:.4g}] m is outside the model's output [{m_lo:.4g}, {m_hi:.4g}]"
         )
     if not reasons:
         return None
-    return {"foreign": True, "ratio": ratio, "reasons": reasons}
+    if not unit_out and not any("unit" in r for r in reasons):
+        reasons.append("the model file gives no output unit")
+    return {
+        "foreign": True,
+        "ratio": ratio,
+        "mismatch_percent": stray,
+        "units": {"input": unit_in, "output": unit_out},
+        "model_output_range": [m_lo, m_hi],
+        "stage_position_range": [s_lo, s_hi],
+        "reasons": reasons,
+        "model": path,
+    }
 
 
 def _distrust(foreign: dict[str, object] | None) -> int:

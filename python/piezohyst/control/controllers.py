@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any, Protocol, TypeAlias, TypeVar
+from typing import TYPE_CHECKING, Any, Protocol, TypeAlias, TypeVar, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -79,6 +79,19 @@ __all__ = [
 ]
 
 
+def _check_limits(u_min: object, u_max: object) -> None:
+    """Output limits given at construction: each ``None`` (the amplifier's) or finite, ordered."""
+    lo = None if u_min is None else as_scalar(u_min, "u_min")
+    hi = None if u_max is None else as_scalar(u_max, "u_max")
+    if lo is not None and hi is not None and not hi > lo:
+        raise ParameterError(f"u_min = {lo} must be < u_max = {hi}")
+
+
+def _check_optional(x: object, name: str, **kw: bool) -> None:
+    if x is not None:
+        as_scalar(x, name, **kw)
+
+
 def _limits(u_min: float | None, u_max: float | None, stage: Stage) -> Limits:
     lo = stage.amplifier.v_min if u_min is None else as_scalar(u_min, "u_min")
     hi = stage.amplifier.v_max if u_max is None else as_scalar(u_max, "u_max")
@@ -123,6 +136,10 @@ class VelocityObserver:
 
     bandwidth: float = 1000.0
     delay: float | None = None
+
+    def __post_init__(self) -> None:
+        as_scalar(self.bandwidth, "observer_bandwidth", positive=True)
+        _check_optional(self.delay, "observer_delay", nonnegative=True)
 
     def core(self, stage: Stage) -> list[float]:
         """The observer's slots for the core: ``[bandwidth, Ts, delay]`` on ``stage``.
@@ -262,6 +279,12 @@ class OpenLoop:
     c2: float = 0.0
     u_min: float | None = None
     u_max: float | None = None
+
+    def __post_init__(self) -> None:
+        _check_optional(self.gain, "gain")
+        for name in ("offset", "c1", "c2"):
+            as_scalar(getattr(self, name), name)
+        _check_limits(self.u_min, self.u_max)
 
     @property
     def uses_reference_derivatives(self) -> bool:
@@ -449,6 +472,14 @@ class PID:
 
     #: the step uses only the reference position
     uses_reference_derivatives = False
+
+    def __post_init__(self) -> None:
+        for name in ("kp", "ki", "kd"):  # a negative gain is positive feedback
+            as_scalar(getattr(self, name), name, nonnegative=True)
+        as_scalar(self.tau_d, "tau_d", positive=True)
+        _check_optional(self.ff_gain, "ff_gain")
+        as_scalar(self.offset, "offset")
+        _check_limits(self.u_min, self.u_max)
 
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
         """The controller as the Rust core runs it on ``stage``: ``(kind, params, inverse,
@@ -725,6 +756,41 @@ def _pid_gains(num: FloatArray, den: FloatArray, dt: float | None) -> tuple[floa
     return max(kp, 0.0), max(ki, 0.0), max(kd, 0.0), tau
 
 
+def _check_sliding(kp: float, kv: float, alpha: float) -> None:
+    """SMC's sliding dynamics ``e'' + (kv + alpha) e' + (alpha kv + kp) e = 0`` must be stable."""
+    if alpha < 0:
+        raise ParameterError(f"alpha = {alpha} must be >= 0")
+    if not kv + alpha > 0:
+        raise ParameterError(f"kv + alpha = {kv + alpha} must be > 0: the sliding dynamics would be unstable")
+    if not alpha * kv + kp > 0:
+        raise ParameterError(f"alpha * kv + kp = {alpha * kv + kp} must be > 0: the sliding dynamics would be unstable")
+
+
+def _theta_bounds(bounds: object, n: int) -> tuple[list[float], list[float]]:
+    """ABSMC's ``theta_bounds``: ``[[lower...], [upper...]]``, ``n`` finite values each, lower <= upper."""
+    try:
+        pair = list(cast("Sequence[Sequence[object]]", bounds))
+        if len(pair) != 2:
+            raise TypeError
+        lo = [as_scalar(x, f"theta_bounds[0][{i}]") for i, x in enumerate(pair[0])]
+        hi = [as_scalar(x, f"theta_bounds[1][{i}]") for i, x in enumerate(pair[1])]
+    except (TypeError, ValueError) as e:
+        if isinstance(e, (ParameterError, ParameterTypeError)):  # a value named by its index
+            raise
+        raise ParameterTypeError(f"theta_bounds must be [[lower...], [upper...]], got {bounds!r}") from None
+    if len(lo) != n or len(hi) != n:
+        raise ParameterError(f"theta_bounds must hold {n} lower and {n} upper values, got {len(lo)} and {len(hi)}")
+    for i, (a, b) in enumerate(zip(lo, hi, strict=True)):
+        if a > b:
+            raise ParameterError(f"theta_bounds[0][{i}] = {a} must be <= theta_bounds[1][{i}] = {b}")
+    return lo, hi
+
+
+def _check_observer(observer: object) -> None:
+    if not isinstance(observer, VelocityObserver):
+        raise ParameterTypeError(f"observer must be a VelocityObserver, got {type(observer).__name__}")
+
+
 def _stage_parameters(params: object) -> StageParameters:
     """``params`` if it is :class:`StageParameters`, else ``ParameterTypeError``."""
     from ..plant.stage import StageParameters
@@ -869,6 +935,23 @@ class SMC:
 
     uses_reference_derivatives = True
 
+    def __post_init__(self) -> None:
+        _stage_parameters(self.model)
+        kp, kv, alpha = (as_scalar(getattr(self, n), n) for n in ("kp", "kv", "alpha"))
+        _check_sliding(kp, kv, alpha)
+        as_scalar(self.ks, "ks", nonnegative=True)
+        as_scalar(self.phi, "phi", positive=True)
+        as_scalar(self.k1, "k1", nonnegative=True)
+        as_scalar(self.k2, "k2", nonnegative=True)
+        if not isinstance(self.cemf, (bool, np.bool_)):
+            raise ParameterTypeError(f"cemf must be True or False, got {self.cemf!r}")
+        if self.switching not in ("boundary_layer", "super_twisting"):
+            raise ParameterError(f"switching = {self.switching!r} must be 'boundary_layer' or 'super_twisting'")
+        if self.model_terms not in ("measured", "desired"):
+            raise ParameterError(f"model_terms = {self.model_terms!r} must be 'measured' or 'desired'")
+        _check_observer(self.observer)
+        _check_limits(self.u_min, self.u_max)
+
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
         """The controller as the Rust core runs it on ``stage``: ``(kind, params, inverse,
         ilc)``, the flat parameters in the order of the core's layout table
@@ -900,14 +983,7 @@ class SMC:
         """
         cemf = _cemf_slots(self.model)
         kp, kv, alpha = (as_scalar(getattr(self, n), n) for n in ("kp", "kv", "alpha"))
-        if alpha < 0:
-            raise ParameterError(f"alpha = {alpha} must be >= 0")
-        if not kv + alpha > 0:
-            raise ParameterError(f"kv + alpha = {kv + alpha} must be > 0: the sliding dynamics would be unstable")
-        if not alpha * kv + kp > 0:
-            raise ParameterError(
-                f"alpha * kv + kp = {alpha * kv + kp} must be > 0: the sliding dynamics would be unstable"
-            )
+        _check_sliding(kp, kv, alpha)
         if self.switching == "boundary_layer":
             sw = [0.0, as_scalar(self.ks, "ks", nonnegative=True), as_scalar(self.phi, "phi", positive=True)]
         elif self.switching == "super_twisting":
@@ -1008,6 +1084,30 @@ class ABSMC:
 
     uses_reference_derivatives = True
 
+    def __post_init__(self) -> None:
+        as_scalar(self.b, "b", positive=True)
+        if isinstance(self.theta, (str, bytes)) or not hasattr(self.theta, "__len__"):
+            raise ParameterTypeError(f"theta must be a sequence of numbers [a0, a1], got {self.theta!r}")
+        for i, t in enumerate(self.theta):
+            as_scalar(t, f"theta[{i}]")
+        for name in ("c1", "lam", "phi", "gamma_d"):
+            as_scalar(getattr(self, name), name, positive=True)
+        as_scalar(self.ks, "ks", nonnegative=True)
+        if isinstance(self.gamma_theta, (str, bytes)) or not hasattr(self.gamma_theta, "__len__"):
+            raise ParameterTypeError(f"gamma_theta must be a sequence of rates, got {self.gamma_theta!r}")
+        for i, x in enumerate(self.gamma_theta):
+            as_scalar(x, f"gamma_theta[{i}]", positive=True)
+        as_scalar(self.d0, "d0", nonnegative=True)
+        _check_optional(self.d_max, "d_max", nonnegative=True)
+        if as_scalar(self.theta_range, "theta_range", positive=True) < 1:
+            raise ParameterError(f"theta_range = {self.theta_range} must be >= 1")
+        if self.theta_bounds is not None:
+            _theta_bounds(self.theta_bounds, len(self.theta))
+        if self.regressor not in ("desired", "measured"):
+            raise ParameterError(f"regressor = {self.regressor!r} must be 'desired' or 'measured'")
+        _check_observer(self.observer)
+        _check_limits(self.u_min, self.u_max)
+
     @classmethod
     def for_stage(cls, model: StageParameters, **kw: Any) -> ABSMC:
         """Voltage-domain ABSMC from identified stage parameters.
@@ -1105,7 +1205,7 @@ class ABSMC:
             lo_t = [min(t / r, t * r) for t in th]
             hi_t = [max(t / r, t * r) for t in th]
         else:
-            (lo_t, hi_t) = ([float(x) for x in self.theta_bounds[0]], [float(x) for x in self.theta_bounds[1]])
+            lo_t, hi_t = _theta_bounds(self.theta_bounds, n_theta)
         for name in ("c1", "lam", "phi", "gamma_d"):
             as_scalar(getattr(self, name), name, positive=True)
         as_scalar(self.ks, "ks", nonnegative=True)
@@ -1170,6 +1270,10 @@ class CemfFeedforward:
     u_max: float | None = None
 
     uses_reference_derivatives = True
+
+    def __post_init__(self) -> None:
+        _stage_parameters(self.model)
+        _check_limits(self.u_min, self.u_max)
 
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
         """The controller as the Rust core runs it on ``stage``: ``(kind, params, inverse,
@@ -1250,6 +1354,15 @@ class Compensated:
     inner: DomainController
     model: HysteresisModel
 
+    def __post_init__(self) -> None:
+        if not is_controller(self.inner):
+            raise ParameterTypeError(
+                f"inner must be a controller (PID, SMC, ABSMC, ...), got {type(self.inner).__name__}"
+            )
+        if isinstance(self.inner, (Compensated, InverseFeedforward)):
+            raise ParameterTypeError("inner must not itself be compensated")
+        _hysteresis_model(self.model)
+
     @property
     def uses_reference_derivatives(self) -> bool:
         """Whether the inner controller reads the reference's derivatives."""
@@ -1324,6 +1437,11 @@ class InverseFeedforward:
     c1: float = 0.0
     c2: float = 0.0
 
+    def __post_init__(self) -> None:
+        _hysteresis_model(self.model)
+        as_scalar(self.c1, "c1")
+        as_scalar(self.c2, "c2")
+
     @property
     def uses_reference_derivatives(self) -> bool:
         """Whether the step reads the reference's derivatives (``c1`` or ``c2`` set)."""
@@ -1395,6 +1513,20 @@ class ILC:
     gain: float = 0.5
     forgetting: float = 1.0
     lead: int = 3
+
+    def __post_init__(self) -> None:
+        if not is_controller(self.inner):
+            raise ParameterTypeError(
+                f"inner must be a controller (PID, Compensated, ...), got {type(self.inner).__name__}"
+            )
+        if isinstance(self.inner, ILC):
+            raise ParameterTypeError("inner must not itself be an ILC")
+        n = as_int(self.period, "period", minimum=2)
+        as_scalar(self.gain, "gain", nonnegative=True)
+        if not 0 < as_scalar(self.forgetting, "forgetting", positive=True) <= 1:
+            raise ParameterError(f"forgetting = {self.forgetting} must lie in (0, 1]")
+        if as_int(self.lead, "lead", minimum=0) >= n:
+            raise ParameterError(f"lead = {self.lead} must be below the period {n}")
 
     @property
     def uses_reference_derivatives(self) -> bool:

@@ -41,7 +41,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .. import _core
-from .._io import PathLike, load_json_file, malformed_as, write_atomic
+from .._io import PathLike, json_text, load_json_file, malformed_as, write_atomic
 from ..control.controllers import CoreSpec, FloatArray, IlcSpec, Limits, PackedController, is_controller
 from ..errors import ParameterError, ParameterTypeError
 from ..outputs import output_set
@@ -281,9 +281,10 @@ def _controller_from_dict(d: object) -> ExportedController:
         raise ParameterError(f"a controller description must be a JSON object, got {type(d).__name__}")
     if d.get("format") != _FORMAT:
         raise ParameterError(f"format = {d.get('format')!r} is not {_FORMAT!r} (is this a model file?)")
-    if d.get("schema_version") != CONTROLLER_SCHEMA_VERSION:
+    version = d.get("schema_version")
+    if type(version) is not int or version != CONTROLLER_SCHEMA_VERSION:  # true is not 1
         raise ParameterError(
-            f"schema_version = {d.get('schema_version')!r} is not supported (this version reads "
+            f"schema_version = {json_text(version)} is not supported (this version reads the integer "
             f"{CONTROLLER_SCHEMA_VERSION})"
         )
     kind = d.get("kind")

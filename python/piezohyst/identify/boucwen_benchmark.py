@@ -19,7 +19,7 @@ from .._validate import as_int, as_record, as_scalar
 from ..errors import ParameterError, ParameterTypeError
 from ..models.boucwen_benchmark import FS, INTERPOLATIONS, UPSAMPLE, BoucWenBenchmark
 from ..models.boucwen_benchmark import upsample as _upsample  # the argument `upsample` shadows it
-from .core import FloatArray, IdentificationResult, Metrics, _fit_metrics
+from .core import FloatArray, IdentificationResult, Metrics, _fit_metrics, check_fit_scale
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from .core import Callback, RngLike
@@ -394,6 +394,8 @@ def identify_boucwen_benchmark(
         raise ParameterError("u is constant: the record does not excite the system")
     if not np.ptp(y_) > 0:
         raise ParameterError("y is constant: there is no response to identify")
+    check_fit_scale(u_, "u")
+    check_fit_scale(y_, "y")
     fs = as_scalar(fs, "fs", positive=True)
     r = as_int(upsample, "upsample", minimum=1)
     if interpolation not in INTERPOLATIONS:

@@ -37,6 +37,8 @@ from .core import (
     _fit_metrics,
     _mpi_template,
     _preisach_template,
+    check_fit_scale,
+    check_samples,
     identify_cemf,
     minimize_huber,
 )
@@ -598,6 +600,8 @@ def _free_run(fit: Callable[[_Call, FloatArray, FloatArray], _Fitted]) -> Callab
         y = as_record(c.output, "output", min_length=2)
         if y.size != v.size:
             raise ParameterError(f"output has {y.size} samples, input has {v.size}; they must match")
+        check_fit_scale(v, "input")
+        check_fit_scale(y, "output")
         fitted, method, history, partial, evaluations = fit(c, v, y)
         if c.loss in ("huber", "linf"):
             method += "+" + c.loss
@@ -707,6 +711,7 @@ def _identify_boucwen(
     method = "de" if optimizer == "ls" else optimizer
     family = BoucWen(1.0, 1.0, 0.0).family
     bounds = _boucwen_bounds(v, y)
+    check_samples(v.size, sum(lo < hi for lo, hi in bounds) + bool(offset), "a Bouc-Wen model")
 
     # the rows stay inside the box, where every Bouc-Wen row is valid (n = 1, finite)
     # the offset that is best for the loss: mean (squared), median (huber), mid-range (linf)

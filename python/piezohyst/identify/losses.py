@@ -12,7 +12,18 @@ import numpy.typing as npt
 
 from .._validate import as_record
 from ..errors import DataError, ParameterError
-from .core import FitResult, FloatArray, LinearModel, _bvls, _design, _fit_metrics, _irls_huber
+from .core import (
+    FitResult,
+    FloatArray,
+    LinearModel,
+    _bvls,
+    _design,
+    _fit_metrics,
+    _irls_huber,
+    _what,
+    check_samples,
+    parameter_count,
+)
 
 __all__ = ["check_weights", "fit_linear_weighted"]
 
@@ -45,6 +56,7 @@ def fit_linear_weighted(
     (``>= 0``; least squares minimizes ``sum w r^2``, the minimax fit ``max w |r|``)."""
     t0 = time.perf_counter()
     A, lb, ub, build = _design(model, v, offset)
+    check_samples(v.size, parameter_count(model, A.shape[1]), _what(model), "fewer operators or levels")
     scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-300)
     A = A / scale
     bounds = (lb * scale, ub * scale)

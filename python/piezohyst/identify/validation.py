@@ -148,8 +148,12 @@ def residual_whiteness(residual: npt.ArrayLike, input: npt.ArrayLike, max_lag: i
         raise ParameterError(f"input has {v.size} samples, residual has {r.size}; they must match")
     n = r.size
     lags = min(50, max(1, n // 5)) if max_lag is None else as_int(max_lag, "max_lag", minimum=1)
-    e = r - r.mean()
-    x = v - v.mean()
+    # the correlations are scale-free: computed on the records scaled to a largest magnitude of 1
+    # (a residual near 1e300 would overflow its squares, a subnormal one lose them)
+    e = r / (float(np.max(np.abs(r))) or 1.0)
+    x = v / (float(np.max(np.abs(v))) or 1.0)
+    e = e - e.mean()
+    x = x - x.mean()
     see, sxx = float(e @ e), float(x @ x)
     if see == 0.0:
         acf = np.zeros(lags)
@@ -427,6 +431,7 @@ def league_table(
                     "kind": kind,
                     "creep": creep,
                     "error": err,
+                    "chosen": False,  # not fitted (too few samples for it, ...): never the winner
                 }
             )
     return rows, chosen

@@ -479,6 +479,10 @@ def identify_vp(
     y = as_record(output, "output", min_length=2)
     if y.size != v.size:
         raise ParameterError(f"output has {y.size} samples, input has {v.size}; they must match")
+    from .core import check_fit_scale
+
+    check_fit_scale(v, "input")
+    check_fit_scale(y, "output")
     if not np.ptp(v) > 0:
         raise ParameterError("input is constant: there is no hysteresis to identify")
     n = as_int(operators, "operators", minimum=1)
@@ -501,11 +505,14 @@ def identify_vp(
     problem.offset = bool(offset)
     names, lower, upper, fixed = _search_box(problem.table, bounds)
     unknowns = (4 if model in ("gpi", "mpi") else 1) + n * (2 if model == "rdpi" else 1) + creep
-    if v.size < unknowns + len(names):
-        raise ParameterError(
-            f"the record has {v.size} samples, fewer than the {unknowns + len(names)} parameters "
-            f"({unknowns} linear, {len(names)} structure)"
-        )
+    from .core import check_samples
+
+    check_samples(
+        v.size,
+        unknowns + len(names),
+        f"this {model} model ({unknowns} linear, {len(names)} structure)",
+        "fewer operators or creep lags",
+    )
     if isinstance(optimizer, str) and optimizer == "ls":
         optimizer = "de"
     if not isinstance(polish, bool):

@@ -44,9 +44,12 @@ def _family(model_or_family: HysteresisModel | str, dims: Iterable[int] | None) 
 
 def _params(params: npt.ArrayLike, width: int) -> FloatArray:
     try:
-        p = np.ascontiguousarray(params, dtype=np.float64)
+        kind = np.asarray(params).dtype.kind
+        p = np.ascontiguousarray(params, dtype=np.float64) if kind not in "cbUS" else np.zeros((0, 0))
     except (TypeError, ValueError) as e:
         raise ParameterTypeError(f"params must be a 2-D (S, P) array of numbers: {e}") from None
+    if kind in "cbUS":  # complex parts are not dropped silently, nor booleans taken for 0 and 1
+        raise ParameterTypeError(f"params must be a 2-D (S, P) array of real numbers, got dtype kind {kind!r}")
     if p.ndim != 2:
         raise ParameterError(f"params must be a 2-D (S, P) array, got shape {p.shape}")
     if p.shape[1] != width:

@@ -19,7 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .. import _core
-from .._io import PathLike, load_json_file, malformed_as, write_atomic
+from .._io import PathLike, check_parameter_tree, json_text, load_json_file, malformed_as, printable, write_atomic
 from .._validate import as_record, as_scalar
 from ..errors import ParameterError, ParameterTypeError
 from ..signals.matfile import load_mat_file, write_mat
@@ -751,6 +751,11 @@ def _units(units: object) -> dict[str, str]:
         return {"input": "", "output": ""}
     if not isinstance(units, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in units.items()):
         raise ParameterTypeError(f"units must be a mapping of names to unit strings, got {units!r}")
+    for k, v in units.items():  # units are printed: no terminal escapes, one line
+        if printable(k) != k or printable(v) != v:
+            raise ParameterError(
+                f"units[{printable(repr(k))}] = {printable(repr(v))} holds a control character; a unit is plain text"
+            )
     return dict(units)
 
 
@@ -799,9 +804,16 @@ def _model_from_dict(d: object) -> AnyModel:
     if not isinstance(d, dict):
         raise ParameterTypeError(f"a model description must be a JSON object, got {type(d).__name__}")
     version = d.get("schema_version")
-    if version != SCHEMA_VERSION:
-        raise ParameterError(f"schema_version = {version!r} is not supported (this version reads {SCHEMA_VERSION})")
+    if type(version) is not int or version != SCHEMA_VERSION:  # true is not 1, nor is 1.0
+        raise ParameterError(
+            f"schema_version = {json_text(version)} is not supported (this version reads the integer {SCHEMA_VERSION})"
+        )
     kind = d.get("kind")
+    if isinstance(d.get("parameters"), dict):
+        check_parameter_tree(d["parameters"], "parameters")  # true is not a number: named by its path
+    for part in ("output_map", "state"):
+        if d.get(part) is not None:
+            check_parameter_tree(d[part], part)
     if kind == BoucWenBenchmark.kind:
         return BoucWenBenchmark.from_dict(d)
     if isinstance(kind, str) and kind in _OTHER_FILES:

@@ -73,9 +73,12 @@ class Preisach(HysteresisModel):
         self.input_range = (lo, hi)
         cells = self.levels * (self.levels + 1) // 2
         try:
-            w = np.asarray(weights, dtype=np.float64) if not isinstance(weights, (str, bytes)) else weights
+            raw = np.asarray(weights) if not isinstance(weights, (str, bytes)) else None
+            w = np.asarray(weights, dtype=np.float64) if raw is not None and raw.dtype.kind not in "cb" else weights
         except (TypeError, ValueError) as e:
             raise ParameterTypeError(f"weights must be numbers (a vector or a triangular matrix): {e}") from None
+        if raw is not None and raw.dtype.kind in "cb":  # no imaginary part dropped, no bool taken for 0/1
+            raise ParameterTypeError(f"weights must be real numbers, got dtype {raw.dtype}")
         if isinstance(w, np.ndarray) and w.ndim == 2:
             if w.shape != (self.levels, self.levels):
                 raise ParameterError(

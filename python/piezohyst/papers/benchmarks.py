@@ -516,7 +516,7 @@ def summarize(
         try:
             d = json.loads(path.read_text())
             rows = b.rows(d)
-        except (ValueError, KeyError, TypeError, IndexError, ZeroDivisionError) as e:
+        except (ValueError, KeyError, TypeError, IndexError, ZeroDivisionError, RecursionError) as e:
             raise DataError(
                 f"{path}: not a result of bench/{b.script} this version reads ({type(e).__name__}: {e})"
             ) from None

@@ -28,7 +28,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .. import _core
-from .._io import load_json_file, malformed_as
+from .._io import check_parameter_tree, json_text, load_json_file, malformed_as, printable
 from .._validate import as_int, as_record, as_scalar, as_vector
 from ..errors import ParameterError, ParameterTypeError
 from ..signals.lti import scipy_state_space, state_space
@@ -503,6 +503,14 @@ class Stage:
             raise ParameterError(f"tolerance = {tol} must be > 0 (inf: never refine)")
         if not isinstance(self.params, StageParameters):
             raise ParameterTypeError(f"params must be StageParameters, got {type(self.params).__name__}")
+        if not isinstance(self.amplifier, Amplifier):
+            raise ParameterTypeError(f"amplifier must be an Amplifier, got {type(self.amplifier).__name__}")
+        if not isinstance(self.sensor, Sensor):
+            raise ParameterTypeError(f"sensor must be a Sensor, got {type(self.sensor).__name__}")
+        if not isinstance(self.name, str):
+            raise ParameterTypeError(f"name must be a string, got {type(self.name).__name__}")
+        if printable(self.name) != self.name:  # printed by `piezohyst stage info`
+            raise ParameterError(f"name = {printable(repr(self.name))} holds a control character; a name is plain text")
 
     # -- files --------------------------------------------------------------------------
     @classmethod
@@ -528,6 +536,14 @@ class Stage:
         """
         if not isinstance(d, dict):
             raise ParameterError(f"a stage description must be a JSON object, got {type(d).__name__}")
+        version = d.get("schema_version", 1)  # files before the version field are version 1
+        if type(version) is not int or version != 1:  # true is not 1
+            raise ParameterError(
+                f"schema_version = {json_text(version)} is not supported (this version reads the integer 1)"
+            )
+        for section in ("mechanics", "cemf", "electrostriction", "creep", "amplifier", "sensor", "loop"):
+            if d.get(section) is not None:  # numbers only (a few names and "inf"): a path names what is wrong
+                check_parameter_tree(d[section], section, strings=_STAGE_STRINGS)
         with malformed_as("the stage description"):
             mech, cemf = d["mechanics"], d["cemf"]
             m, k = _number(mech, "mass"), _number(mech, "stiffness")
@@ -1136,6 +1152,10 @@ def _number(section: dict[str, Any], key: str) -> float:
     if isinstance(x, bool) or not isinstance(x, (int, float)):
         raise ParameterError(f"{key} = {x!r} must be a number")
     return float(x)
+
+
+#: The keys of a stage file's sections that may hold a string: the CEMF drive, and "inf".
+_STAGE_STRINGS = ("drive", "bandwidth", "slew_rate", "tolerance")
 
 
 def _inf(x: float | str | None) -> float:

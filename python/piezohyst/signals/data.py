@@ -36,8 +36,10 @@ array([1., 2.])
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 import re
+import warnings
 from collections.abc import Callable, Hashable, Mapping, Sequence
 from pathlib import Path
 from types import ModuleType
@@ -718,12 +720,19 @@ def _npy_header(fp: Any) -> tuple[tuple[int, ...], np.dtype[Any]]:
 def open_npz(path: Path, dataset: str | None, limit: int = MAX_ARRAY_BYTES) -> _ContainerTable:
     """An NPZ archive: member headers read to list the arrays; only the arrays named are
     decompressed, each after its size (from its header) is checked against ``limit``."""
+    fh = open(path, "rb")  # ours, closed on every path (np.load leaks its own on a corrupt zip)
     try:
-        z = np.load(path, allow_pickle=False)
+        z = np.load(fh, allow_pickle=False)
         if isinstance(z, np.ndarray):
             raise ParameterError("it holds a single array (.npy format), not an archive")
     except Exception as e:  # a corrupt archive raises from zipfile, zlib, numpy.lib.format ...
+        fh.close()
         raise DataError(f"{path}: not a readable NPZ archive ({type(e).__name__}: {e})") from None
+
+    def close() -> None:
+        z.close()
+        fh.close()
+
     headers: dict[str, tuple[tuple[int, ...], np.dtype[Any]]] = {}
     try:
         for member in z.zip.namelist():
@@ -733,9 +742,9 @@ def open_npz(path: Path, dataset: str | None, limit: int = MAX_ARRAY_BYTES) -> _
             with z.zip.open(member) as fp:
                 headers[key] = _npy_header(fp)
     except Exception as e:
-        z.close()
+        close()
         raise DataError(f"{path}: not a readable NPZ archive ({type(e).__name__}: {e})") from None
-    shapes = {k: sh for k, (sh, dt) in headers.items() if dt.kind in "fiu" and int(np.prod(sh)) > 0}
+    shapes = {k: sh for k, (sh, dt) in headers.items() if dt.kind in "fiu" and math.prod(sh) > 0}
 
     def lookup(name: str) -> AnyArray:
         if name not in headers:
@@ -744,7 +753,7 @@ def open_npz(path: Path, dataset: str | None, limit: int = MAX_ARRAY_BYTES) -> _
         if dtype.kind not in "fiu":
             return np.empty((0,), dtype=dtype if not dtype.hasobject else np.dtype("U1"))
         _check_size(
-            str(path), f"NPZ member {name!r} of shape {shape} ({dtype})", int(np.prod(shape)) * dtype.itemsize, limit
+            str(path), f"NPZ member {name!r} of shape {shape} ({dtype})", math.prod(shape) * dtype.itemsize, limit
         )
         try:
             return np.asarray(z[name])
@@ -752,15 +761,31 @@ def open_npz(path: Path, dataset: str | None, limit: int = MAX_ARRAY_BYTES) -> _
             raise DataError(f"{path}: NPZ member {name!r} is not readable ({type(e).__name__}: {e})") from None
 
     try:
-        return _ContainerTable(str(path), "NPZ", shapes, lookup, dataset, close=z.close)
+        return _ContainerTable(str(path), "NPZ", shapes, lookup, dataset, close=close)
     except BaseException:
-        z.close()
+        close()
         raise
 
 
-def open_npy(path: Path, dataset: str | None) -> _ContainerTable:
+def open_npy(path: Path, dataset: str | None, limit: int = MAX_ARRAY_BYTES) -> _ContainerTable:
+    """A ``.npy`` matrix, after its header's size is checked against ``limit`` and against the
+    bytes the file holds (numpy allocates the declared size before reading)."""
     if dataset is not None:
         raise ParameterError(f"dataset = {dataset!r} does not apply to a .npy file (one matrix; columns by index)")
+    try:
+        with open(path, "rb") as fp:
+            shape, dtype = _npy_header(fp)
+            have = os.fstat(fp.fileno()).st_size - fp.tell()
+    except Exception as e:
+        raise DataError(f"{path}: not a readable .npy array ({type(e).__name__}: {e})") from None
+    if dtype.kind in "fiu":
+        need = math.prod(shape) * dtype.itemsize
+        _check_size(str(path), f"the array of shape {shape} ({dtype})", need, limit)
+        if need > have:
+            raise DataError(
+                f"{path}: the array of shape {shape} ({dtype}) needs {need:,} bytes, the file holds {have:,}: "
+                "truncated or damaged"
+            )
     try:
         a = np.load(path, allow_pickle=False)
         if not isinstance(a, np.ndarray):
@@ -803,11 +828,16 @@ def open_mat(path: Path, dataset: str | None, limit: int = MAX_ARRAY_BYTES) -> _
     if major == 2:
         return open_hdf5(path, dataset, matlab=True, limit=limit)
     try:
-        for name, shape, cls in whosmat(str(path)):
-            if cls in _MAT_ITEMSIZE:
-                size = int(np.prod([int(k) for k in shape])) * _MAT_ITEMSIZE[cls]
-                _check_size(str(path), f"MATLAB variable {name!r} of shape {tuple(shape)} ({cls})", size, limit)
-        d = loadmat(str(path), simplify_cells=True)
+        # a damaged header's sizes overflow scipy's arithmetic: the error below says so, not a warning
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            # scipy reads a v4 header of an unknown byte order and warns the data "may be corrupt"
+            warnings.filterwarnings("error", message=".*may be corrupt")
+            for name, shape, cls in whosmat(str(path)):
+                if cls in _MAT_ITEMSIZE:
+                    size = math.prod(int(k) for k in shape) * _MAT_ITEMSIZE[cls]
+                    _check_size(str(path), f"MATLAB variable {name!r} of shape {tuple(shape)} ({cls})", size, limit)
+            d = loadmat(str(path), simplify_cells=True)
     except DataError:
         raise
     except Exception as e:
@@ -1195,7 +1225,7 @@ def load_record(
         if suffix in NPZ_SUFFIXES:
             table = open_npz(p, dataset, limit)
         elif suffix in NPY_SUFFIXES:
-            table = open_npy(p, dataset)
+            table = open_npy(p, dataset, limit)
         elif suffix in MAT_SUFFIXES:
             table = open_mat(p, dataset, limit)
         elif suffix in PARQUET_SUFFIXES:
@@ -1206,6 +1236,12 @@ def load_record(
         return _assemble(table, specs, fs_given, rtol, given_units)  # type: ignore[misc]
     finally:
         table.close()
+
+
+def _keys(columns: Sequence[tuple[Hashable, str]]) -> str:
+    """The keys of columns, for a message: ``columns 1, 2`` or ``'u', 'v'``."""
+    keys = [k for k, _ in columns]
+    return "columns " + ", ".join(str(k) for k in keys) if all(isinstance(k, int) for k in keys) else repr(keys)
 
 
 def _assemble(
@@ -1227,6 +1263,11 @@ def _assemble(
         labels = [lab for _, lab in cols]
         for r in list(missing):
             hit = [(k, lab) for k, lab in cols if lab == r]
+            if len(hit) > 1:  # never guess which: the header is ambiguous
+                raise DataError(
+                    f"{src}: {r} not given and the header names {len(hit)} columns {r!r} ({_keys(hit)}): "
+                    f"ambiguous; pass {r}= a 0-based column index"
+                )
             if len(hit) == 1 and hit[0][0] not in {k for k, _ in resolved.values()}:
                 resolved[r] = hit[0]
                 missing.remove(r)
@@ -1238,6 +1279,18 @@ def _assemble(
                     f"{src}: {missing[0]} not given and not inferable from the {len(cols)} columns "
                     f"{labels}; pass {missing[0]}= a column name or 0-based index"
                 )
+            names = [lab for _, lab in free]
+            for r, (_k, lab) in zip(missing, free, strict=True):
+                if names.count(lab) > 1 or (lab in _ROLES and lab != r):
+                    why = (
+                        f"{names.count(lab)} columns are named {lab!r}"
+                        if names.count(lab) > 1
+                        else (f"column {lab!r} would be taken as {r}")
+                    )
+                    raise DataError(
+                        f"{src}: {', '.join(missing)} not given and {why} ({_keys(free)}): ambiguous; pass "
+                        f"{'= and '.join(missing)}= column names or 0-based indices"
+                    )
             for r, c in zip(missing, free, strict=False):
                 resolved[r] = c
     seen: dict[_Key, str] = {}

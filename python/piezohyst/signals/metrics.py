@@ -9,6 +9,7 @@ the message names the argument and the value.
 
 Functions
 ---------
+rms                 root mean square of one record (scaled: no overflow, no underflow)
 rmse                root-mean-square error
 max_error           maximum absolute error
 linearity_error     deviation from the least-squares line, % of the output range
@@ -35,7 +36,7 @@ from ..errors import ParameterError
 
 FloatArray = npt.NDArray[np.float64]
 
-__all__ = ["hysteresis_percent", "linearity_error", "max_error", "rmse", "tracking_metrics"]
+__all__ = ["hysteresis_percent", "linearity_error", "max_error", "rms", "rmse", "tracking_metrics"]
 
 
 def _pair(
@@ -59,6 +60,22 @@ def _span(x: FloatArray, name: str) -> float:
     return span
 
 
+def rms(x: npt.ArrayLike) -> float:
+    """Root mean square of a finite record, computed on the record scaled by its largest
+    magnitude: the squares of values near 1e300 do not overflow and those of subnormal values
+    (1e-310) do not vanish, so a record's RMS is never 0 beside a non-zero maximum.
+
+    >>> from piezohyst.metrics import rms
+    >>> rms([3e300, -4e300]) == rms([3.0, -4.0]) * 1e300, rms([3e-310, 4e-310]) > 0
+    (True, True)
+    """
+    a = as_record(x, "x", copy=False)
+    s = float(np.max(np.abs(a)))
+    if s == 0.0:
+        return 0.0
+    return s * float(np.sqrt(np.mean((a / s) ** 2)))
+
+
 def rmse(reference: npt.ArrayLike, output: npt.ArrayLike) -> float:
     """Root-mean-square error ``sqrt(mean((output - reference)**2))``.
 
@@ -78,7 +95,7 @@ def rmse(reference: npt.ArrayLike, output: npt.ArrayLike) -> float:
     1.0
     """
     r, y = _pair(reference, output, "reference", "output")
-    return float(np.sqrt(np.mean((y - r) ** 2)))
+    return rms(y - r)
 
 
 def max_error(reference: npt.ArrayLike, output: npt.ArrayLike) -> float:

@@ -31,8 +31,8 @@ PYARROW_HINT = "reading text records needs pyarrow: pip install pyarrow"
 SNIFF_LINES = 32
 
 _COMMENT = (b"#", b"%")
-_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|[+-]?(?:inf|infinity|nan)", re.IGNORECASE)
-_NUMBER_COMMA = re.compile(r"[+-]?(?:\d+,?\d*|,\d+)(?:[eE][+-]?\d+)?")
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|[+-]?(?:inf|infinity|nan)", re.IGNORECASE | re.ASCII)
+_NUMBER_COMMA = re.compile(r"[+-]?(?:\d+,?\d*|,\d+)(?:[eE][+-]?\d+)?", re.ASCII)
 # Arrow's pattern of a number (cells of a column Arrow could not type as numbers)
 _ARROW_NUMBER = r"^\s*[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?\s*$|^\s*[+-]?(?:inf|infinity|nan)\s*$"
 # whole lines the parser must not see: comments, whitespace-only lines
@@ -69,7 +69,10 @@ def _split(line: str, delimiter: str) -> list[str]:
     if delimiter == " ":
         return line.split()
     if '"' in line:
-        return [f.strip() for f in next(csv.reader([line.rstrip("\r\n")], delimiter=delimiter, quotechar='"'))]
+        try:
+            return [f.strip() for f in next(csv.reader([line.rstrip("\r\n")], delimiter=delimiter, quotechar='"'))]
+        except csv.Error:  # a carriage return inside the line: split plainly, the parser names the cell
+            pass
     return [f.strip() for f in line.rstrip().split(delimiter)]
 
 
