@@ -16,6 +16,8 @@ def test_demo_quick_writes_the_report_and_prints_json(tmp_path):
     assert numbers["seed"] == 1 and numbers["quick"] is True
     assert set(numbers) >= {"identification", "seed1", "seed2", "figures"}
     assert "[5/5] write the report" in out.stderr  # progress per stage on stderr
+    # stderr is not a terminal: progress in plain lines, never a carriage return (issue 17)
+    assert "\r" not in out.stderr and "css: 25/25 (100 %)" in out.stderr
     report = tmp_path / "report"
     for name in ("index.html", "report.md", "results.json", *numbers["figures"].values()):
         assert (report / name).stat().st_size > 0, name

@@ -8,7 +8,7 @@ import json
 import math
 import re
 from pathlib import Path
-from typing import TYPE_CHECKING, NoReturn, TypedDict, Unpack
+from typing import TYPE_CHECKING, Any, NoReturn, TypedDict, Unpack
 
 import numpy as np
 import numpy.typing as npt
@@ -49,7 +49,14 @@ class _Columns(_RecordOptions, total=False):
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse whose usage errors are one line on stderr with exit code 2 (docs/spec.md §8, §10)."""
+    """argparse whose usage errors are one line on stderr with exit code 2 (docs/spec.md §8, §10),
+    and which refuses abbreviated long options (``--forc`` is not ``--force``: an abbreviation that
+    a later option makes ambiguous would silently change meaning). Subcommand parsers are made by
+    this class too, so the rule holds on every level."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str) -> NoReturn:
         msg = " ".join(str(message).split())

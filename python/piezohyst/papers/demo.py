@@ -29,6 +29,7 @@ from ..errors import ParameterError
 from ..models.model import HysteresisModel
 from ..outputs import check_output_dir, output_set
 from ..plant.stage import virtual_stage
+from ..progress import is_silenced
 from . import experiments as ex
 from .report import write_report
 
@@ -85,7 +86,7 @@ def run_demo(
     check_output_dir(out_dir, name=name, overwrite=force, names=REPORT_FILES, parents=True, force_hint=hint)
     if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
         raise ParameterError(f"seed = {seed!r} must be a non-negative int")
-    stream = sys.stderr if progress else None
+    stream = sys.stderr if progress and not is_silenced() else None
     steps = _Steps(5, stream)
     t_start = time.perf_counter()
     try:
@@ -108,7 +109,8 @@ def run_demo(
         results["wall_s"] = time.perf_counter() - t_start
         (tmp / "results.json").write_text(json.dumps(results, indent=1, default=float), encoding="utf-8")
     steps.done()
-    print_fn(f"report: {out_dir / 'index.html'} (and report.md, results.json); {results['wall_s']:.0f} s in all")
+    label = " [QUICK run: smaller optimizer and tuning budgets, equal for every controller]" if quick else ""
+    print_fn(f"report: {out_dir / 'index.html'} (and report.md, results.json); {results['wall_s']:.0f} s in all{label}")
     return results
 
 
