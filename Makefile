@@ -5,13 +5,13 @@ BIN    := $(VENV)/bin
 RUST_SOURCES := $(shell find crates -name '*.rs' -o -name 'Cargo.toml') Cargo.toml
 BUILT  := $(VENV)/.built
 
-.PHONY: demo test test-rust test-python test-c lint lint-rust lint-python bench bench-c clean
+.PHONY: demo test test-rust test-python test-c lint lint-rust lint-python bench bench-c clean docs docs-check docs-browser-deps
 
 $(BIN)/python:
 	$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "Python >= 3.11 is required"'
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
-	$(BIN)/python -m pip install -q "maturin>=1.7,<2" "numpy>=1.26" "scipy>=1.11" "matplotlib>=3.8" "pyarrow>=14" "control>=0.10.1" "tqdm>=4.66" "pytest>=8" "hypothesis>=6.100" "h5py>=3.10"
+	$(BIN)/python -m pip install -q "maturin>=1.7,<2" "numpy>=1.26" "scipy>=1.11" "matplotlib>=3.8" "pyarrow>=14" "control>=0.10.1" "tqdm>=4.66" "pytest>=8" "hypothesis>=6.100" "h5py>=3.10" "numpydoc==1.11.0"
 
 # The extension is rebuilt (release, LTO) whenever a Rust source changes.
 $(BUILT): $(BIN)/python $(RUST_SOURCES) pyproject.toml
@@ -26,7 +26,7 @@ test: test-rust test-python test-c
 # The gates CI runs before the tests: formatting, lints, strict types, the stub against the
 # compiled module, and the core cross-built for a bare-metal Cortex-M4F (no_std, no allocator).
 EMBEDDED_TARGET := thumbv7em-none-eabihf
-PY_SOURCES := python tests bench
+PY_SOURCES := python tests bench examples docs
 
 lint: lint-rust lint-python
 
@@ -69,6 +69,9 @@ test-c: $(BUILT)
 	@# a refused call prints nothing: bad_input's stderr must stay empty (no Rust backtrace)
 	$(C_DIR)/bad_input 2>$(C_DIR)/bad_input.stderr || { cat $(C_DIR)/bad_input.stderr; exit 1; }
 	@test ! -s $(C_DIR)/bad_input.stderr || { echo "bad_input wrote to stderr:"; cat $(C_DIR)/bad_input.stderr; exit 1; }
+	@# the docs' C example (docs/guides/export_c.rst) compiles against the header and library and runs
+	$(CC) $(C_FLAGS) examples/c/pi_inverse.c -Ltarget/release -lpiezohyst -Wl,-rpath,$(abspath target/release) -lm -o $(C_DIR)/pi_inverse
+	$(C_DIR)/pi_inverse
 
 bench-c: $(BUILT)
 	$(BIN)/python bench/c_step.py
@@ -77,5 +80,29 @@ bench-c: $(BUILT)
 bench: $(BUILT)
 	$(BIN)/piezohyst bench --readme README.md
 
+# The documentation site (docs/, examples/): the `docs` extra of pyproject.toml is installed into
+# .venv once; the build itself downloads nothing (no intersphinx, MathML written at build time),
+# runs the example gallery, and fails on any warning. Open docs/_build/html/index.html.
+DOCS_BUILT := $(VENV)/.docs-built
+DOCS_OUT   := docs/_build/html
+
+$(DOCS_BUILT): $(BUILT) pyproject.toml
+	$(BIN)/python -c 'import tomllib; print("\n".join(tomllib.load(open("pyproject.toml", "rb"))["project"]["optional-dependencies"]["docs"]))' > $(VENV)/docs-requirements.txt
+	$(BIN)/python -m pip install -q -r $(VENV)/docs-requirements.txt
+	touch $@
+
+docs: $(DOCS_BUILT)
+	rm -rf $(DOCS_OUT) docs/api/generated docs/gallery docs/sg_execution_times.rst
+	MPLBACKEND=Agg $(BIN)/python -m sphinx -W --keep-going -q -b html docs $(DOCS_OUT)
+
+# Chromium from Debian's packages, for the browser checks (a no-op where it is installed)
+docs-browser-deps:
+	@command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 || \
+		{ apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium; }
+
+# the built site in headless Chromium: its index and a gallery page show their figures
+docs-check: docs-browser-deps
+	PIEZOHYST_DOCS_REQUIRED=1 $(BIN)/python -m pytest tests/test_docs_site.py -p no:cacheprovider
+
 clean:
-	rm -rf $(VENV) target
+	rm -rf $(VENV) target docs/_build docs/api/generated docs/gallery

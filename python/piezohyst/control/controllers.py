@@ -105,12 +105,43 @@ def _domain_limits(u_min: float | None, u_max: float | None, stage: Stage, limit
 class VelocityObserver:
     """Position and velocity from the quantized, delayed reading: a steady-state alpha-beta
     filter with a double pole at ``exp(-2 pi bandwidth Ts)``, projected ``delay`` samples
-    ahead (by default the sensor's delay). See ``crates/core/src/control/mod.rs``."""
+    ahead (by default the sensor's delay). See ``crates/core/src/control/mod.rs``.
+
+    Parameters
+    ----------
+    bandwidth : float
+        The filter's bandwidth, Hz (below the Nyquist frequency).
+    delay : float, optional
+        Samples of prediction (default: the stage sensor's delay).
+
+    Examples
+    --------
+    >>> from piezohyst import PID, VelocityObserver, virtual_stage
+    >>> VelocityObserver(bandwidth=1000.0).core(virtual_stage())   # bandwidth, Ts, delay
+    [1000.0, 0.0001, 1.0]
+    """
 
     bandwidth: float = 1000.0
     delay: float | None = None
 
     def core(self, stage: Stage) -> list[float]:
+        """The observer's slots for the core: ``[bandwidth, Ts, delay]`` on ``stage``.
+
+        Parameters
+        ----------
+        stage : Stage
+            The plant (its sample time and sensor delay).
+
+        Returns
+        -------
+        list of float
+
+        Examples
+        --------
+        >>> from piezohyst import VelocityObserver, virtual_stage
+        >>> VelocityObserver(300.0, delay=2.0).core(virtual_stage())
+        [300.0, 0.0001, 2.0]
+        """
         bw = as_scalar(self.bandwidth, "observer_bandwidth", positive=True)
         if bw >= 0.5 / stage.sample_time:
             raise ParameterError(
@@ -206,6 +237,17 @@ class OpenLoop:
     by default the stage's ``1 / static_gain``), optionally with velocity and acceleration
     feedforward that inverts second-order dynamics (``c1 = B/K`` s, ``c2 = M/K`` s²).
 
+    Parameters
+    ----------
+    gain : float, optional
+        V/m (default: the stage's ``1 / static_gain``; 1 behind an inverse model).
+    offset : float
+        Added to the command, V.
+    c1, c2 : float
+        Velocity and acceleration feedforward, s and s².
+    u_min, u_max : float, optional
+        Output limits (default: the amplifier's).
+
     Examples
     --------
     >>> from piezohyst import OpenLoop, virtual_stage
@@ -223,9 +265,36 @@ class OpenLoop:
 
     @property
     def uses_reference_derivatives(self) -> bool:
+        """Whether the step reads the reference's velocity and acceleration (``c1`` or ``c2`` set)."""
         return self.c1 != 0 or self.c2 != 0
 
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
+        """The controller as the Rust core runs it on ``stage``: ``(kind, params, inverse,
+        ilc)``, the flat parameters in the order of the core's layout table
+        (``piezohyst.export.CONTROLLER_PARAMS``), validated.
+
+        Parameters
+        ----------
+        stage : Stage
+            The plant: sample time, sensor delay, amplifier limits (and the static gain where
+            a default depends on it).
+        limits : (float, float), optional
+            Output limits when the controller acts behind an inverse model (metres); by
+            default the amplifier's, in volts.
+
+        Returns
+        -------
+        tuple
+            ``(kind, params, inverse, ilc)``: the kind's name, the parameter array, the
+            inverse model's ``(family, dims, row, u_min, u_max)`` or ``None``, the ILC settings
+            or ``None``.
+
+        Examples
+        --------
+        >>> from piezohyst import OpenLoop, virtual_stage
+        >>> OpenLoop(gain=7e6, c1=1e-4).core(virtual_stage())[1].tolist()
+        [7000000.0, 0.0, 0.0001, 0.0, -20.0, 150.0]
+        """
         if self.gain is not None:
             gain = as_scalar(self.gain, "gain")
         else:  # behind an inverse the plant is linearized to unit gain
@@ -345,6 +414,28 @@ class PID:
 
     Gains in V/m, V/(m s), V s/m; ``tau_d`` in s; ``ff_gain`` defaults to the stage's
     ``1 / static_gain`` (set 0 for pure feedback).
+
+    Parameters
+    ----------
+    kp, ki, kd : float
+        Proportional, integral and derivative gains (>= 0).
+    tau_d : float
+        Time constant of the derivative's filter, s.
+    ff_gain : float, optional
+        Static feedforward gain, V/m (default: ``1 / static_gain``; 1 behind an inverse).
+    offset : float
+        Added to the command, V.
+    u_min, u_max : float, optional
+        Output limits (default: the amplifier's).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import piezohyst as ph
+    >>> stage = ph.virtual_stage()
+    >>> res = ph.closed_loop(stage, ph.PID(kp=1e6, ki=5e9), np.full(3000, 5e-6), rng=1)
+    >>> round(float(res.position[-500:].mean()) * 1e6, 2)          # um: the integral removes the offset
+    5.02
     """
 
     kp: float = 0.0
@@ -360,6 +451,33 @@ class PID:
     uses_reference_derivatives = False
 
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
+        """The controller as the Rust core runs it on ``stage``: ``(kind, params, inverse,
+        ilc)``, the flat parameters in the order of the core's layout table
+        (``piezohyst.export.CONTROLLER_PARAMS``), validated.
+
+        Parameters
+        ----------
+        stage : Stage
+            The plant: sample time, sensor delay, amplifier limits (and the static gain where
+            a default depends on it).
+        limits : (float, float), optional
+            Output limits when the controller acts behind an inverse model (metres); by
+            default the amplifier's, in volts.
+
+        Returns
+        -------
+        tuple
+            ``(kind, params, inverse, ilc)``: the kind's name, the parameter array, the
+            inverse model's ``(family, dims, row, u_min, u_max)`` or ``None``, the ILC settings
+            or ``None``.
+
+        Examples
+        --------
+        >>> from piezohyst import PID, virtual_stage
+        >>> kind, params, inverse, ilc = PID(kp=1e6, ki=5e9).core(virtual_stage())
+        >>> kind, params.size, inverse, ilc
+        ('pid', 9, None, None)
+        """
         for name in ("kp", "ki", "kd"):
             as_scalar(getattr(self, name), name, nonnegative=True)
         as_scalar(self.tau_d, "tau_d", positive=True)
@@ -620,7 +738,26 @@ def _stage_parameters(params: object) -> StageParameters:
 
 def cemf_model_parameters(params: StageParameters) -> dict[str, float]:
     """The volt-normalized CEMF model of seed 1 from (identified) stage parameters:
-    ``M = m/Tem``, ``B = b/Tem``, ``K = k/Tem`` and the charge-driven Bouc–Wen law."""
+    ``M = m/Tem``, ``B = b/Tem``, ``K = k/Tem`` and the charge-driven Bouc–Wen law.
+
+    Parameters
+    ----------
+    params : StageParameters
+        Stage parameters with a charge-driven CEMF (e.g. :func:`piezohyst.identify_cemf`'s model).
+
+    Returns
+    -------
+    dict
+        ``M``, ``B``, ``K``, ``tem``, ``capacitance``, ``alpha``, ``beta``, ``gamma``.
+
+    Examples
+    --------
+    >>> from piezohyst import virtual_stage
+    >>> from piezohyst.control import cemf_model_parameters
+    >>> c = cemf_model_parameters(virtual_stage().params)
+    >>> round(c["M"], 6), round(c["K"]), c["alpha"]
+    (0.0068, 6983810, 125000.0)
+    """
     params = _stage_parameters(params)
     if params.hyst_drive != "charge":
         raise ParameterError(f"model.hyst_drive = {params.hyst_drive!r}: the CEMF observer needs the charge-driven law")
@@ -678,6 +815,41 @@ class SMC:
     position feedback that can latch at a voltage limit when the identified stiffness asks for
     more than the amplifier gives); ``"desired"`` evaluates them on the reference.
     The sliding dynamics ``e'' + (kv + alpha) e' + (alpha kv + kp) e = 0`` must be stable.
+
+    Parameters
+    ----------
+    model : StageParameters
+        The identified CEMF stage model.
+    kp, kv, alpha : float
+        The sliding surface's gains (1/s², 1/s) and the compensator's pole (1/s, >= 0).
+    ks, phi : float
+        Switching gain (V) and boundary layer (m/s).
+    cemf : bool
+        Add the CEMF observer's estimate (seed 1's Case 2).
+    switching : {"boundary_layer", "super_twisting"}
+        The switching law.
+    k1, k2 : float
+        Super-twisting gains.
+    model_terms : {"measured", "desired"}
+        Evaluate ``B x' + K x`` on the measured motion (seed 1) or on the reference.
+    observer : VelocityObserver
+        Position and velocity estimator.
+    u_min, u_max : float, optional
+        Output limits (default: the amplifier's).
+
+    Examples
+    --------
+    >>> import piezohyst as ph
+    >>> stage = ph.virtual_stage()
+    >>> smc = ph.SMC(stage.params, kp=1e6, kv=2e3, ks=20.0, cemf=True)
+    >>> t, ref = ph.triangle(5, 5e-6, 0.4, 1e4, offset=7e-6)
+    >>> m = ph.track(smc, ref, stage=stage, rng=1, skip=0.2).metrics
+    >>> bool(m["rmse"] < 0.1e-6)
+    True
+    >>> ph.SMC(stage.params, kv=-3.0).core(stage)
+    Traceback (most recent call last):
+    ...
+    piezohyst.errors.ParameterError: kv + alpha = -3.0 must be > 0: the sliding dynamics would be unstable
     """
 
     model: StageParameters
@@ -698,6 +870,34 @@ class SMC:
     uses_reference_derivatives = True
 
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
+        """The controller as the Rust core runs it on ``stage``: ``(kind, params, inverse,
+        ilc)``, the flat parameters in the order of the core's layout table
+        (``piezohyst.export.CONTROLLER_PARAMS``), validated.
+
+        Parameters
+        ----------
+        stage : Stage
+            The plant: sample time, sensor delay, amplifier limits (and the static gain where
+            a default depends on it).
+        limits : (float, float), optional
+            Output limits when the controller acts behind an inverse model (metres); by
+            default the amplifier's, in volts.
+
+        Returns
+        -------
+        tuple
+            ``(kind, params, inverse, ilc)``: the kind's name, the parameter array, the
+            inverse model's ``(family, dims, row, u_min, u_max)`` or ``None``, the ILC settings
+            or ``None``.
+
+        Examples
+        --------
+        >>> from piezohyst import SMC, virtual_stage
+        >>> stage = virtual_stage()
+        >>> kind, params, inverse, ilc = SMC(stage.params, cemf=True).core(stage)
+        >>> kind, params.size
+        ('smc', 21)
+        """
         cemf = _cemf_slots(self.model)
         kp, kv, alpha = (as_scalar(getattr(self, n), n) for n in ("kp", "kv", "alpha"))
         if alpha < 0:
@@ -749,6 +949,44 @@ class ABSMC:
     observer's estimate as seed 2 writes it; the measured form cancels the stage stiffness with
     a delayed, quantized position and loses stability on a stiff stage (see
     ``crates/core/src/control/absmc.rs``).
+
+    Parameters
+    ----------
+    b : float
+        Input gain of the plant model (> 0).
+    theta : sequence of 2 floats
+        Nominal ``[a0, a1]`` of ``theta``.
+    c1, lam : float
+        Backstepping and sliding-surface gains, 1/s.
+    ks : float
+        Reaching gain.
+    phi : float
+        Boundary layer.
+    gamma_theta : sequence of 2 floats
+        Adaptation rates of ``theta``.
+    gamma_d : float
+        Adaptation rate of the disturbance bound ``D``.
+    d0 : float
+        Initial ``D``.
+    d_max : float, optional
+        Largest ``D`` (default: the output span times ``b``).
+    theta_range : float
+        ``theta``'s bounds as a factor around the nominal values (>= 1).
+    theta_bounds : ((float, float), (float, float)), optional
+        Explicit lower and upper bounds of ``theta``.
+    regressor : {"desired", "measured"}
+        Where ``phi`` is evaluated.
+    observer : VelocityObserver
+        Position and velocity estimator.
+    u_min, u_max : float, optional
+        Output limits.
+
+    Examples
+    --------
+    >>> from piezohyst import ABSMC, virtual_stage
+    >>> a = ABSMC.for_stage(virtual_stage().params)
+    >>> round(a.b, 3), [round(x) for x in a.theta]
+    (147.059, [1027030812, 1923])
     """
 
     b: float
@@ -772,7 +1010,25 @@ class ABSMC:
 
     @classmethod
     def for_stage(cls, model: StageParameters, **kw: Any) -> ABSMC:
-        """Voltage-domain ABSMC from identified stage parameters."""
+        """Voltage-domain ABSMC from identified stage parameters.
+
+        Parameters
+        ----------
+        model : StageParameters
+            The identified stage.
+        **kw
+            Other fields of :class:`ABSMC`.
+
+        Returns
+        -------
+        ABSMC
+
+        Examples
+        --------
+        >>> from piezohyst import ABSMC, virtual_stage
+        >>> ABSMC.for_stage(virtual_stage().params, ks=5e3).ks
+        5000.0
+        """
         c = (
             cemf_model_parameters(model)
             if model.hyst_drive == "charge"
@@ -783,12 +1039,60 @@ class ABSMC:
     @classmethod
     def linearized(cls, natural_frequency: float, damping_ratio: float = 0.05, **kw: Any) -> ABSMC:
         """Displacement-domain ABSMC for a stage linearized by an inverse model: unit static
-        gain, ``natural_frequency`` in Hz."""
+        gain, ``natural_frequency`` in Hz.
+
+        Parameters
+        ----------
+        natural_frequency : float
+            Of the linearized loop, Hz.
+        damping_ratio : float
+            Of the linearized loop.
+        **kw
+            Other fields of :class:`ABSMC`.
+
+        Returns
+        -------
+        ABSMC
+
+        Examples
+        --------
+        >>> from piezohyst import ABSMC
+        >>> a = ABSMC.linearized(2000.0, 0.7, c1=2e3)
+        >>> round(a.b), [round(x) for x in a.theta]
+        (157913670, [157913670, 17593])
+        """
         w = 2 * math.pi * as_scalar(natural_frequency, "natural_frequency", positive=True)
         z = as_scalar(damping_ratio, "damping_ratio", nonnegative=True)
         return cls(b=w * w, theta=(w * w, 2 * z * w), **kw)
 
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
+        """The controller as the Rust core runs it on ``stage``: ``(kind, params, inverse,
+        ilc)``, the flat parameters in the order of the core's layout table
+        (``piezohyst.export.CONTROLLER_PARAMS``), validated.
+
+        Parameters
+        ----------
+        stage : Stage
+            The plant: sample time, sensor delay, amplifier limits (and the static gain where
+            a default depends on it).
+        limits : (float, float), optional
+            Output limits when the controller acts behind an inverse model (metres); by
+            default the amplifier's, in volts.
+
+        Returns
+        -------
+        tuple
+            ``(kind, params, inverse, ilc)``: the kind's name, the parameter array, the
+            inverse model's ``(family, dims, row, u_min, u_max)`` or ``None``, the ILC settings
+            or ``None``.
+
+        Examples
+        --------
+        >>> from piezohyst import ABSMC, virtual_stage
+        >>> stage = virtual_stage()
+        >>> ABSMC.for_stage(stage.params).core(stage)[0]
+        'absmc'
+        """
         b = as_scalar(self.b, "b", positive=True)
         th = [as_scalar(t, f"theta[{i}]") for i, t in enumerate(self.theta)]
         n_theta = _slot_count("absmc", "theta0")  # the regressor phi = [-x, -x']
@@ -841,7 +1145,25 @@ class ABSMC:
 class CemfFeedforward:
     """Exact inverse feedforward of the identified CEMF model (seed 1's model):
     ``F = M x_d'' + B x_d' + K x_d``, the charge ``q = Cz F + Tem x_d``, ``Vh`` from the
-    Bouc–Wen law on ``q``, and ``u = F + Vh``."""
+    Bouc–Wen law on ``q``, and ``u = F + Vh``.
+
+    Parameters
+    ----------
+    model : StageParameters
+        The identified CEMF stage model.
+    u_min, u_max : float, optional
+        Output limits (default: the amplifier's).
+
+    Examples
+    --------
+    >>> import piezohyst as ph
+    >>> stage = ph.virtual_stage()
+    >>> t, ref = ph.sine(5, 5e-6, 0.4, 1e4, offset=7e-6)
+    >>> ff = ph.track(ph.CemfFeedforward(stage.params), ref, stage=stage, rng=1, skip=0.2).metrics
+    >>> ol = ph.track(ph.OpenLoop(), ref, stage=stage, rng=1, skip=0.2).metrics
+    >>> round(ff["rmse"] * 1e6, 2), round(ol["rmse"] * 1e6, 2)   # um: creep and electrostriction stay
+    (0.46, 0.81)
+    """
 
     model: StageParameters
     u_min: float | None = None
@@ -850,6 +1172,33 @@ class CemfFeedforward:
     uses_reference_derivatives = True
 
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
+        """The controller as the Rust core runs it on ``stage``: ``(kind, params, inverse,
+        ilc)``, the flat parameters in the order of the core's layout table
+        (``piezohyst.export.CONTROLLER_PARAMS``), validated.
+
+        Parameters
+        ----------
+        stage : Stage
+            The plant: sample time, sensor delay, amplifier limits (and the static gain where
+            a default depends on it).
+        limits : (float, float), optional
+            Output limits when the controller acts behind an inverse model (metres); by
+            default the amplifier's, in volts.
+
+        Returns
+        -------
+        tuple
+            ``(kind, params, inverse, ilc)``: the kind's name, the parameter array, the
+            inverse model's ``(family, dims, row, u_min, u_max)`` or ``None``, the ILC settings
+            or ``None``.
+
+        Examples
+        --------
+        >>> from piezohyst import CemfFeedforward, virtual_stage
+        >>> stage = virtual_stage()
+        >>> CemfFeedforward(stage.params).core(stage)[0]
+        'cemf_feedforward'
+        """
         lo, hi = _domain_limits(self.u_min, self.u_max, stage, limits)
         return "cemf_feedforward", _pack("cemf_feedforward", **_cemf_slots(self.model), u_min=lo, u_max=hi), None, None
 
@@ -880,16 +1229,61 @@ class Compensated:
     """``inner`` acting in the linearized (displacement) domain, behind the exact per-sample
     inverse of the identified hysteresis ``model`` (input V, output m): the inner command is
     the displacement wanted from the actuator, the inverse finds the voltage. The inner
-    controller's limits are the model's outputs at the amplifier limits."""
+    controller's limits are the model's outputs at the amplifier limits.
+
+    Parameters
+    ----------
+    inner : controller configuration
+        The controller acting in metres (``PID``, ``ABSMC.linearized(...)``, ``OpenLoop``, ...).
+    model : HysteresisModel
+        The identified hysteresis model (input V, output m).
+
+    Examples
+    --------
+    >>> import piezohyst as ph
+    >>> model = ph.PI([20.0, 50.0], [2e-8, 1e-8], p0=1e-7)        # V -> m
+    >>> kind, params, inverse, ilc = ph.Compensated(ph.PID(kp=0.5, ki=2e3), model).core(ph.virtual_stage())
+    >>> kind, inverse[0], inverse[3:]                             # the PID in metres, before the inverse
+    ('pid', 'pi', (-20.0, 150.0))
+    """
 
     inner: DomainController
     model: HysteresisModel
 
     @property
     def uses_reference_derivatives(self) -> bool:
+        """Whether the inner controller reads the reference's derivatives."""
         return bool(getattr(self.inner, "uses_reference_derivatives", True))
 
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
+        """The controller as the Rust core runs it on ``stage``: ``(kind, params, inverse,
+        ilc)``, the flat parameters in the order of the core's layout table
+        (``piezohyst.export.CONTROLLER_PARAMS``), validated.
+
+        Parameters
+        ----------
+        stage : Stage
+            The plant: sample time, sensor delay, amplifier limits (and the static gain where
+            a default depends on it).
+        limits : (float, float), optional
+            Output limits when the controller acts behind an inverse model (metres); by
+            default the amplifier's, in volts.
+
+        Returns
+        -------
+        tuple
+            ``(kind, params, inverse, ilc)``: the kind's name, the parameter array, the
+            inverse model's ``(family, dims, row, u_min, u_max)`` or ``None``, the ILC settings
+            or ``None``.
+
+        Examples
+        --------
+        >>> import piezohyst as ph
+        >>> model = ph.PI([20.0, 50.0], [2e-8, 1e-8], p0=1e-7)
+        >>> params = ph.Compensated(ph.OpenLoop(), model).core(ph.virtual_stage())[1]
+        >>> [round(float(x) * 1e6, 3) for x in params[-2:]]      # limits: the model's outputs at -20, 150 V (um)
+        [-1.7, 18.6]
+        """
         if isinstance(self.inner, (Compensated, InverseFeedforward)):
             raise ParameterTypeError("inner must not itself be compensated")
         v_lo, v_hi = _limits(None, None, stage) if limits is None else limits
@@ -908,7 +1302,23 @@ class InverseFeedforward:
     """Inverse feedforward: the exact per-sample inverse of ``model`` driven by the
     reference (optionally led by ``c1 x_d' + c2 x_d''`` to invert the stage's linear dynamics,
     docs/spec.md §5). Any invertible model: PI family, Preisach, Bouc–Wen; for the CEMF model use
-    :class:`CemfFeedforward`."""
+    :class:`CemfFeedforward`.
+
+    Parameters
+    ----------
+    model : HysteresisModel
+        The identified hysteresis model (input V, output m).
+    c1, c2 : float
+        Lead on the reference's velocity and acceleration, s and s².
+
+    Examples
+    --------
+    >>> import piezohyst as ph
+    >>> model = ph.PI([20.0, 50.0], [2e-8, 1e-8], p0=1e-7)
+    >>> ff = ph.InverseFeedforward(model, c1=1e-4)
+    >>> ff.uses_reference_derivatives, ff.core(ph.virtual_stage())[2][0]
+    (True, 'pi')
+    """
 
     model: HysteresisModel
     c1: float = 0.0
@@ -916,9 +1326,37 @@ class InverseFeedforward:
 
     @property
     def uses_reference_derivatives(self) -> bool:
+        """Whether the step reads the reference's derivatives (``c1`` or ``c2`` set)."""
         return self.c1 != 0 or self.c2 != 0
 
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
+        """The controller as the Rust core runs it on ``stage``: ``(kind, params, inverse,
+        ilc)``, the flat parameters in the order of the core's layout table
+        (``piezohyst.export.CONTROLLER_PARAMS``), validated.
+
+        Parameters
+        ----------
+        stage : Stage
+            The plant: sample time, sensor delay, amplifier limits (and the static gain where
+            a default depends on it).
+        limits : (float, float), optional
+            Output limits when the controller acts behind an inverse model (metres); by
+            default the amplifier's, in volts.
+
+        Returns
+        -------
+        tuple
+            ``(kind, params, inverse, ilc)``: the kind's name, the parameter array, the
+            inverse model's ``(family, dims, row, u_min, u_max)`` or ``None``, the ILC settings
+            or ``None``.
+
+        Examples
+        --------
+        >>> import piezohyst as ph
+        >>> model = ph.PI([20.0, 50.0], [2e-8, 1e-8], p0=1e-7)
+        >>> ph.InverseFeedforward(model).core(ph.virtual_stage())[0]     # an open loop behind the inverse
+        'open_loop'
+        """
         return Compensated(OpenLoop(gain=1.0, c1=self.c1, c2=self.c2), self.model).core(stage, limits=limits)
 
 
@@ -928,7 +1366,29 @@ class ILC:
     samples: ``u = inner + L[k mod N]``, ``L[i] <- q smooth(L)[i] + gain e``, updated
     ``lead`` samples back (the plant's delay and lag). ``gain`` is in output units per metre
     (dimensionless behind an inverse); ``forgetting`` ``q`` in (0, 1]. Learning acts in the
-    linearized domain when ``inner`` is :class:`Compensated`."""
+    linearized domain when ``inner`` is :class:`Compensated`.
+
+    Parameters
+    ----------
+    inner : controller configuration
+        The controller whose output is corrected.
+    period : int
+        Samples per period ``N`` of the reference.
+    gain : float
+        Learning gain.
+    forgetting : float
+        ``q`` in (0, 1].
+    lead : int
+        Learning shift in samples (the plant's delay and lag), below ``period``.
+
+    Examples
+    --------
+    >>> import piezohyst as ph
+    >>> model = ph.PI([20.0, 50.0], [2e-8, 1e-8], p0=1e-7)
+    >>> ilc = ph.ILC(ph.InverseFeedforward(model), period=200, gain=0.3)
+    >>> ilc.core(ph.virtual_stage())[3]                 # period, gain, forgetting, lead, sensor delay
+    (200, 0.3, 1.0, 3, 1)
+    """
 
     inner: DomainController
     period: int
@@ -938,9 +1398,36 @@ class ILC:
 
     @property
     def uses_reference_derivatives(self) -> bool:
+        """Whether the inner controller reads the reference's derivatives."""
         return bool(getattr(self.inner, "uses_reference_derivatives", True))
 
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
+        """The controller as the Rust core runs it on ``stage``: ``(kind, params, inverse,
+        ilc)``, the flat parameters in the order of the core's layout table
+        (``piezohyst.export.CONTROLLER_PARAMS``), validated.
+
+        Parameters
+        ----------
+        stage : Stage
+            The plant: sample time, sensor delay, amplifier limits (and the static gain where
+            a default depends on it).
+        limits : (float, float), optional
+            Output limits when the controller acts behind an inverse model (metres); by
+            default the amplifier's, in volts.
+
+        Returns
+        -------
+        tuple
+            ``(kind, params, inverse, ilc)``: the kind's name, the parameter array, the
+            inverse model's ``(family, dims, row, u_min, u_max)`` or ``None``, the ILC settings
+            or ``None``.
+
+        Examples
+        --------
+        >>> import piezohyst as ph
+        >>> ph.ILC(ph.PID(kp=1e6), period=100).core(ph.virtual_stage())[0]
+        'pid'
+        """
         n = as_int(self.period, "period", minimum=2)
         gain = as_scalar(self.gain, "gain", nonnegative=True)
         q = as_scalar(self.forgetting, "forgetting", positive=True)
@@ -956,9 +1443,47 @@ class ILC:
 
 
 def is_controller(c: object) -> bool:
+    """Whether ``c`` is a controller configuration (it has a ``core(stage)`` method).
+
+    Parameters
+    ----------
+    c : object
+        Anything.
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> from piezohyst import PID
+    >>> from piezohyst.control import is_controller
+    >>> is_controller(PID(kp=1e6)), is_controller("pid")
+    (True, False)
+    """
     return hasattr(c, "core") and callable(c.core)
 
 
 def with_gains(controller: _C, **gains: Any) -> _C:
-    """A copy of ``controller`` with some fields changed (for gain sweeps and tuning)."""
+    """A copy of ``controller`` with some fields changed (for gain sweeps and tuning).
+
+    Parameters
+    ----------
+    controller : controller configuration
+        The template.
+    **gains
+        Fields and their new values.
+
+    Returns
+    -------
+    controller configuration
+        Of the same class.
+
+    Examples
+    --------
+    >>> from piezohyst import PID
+    >>> from piezohyst.control import with_gains
+    >>> with_gains(PID(kp=1e6), ki=5e9)
+    PID(kp=1000000.0, ki=5000000000.0, kd=0.0, tau_d=0.0001, ff_gain=None, offset=0.0, u_min=None, u_max=None)
+    """
     return replace(controller, **gains)

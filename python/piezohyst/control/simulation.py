@@ -78,13 +78,25 @@ class ClosedLoopResult(Response):
     sample_time : float
         Controller period, s.
     reference, command, voltage, position, measured : array_like, shape (N,)
+        The signals (m, V, V, m, m).
     terms : mapping of str to array_like, shape (N,)
+        The controller's internal terms.
     final_state : array_like
         Stage state at the end ``[va, x, v, vh, creep[8]]``.
     controller : str
         Name of the controller that ran.
     skip_samples : int
         First samples left out of ``metrics`` (default 0).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import piezohyst as ph
+    >>> res = ph.closed_loop(ph.virtual_stage(), ph.PID(kp=1e6, ki=5e9), np.full(1000, 5e-6), rng=1)
+    >>> res.n_time, res.units["position"], sorted(res.terms)[:2]
+    (1000, 'm', ['D', 'I'])
+    >>> bool(np.allclose(res.error, res.reference - res.position))
+    True
     """
 
     sample_time: float
@@ -220,8 +232,27 @@ class ClosedLoopResult(Response):
         return self.reference - self.position
 
     def to_pandas(self) -> pd.DataFrame:
-        """The signals and the tracking error as a ``pandas.DataFrame`` indexed by time (needs
-        pandas: without it an ``ImportError`` says ``pip install pandas``)."""
+        """The signals as a ``pandas.DataFrame`` indexed by time (needs pandas: without it an
+        ``ImportError`` says ``pip install pandas``).
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns ``reference``, ``command``, ``voltage``, ``position``, ``measured``,
+            ``error`` and ``term_<name>``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> import piezohyst as ph
+        >>> res = ph.closed_loop(ph.virtual_stage(), ph.PID(kp=1e6), np.full(100, 1e-6), rng=1)
+        >>> try:
+        ...     df = res.to_pandas()
+        ... except ImportError:           # pandas is optional
+        ...     df = None
+        >>> df is None or list(df.columns)[:3] == ["reference", "command", "voltage"]
+        True
+        """
         pd = require_pandas(type(self).__name__)
         cols = {
             "reference": self.reference,
@@ -239,7 +270,32 @@ class ClosedLoopResult(Response):
     ) -> Figure:
         """Tracking (µm) with the error below; ``zoom=(t0, t1)`` adds an inset window.
 
-        Naming ``signals`` gives :meth:`Response.plot`'s panels (one per unit) instead."""
+        Naming ``signals`` gives :meth:`Response.plot`'s panels (one per unit) instead.
+
+        Parameters
+        ----------
+        signals : sequence of str, optional
+            Signals to draw as :meth:`Response.plot` does.
+        zoom : (float, float), optional
+            Time window of an inset, s.
+        ax : sequence of 2 matplotlib axes, optional
+            Where to draw tracking and error (default: a new figure).
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> import matplotlib.pyplot as plt
+        >>> import piezohyst as ph
+        >>> res = ph.closed_loop(ph.virtual_stage(), ph.PID(kp=1e6, ki=5e9), np.full(1000, 5e-6), rng=1)
+        >>> fig = res.plot(zoom=(0.0, 0.01))
+        >>> [a.get_ylabel() for a in fig.axes[:2]]
+        ['position (µm)', 'error (µm)']
+        >>> plt.close(fig)
+        """
         if signals is not None:
             return super().plot(signals, ax=ax)
         import matplotlib.pyplot as plt
@@ -397,6 +453,31 @@ def closed_loop_batch(
 
     Each scenario gets its own noise seed drawn from ``rng``; results are identical whatever
     the number of threads.
+
+    Parameters
+    ----------
+    stage : Stage
+        The plant.
+    scenarios : iterable of (controller, reference)
+        Each a controller configuration and its reference (m per sample).
+    rng : int, numpy.random.Generator or None
+        Source of the scenarios' noise seeds.
+    initial_state : array_like, optional
+        The stage's state at the start of every scenario (default: at rest).
+
+    Returns
+    -------
+    list of ClosedLoopResult
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import piezohyst as ph
+    >>> stage = ph.virtual_stage()
+    >>> ref = np.full(2000, 5e-6)
+    >>> runs = ph.closed_loop_batch(stage, [(ph.PID(kp=k, ki=5e9), ref) for k in (5e5, 1e6, 2e6)], rng=1)
+    >>> len(runs), [r.controller.split("(")[0] for r in runs]
+    (3, ['PID', 'PID', 'PID'])
     """
     seeds_rng = np.random.default_rng(seed_from(rng))
     init = stage.rest_state() if initial_state is None else as_record(initial_state, "initial_state")

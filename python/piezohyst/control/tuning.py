@@ -48,6 +48,25 @@ def track(
     the virtual stage). The result's ``metrics`` (RMSE, max error, % of range, linearity
     error, seed-2-style normalized errors) leave out the first ``skip`` seconds.
 
+    Parameters
+    ----------
+    controller : controller configuration
+        The controller (``PID``, ``SMC``, ``InverseFeedforward``, a loaded controller file, ...).
+    reference : array_like
+        Desired position, m per controller sample.
+    stage : Stage, optional
+        The plant (default: :func:`piezohyst.virtual_stage`).
+    velocity, acceleration : array_like, optional
+        The reference's derivatives (default: central differences, where the controller uses them).
+    rng : int, numpy.random.Generator or None
+        Sensor noise's seed.
+    skip : float
+        Seconds at the start left out of the metrics.
+
+    Returns
+    -------
+    ClosedLoopResult
+
     Examples
     --------
     >>> import piezohyst as ph
@@ -70,7 +89,29 @@ def track(
 
 def stage_from_model(stage: Stage, model: StageParameters) -> Stage:
     """``stage`` (amplifier, sensor, loop rate) with its physics replaced by an identified
-    CEMF model (:class:`StageParameters`): the plant on which gains are tuned."""
+    CEMF model (:class:`StageParameters`): the plant on which gains are tuned.
+
+    Parameters
+    ----------
+    stage : Stage
+        The stage whose amplifier, sensor and loop rate are kept.
+    model : StageParameters
+        The identified physics (e.g. :func:`piezohyst.identify_cemf`'s model).
+
+    Returns
+    -------
+    Stage
+
+    Examples
+    --------
+    >>> import dataclasses
+    >>> import piezohyst as ph
+    >>> stage = ph.virtual_stage()
+    >>> model = dataclasses.replace(stage.params, mass=0.08)        # an identified model, say
+    >>> plant = ph.stage_from_model(stage, model)
+    >>> plant.params.mass, plant.sensor == stage.sensor
+    (0.08, True)
+    """
     return replace(stage, params=model)
 
 
@@ -83,6 +124,33 @@ class TuningResult(RunReport):
     optimizer's per-iteration history; ``wall_time`` in s. ``partial`` is ``True`` when
     Ctrl-C stopped the search: the controller is the best found before it. As a
     :class:`~piezohyst.optimize.RunReport`, ``evaluations`` is ``nfev``.
+
+    Parameters
+    ----------
+    controller : controller configuration
+        The best configuration found.
+    gains : dict
+        The tuned values by name.
+    rmse : float
+        Its tracking RMSE on the tuning plant, m.
+    history : dict
+        The optimizer's per-iteration history.
+    wall_time : float
+        Seconds the tuning took.
+    nfev : int
+        Candidate configurations simulated.
+    partial : bool
+        Ctrl-C stopped the search.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import piezohyst as ph
+    >>> stage = ph.virtual_stage()
+    >>> ref = 5e-6 * (1 - np.cos(2 * np.pi * 10 * np.arange(0, 0.2, 1e-4)))
+    >>> res = ph.tune(ph.PID(kp=1e6, ki=5e9), {"kp": (1e5, 1e7)}, ref, stage=stage, max_iterations=5, rng=0)
+    >>> sorted(res.gains), res.evaluations, type(res.controller).__name__
+    (['kp'], 100, 'PID')
     """
 
     controller: ControllerLike
@@ -148,6 +216,33 @@ def tune(
         Field overrides the same gains must serve, e.g. ``[{"cemf": False}, {"cemf": True}]``
         (seed 1 compares its two cases with identical gains): the cost is the mean RMSE over
         every variant and reference, and a candidate must satisfy the constraints in each.
+    max_iterations : int
+        Populations evaluated.
+    population_size : int, optional
+        Candidates per population.
+    rng : int, numpy.random.Generator or None
+        Seeds the optimizer and the sensor noise.
+    progress : bool
+        Show a progress bar on stderr.
+    callback : callable, optional
+        ``callback(intermediate_result)`` after each iteration.
+
+    Returns
+    -------
+    TuningResult
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import piezohyst as ph
+    >>> stage = ph.virtual_stage()
+    >>> ref = 5e-6 * (1 - np.cos(2 * np.pi * 10 * np.arange(0, 0.3, 1e-4)))
+    >>> hand = ph.PID(kp=1e6, ki=5e9)
+    >>> tuned = ph.tune(hand, {"kp": (1e5, 1e7), "ki": (1e8, 1e11)}, ref, stage=stage, max_iterations=15, rng=0)
+    >>> before = ph.closed_loop(stage, hand, ref, rng=1).metrics["rmse"]
+    >>> after = ph.closed_loop(stage, tuned.controller, ref, rng=1).metrics["rmse"]
+    >>> bool(after < before / 2)
+    True
     """
     from ..optimize.core import minimize
     from ..plant.stage import virtual_stage

@@ -186,7 +186,27 @@ def _validated(
 
 
 def controller_to_dict(controller: PackedController, stage: Stage) -> dict[str, Any]:
-    """The controller file's content for ``controller`` on ``stage`` (see the module doc)."""
+    """The controller file's content for ``controller`` on ``stage`` (see the module doc).
+
+    Parameters
+    ----------
+    controller : controller configuration
+        A piezohyst controller (:class:`~piezohyst.control.PID`, :class:`~piezohyst.control.SMC`, ...).
+    stage : Stage
+        The stage it runs on (sample time, sensor delay, amplifier limits).
+
+    Returns
+    -------
+    dict
+
+    Examples
+    --------
+    >>> import piezohyst as ph
+    >>> from piezohyst.export import controller_to_dict
+    >>> d = controller_to_dict(ph.PID(kp=2e6, ki=2e9), ph.virtual_stage())
+    >>> d["format"], d["kind"], d["params"]["kp"], d["stage"]["sample_time"]
+    ('piezohyst-controller', 'pid', 2000000.0, 0.0001)
+    """
     if not is_controller(controller):
         raise ParameterTypeError(
             f"controller must be a piezohyst controller (OpenLoop, PID, SMC, ...), got {type(controller).__name__}"
@@ -233,7 +253,25 @@ def controller_to_dict(controller: PackedController, stage: Stage) -> dict[str, 
 
 
 def controller_from_dict(d: object) -> ExportedController:
-    """Read a controller file's content (validated: the core builds it once)."""
+    """Read a controller file's content (validated: the core builds it once).
+
+    Parameters
+    ----------
+    d : dict
+        A controller file's JSON object (:func:`controller_to_dict`).
+
+    Returns
+    -------
+    ExportedController
+
+    Examples
+    --------
+    >>> import piezohyst as ph
+    >>> from piezohyst.export import controller_from_dict, controller_to_dict
+    >>> c = controller_from_dict(controller_to_dict(ph.PID(kp=2e6, ki=2e9), ph.virtual_stage()))
+    >>> c.kind, c.sample_time
+    ('pid', 0.0001)
+    """
     with malformed_as("the controller description"):
         return _controller_from_dict(d)
 
@@ -312,6 +350,21 @@ def save_controller(controller: PackedController, stage: Stage, path: PathLike, 
     """Write ``controller`` (as it runs on ``stage``) to a controller file, atomically; an
     existing file is kept unless ``overwrite``.
 
+    Parameters
+    ----------
+    controller : controller configuration
+        A piezohyst controller.
+    stage : Stage
+        The stage it runs on.
+    path : str or os.PathLike
+        The file to write (JSON).
+    overwrite : bool
+        Replace an existing file.
+
+    Returns
+    -------
+    pathlib.Path
+
     Examples
     --------
     >>> import tempfile, pathlib
@@ -330,7 +383,32 @@ def save_controller(controller: PackedController, stage: Stage, path: PathLike, 
 
 def load_controller(path: PathLike) -> ExportedController:
     """Read a controller file written by :func:`save_controller` (``DataError`` naming the
-    file if it is not one)."""
+    file if it is not one).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The controller file.
+
+    Returns
+    -------
+    ExportedController
+        Usable as a controller in :func:`piezohyst.closed_loop` and :func:`piezohyst.track`,
+        and by :func:`export_c`.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> import piezohyst as ph
+    >>> from piezohyst.export import load_controller, save_controller
+    >>> stage = ph.virtual_stage()
+    >>> path = save_controller(ph.PID(kp=1e6, ki=5e9), stage, pathlib.Path(tempfile.mkdtemp()) / "pid.json")
+    >>> ref = [5e-6] * 200
+    >>> a = ph.closed_loop(stage, load_controller(path), ref, rng=1).position
+    >>> b = ph.closed_loop(stage, ph.PID(kp=1e6, ki=5e9), ref, rng=1).position
+    >>> bool((a == b).all())
+    True
+    """
     return load_json_file(path, "controller file", controller_from_dict)
 
 
@@ -791,8 +869,42 @@ def export_c(
     written as a set (:func:`piezohyst.outputs.output_set`): an interrupted or failed export
     leaves the folder as it was; with ``force`` a file of an earlier export that this one does
     not write (a controller's) is removed with the old set. A controller behind an inverse
-    model must have been built on ``model``. ``name`` is the argument messages name. Returns
-    the written paths."""
+    model must have been built on ``model``. Returns the written paths.
+
+    Parameters
+    ----------
+    model : HysteresisModel
+        The model to export (its exact inverse is the example's feedforward).
+    out_dir : str or os.PathLike
+        The folder to write into (created if missing).
+    controller : ExportedController or dict, optional
+        A controller to export with the model (:func:`load_controller`).
+    force : bool
+        Overwrite existing files.
+    source : str
+        Where the model came from, written in the generated files' header comment.
+    input_range : (float, float), optional
+        The input range ``example.c`` drives the model over (default: the model's own).
+    steps : int, optional
+        Samples ``example.c`` runs (default: three reference periods).
+    name : str
+        The argument error messages name (the CLI passes ``--out``).
+
+    Returns
+    -------
+    list of pathlib.Path
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from piezohyst import PI
+    >>> from piezohyst.export import export_c
+    >>> files = export_c(PI([0.1, 0.3], [0.4, 0.2], p0=1.0), tempfile.mkdtemp(), source="the docs")
+    >>> sorted(p.name for p in files)[:3]
+    ['example.c', 'piezohyst.h', 'piezohyst_model.c']
+    >>> "from the docs" in files[0].read_text()
+    True
+    """
     model = _as_model(model)
     controller = _as_exported(controller)
     if controller is not None and controller.inverse is not None:

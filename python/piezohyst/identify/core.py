@@ -78,7 +78,33 @@ class FitResult(RunReport):
     As every :class:`~piezohyst.optimize.RunReport`: ``wall_time`` (s), ``evaluations`` (the
     bounded least-squares solves: 1, or 1 plus the reweighted solves of the Huber loss),
     ``history`` (empty: a linear fit does not iterate over candidates) and ``partial``
-    (always ``False``: a linear fit is not interrupted halfway)."""
+    (always ``False``: a linear fit is not interrupted halfway).
+
+    Parameters
+    ----------
+    model : HysteresisModel
+        The fitted model.
+    metrics : dict
+        ``rmse``, ``max_error`` (output units) and both in % of the output range
+        (:func:`fit_metrics`).
+    wall_time : float
+        Seconds the fit took.
+    evaluations : int
+        Least-squares solves.
+    history : dict
+        Empty for a linear fit.
+    partial : bool
+        Always ``False``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst import PI, identify_pi
+    >>> v = np.sin(np.linspace(0, 12, 1200)) * np.linspace(1, 0.3, 1200)
+    >>> fit = identify_pi(v, PI([0.1, 0.3], [0.5, 0.2], p0=0.8).simulate(v), thresholds=[0.1, 0.3])
+    >>> type(fit.model).__name__, bool(fit.metrics["rmse"] < 1e-12), fit.partial
+    ('PI', True, False)
+    """
 
     model: LinearModel
     metrics: Metrics
@@ -107,7 +133,26 @@ class FitResult(RunReport):
 
 
 def fit_metrics(predicted: npt.ArrayLike, measured: npt.ArrayLike) -> Metrics:
-    """RMSE and max error of the free-run simulation, also in % of the measured range."""
+    """RMSE and max error of the free-run simulation, also in % of the measured range.
+
+    Parameters
+    ----------
+    predicted : array_like
+        The model's output.
+    measured : array_like
+        The measured output (same length).
+
+    Returns
+    -------
+    dict
+        ``rmse``, ``max_error``, ``rmse_percent``, ``max_error_percent``.
+
+    Examples
+    --------
+    >>> from piezohyst import fit_metrics
+    >>> fit_metrics([0.0, 1.0, 2.0, 3.0], [0.0, 1.0, 2.0, 5.0])
+    {'rmse': 1.0, 'max_error': 2.0, 'rmse_percent': 20.0, 'max_error_percent': 40.0}
+    """
     p = as_record(predicted, "predicted", copy=False)
     m = as_record(measured, "measured", copy=False)
     return _fit_metrics(p, m)
@@ -140,6 +185,16 @@ def default_huber_delta(residuals: npt.ArrayLike) -> FloatArray:
     """Default Huber threshold of residual records: ``1.345 sigma`` with the robust
     ``sigma = 1.4826 median(|r - median(r)|)``, along the last axis.
 
+    Parameters
+    ----------
+    residuals : array_like
+        One record, or one per row.
+
+    Returns
+    -------
+    ndarray
+        One threshold per record.
+
     Examples
     --------
     >>> import numpy as np
@@ -163,6 +218,18 @@ def huber_cost(residuals: npt.ArrayLike, delta: npt.ArrayLike | None = None) -> 
     which makes the cost scale with the residuals (``huber_cost(c r) = |c| huber_cost(r)``): a
     robust RMS, minimized as S-estimators minimize a robust scale, with the MAD's 50 %
     breakdown point. A row with non-finite residuals (a diverged simulation) costs ``inf``.
+
+    Parameters
+    ----------
+    residuals : array_like, shape (N,) or (S, N)
+        One record, or one per row.
+    delta : float or array_like, optional
+        The threshold (one, or one per row); by default each row's :func:`default_huber_delta`.
+
+    Returns
+    -------
+    ndarray
+        One cost per record.
 
     Examples
     --------
@@ -553,7 +620,39 @@ def identify_pi(
 ) -> FitResult:
     """Classical PI with ``operators`` thresholds spread over half the input range (or the
     given ones), weights and linear term by non-negative least squares (``loss``,
-    ``huber_delta``, ``offset``: see :func:`fit_linear`)."""
+    ``huber_delta``, ``offset``: see :func:`fit_linear`).
+
+    Parameters
+    ----------
+    input, output : array_like
+        The record, equal lengths.
+    operators : int
+        Number of play operators when ``thresholds`` is not given.
+    thresholds : array_like, optional
+        The play thresholds.
+    creep : Creep, optional
+        Creep lags (their weights are fitted too).
+    loss : {"squared", "huber"}
+        The fit's cost.
+    huber_delta : float, optional
+        Huber threshold in the output's unit.
+    offset : bool
+        Fit an output offset (the model's output map).
+
+    Returns
+    -------
+    FitResult
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst import PI, identify_pi
+    >>> v = np.sin(np.linspace(0, 12, 1200)) * np.linspace(1, 0.3, 1200)
+    >>> y = PI([0.1, 0.3], [0.5, 0.2], p0=0.8).simulate(v) + 2.0       # a sensor zero of 2
+    >>> fit = identify_pi(v, y, thresholds=[0.1, 0.3])
+    >>> np.round(fit.model.weights, 9).tolist(), round(fit.model.p0, 9), round(fit.model.output_map.offset, 9)
+    ([0.5, 0.2], 0.8, 2.0)
+    """
     t0 = time.perf_counter()
     v = as_record(input, "input", min_length=2)
     r = _default_thresholds(v, as_int(operators, "operators", minimum=1)) if thresholds is None else thresholds
@@ -577,7 +676,41 @@ def identify_mpi(
 ) -> FitResult:
     """Seed 2's MPI (cubic input polynomial + generalized plays) with the envelopes given
     (identity by default); polynomial and weights by bounded least squares (``loss``,
-    ``huber_delta``, ``offset``: see :func:`fit_linear`)."""
+    ``huber_delta``, ``offset``: see :func:`fit_linear`).
+
+    Parameters
+    ----------
+    input, output : array_like
+        The record, equal lengths.
+    operators : int
+        Number of generalized plays when ``thresholds`` is not given.
+    thresholds : array_like, optional
+        The play thresholds.
+    rising, falling : Envelope, optional
+        The envelopes (identity by default; :func:`identify` with ``structure="fit"`` fits them).
+    creep : Creep, optional
+        Creep lags (their weights are fitted too).
+    loss : {"squared", "huber"}
+        The fit's cost.
+    huber_delta : float, optional
+        Huber threshold in the output's unit.
+    offset : bool
+        Fit an output offset (held in the polynomial's constant term).
+
+    Returns
+    -------
+    FitResult
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst import identify_mpi
+    >>> from piezohyst.papers import mpi_seed2
+    >>> v = 0.5 + 0.45 * np.sin(np.linspace(0, 12, 1200)) * np.linspace(1, 0.3, 1200)
+    >>> fit = identify_mpi(v, mpi_seed2().simulate(v), thresholds=mpi_seed2().thresholds)
+    >>> bool(fit.metrics["rmse"] < 1e-9), type(fit.model).__name__
+    (True, 'GeneralizedPI')
+    """
     t0 = time.perf_counter()
     v = as_record(input, "input", min_length=2)
     r = _default_thresholds(v, as_int(operators, "operators", minimum=1)) if thresholds is None else thresholds
@@ -608,7 +741,39 @@ def identify_preisach(
 ) -> FitResult:
     """Discretized Preisach on a ``levels x levels`` grid over the input range; offset, slope
     and cell weights (non-negative) by least squares (``loss``, ``huber_delta``, ``offset``: see
-    :func:`fit_linear`)."""
+    :func:`fit_linear`).
+
+    Parameters
+    ----------
+    input, output : array_like
+        The record, equal lengths.
+    levels : int
+        Grid levels per axis (``levels (levels + 1) / 2`` cells).
+    input_range : (float, float), optional
+        The grid's edges (default: the input's range).
+    memory : int
+        Dominant extrema the model remembers.
+    loss : {"squared", "huber"}
+        The fit's cost.
+    huber_delta : float, optional
+        Huber threshold in the output's unit.
+    offset : bool
+        Fit an output offset (held in the model's own ``offset``).
+
+    Returns
+    -------
+    FitResult
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst import Preisach, identify_preisach
+    >>> v = np.sin(np.linspace(0, 12, 1200)) * np.linspace(1, 0.3, 1200)
+    >>> truth = Preisach(6, (-1.0, 1.0), np.linspace(0.1, 1.0, 21), slope=0.5)
+    >>> fit = identify_preisach(v, truth.simulate(v), levels=6, input_range=(-1.0, 1.0))
+    >>> round(fit.metrics["rmse_percent"], 2)          # % of the output range
+    0.4
+    """
     t0 = time.perf_counter()
     v = as_record(input, "input", min_length=2)
     model = _preisach_template(v, levels, input_range, memory)
@@ -631,7 +796,41 @@ class IdentificationResult(RunReport):
     (the candidate evaluations the fit spent: the optimizer's ``nfev`` plus the polish's, or
     the least-squares solves of a linear fit), ``history`` (the optimizer's per-iteration
     history with the method's extras; empty for a linear fit) and ``partial`` (Ctrl-C
-    stopped the optimizer: the model is the best found before it)."""
+    stopped the optimizer: the model is the best found before it).
+
+    Parameters
+    ----------
+    model : object
+        The identified model (a :class:`~piezohyst.models.HysteresisModel`, a
+        :class:`~piezohyst.models.BoucWenBenchmark` or, for ``cemf``, the
+        :class:`~piezohyst.plant.StageParameters`).
+    train : dict
+        Free-run metrics on the training record (:func:`fit_metrics`).
+    validation : dict or None
+        The same on the validation record, when given.
+    method : str
+        How it was fitted (``"ls"``, ``"vp-de+polish"``, ``"css"``, ...).
+    wall_time : float
+        Seconds the identification took.
+    history : dict
+        The optimizer's per-iteration history (empty for a linear fit).
+    simulator : callable, optional
+        How :meth:`simulate` predicts the output for models without a ``simulate(input)``.
+    partial : bool
+        Ctrl-C stopped the optimizer.
+    evaluations : int
+        Candidate evaluations the fit spent.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst import PI, identify
+    >>> v = np.sin(np.linspace(0, 24, 2400)) * np.linspace(1, 0.3, 2400)
+    >>> y = PI([0.2, 0.4], [0.5, 0.2], p0=0.8).simulate(v)
+    >>> res = identify(v[:1200], y[:1200], "pi", operators=4, validate=(v[1200:], y[1200:]))
+    >>> res.method, sorted(res.metrics), bool(res.metrics["validation"]["rmse_percent"] < 5)
+    ('ls', ['train', 'validation'], True)
+    """
 
     model: object
     train: Metrics
@@ -673,7 +872,26 @@ class IdentificationResult(RunReport):
 
     def simulate(self, input: npt.ArrayLike) -> FloatArray:
         """The identified model's free-run output for an input record (for ``cemf``: positions
-        from voltages, the stage simulated as it was identified)."""
+        from voltages, the stage simulated as it was identified).
+
+        Parameters
+        ----------
+        input : array_like
+            The input record.
+
+        Returns
+        -------
+        ndarray
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst import PI, identify
+        >>> v = np.sin(np.linspace(0, 12, 1200))
+        >>> res = identify(v, PI([0.2], [0.5], p0=0.8).simulate(v), "pi", operators=3)
+        >>> bool(np.allclose(res.simulate(v), res.model.simulate(v)))
+        True
+        """
         if self.simulator is not None:
             return np.asarray(self.simulator(as_record(input, "input")))
         if not isinstance(self.model, _Simulates):
@@ -682,10 +900,25 @@ class IdentificationResult(RunReport):
 
     @property
     def metrics(self) -> dict[str, Metrics | None]:
+        """``{"train": ..., "validation": ...}`` (validation ``None`` without held-out data)."""
         return {"train": self.train, "validation": self.validation}
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready report (the model file's ``fit`` section)."""
+        """JSON-ready report (the model file's ``fit`` section).
+
+        Returns
+        -------
+        dict
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst import PI, identify
+        >>> v = np.sin(np.linspace(0, 12, 1200))
+        >>> d = identify(v, PI([0.2], [0.5], p0=0.8).simulate(v), "pi", operators=3).to_dict()
+        >>> sorted(d)
+        ['method', 'partial', 'train', 'validation', 'wall_time_s']
+        """
         return {
             "method": self.method,
             "wall_time_s": self.wall_time,
@@ -698,7 +931,31 @@ class IdentificationResult(RunReport):
         self, input: npt.ArrayLike | None = None, output: npt.ArrayLike | None = None, *, ax: Any = None
     ) -> Figure:
         """Loop, fit and residual for a record ``(input, output)`` (matplotlib figure); without
-        a record, the optimizer's convergence (:meth:`RunReport.plot`, on ``ax`` if given)."""
+        a record, the optimizer's convergence (:meth:`RunReport.plot`, on ``ax`` if given).
+
+        Parameters
+        ----------
+        input, output : array_like, optional
+            A record to compare the model with (both, or neither).
+        ax : matplotlib.axes.Axes, optional
+            Axes of the convergence plot.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> import matplotlib.pyplot as plt
+        >>> from piezohyst import PI, identify
+        >>> v = np.sin(np.linspace(0, 12, 1200))
+        >>> y = PI([0.2], [0.5], p0=0.8).simulate(v)
+        >>> fig = identify(v, y, "pi", operators=3).plot(v, y)
+        >>> [a.get_title() for a in fig.axes]
+        ['hysteresis loop', 'fit', 'residual']
+        >>> plt.close(fig)
+        """
         if input is None and output is None:
             return super().plot(ax=ax)
         if input is None or output is None:
@@ -745,11 +1002,35 @@ def minimize_huber(
     threshold makes the cost non-smooth (the MAD jumps between samples), which stalls
     gradient polishing, and a fixed threshold cannot be set before any fit exists.
 
+    Parameters
+    ----------
+    simulate : callable
+        ``simulate(X) -> outputs``: ``(S, D)`` candidates to ``(S, N)`` outputs.
+    target : ndarray, shape (N,)
+        The output to match.
+    bounds : sequence of (float, float)
+        The search box.
+    delta : float, optional
+        A fixed Huber threshold (default: the two-stage search above).
+    **search
+        Options of :func:`piezohyst.optimize.minimize`.
+
     Returns
     -------
     OptimizeResult
         ``fun`` is the final fixed-threshold Huber cost; ``history["best_cost"]`` holds the
         search's costs; ``history["huber_delta"]`` the threshold used.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst.identify import minimize_huber
+    >>> t = np.linspace(0.0, 1.0, 200)
+    >>> target = 2.0 * t
+    >>> target[::50] += 10.0                                  # glitches
+    >>> res = minimize_huber(lambda X: X[:, :1] * t, target, [(0.0, 5.0)], rng=0, max_iterations=30)
+    >>> round(float(res.x[0]), 3)                             # the slope, unmoved by the glitches
+    2.0
     """
     from dataclasses import replace
 
@@ -823,9 +1104,61 @@ def identify_cemf(
     record (near the resonance), a slow record only fixes ``K`` and the products of ``alpha``,
     ``beta``, ``gamma`` with ``Cz K + Tem``.
 
-    Returns an :class:`IdentificationResult` whose ``model`` is a :class:`piezohyst.StageParameters`;
-    its ``simulate`` predicts positions from voltages with the identified stage; ``evaluations``
-    counts the search's simulations and the polish's.
+    Parameters
+    ----------
+    voltage : array_like
+        The voltage across the stack, V per sample.
+    position : array_like
+        The measured displacement, m (same length).
+    fs : float
+        Sample rate, Hz.
+    capacitance : float
+        The stack's capacitance ``Cz``, F, taken as known.
+    bounds : sequence of (float, float), optional
+        Search box of ``CEMF_PARAMETERS`` (default: scaled from the record's gain and a
+        resonance between 1 and 20 kHz).
+    optimizer : {"css", "pso", "mpso", "de"}
+        The population optimizer.
+    rng : int, numpy.random.Generator or None
+        Same seed, same result.
+    max_iterations : int
+        Populations evaluated.
+    population_size : int, optional
+        Candidates per population.
+    substeps : int
+        Integration sub-steps per sample of the simulated stage.
+    tolerance : float
+        Refinement tolerance of the simulated stage.
+    validate : (array_like, array_like), optional
+        A held-out ``(voltage, position)`` record.
+    progress : bool
+        Show a progress bar on stderr.
+    callback : callable, optional
+        ``callback(intermediate_result)`` after each iteration.
+    loss : {"squared", "huber"}
+        The cost.
+    huber_delta : float, optional
+        Huber threshold in m.
+    polish : bool
+        Continue with SciPy's ``least_squares`` (squared loss only).
+
+    Returns
+    -------
+    IdentificationResult
+        Its ``model`` is a :class:`piezohyst.StageParameters`; its ``simulate`` predicts
+        positions from voltages with the identified stage; ``evaluations`` counts the
+        search's simulations and the polish's.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import piezohyst as ph
+    >>> from piezohyst.plant import excitation, measure
+    >>> stage = ph.virtual_stage()
+    >>> u, y = measure(stage, excitation(1e4, seconds=0.2), np.random.default_rng(0))
+    >>> res = ph.identify_cemf(u, y, 1e4, rng=0, max_iterations=5, population_size=10)
+    >>> type(res.model).__name__, res.method, res.evaluations
+    ('StageParameters', 'css', 50)
     """
     from ..optimize.core import minimize
     from ..plant.stage import Amplifier, Stage, StageParameters

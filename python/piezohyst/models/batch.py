@@ -74,10 +74,23 @@ def batch_simulate(
         One parameter row per set.
     input : array_like, shape (N,)
         Input record, finite.
+    dims : iterable of int, optional
+        The family's structure when ``model`` is a family name.
 
     Returns
     -------
     ndarray, shape (S, N)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst import PI, batch_simulate
+    >>> pi = PI(thresholds=[0.5], weights=[1.0], p0=1.0)
+    >>> rows = np.stack([pi.to_row(), 2 * pi.to_row()])     # p0 and the weight doubled (and r)
+    >>> batch_simulate(pi, rows, [0.0, 1.0, 2.0]).tolist()
+    [[0.0, 1.5, 3.5], [0.0, 2.0, 6.0]]
+    >>> batch_simulate("pi", rows[:1], [0.0, 2.0], dims=[1, 0]).tolist()
+    [[0.0, 3.5]]
     """
     family, d = _family(model, dims)
     width, _ = _core.family_sizes(family, d)
@@ -101,7 +114,11 @@ def batch_rmse(
     model : HysteresisModel or str
         As in :func:`batch_simulate`.
     params : array_like, shape (S, P)
+        One parameter row per set.
     input, target : array_like, shape (N,)
+        The input record and the output to match.
+    dims : iterable of int, optional
+        The family's structure when ``model`` is a family name.
     invalid_cost : float, optional
         Cost given to rows that are not valid parameter sets (for optimizers that explore
         outside the feasible region). By default an invalid row raises ``ValueError``.
@@ -110,6 +127,18 @@ def batch_rmse(
     Returns
     -------
     ndarray, shape (S,)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst import PI, batch_rmse
+    >>> pi = PI(thresholds=[0.5], weights=[1.0], p0=1.0)
+    >>> v = np.linspace(0.0, 2.0, 5)
+    >>> rows = np.stack([pi.to_row(), pi.to_row() + [0.1, 0, 0]])   # the true row, then p0 + 0.1
+    >>> batch_rmse(pi, rows, v, pi.simulate(v)).round(6).tolist()
+    [0.0, 0.122474]
+    >>> batch_rmse(pi, np.array([[1.0, -0.5, 1.0]]), v, v, invalid_cost=np.inf).tolist()   # r < 0
+    [inf]
     """
     family, d = _family(model, dims)
     width, _ = _core.family_sizes(family, d)

@@ -262,7 +262,18 @@ class BoucWenBenchmark:
         }
 
     def params(self) -> FloatArray:
-        """``[mass, damping, stiffness, alpha, beta, gamma, delta, nu]`` for the core."""
+        """``[mass, damping, stiffness, alpha, beta, gamma, delta, nu]`` for the core.
+
+        Returns
+        -------
+        ndarray, shape (8,)
+
+        Examples
+        --------
+        >>> from piezohyst import BoucWenBenchmark
+        >>> BoucWenBenchmark().params().tolist()
+        [2.0, 10.0, 50000.0, 50000.0, 1000.0, 0.8, -1.1, 1.0]
+        """
         return np.array(list(self.parameters.values()), dtype=np.float64)
 
     def __repr__(self) -> str:
@@ -281,7 +292,19 @@ class BoucWenBenchmark:
     # -- files ------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
         """The model-file layout (what ``piezohyst identify --model boucwen-benchmark`` writes):
-        ``schema_version``, ``kind``, the eight ``parameters``, ``fs``, ``upsample``, ``units``."""
+        ``schema_version``, ``kind``, the eight ``parameters``, ``fs``, ``upsample``, ``units``.
+
+        Returns
+        -------
+        dict
+
+        Examples
+        --------
+        >>> from piezohyst import BoucWenBenchmark
+        >>> d = BoucWenBenchmark(mass=2.5).to_dict()
+        >>> d["kind"], d["parameters"]["mass"], d["fs"]
+        ('boucwen-benchmark', 2.5, 750.0)
+        """
         return {
             "schema_version": SCHEMA_VERSION,
             "kind": self.kind,
@@ -293,7 +316,27 @@ class BoucWenBenchmark:
 
     def save(self, path: PathLike, *, overwrite: bool = False) -> Path:
         """Write the model file atomically (read back by :func:`piezohyst.load_model`); a path
-        ending in ``.mat`` writes the MATLAB file of :meth:`to_mat`."""
+        ending in ``.mat`` writes the MATLAB file of :meth:`to_mat`.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write (JSON, or MATLAB for ``.mat``).
+        overwrite : bool
+            Replace an existing file (otherwise :class:`~piezohyst.errors.OutputExistsError`).
+
+        Returns
+        -------
+        pathlib.Path
+
+        Examples
+        --------
+        >>> import tempfile, pathlib
+        >>> from piezohyst import BoucWenBenchmark, load_model
+        >>> path = BoucWenBenchmark(damping=12.0).save(pathlib.Path(tempfile.mkdtemp()) / "bw.json")
+        >>> load_model(path) == BoucWenBenchmark(damping=12.0)
+        True
+        """
         if Path(path).suffix.lower() == ".mat":
             return self.to_mat(path, overwrite=overwrite)
         return write_atomic(path, json.dumps(self.to_dict(), indent=2, allow_nan=False), overwrite=overwrite)
@@ -330,7 +373,23 @@ class BoucWenBenchmark:
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> BoucWenBenchmark:
         """The model of a :meth:`to_dict` description (``fs`` and ``upsample`` default to the
-        benchmark's when absent); unknown parameter names are a ``ParameterError``."""
+        benchmark's when absent); unknown parameter names are a ``ParameterError``.
+
+        Parameters
+        ----------
+        d : mapping
+            A model file's JSON object.
+
+        Returns
+        -------
+        BoucWenBenchmark
+
+        Examples
+        --------
+        >>> from piezohyst import BoucWenBenchmark
+        >>> BoucWenBenchmark.from_dict({"parameters": {"mass": 3.0}}).mass
+        3.0
+        """
         p = d.get("parameters")
         if not isinstance(p, dict):
             raise ParameterError("parameters must be a JSON object")
@@ -343,7 +402,25 @@ class BoucWenBenchmark:
 
     def initial_state(self, initial_state: npt.ArrayLike | None = None, u0: float = 0.0) -> FloatArray:
         """The core's state ``[y, y', y'', z]`` from ``initial_state = (y0, dy0, z0)``
-        (m, m/s, N; default at rest) under the input ``u0`` (N)."""
+        (m, m/s, N; default at rest) under the input ``u0`` (N).
+
+        Parameters
+        ----------
+        initial_state : array_like of 3 floats, optional
+            Displacement, velocity and hysteretic force ``(y0, dy0, z0)``.
+        u0 : float
+            The input force at the start, N (sets the acceleration).
+
+        Returns
+        -------
+        ndarray, shape (4,)
+
+        Examples
+        --------
+        >>> from piezohyst import BoucWenBenchmark
+        >>> BoucWenBenchmark().initial_state(u0=4.0).tolist()   # y'' = u0 / mL
+        [0.0, 0.0, 2.0, 0.0]
+        """
         if initial_state is None:
             y0 = dy0 = z0 = 0.0
         else:

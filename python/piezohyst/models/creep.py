@@ -30,6 +30,8 @@ class Creep(HysteresisModel):
         Lag time constants, s (> 0), typically one per decade.
     weights : array_like
         Output weight of each lag.
+    units : mapping, optional
+        ``{"input": ..., "output": ...}`` unit names, kept in model files.
 
     Examples
     --------
@@ -57,22 +59,57 @@ class Creep(HysteresisModel):
 
     @classmethod
     def log_spaced(cls, ts: float, tau_min: float, tau_max: float, terms: int, weight: float = 0.0) -> Creep:
-        """Time constants log-spaced from ``tau_min`` to ``tau_max``, equal weights."""
+        """Time constants log-spaced from ``tau_min`` to ``tau_max``, equal weights.
+
+        Parameters
+        ----------
+        ts : float
+            Sample time, s.
+        tau_min, tau_max : float
+            The shortest and longest time constants, s (> 0).
+        terms : int
+            Number of lags.
+        weight : float
+            The weight of each lag.
+
+        Returns
+        -------
+        Creep
+
+        Examples
+        --------
+        >>> from piezohyst import Creep
+        >>> Creep.log_spaced(1e-3, 0.1, 10.0, 3, weight=0.01).taus.round(12).tolist()
+        [0.1, 1.0, 10.0]
+        """
         taus = np.geomspace(
             as_scalar(tau_min, "tau_min", positive=True), as_scalar(tau_max, "tau_max", positive=True), int(terms)
         )
         return cls(ts, taus, np.full(taus.size, float(weight)))
 
     def tail(self) -> FloatArray:
-        """The creep part of a flat row: ``[ts, taus..., weights...]``."""
+        """The creep part of a flat row: ``[ts, taus..., weights...]``.
+
+        Returns
+        -------
+        ndarray
+
+        Examples
+        --------
+        >>> from piezohyst import Creep
+        >>> Creep(1e-3, [0.1, 1.0], [0.01, 0.02]).tail().tolist()
+        [0.001, 0.1, 1.0, 0.01, 0.02]
+        """
         return np.concatenate([[self.ts], self.taus, self.weights])
 
     @property
     def terms(self) -> int:
+        """The number of lags."""
         return self.taus.size
 
     @property
     def parameters(self) -> JSONDict:
+        """Named parameters (JSON-ready): ts, taus, weights."""
         return {"ts": self.ts, "taus": self.taus.tolist(), "weights": self.weights.tolist()}
 
 

@@ -25,6 +25,19 @@ class BoucWen(HysteresisModel):
     ``n = 1`` uses the exact integrator of docs/spec.md §2.5; other ``n >= 1`` use RK4 sub-steps in
     the driver increment. ``d = 0`` gives ``-h``.
 
+    Parameters
+    ----------
+    a : float
+        ``A``: the hysteretic variable's initial slope against the driver.
+    beta, gamma : float
+        Loop-shape parameters (``h`` saturates at ``a / (beta + gamma)`` for ``n = 1``).
+    n : float
+        Smoothness exponent (>= 1).
+    d : float
+        Direct gain of the driver in the output.
+    units : mapping, optional
+        ``{"input": ..., "output": ...}`` unit names, kept in model files.
+
     Examples
     --------
     >>> import numpy as np
@@ -66,18 +79,54 @@ class BoucWen(HysteresisModel):
     @classmethod
     def from_benchmark(cls, alpha: float, beta: float, gamma: float, delta: float, nu: float = 1.0) -> BoucWen:
         """The Noël–Schoukens benchmark form ``z' = alpha y' - beta (gamma |y'| |z|^(nu-1) z
-        + delta y' |z|^nu)``; the returned model outputs ``-z`` (``d = 0``)."""
+        + delta y' |z|^nu)``; the returned model outputs ``-z`` (``d = 0``).
+
+        Parameters
+        ----------
+        alpha, beta, gamma, delta, nu : float
+            The benchmark's hysteresis parameters (:class:`BoucWenBenchmark`).
+
+        Returns
+        -------
+        BoucWen
+
+        Examples
+        --------
+        >>> from piezohyst import BoucWen
+        >>> m = BoucWen.from_benchmark(5e4, 1e3, 0.8, -1.1)
+        >>> m.a, m.beta, m.gamma, m.n
+        (50000.0, 800.0, -1100.0, 1.0)
+        """
         return cls(alpha, beta * gamma, beta * delta, nu, 0.0)
 
     @property
     def parameters(self) -> JSONDict:
+        """Named parameters (JSON-ready): a, beta, gamma, n, d."""
         return {"a": self.a, "beta": self.beta, "gamma": self.gamma, "n": self.n, "d": self.d}
 
 
 @_register
 class Duhem(HysteresisModel):
     """Generalized Duhem (Coleman–Hodgdon): ``dy/dt = alpha |du/dt| (f(u) - y) + g(u) du/dt``
-    with cubic ``f`` and ``g`` (coefficients ``[c0, c1, c2, c3]``), integrated exactly."""
+    with cubic ``f`` and ``g`` (coefficients ``[c0, c1, c2, c3]``), integrated exactly.
+
+    Parameters
+    ----------
+    alpha : float
+        Rate of approach to ``f(u)`` per unit input change (>= 0).
+    f, g : sequence of 4 floats
+        Cubic coefficients ``[c0, c1, c2, c3]`` of ``f`` (the anhysteretic curve) and ``g``
+        (the slope on reversal).
+    units : mapping, optional
+        ``{"input": ..., "output": ...}`` unit names, kept in model files.
+
+    Examples
+    --------
+    >>> from piezohyst import Duhem
+    >>> m = Duhem(alpha=1.0, f=[0.0, 1.0, 0.0, 0.0], g=[0.0, 0.0, 0.0, 0.0])
+    >>> [round(y, 6) for y in m.simulate([0.0, 1.0, 2.0]).tolist()]   # y = u - 1 + exp(-u): lags f(u) = u
+    [0.0, 0.367879, 1.135335]
+    """
 
     kind = "duhem"
     family = "duhem"
@@ -92,6 +141,7 @@ class Duhem(HysteresisModel):
 
     @property
     def parameters(self) -> JSONDict:
+        """Named parameters (JSON-ready): alpha, f, g."""
         return {"alpha": self.alpha, "f": list(self.f), "g": list(self.g)}
 
 
@@ -100,6 +150,24 @@ class Dahl(HysteresisModel):
     """Dahl: ``dh/dt = sigma du/dt (1 - (h/h_c) sign(du/dt))^a``; output ``h``.
 
     ``a = 1`` equals Bouc–Wen with ``n = 1``, ``gamma = 0``.
+
+    Parameters
+    ----------
+    sigma : float
+        Initial slope ``dh/du`` (> 0).
+    h_c : float
+        The level ``h`` saturates at (> 0).
+    a : float
+        Shape exponent (> 0).
+    units : mapping, optional
+        ``{"input": ..., "output": ...}`` unit names, kept in model files.
+
+    Examples
+    --------
+    >>> from piezohyst import Dahl
+    >>> m = Dahl(sigma=2.0, h_c=1.0)
+    >>> round(float(m.simulate([0.0, 5.0])[-1]), 6)   # saturates towards h_c
+    0.999955
     """
 
     kind = "dahl"
@@ -113,4 +181,5 @@ class Dahl(HysteresisModel):
 
     @property
     def parameters(self) -> JSONDict:
+        """Named parameters (JSON-ready): sigma, h_c, a."""
         return {"sigma": self.sigma, "h_c": self.h_c, "a": self.a}

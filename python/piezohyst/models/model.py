@@ -94,26 +94,91 @@ class OutputMap:
         return self.offset == 0.0 and self.gain == 1.0
 
     def apply(self, h: FloatArray) -> FloatArray:
-        """``gain * h + offset`` (``h`` itself, not a copy, for the identity)."""
+        """``gain * h + offset`` (``h`` itself, not a copy, for the identity).
+
+        Parameters
+        ----------
+        h : ndarray
+            The family's output.
+
+        Returns
+        -------
+        ndarray
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.models import OutputMap
+        >>> OutputMap(offset=1.0, gain=2.0).apply(np.array([0.0, 1.0])).tolist()
+        [1.0, 3.0]
+        """
         if self.is_identity:
             return h
         out: FloatArray = self.gain * h + self.offset
         return out
 
     def invert(self, y: FloatArray) -> FloatArray:
-        """``(y - offset) / gain``: the family's output that gives ``y``."""
+        """``(y - offset) / gain``: the family's output that gives ``y``.
+
+        Parameters
+        ----------
+        y : ndarray
+            Outputs after the map.
+
+        Returns
+        -------
+        ndarray
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.models import OutputMap
+        >>> OutputMap(offset=1.0, gain=2.0).invert(np.array([1.0, 3.0])).tolist()
+        [0.0, 1.0]
+        """
         if self.is_identity:
             return y
         out: FloatArray = (y - self.offset) / self.gain
         return out
 
     def to_dict(self) -> JSONDict:
+        """The map as a model file stores it.
+
+        Returns
+        -------
+        dict
+            ``{"offset": ..., "gain": ...}``.
+
+        Examples
+        --------
+        >>> from piezohyst.models import OutputMap
+        >>> OutputMap(offset=-96e-6).to_dict()
+        {'offset': -9.6e-05, 'gain': 1.0}
+        """
         return {"offset": self.offset, "gain": self.gain}
 
     @classmethod
     def from_any(cls, m: object) -> OutputMap:
-        """An ``OutputMap``, or a model file's ``{"offset": ..., "gain": ...}`` (absent keys:
-        the identity's values), or ``None`` (the identity)."""
+        """An ``OutputMap`` from what a caller or a model file gives.
+
+        Parameters
+        ----------
+        m : OutputMap, dict or None
+            An ``OutputMap``; a model file's ``{"offset": ..., "gain": ...}`` (absent keys:
+            the identity's values); or ``None`` (the identity).
+
+        Returns
+        -------
+        OutputMap
+
+        Examples
+        --------
+        >>> from piezohyst.models import OutputMap
+        >>> OutputMap.from_any({"offset": 2.0})
+        OutputMap(offset=2.0, gain=1.0)
+        >>> OutputMap.from_any(None).is_identity
+        True
+        """
         if m is None:
             return IDENTITY_MAP
         if isinstance(m, OutputMap):
@@ -139,7 +204,24 @@ class HysteresisModel:
     """Base class: a model family, its structure (``dims``) and one flat parameter row.
 
     Subclasses set ``kind`` (the name in model files), ``family`` (the core's name) and
-    build ``dims`` and the row from their parameters.
+    build ``dims`` and the row from their parameters; users build the subclasses
+    (:class:`PI`, :class:`GeneralizedPI`, :class:`Preisach`, ...), not this class.
+
+    Parameters
+    ----------
+    dims : iterable of int
+        The family's structural sizes (the core's layout table).
+    row : array_like
+        The flat parameter row in the family's layout.
+    units : mapping, optional
+        ``{"input": ..., "output": ...}`` unit names, kept in model files.
+
+    Examples
+    --------
+    >>> from piezohyst.models import PI, HysteresisModel
+    >>> m = PI(thresholds=[0.5], weights=[1.0], p0=1.0)
+    >>> isinstance(m, HysteresisModel), m.kind, m.dims
+    (True, 'pi', (1, 0))
     """
 
     kind: str = ""
@@ -168,7 +250,18 @@ class HysteresisModel:
 
     # -- parameters -----------------------------------------------------------------
     def to_row(self) -> FloatArray:
-        """The flat parameter row (a copy) in the core's layout for this family."""
+        """The flat parameter row (a copy) in the core's layout for this family.
+
+        Returns
+        -------
+        ndarray
+
+        Examples
+        --------
+        >>> from piezohyst import PI
+        >>> PI(thresholds=[0.1, 0.3], weights=[0.4, 0.2], p0=1.0).to_row().tolist()
+        [1.0, 0.1, 0.3, 0.4, 0.2]
+        """
         return self._row.copy()
 
     @property
@@ -183,9 +276,28 @@ class HysteresisModel:
         return self._map
 
     def with_output_map(self, output_map: OutputMap | Mapping[str, float] | None = None, /, **kw: float) -> Self:
-        """A copy of this model with the given output map (an :class:`OutputMap`, a mapping,
-        or ``offset=``, ``gain=`` keywords; ``None``: the identity). The parameter row is
-        shared: the map is not part of it. The copy starts relaxed."""
+        """A copy of this model with the given output map. The parameter row is shared: the
+        map is not part of it. The copy starts relaxed.
+
+        Parameters
+        ----------
+        output_map : OutputMap, mapping or None, optional
+            The map (``None``: the identity); or give the keywords instead.
+        **kw : float
+            ``offset=``, ``gain=``.
+
+        Returns
+        -------
+        HysteresisModel
+            A model of the same class.
+
+        Examples
+        --------
+        >>> from piezohyst import PI
+        >>> m = PI([0.5], [1.0], p0=1.0).with_output_map(offset=5.0)
+        >>> m.simulate([0.0, 1.0]).tolist(), m.output_map.offset
+        ([5.0, 6.5], 5.0)
+        """
         if output_map is not None and kw:
             raise ParameterTypeError("give output_map or offset=/gain= keywords, not both")
         m = OutputMap.from_any(
@@ -207,7 +319,27 @@ class HysteresisModel:
         equal GPI with identity envelopes). ``ParameterError`` when the family cannot hold
         the map (an offset on RDPI or Bouc–Wen; a negative gain on non-negative weights).
         ``input_range``: the inputs the row will see (e.g. the amplifier's limits), the input
-        range of the GPI a PI becomes (default: unbounded)."""
+        range of the GPI a PI becomes (default: unbounded).
+
+        Parameters
+        ----------
+        input_range : (float, float), optional
+            The inputs the row will see.
+
+        Returns
+        -------
+        HysteresisModel
+
+        Examples
+        --------
+        >>> from piezohyst import PI
+        >>> m = PI([0.5], [1.0], p0=1.0).with_output_map(offset=2.0)
+        >>> bare = m.mapped_row()
+        >>> bare.kind, bare.output_map.is_identity
+        ('gpi', True)
+        >>> bare.simulate([0.0, 1.0]).tolist() == m.simulate([0.0, 1.0]).tolist()
+        True
+        """
         if self._map.is_identity:
             return self
         why = ""
@@ -229,7 +361,18 @@ class HysteresisModel:
 
     # -- state ------------------------------------------------------------------------
     def initial_state(self) -> FloatArray:
-        """The relaxed initial state (input and memory at zero; Preisach: all relays down)."""
+        """The relaxed initial state (input and memory at zero; Preisach: all relays down).
+
+        Returns
+        -------
+        ndarray
+
+        Examples
+        --------
+        >>> from piezohyst import PI
+        >>> PI([0.5], [1.0], p0=1.0).initial_state().tolist()   # one play operator
+        [0.0]
+        """
         return self._compiled.initial_state()
 
     @property
@@ -248,7 +391,18 @@ class HysteresisModel:
         return s
 
     def reset(self) -> None:
-        """Return the internal state to the relaxed initial state."""
+        """Return the internal state to the relaxed initial state.
+
+        Examples
+        --------
+        >>> from piezohyst import PI
+        >>> m = PI([0.5], [1.0], p0=1.0)
+        >>> m.step(2.0)
+        3.5
+        >>> m.reset()
+        >>> m.step(0.0)
+        0.0
+        """
         self._state = self.initial_state()
 
     # -- simulation -----------------------------------------------------------------
@@ -271,6 +425,13 @@ class HysteresisModel:
         Returns
         -------
         ndarray, shape (N,)
+
+        Examples
+        --------
+        >>> from piezohyst import PI
+        >>> m = PI(thresholds=[0.5], weights=[1.0], p0=1.0)
+        >>> m.simulate([0.0, 1.0, 2.0, 1.0]).tolist()
+        [0.0, 1.5, 3.5, 2.5]
         """
         v = as_record(input, "input")
         st = self.initial_state() if initial_state is None else self._checked_state(initial_state, "initial_state")
@@ -337,7 +498,24 @@ class HysteresisModel:
         )
 
     def step(self, value: float) -> float:
-        """Apply one input sample, advance the internal state, return the output."""
+        """Apply one input sample, advance the internal state, return the output.
+
+        Parameters
+        ----------
+        value : float
+            The input sample.
+
+        Returns
+        -------
+        float
+
+        Examples
+        --------
+        >>> from piezohyst import PI
+        >>> m = PI(thresholds=[0.5], weights=[1.0], p0=1.0)
+        >>> [m.step(v) for v in (0.0, 1.0, 2.0, 1.0)]
+        [0.0, 1.5, 3.5, 2.5]
+        """
         v = np.array([as_scalar(value, "value")])
         st = self._state.copy()
         y = self._map.apply(self._compiled.simulate(v, st))
@@ -345,13 +523,42 @@ class HysteresisModel:
         return float(y[0])
 
     def inverse(self) -> Inverse:
-        """The exact per-sample inverse of this model (docs/spec.md §2.1)."""
+        """The exact per-sample inverse of this model (docs/spec.md §2.1).
+
+        Returns
+        -------
+        Inverse
+
+        Examples
+        --------
+        >>> from piezohyst import PI
+        >>> m = PI(thresholds=[0.5], weights=[1.0], p0=1.0)
+        >>> m.inverse().simulate(m.simulate([0.0, 1.0, 2.0, 1.0])).tolist()
+        [0.0, 1.0, 2.0, 1.0]
+        """
         return Inverse(self)
 
     # -- files ----------------------------------------------------------------------
     def to_dict(self, *, include_state: bool = False) -> JSONDict:
         """JSON-ready description: ``schema_version``, ``kind``, ``parameters``, ``units``,
-        and ``output_map`` (``{"offset", "gain"}``) when the map is not the identity."""
+        and ``output_map`` (``{"offset", "gain"}``) when the map is not the identity.
+
+        Parameters
+        ----------
+        include_state : bool
+            Also store the internal state of :meth:`step` (key ``"state"``).
+
+        Returns
+        -------
+        dict
+
+        Examples
+        --------
+        >>> from piezohyst import PI
+        >>> d = PI([0.5], [1.0], p0=1.0).to_dict()
+        >>> d["kind"], d["parameters"]
+        ('pi', {'thresholds': [0.5], 'weights': [1.0], 'p0': 1.0})
+        """
         d: JSONDict = {
             "schema_version": SCHEMA_VERSION,
             "kind": self.kind,
@@ -365,12 +572,55 @@ class HysteresisModel:
         return d
 
     def to_json(self, *, include_state: bool = False) -> str:
-        """The model as a JSON string (floats round-trip exactly)."""
+        """The model as a JSON string (floats round-trip exactly).
+
+        Parameters
+        ----------
+        include_state : bool
+            Also store the internal state (see :meth:`to_dict`).
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> from piezohyst import PI
+        >>> from piezohyst.models import model_from_dict
+        >>> import json
+        >>> m = PI([0.1], [0.3], p0=1.0)
+        >>> model_from_dict(json.loads(m.to_json())) == m
+        True
+        """
         return json.dumps(self.to_dict(include_state=include_state), indent=2, allow_nan=False)
 
     def save(self, path: PathLike, *, overwrite: bool = False, include_state: bool = False) -> Path:
         """Write the model file atomically; an existing file is kept unless ``overwrite``. A
-        path ending in ``.mat`` writes the MATLAB file of :meth:`to_mat`, any other JSON."""
+        path ending in ``.mat`` writes the MATLAB file of :meth:`to_mat`, any other JSON.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write (JSON, or MATLAB for ``.mat``).
+        overwrite : bool
+            Replace an existing file (otherwise :class:`~piezohyst.errors.OutputExistsError`).
+        include_state : bool
+            Also store the internal state (see :meth:`to_dict`).
+
+        Returns
+        -------
+        pathlib.Path
+            The written file.
+
+        Examples
+        --------
+        >>> import tempfile, pathlib
+        >>> from piezohyst import PI, load_model
+        >>> m = PI([0.5], [1.0], p0=1.0)
+        >>> path = m.save(pathlib.Path(tempfile.mkdtemp()) / "pi.json")
+        >>> load_model(path) == m
+        True
+        """
         if Path(path).suffix.lower() == ".mat":
             return self.to_mat(path, overwrite=overwrite, include_state=include_state)
         text = self.to_json(include_state=include_state)
@@ -519,7 +769,28 @@ _OTHER_FILES = {
 
 def model_from_dict(d: JSONDict) -> AnyModel:
     """Rebuild a model from :meth:`HysteresisModel.to_dict` output (or
-    :meth:`BoucWenBenchmark.to_dict`'s)."""
+    :meth:`BoucWenBenchmark.to_dict`'s).
+
+    Parameters
+    ----------
+    d : dict
+        A model description (a model file's JSON object).
+
+    Returns
+    -------
+    HysteresisModel or BoucWenBenchmark
+
+    Examples
+    --------
+    >>> from piezohyst import PI, model_from_dict
+    >>> m = PI([0.5], [1.0], p0=1.0)
+    >>> model_from_dict(m.to_dict()) == m
+    True
+    >>> model_from_dict({"schema_version": 2, "kind": "pi"})
+    Traceback (most recent call last):
+    ...
+    piezohyst.errors.ParameterError: schema_version = 2 is not supported (this version reads 1)
+    """
     with malformed_as("the model description"):
         return _model_from_dict(d)
 
@@ -559,7 +830,25 @@ def load_model(path: PathLike) -> AnyModel:
     :meth:`piezohyst.plant.Stage.from_file` reads; ``DataError`` naming the file if it is not
     a model file). A ``boucwen-benchmark`` file gives a :class:`BoucWenBenchmark` that
     simulates at the file's ``fs``. A ``.mat`` file is read as the MATLAB file of
-    :meth:`HysteresisModel.to_mat` (exactly), anything else as JSON."""
+    :meth:`HysteresisModel.to_mat` (exactly), anything else as JSON.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The model file (JSON, or MATLAB for ``.mat``).
+
+    Returns
+    -------
+    HysteresisModel or BoucWenBenchmark
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from piezohyst import PI, load_model
+    >>> path = PI([0.5], [1.0], p0=1.0).save(pathlib.Path(tempfile.mkdtemp()) / "pi.json")
+    >>> load_model(path).simulate([0.0, 2.0]).tolist()
+    [0.0, 3.5]
+    """
     if Path(path).suffix.lower() == ".mat":
         return load_mat_file(path, "model", "model file", _model_from_mat)
     return load_json_file(path, "model file", model_from_dict)
@@ -584,6 +873,11 @@ class Inverse:
     At each sample the forward model's state is frozen, the input that produces the desired
     output is found by bracketing and safeguarded Newton, and the forward state is advanced
     with it, so the inverse always stays consistent with the model it inverts.
+
+    Parameters
+    ----------
+    model : HysteresisModel
+        The model to invert (:meth:`HysteresisModel.inverse` builds this).
 
     Examples
     --------
@@ -611,7 +905,18 @@ class Inverse:
         self._state = self.model._checked_state(value, "state")
 
     def reset(self) -> None:
-        """Back to the relaxed state."""
+        """Back to the relaxed state.
+
+        Examples
+        --------
+        >>> from piezohyst import PI
+        >>> inv = PI([0.5], [1.0], p0=1.0).inverse()
+        >>> inv.step(3.5)
+        2.0
+        >>> inv.reset()
+        >>> inv.state.tolist()
+        [0.0]
+        """
         self._state = self.model.initial_state()
         self._last_input = 0.0
 
@@ -622,6 +927,24 @@ class Inverse:
         and returns the full :class:`~piezohyst.signals.Response`.
 
         Raises ``ValueError`` naming the sample if a desired value cannot be reached.
+
+        Parameters
+        ----------
+        desired : array_like, shape (N,)
+            The desired outputs.
+        initial_state : array_like, optional
+            The forward model's state to start from (default: relaxed).
+
+        Returns
+        -------
+        ndarray, shape (N,)
+            The inputs.
+
+        Examples
+        --------
+        >>> from piezohyst import PI
+        >>> PI([0.5], [1.0], p0=1.0).inverse().simulate([0.0, 1.5, 3.5, 2.5]).tolist()
+        [0.0, 1.0, 2.0, 1.0]
         """
         yd = as_record(desired, "desired")
         m = self.model
@@ -688,7 +1011,25 @@ class Inverse:
         )
 
     def step(self, desired: float) -> float:
-        """Input for one desired output; advances the tracked forward state."""
+        """Input for one desired output; advances the tracked forward state.
+
+        Parameters
+        ----------
+        desired : float
+            The desired output.
+
+        Returns
+        -------
+        float
+            The input.
+
+        Examples
+        --------
+        >>> from piezohyst import PI
+        >>> inv = PI([0.5], [1.0], p0=1.0).inverse()
+        >>> [inv.step(y) for y in (0.0, 1.5, 3.5, 2.5)]
+        [0.0, 1.0, 2.0, 1.0]
+        """
         m = self.model
         yd = np.array([as_scalar(desired, "desired")])
         st = self._state.copy()

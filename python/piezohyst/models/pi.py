@@ -74,6 +74,8 @@ class PI(HysteresisModel):
         Weight of the linear term.
     creep : Creep, optional
         Creep added to the output.
+    units : mapping, optional
+        ``{"input": ..., "output": ...}`` unit names, kept in model files.
 
     Examples
     --------
@@ -105,6 +107,7 @@ class PI(HysteresisModel):
 
     @property
     def parameters(self) -> JSONDict:
+        """Named parameters (JSON-ready): thresholds, weights, p0 and creep."""
         d: JSONDict = {"thresholds": self.thresholds.tolist(), "weights": self.weights.tolist(), "p0": self.p0}
         return _with_creep(d, self.creep)
 
@@ -126,7 +129,23 @@ class PI(HysteresisModel):
 
     def loading_curve(self, s: npt.ArrayLike) -> FloatArray:
         """Initial loading curve ``phi(s) = p0 s + sum_i w_i max(s - r_i, 0)``, through the
-        model's output map."""
+        model's output map.
+
+        Parameters
+        ----------
+        s : array_like
+            Inputs (from the relaxed state, rising).
+
+        Returns
+        -------
+        ndarray
+
+        Examples
+        --------
+        >>> from piezohyst import PI
+        >>> PI(thresholds=[0.5], weights=[1.0], p0=1.0).loading_curve([0.0, 1.0, 2.0]).tolist()
+        [0.0, 1.5, 3.5]
+        """
         x = as_record(np.atleast_1d(s), "s", min_length=0)
         played: FloatArray = np.maximum(x[:, None] - self.thresholds[None, :], 0.0) @ self.weights
         return self.output_map.apply(self.p0 * x + played)
@@ -136,6 +155,20 @@ class PI(HysteresisModel):
 
         Raises ``ValueError`` if a partial sum ``p0 + w_1 + ... + w_i`` is not positive.
         Creep is not part of the analytic inverse; use :meth:`inverse` then.
+
+        Returns
+        -------
+        PI
+
+        Examples
+        --------
+        >>> from piezohyst import PI
+        >>> pi = PI(thresholds=[0.5], weights=[1.0], p0=1.0)
+        >>> inv = pi.analytic_inverse()
+        >>> inv.thresholds.tolist(), inv.weights.tolist(), inv.p0
+        ([0.5], [-0.5], 1.0)
+        >>> inv.simulate(pi.simulate([0.0, 1.0, 2.0, 1.0])).tolist()
+        [0.0, 1.0, 2.0, 1.0]
         """
         if self.creep is not None:
             raise ParameterError("creep is set: the analytic PI inverse does not cover creep; use inverse()")
@@ -146,6 +179,13 @@ class PI(HysteresisModel):
 
 class PlayOperator(PI):
     """A single classical play (backlash) operator with threshold ``r``; output ``z_r``.
+
+    Parameters
+    ----------
+    threshold : float
+        ``r >= 0`` (input units).
+    units : mapping, optional
+        ``{"input": ..., "output": ...}`` unit names, kept in model files.
 
     Examples
     --------
@@ -161,10 +201,12 @@ class PlayOperator(PI):
 
     @property
     def threshold(self) -> float:
+        """The threshold ``r``."""
         return float(self.thresholds[0])
 
     @property
     def parameters(self) -> JSONDict:
+        """Named parameters (JSON-ready): the threshold."""
         return {"threshold": self.threshold}
 
     @classmethod
@@ -190,7 +232,23 @@ class Envelope:
 
     ``Envelope.identity()``, ``Envelope.polynomial(c0, c1, c2, c3)`` for
     ``c0 + c1 v + c2 v^2 + c3 v^3``, or ``Envelope.tanh(a0, a1, a2, a3)`` for
-    ``a0 tanh(a1 v + a2) + a3``.
+    ``a0 tanh(a1 v + a2) + a3``. Calling it evaluates ``g(v)``.
+
+    Parameters
+    ----------
+    kind : {"identity", "polynomial", "tanh"}
+        The envelope's form.
+    coefficients : sequence of 4 floats
+        Its coefficients, in the order above.
+
+    Examples
+    --------
+    >>> from piezohyst import Envelope
+    >>> g = Envelope.polynomial(0.0, 1.0, 0.5)
+    >>> g([0.0, 1.0, 2.0]).tolist()
+    [0.0, 1.5, 4.0]
+    >>> round(float(g.inverse([1.5])[0]), 12)
+    1.0
     """
 
     kind: str = "identity"
@@ -204,34 +262,130 @@ class Envelope:
 
     @classmethod
     def identity(cls) -> Self:
+        """``g(v) = v`` (the classical play).
+
+        Returns
+        -------
+        Envelope
+
+        Examples
+        --------
+        >>> from piezohyst import Envelope
+        >>> Envelope.identity()([2.0]).tolist()
+        [2.0]
+        """
         return cls("identity")
 
     @classmethod
     def polynomial(cls, c0: float, c1: float, c2: float = 0.0, c3: float = 0.0) -> Self:
+        """``g(v) = c0 + c1 v + c2 v^2 + c3 v^3`` (must increase on the model's input range).
+
+        Parameters
+        ----------
+        c0, c1, c2, c3 : float
+            The coefficients.
+
+        Returns
+        -------
+        Envelope
+
+        Examples
+        --------
+        >>> from piezohyst import Envelope
+        >>> Envelope.polynomial(1.0, 2.0)([0.0, 1.0]).tolist()
+        [1.0, 3.0]
+        """
         return cls("polynomial", (c0, c1, c2, c3))
 
     @classmethod
     def tanh(cls, a0: float, a1: float, a2: float = 0.0, a3: float = 0.0) -> Self:
+        """``g(v) = a0 tanh(a1 v + a2) + a3``.
+
+        Parameters
+        ----------
+        a0, a1, a2, a3 : float
+            The coefficients.
+
+        Returns
+        -------
+        Envelope
+
+        Examples
+        --------
+        >>> from piezohyst import Envelope
+        >>> Envelope.tanh(2.0, 1.0)([0.0]).tolist()
+        [0.0]
+        """
         return cls("tanh", (a0, a1, a2, a3))
 
     @property
     def code(self) -> int:
+        """The envelope kind's code in the core's parameter row (0 identity, 1 polynomial, 2 tanh)."""
         return _ENVELOPE_CODES[self.kind]
 
     def __call__(self, v: npt.ArrayLike) -> FloatArray:
         return _core.envelope_eval(self.code, list(self.coefficients), as_record(np.atleast_1d(v), "v", min_length=0))
 
     def inverse(self, y: npt.ArrayLike) -> FloatArray:
-        """``g^{-1}(y)``; raises ``ValueError`` outside the envelope's range."""
+        """``g^{-1}(y)``; raises ``ValueError`` outside the envelope's range.
+
+        Parameters
+        ----------
+        y : array_like
+            Envelope values.
+
+        Returns
+        -------
+        ndarray
+
+        Examples
+        --------
+        >>> from piezohyst import Envelope
+        >>> Envelope.polynomial(0.0, 2.0).inverse([1.0, 4.0]).tolist()
+        [0.5, 2.0]
+        """
         return _core.envelope_inverse(
             self.code, list(self.coefficients), as_record(np.atleast_1d(y), "y", min_length=0)
         )
 
     def to_dict(self) -> JSONDict:
+        """The envelope as a model file stores it.
+
+        Returns
+        -------
+        dict
+
+        Examples
+        --------
+        >>> from piezohyst import Envelope
+        >>> Envelope.tanh(1.0, 2.0).to_dict()
+        {'kind': 'tanh', 'coefficients': [1.0, 2.0, 0.0, 0.0]}
+        """
         return {"kind": self.kind, "coefficients": list(self.coefficients)}
 
     @classmethod
     def from_any(cls, e: object, name: str) -> Envelope:
+        """An ``Envelope`` from an ``Envelope``, a model file's dict, or ``None`` (the identity).
+
+        Parameters
+        ----------
+        e : Envelope, dict or None
+            What the caller or the file gave.
+        name : str
+            The argument's name, for the error message.
+
+        Returns
+        -------
+        Envelope
+
+        Examples
+        --------
+        >>> from piezohyst import Envelope
+        >>> Envelope.from_any({"kind": "polynomial", "coefficients": [0, 1, 0, 0]}, "rising")
+        Envelope(kind='polynomial', coefficients=(0.0, 1.0, 0.0, 0.0))
+        >>> Envelope.from_any(None, "rising").kind
+        'identity'
+        """
         if isinstance(e, Envelope):
             return e
         if isinstance(e, dict):
@@ -261,6 +415,9 @@ class GeneralizedPI(HysteresisModel):
         Inputs on which the envelopes must be increasing and must not cross; simulation
         does not restrict the input, the range only scopes these checks.
     creep : Creep, optional
+        Creep added to the output.
+    units : mapping, optional
+        ``{"input": ..., "output": ...}`` unit names, kept in model files.
 
     Examples
     --------
@@ -308,6 +465,7 @@ class GeneralizedPI(HysteresisModel):
 
     @property
     def parameters(self) -> JSONDict:
+        """Named parameters (JSON-ready): thresholds, weights, polynomial, envelopes, input range, creep."""
         lo, hi = self.input_range
         d: JSONDict = {
             "thresholds": self.thresholds.tolist(),
@@ -341,7 +499,21 @@ class GeneralizedPI(HysteresisModel):
 
     def analytic_inverse(self) -> EnvelopeInverse:
         """``v = g^{-1}(PI^{-1}[y])`` for equal envelopes, ``P = 0`` and a zero first
-        threshold with positive weight (which plays the role of ``p0``)."""
+        threshold with positive weight (which plays the role of ``p0``).
+
+        Returns
+        -------
+        EnvelopeInverse
+
+        Examples
+        --------
+        >>> from piezohyst import Envelope, GeneralizedPI
+        >>> g = Envelope.polynomial(0.0, 1.0, 0.2)
+        >>> m = GeneralizedPI([0.0, 0.3], [1.0, 0.5], rising=g, falling=g, input_range=(0.0, 2.0))
+        >>> v = [0.0, 1.0, 2.0, 1.0]
+        >>> [round(x, 12) for x in m.analytic_inverse().simulate(m.simulate(v)).tolist()]
+        [0.0, 1.0, 2.0, 1.0]
+        """
         if self.rising != self.falling:
             raise ParameterError("rising and falling envelopes differ: no analytic inverse; use inverse()")
         if any(self.polynomial):
@@ -361,13 +533,54 @@ class GeneralizedPI(HysteresisModel):
 class ModifiedPI(GeneralizedPI):
     """A :class:`GeneralizedPI` fitted as the modified PI (MPI) of seed 2: the same model and
     parameters, named ``"mpi"`` in model files and reports (``identify(..., "mpi")``,
-    ``piezohyst identify --model mpi``), so a file says which kind was fitted."""
+    ``piezohyst identify --model mpi``), so a file says which kind was fitted.
+
+    Parameters
+    ----------
+    thresholds, weights : array_like
+        Thresholds and weights, as :class:`GeneralizedPI`.
+    polynomial : sequence of 4 floats
+        Direct polynomial ``[c0, c1, c2, c3]``.
+    rising, falling : Envelope
+        ``g_l`` and ``g_r``; identity by default.
+    input_range : (float, float)
+        Inputs on which the envelopes are checked.
+    creep : Creep, optional
+        Creep added to the output.
+    units : mapping, optional
+        ``{"input": ..., "output": ...}`` unit names, kept in model files.
+
+    Examples
+    --------
+    >>> from piezohyst.models import ModifiedPI
+    >>> m = ModifiedPI([0.1, 0.2], [0.3, 0.2], (0.0, 0.5, 0.0, 0.1), input_range=(0.0, 1.0))
+    >>> m.kind, round(float(m.simulate([0.0, 1.0])[-1]), 6)
+    ('mpi', 1.03)
+    """
 
     kind = "mpi"
 
     @classmethod
     def from_gpi(cls, model: GeneralizedPI) -> ModifiedPI:
-        """The same parameters, units, creep and output map as ``model``, named ``"mpi"``."""
+        """The same parameters, units, creep and output map as ``model``, named ``"mpi"``.
+
+        Parameters
+        ----------
+        model : GeneralizedPI
+            The model to rename.
+
+        Returns
+        -------
+        ModifiedPI
+
+        Examples
+        --------
+        >>> from piezohyst.models import ModifiedPI
+        >>> from piezohyst.papers import mpi_seed2
+        >>> m = ModifiedPI.from_gpi(mpi_seed2())
+        >>> m.kind, m.simulate([0.0, 0.5]).tolist() == mpi_seed2().simulate([0.0, 0.5]).tolist()
+        ('mpi', True)
+        """
         return cls(
             model.thresholds,
             model.weights,
@@ -381,19 +594,72 @@ class ModifiedPI(GeneralizedPI):
 
 
 class EnvelopeInverse:
-    """Analytic inverse of an equal-envelope GPI: an inverse PI followed by ``g^{-1}``."""
+    """Analytic inverse of an equal-envelope GPI: an inverse PI followed by ``g^{-1}``
+    (:meth:`GeneralizedPI.analytic_inverse` builds it).
+
+    Parameters
+    ----------
+    pi_inverse : PI
+        The inverse of the classical PI on the envelope's values.
+    envelope : Envelope
+        The common envelope ``g``.
+
+    Examples
+    --------
+    >>> from piezohyst import PI, Envelope
+    >>> from piezohyst.models import EnvelopeInverse
+    >>> inv = EnvelopeInverse(PI([0.5], [1.0], p0=1.0).analytic_inverse(), Envelope.polynomial(0.0, 2.0))
+    >>> inv.simulate([0.0, 1.5]).tolist()
+    [0.0, 0.5]
+    """
 
     def __init__(self, pi_inverse: PI, envelope: Envelope) -> None:
         self.pi_inverse = pi_inverse
         self.envelope = envelope
 
     def simulate(self, desired: npt.ArrayLike) -> FloatArray:
-        """Inputs for a desired output record, from the relaxed state."""
+        """Inputs for a desired output record, from the relaxed state.
+
+        Parameters
+        ----------
+        desired : array_like
+            The desired outputs.
+
+        Returns
+        -------
+        ndarray
+
+        Examples
+        --------
+        >>> from piezohyst import PI, Envelope
+        >>> from piezohyst.models import EnvelopeInverse
+        >>> EnvelopeInverse(PI([0.5], [1.0], p0=1.0).analytic_inverse(), Envelope.identity()).simulate([3.5]).tolist()
+        [2.0]
+        """
         return self.envelope.inverse(self.pi_inverse.simulate(desired))
 
 
 class GeneralizedPlay(GeneralizedPI):
-    """A single generalized play operator; output ``z_r``."""
+    """A single generalized play operator; output ``z_r``.
+
+    Parameters
+    ----------
+    threshold : float
+        ``r >= 0``.
+    rising, falling : Envelope
+        ``g_l`` and ``g_r``; identity by default.
+    input_range : (float, float)
+        Inputs on which the envelopes are checked.
+    units : mapping, optional
+        ``{"input": ..., "output": ...}`` unit names, kept in model files.
+
+    Examples
+    --------
+    >>> from piezohyst import Envelope, GeneralizedPlay
+    >>> play = GeneralizedPlay(0.5, rising=Envelope.polynomial(0.0, 2.0), falling=Envelope.identity())
+    >>> play.simulate([0.0, 1.0, 0.0]).tolist()
+    [0.0, 1.5, 0.5]
+    """
 
     kind = "generalized_play"
 
@@ -418,6 +684,7 @@ class GeneralizedPlay(GeneralizedPI):
 
     @property
     def parameters(self) -> JSONDict:
+        """Named parameters (JSON-ready): threshold, envelopes, input range."""
         d = super().parameters
         return {
             "threshold": d["thresholds"][0],
@@ -451,6 +718,22 @@ def mpi_seed2(
     """The seed-2 Table 1 MPI model (normalized input in [0, 1]) as a reference set.
 
     ``P(v) = 0.2547 v - 0.00358 v^2 + 0.7123 v^3``; identity envelopes unless given.
+
+    Parameters
+    ----------
+    rising, falling : Envelope, optional
+        Envelopes (the paper does not list them; identity by default).
+
+    Returns
+    -------
+    GeneralizedPI
+
+    Examples
+    --------
+    >>> from piezohyst.papers import mpi_seed2
+    >>> m = mpi_seed2()
+    >>> m.thresholds.tolist()[:3], m.input_range
+    ([0.1, 0.2, 0.3], (0.0, 1.0))
     """
     t = SEED2_TABLE1
     return GeneralizedPI(
@@ -487,6 +770,16 @@ class RateDependentPI(HysteresisModel):
     filter_tau : float
         Derivative low-pass time constant, s.
     creep : Creep, optional
+        Creep added to the output.
+    units : mapping, optional
+        ``{"input": ..., "output": ...}`` unit names, kept in model files.
+
+    Examples
+    --------
+    >>> from piezohyst import RateDependentPI
+    >>> m = RateDependentPI([0.5], [1.0], ts=1e-3, p0=1.0, beta=1e-4)
+    >>> m.simulate([0.0, 1.0, 2.0, 1.0]).tolist()   # the thresholds grow with the rate (1000 per s)
+    [0.0, 1.4, 3.4, 2.4]
     """
 
     kind = "rdpi"
@@ -536,6 +829,7 @@ class RateDependentPI(HysteresisModel):
 
     @property
     def parameters(self) -> JSONDict:
+        """Named parameters (JSON-ready): thresholds, weights, ts, p0, beta, rate weights, filter, creep."""
         d: JSONDict = {
             "thresholds": self.thresholds.tolist(),
             "weights": self.weights.tolist(),

@@ -39,6 +39,8 @@ class Preisach(HysteresisModel):
     memory : int
         Dominant extrema remembered (2..256). Beyond, the adjacent pair of extrema closest in
         value (the smallest nested minor loop) is forgotten.
+    units : mapping, optional
+        ``{"input": ..., "output": ...}`` unit names, kept in model files.
 
     Examples
     --------
@@ -99,13 +101,25 @@ class Preisach(HysteresisModel):
         )
 
     def weight_matrix(self) -> FloatArray:
-        """Weights as an ``(L, L)`` lower-triangular array (alpha rows, beta columns)."""
+        """Weights as an ``(L, L)`` lower-triangular array (alpha rows, beta columns).
+
+        Returns
+        -------
+        ndarray, shape (L, L)
+
+        Examples
+        --------
+        >>> from piezohyst import Preisach
+        >>> Preisach(2, (0.0, 1.0), [1.0, 2.0, 3.0]).weight_matrix().tolist()
+        [[1.0, 0.0], [2.0, 3.0]]
+        """
         m = np.zeros((self.levels, self.levels))
         m[np.tril_indices(self.levels)] = self.weights
         return m
 
     @property
     def parameters(self) -> JSONDict:
+        """Named parameters (JSON-ready): levels, input range, weights, offset, slope, memory."""
         return {
             "levels": self.levels,
             "input_range": list(self.input_range),

@@ -160,7 +160,11 @@ def _readonly(a: npt.ArrayLike) -> FloatArray:
 class OptimizeResult(RunReport):
     """The outcome of a run (modelled on :class:`scipy.optimize.OptimizeResult`).
 
-    Attributes
+    As a :class:`~piezohyst.optimize.RunReport`: ``evaluations`` is ``nfev`` and ``partial``
+    is ``True`` when the run was interrupted or stopped by the callback (``x`` is then the
+    best point found before the stop).
+
+    Parameters
     ----------
     x : ndarray, shape (D,)
         Best candidate found (``None`` only if no population was ever evaluated).
@@ -188,9 +192,15 @@ class OptimizeResult(RunReport):
     method : str
         The optimizer's name.
 
-    As a :class:`~piezohyst.optimize.RunReport`: ``evaluations`` is ``nfev`` and ``partial``
-    is ``True`` when the run was interrupted or stopped by the callback (``x`` is then the
-    best point found before the stop).
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst import minimize
+    >>> res = minimize(lambda X: ((X - 0.3) ** 2).sum(axis=1), [(-1, 1)] * 2, max_iterations=60, rng=0)
+    >>> res.success, res.nit, res.evaluations == res.nfev, bool(res.fun < 1e-6)
+    (True, 60, True, True)
+    >>> res.history["best_cost"].shape
+    (60,)
     """
 
     x: FloatArray | None
@@ -235,7 +245,7 @@ class IntermediateResult(DataclassMatFile):
     (the best candidate so far, one bar per parameter), the notebook display and ``.mat``
     files (``to_mat``, ``from_mat``).
 
-    Attributes
+    Parameters
     ----------
     x : ndarray
         Best candidate so far.
@@ -247,6 +257,14 @@ class IntermediateResult(DataclassMatFile):
         Candidates evaluated so far.
     mean_cost : float
         Mean of the finite costs of the last population (``inf`` if none was finite).
+
+    Examples
+    --------
+    >>> from piezohyst import minimize
+    >>> seen = []
+    >>> res = minimize(lambda X: (X**2).sum(axis=1), [(-1, 1)], max_iterations=5, rng=0, callback=seen.append)
+    >>> [r.nit for r in seen], seen[-1].fun == res.fun
+    ([1, 2, 3, 4, 5], True)
     """
 
     x: FloatArray | None
@@ -347,6 +365,19 @@ class Optimizer:
     population ``X`` (costs ``f``, ``+inf`` allowed) and propose the next one; the base clips
     the proposal to the bounds (a no-op for the methods here, which handle bounds
     themselves) so that :meth:`ask` never leaves them.
+
+    Examples
+    --------
+    The ask/tell cycle with any of the methods (here :class:`CSS`):
+
+    >>> import numpy as np
+    >>> from piezohyst.optimize import CSS
+    >>> opt = CSS([(-1.0, 1.0), (-1.0, 1.0)], population_size=20, rng=0, max_iterations=50)
+    >>> while not opt.done:
+    ...     X = opt.ask()
+    ...     opt.tell(((X - 0.5) ** 2).sum(axis=1))
+    >>> opt.iteration, opt.nfev, bool(np.allclose(opt.best_x, 0.5, atol=1e-2))
+    (50, 1000, True)
     """
 
     name = "optimizer"
@@ -423,6 +454,7 @@ class Optimizer:
 
     @property
     def dimension(self) -> int:
+        """Number of parameters ``D``."""
         return int(self._lower.size)
 
     @property
@@ -473,6 +505,18 @@ class Optimizer:
 
         Calling it again before :meth:`tell` returns the same population. Raises
         ``RuntimeError`` once ``max_iterations`` populations have been evaluated.
+
+        Returns
+        -------
+        ndarray, shape (S, D)
+
+        Examples
+        --------
+        >>> from piezohyst.optimize import PSO
+        >>> opt = PSO([(0.0, 1.0)] * 3, population_size=8, rng=0)
+        >>> X = opt.ask()
+        >>> X.shape, bool((X >= 0).all() and (X <= 1).all()), bool((opt.ask() == X).all())
+        ((8, 3), True, True)
         """
         if self.done:
             raise ComputationError(
@@ -492,6 +536,15 @@ class Optimizer:
         costs : array_like, shape (S,)
             One cost per row; ``+inf`` marks an invalid candidate. NaN and ``-inf`` raise
             ``ValueError``.
+
+        Examples
+        --------
+        >>> from piezohyst.optimize import DE
+        >>> opt = DE([(0.0, 1.0)], population_size=6, rng=0)
+        >>> X = opt.ask()
+        >>> opt.tell(X[:, 0])                 # cost = the parameter itself
+        >>> bool(opt.best_cost == X[:, 0].min()), opt.iteration
+        (True, 1)
         """
         if not self._asked:
             raise ComputationError(f"{self.name}: tell() without a pending ask()")
@@ -537,14 +590,50 @@ class Optimizer:
 
     def converged(self, tol: float, atol: float = 0.0) -> bool:
         """Spread test on the last population (as in SciPy's DE):
-        ``std(f) <= atol + tol * |mean(f)|``, all costs finite."""
+        ``std(f) <= atol + tol * |mean(f)|``, all costs finite.
+
+        Parameters
+        ----------
+        tol : float
+            Relative tolerance on the spread of the costs.
+        atol : float
+            Absolute tolerance.
+
+        Returns
+        -------
+        bool
+
+        Examples
+        --------
+        >>> from piezohyst.optimize import PSO
+        >>> opt = PSO([(0.0, 1.0)], population_size=4, rng=0)
+        >>> _ = opt.ask()
+        >>> opt.tell([1.0, 1.0, 1.0, 1.0])
+        >>> opt.converged(tol=1e-9)
+        True
+        """
         f = self._last_costs
         if f is None or not np.all(np.isfinite(f)):
             return False
         return bool(np.std(f) <= atol + tol * abs(np.mean(f)))
 
     def intermediate_result(self) -> IntermediateResult:
-        """The object handed to callbacks."""
+        """The object handed to callbacks.
+
+        Returns
+        -------
+        IntermediateResult
+
+        Examples
+        --------
+        >>> from piezohyst.optimize import PSO
+        >>> opt = PSO([(0.0, 1.0)], population_size=4, rng=0)
+        >>> _ = opt.ask()
+        >>> opt.tell([3.0, 1.0, 2.0, 4.0])
+        >>> r = opt.intermediate_result()
+        >>> r.fun, r.nit, r.nfev, r.mean_cost
+        (1.0, 1, 4, 2.5)
+        """
         return IntermediateResult(
             x=self.best_x,
             fun=self.best_cost,
@@ -559,6 +648,27 @@ class Optimizer:
         ``message``/``success`` default to the budget outcome: ``"maximum number of iterations
         reached"`` (``success=True``) when done, ``"running"`` (``False``) otherwise, and
         ``"no finite cost found"`` (``False``) if every cost was ``inf``.
+
+        Parameters
+        ----------
+        message : str, optional
+            Why the run stopped.
+        success : bool, optional
+            Whether it succeeded.
+
+        Returns
+        -------
+        OptimizeResult
+
+        Examples
+        --------
+        >>> from piezohyst.optimize import PSO
+        >>> opt = PSO([(0.0, 1.0)], population_size=4, rng=0, max_iterations=1)
+        >>> _ = opt.ask()
+        >>> opt.tell([3.0, 1.0, 2.0, 4.0])
+        >>> res = opt.result()
+        >>> res.fun, res.success, res.message
+        (1.0, True, 'maximum number of iterations reached')
         """
         if message is None:
             message = "maximum number of iterations reached" if self.done else "running"
@@ -602,6 +712,15 @@ def css_charges(costs: npt.ArrayLike) -> FloatArray:
     ``f_best`` and ``f_worst`` are the best and worst *finite* costs of the population.
     Candidates with infinite cost get ``q = 0``; if all finite costs are equal, the finite
     ones get ``q = 1``.
+
+    Parameters
+    ----------
+    costs : array_like, shape (S,)
+        The population's costs (``+inf`` allowed).
+
+    Returns
+    -------
+    ndarray, shape (S,)
 
     Examples
     --------
@@ -919,7 +1038,23 @@ class PSO(Optimizer):
         return self._V.copy()
 
     def inertia(self, it: int) -> float:
-        """Inertia weight used after evaluating population ``it`` (0-based): constant ``w``."""
+        """Inertia weight used after evaluating population ``it`` (0-based): constant ``w``.
+
+        Parameters
+        ----------
+        it : int
+            The population's index.
+
+        Returns
+        -------
+        float
+
+        Examples
+        --------
+        >>> from piezohyst.optimize import PSO
+        >>> PSO([(0.0, 1.0)], w=0.7, rng=0).inertia(10)
+        0.7
+        """
         return self.w
 
     def _update_bests(self, X: FloatArray, f: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -1013,7 +1148,24 @@ class MPSO(PSO):
         self.c3 = as_scalar(c3, "c3", nonnegative=True)
 
     def inertia(self, it: int) -> float:
-        """``w(t) = w_min + (w_max - w_min) (1 - t/T)^2``, ``T = max_iterations``."""
+        """``w(t) = w_min + (w_max - w_min) (1 - t/T)^2``, ``T = max_iterations``.
+
+        Parameters
+        ----------
+        it : int
+            The population's index ``t`` (0-based).
+
+        Returns
+        -------
+        float
+
+        Examples
+        --------
+        >>> from piezohyst.optimize import MPSO
+        >>> opt = MPSO([(0.0, 1.0)], w_max=0.9, w_min=0.4, max_iterations=100, rng=0)
+        >>> opt.inertia(0), opt.inertia(50), opt.inertia(100)
+        (0.9, 0.525, 0.4)
+        """
         return self.w_min + (self.w_max - self.w_min) * (1.0 - it / self.max_iterations) ** 2
 
     def _random_particle_term(self, X: FloatArray) -> FloatArray | float:

@@ -30,7 +30,23 @@ class RunReport(DataclassMatFile):
     """Mixin of the result classes: subclasses provide ``wall_time``, ``evaluations``,
     ``history`` and ``partial`` (as fields or properties), a ``_headline()`` and their
     ``_scores()``. With :class:`~piezohyst.signals.results.DataclassMatFile` every run report
-    is written to and read from MATLAB files (``to_mat``, ``from_mat``)."""
+    is written to and read from MATLAB files (``to_mat``, ``from_mat``).
+
+    :class:`OptimizeResult`, :class:`~piezohyst.identify.FitResult`,
+    :class:`~piezohyst.identify.IdentificationResult` and
+    :class:`~piezohyst.control.TuningResult` are ``RunReport``s: each has ``.to_pandas()``
+    (the history per iteration), ``.plot()`` (convergence) and a notebook display.
+
+    Examples
+    --------
+    >>> from piezohyst import minimize
+    >>> from piezohyst.optimize import RunReport
+    >>> res = minimize(lambda X: (X**2).sum(axis=1), [(-1, 1)], max_iterations=10, rng=0)
+    >>> isinstance(res, RunReport), res.evaluations, res.partial
+    (True, 200, False)
+    >>> "<table>" in res._repr_html_()
+    True
+    """
 
     # Declared as read-only properties for the type checker only: a subclass provides each as a
     # dataclass field or as a property (a real property here would become a dataclass default).
@@ -87,11 +103,14 @@ class RunReport(DataclassMatFile):
 
         Examples
         --------
-        >>> import numpy as np
-        >>> from piezohyst.optimize import minimize
-        >>> res = minimize(lambda X: np.sum(X**2, axis=1), [(-1.0, 1.0)] * 2, max_iterations=3, rng=0)
-        >>> res.to_pandas().index.name  # doctest: +SKIP
-        'iteration'
+        >>> from piezohyst import minimize
+        >>> res = minimize(lambda X: (X**2).sum(axis=1), [(-1, 1)], max_iterations=10, rng=0)
+        >>> try:
+        ...     df = res.to_pandas()
+        ... except ImportError:           # pandas is optional
+        ...     df = None
+        >>> df is None or (len(df) == 10 and df.index.name == "iteration")
+        True
         """
         pd = require_pandas(type(self).__name__)
         cols = self._history_columns()
@@ -113,11 +132,13 @@ class RunReport(DataclassMatFile):
 
         Examples
         --------
-        >>> import numpy as np
-        >>> from piezohyst.optimize import minimize
-        >>> res = minimize(lambda X: np.sum(X**2, axis=1), [(-1.0, 1.0)] * 2, max_iterations=3, rng=0)
-        >>> res.plot().axes[0].get_ylabel()
+        >>> import matplotlib.pyplot as plt
+        >>> from piezohyst import minimize
+        >>> res = minimize(lambda X: (X**2).sum(axis=1) + 1e-3, [(-1, 1)], max_iterations=10, rng=0)
+        >>> fig = res.plot()
+        >>> fig.axes[0].get_ylabel()
         'best cost'
+        >>> plt.close(fig)
         """
         import matplotlib.pyplot as plt
 

@@ -34,12 +34,27 @@ def load_train_multisine(path: str | Path) -> tuple[npt.NDArray[np.float64], npt
     """The benchmark's training record (``train_multisine.csv`` of forgi86/dynonet,
     header ``u,y``: 5 periods x 8192 samples, u in N, y in m).
 
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The CSV file (a header ``u,y``, then one sample per line).
+
     Returns
     -------
     u, y : numpy.ndarray
         Force (N) and displacement (m).
     fs : float
         750.0 Hz.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from piezohyst import load_train_multisine
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "train_multisine.csv"
+    >>> _ = path.write_text("u,y\\n1.5,2e-6\\n-3.0,1e-6\\n")
+    >>> u, y, fs = load_train_multisine(path)
+    >>> u.tolist(), y.tolist(), fs
+    ([1.5, -3.0], [2e-06, 1e-06], 750.0)
     """
     path = Path(path)
     with path.open() as fh:

@@ -106,6 +106,12 @@ class LeafSpring:
         """Seed 1's flexure: four A7075 leaves (E = 7.2e10 Pa), h = 10 mm, d = 1 mm, L = 6 mm,
         giving ``k_f = 1.333e7 N/m``.
 
+        Returns
+        -------
+        LeafSpring
+
+        Examples
+        --------
         >>> f"{LeafSpring.seed1().stiffness:.4g}"
         '1.333e+07'
         """
@@ -116,7 +122,7 @@ class CemfCoefficients(NamedTuple):
     """Plant coefficients of the CEMF model normalized by the electromechanical transformation
     ratio: ``M x'' + B x' + K x = Vin - Vh`` (docs/spec.md §2.6).
 
-    Attributes
+    Parameters
     ----------
     M : float
         ``meq / Tem`` [V·s²/m].
@@ -124,6 +130,13 @@ class CemfCoefficients(NamedTuple):
         ``beq / Tem`` [V·s/m].
     K : float
         ``keq / Tem`` [V/m].
+
+    Examples
+    --------
+    >>> from piezohyst.plant import CemfCoefficients, FlexureStage
+    >>> c = FlexureStage.seed1().cemf_coefficients(tem=10.0)
+    >>> isinstance(c, CemfCoefficients), f"{c.K:.4g}"
+    (True, '7.333e+06')
     """
 
     M: float
@@ -236,7 +249,30 @@ class FlexureStage:
     def from_leaf_spring(
         cls, leaf: LeafSpring, actuator_stiffness: float, actuator_mass: float, stage_mass: float, zeta: float = 0.03
     ) -> FlexureStage:
-        """Stage guided by ``leaf`` (a :class:`LeafSpring`); ``k_f = leaf.stiffness``."""
+        """Stage guided by ``leaf`` (a :class:`LeafSpring`); ``k_f = leaf.stiffness``.
+
+        Parameters
+        ----------
+        leaf : LeafSpring
+            The flexure.
+        actuator_stiffness : float
+            The stack's stiffness ``k_z``, N/m.
+        actuator_mass, stage_mass : float
+            ``m_z`` and ``m_f``, kg.
+        zeta : float
+            Damping ratio.
+
+        Returns
+        -------
+        FlexureStage
+
+        Examples
+        --------
+        >>> from piezohyst.plant import FlexureStage, LeafSpring
+        >>> s = FlexureStage.from_leaf_spring(LeafSpring.seed1(), 6e7, 0.0044, 0.067)
+        >>> f"{s.keq:.4g} N/m, {s.f_n:.4g} Hz"
+        '7.333e+07 N/m, 5101 Hz'
+        """
         if not isinstance(leaf, LeafSpring):
             raise ParameterTypeError(f"leaf must be a LeafSpring, got {leaf!r}")
         return cls(actuator_stiffness, leaf.stiffness, actuator_mass, stage_mass, zeta)
@@ -247,6 +283,17 @@ class FlexureStage:
         stack (k_z = 6e7 N/m), m_z = 0.0044 kg, m_f = 0.067 kg → keq = 7.333e7 N/m,
         meq = 0.0714 kg, f_n ≈ 5.1 kHz.
 
+        Parameters
+        ----------
+        zeta : float
+            Damping ratio (seed 1: "almost zero"; 0.02–0.05 is typical).
+
+        Returns
+        -------
+        FlexureStage
+
+        Examples
+        --------
         >>> s = FlexureStage.seed1()
         >>> f"{s.flexure_stiffness:.4g} {s.keq:.4g} {s.meq:.4g} {s.f_n:.4g}"
         '1.333e+07 7.333e+07 0.0714 5101'
@@ -341,6 +388,17 @@ class FlexureStage:
 def seed1_stage(zeta: float = 0.03) -> FlexureStage:
     """Seed 1's flexure stage; same as :meth:`FlexureStage.seed1`.
 
+    Parameters
+    ----------
+    zeta : float
+        Damping ratio.
+
+    Returns
+    -------
+    FlexureStage
+
+    Examples
+    --------
     >>> f"{seed1_stage().f_n:.4g} Hz"
     '5101 Hz'
     """

@@ -72,7 +72,27 @@ STAGE_UNITS = {
 @dataclass(frozen=True)
 class Amplifier:
     """Drive amplifier: output limits (V), -3 dB bandwidth (Hz, ``inf`` = ideal) and slew
-    rate (V/s, ``inf`` = unlimited)."""
+    rate (V/s, ``inf`` = unlimited).
+
+    Parameters
+    ----------
+    v_min, v_max : float
+        Output limits, V (``v_min < v_max``).
+    bandwidth : float
+        -3 dB bandwidth, Hz (``inf``: ideal).
+    slew_rate : float
+        Largest output rate, V/s (``inf``: unlimited).
+
+    Examples
+    --------
+    >>> from piezohyst.plant import Amplifier
+    >>> Amplifier(v_min=-20.0, v_max=150.0, bandwidth=3e3).slew_rate
+    inf
+    >>> Amplifier(v_min=10.0, v_max=0.0)
+    Traceback (most recent call last):
+    ...
+    piezohyst.errors.ParameterError: amplifier limits reversed: v_min = 10.0 must be < v_max = 0.0
+    """
 
     v_min: float = -20.0
     v_max: float = 150.0
@@ -93,7 +113,23 @@ class Amplifier:
 @dataclass(frozen=True)
 class Sensor:
     """Position sensor: quantization step (m, 0 = none), white-noise standard deviation (m)
-    and delay in whole controller samples."""
+    and delay in whole controller samples.
+
+    Parameters
+    ----------
+    quantization : float
+        Step of the reading, m (0: none).
+    noise_std : float
+        White-noise standard deviation, m.
+    delay : int
+        Delay of the reading in controller samples (0..16).
+
+    Examples
+    --------
+    >>> from piezohyst.plant import Sensor
+    >>> Sensor(quantization=1e-7, noise_std=1e-8, delay=1)
+    Sensor(quantization=1e-07, noise_std=1e-08, delay=1)
+    """
 
     quantization: float = 0.0
     noise_std: float = 0.0
@@ -113,6 +149,34 @@ class StageParameters:
 
     ``hyst_drive`` is ``"charge"`` (seed 1's model) or ``"voltage"`` (the input-driven
     variant, where ``alpha`` is V/V and ``beta``, ``gamma`` are 1/V).
+
+    Parameters
+    ----------
+    mass : float
+        Equivalent moving mass ``meq``, kg.
+    damping : float
+        Equivalent damping ``beq``, N s/m.
+    stiffness : float
+        Equivalent stiffness ``keq``, N/m.
+    tem : float
+        Electromechanical transformation ratio ``Tem``, N/V.
+    capacitance : float
+        The stack's capacitance ``Cz``, F.
+    hyst_alpha, hyst_beta, hyst_gamma : float
+        The CEMF's Bouc–Wen parameters: V/C and 1/C on charge (V/V and 1/V on voltage).
+    hyst_drive : {"charge", "voltage"}
+        What drives the CEMF.
+    electrostriction : float
+        Quadratic term of the drive, 1/V.
+    creep_taus, creep_weights : tuple of float
+        Creep lags' time constants (s) and weights (V/V), at most 8.
+
+    Examples
+    --------
+    >>> from piezohyst import virtual_stage
+    >>> p = virtual_stage().params
+    >>> p.mass, p.tem, round(p.natural_frequency), round(p.damping_ratio, 3)
+    (0.0714, 10.5, 5100, 0.03)
     """
 
     mass: float
@@ -155,6 +219,7 @@ class StageParameters:
 
     @property
     def damping_ratio(self) -> float:
+        """Damping ratio of the mechanics, ``damping / (2 sqrt(stiffness mass))``."""
         return self.damping / (2 * math.sqrt(self.stiffness * self.mass))
 
     @property
@@ -252,11 +317,20 @@ class StageResponse(Response):
     time : array_like, shape (N,)
         Sample instants, s.
     command, voltage, position, cemf : array_like, shape (N,)
+        The signals (V, V, m, V).
     final_state : array_like
         Stage state at the end ``[va, x, v, vh, creep[8]]``: pass it as the next run's
         ``initial_state`` to continue.
     title : str, optional
         The stage's name.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst import virtual_stage
+    >>> r = virtual_stage().simulate(np.full(100, 75.0))
+    >>> r.output_names, r.units["position"], bool(r.position[-1] > 0)
+    (('voltage', 'position', 'cemf'), 'm', True)
     """
 
     final_state: FloatArray
@@ -319,7 +393,32 @@ class StageResponse(Response):
 
 @dataclass(frozen=True)
 class StageInfo:
-    """What ``piezohyst stage info`` measures on a stage."""
+    """What ``piezohyst stage info`` measures on a stage (:meth:`Stage.info`).
+
+    Parameters
+    ----------
+    stroke : float
+        Output range of a 1 Hz full-range loop, m.
+    hysteresis_percent : float
+        That loop's largest width, % of the range.
+    resonance : float
+        First resonance, Hz, measured from a simulated frequency response.
+    creep_percent_per_decade : float
+        Creep after a half-range step, % per time decade (0.1 to 100 s).
+    natural_frequency : float
+        Of the mechanics alone, Hz.
+    damping_ratio : float
+        Of the mechanics.
+    details : dict
+        Further fields of the report.
+
+    Examples
+    --------
+    >>> from piezohyst import virtual_stage
+    >>> info = virtual_stage().info()
+    >>> round(info.stroke * 1e6, 2), round(info.hysteresis_percent, 2), round(info.resonance)
+    (19.92, 13.08, 5478)
+    """
 
     stroke: float
     hysteresis_percent: float
@@ -330,6 +429,19 @@ class StageInfo:
     details: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
+        """The report as ``piezohyst stage info --json`` prints it (stroke in µm).
+
+        Returns
+        -------
+        dict
+
+        Examples
+        --------
+        >>> from piezohyst import virtual_stage
+        >>> d = virtual_stage().info().to_dict()
+        >>> round(d["stroke_um"], 2), round(d["first_resonance_hz"])
+        (19.92, 5478)
+        """
         return {
             "stroke_um": self.stroke * 1e6,
             "hysteresis_percent_1hz_full_range": self.hysteresis_percent,
@@ -344,6 +456,23 @@ class StageInfo:
 @dataclass(frozen=True)
 class Stage:
     """A stage with its amplifier, sensor and loop rate.
+
+    Parameters
+    ----------
+    params : StageParameters
+        The physics.
+    amplifier : Amplifier
+        The drive amplifier.
+    sensor : Sensor
+        The position sensor.
+    sample_time : float
+        The controller's sample time, s.
+    substeps : int
+        Integration sub-steps per sample (at least; refined where the voltage moves fast).
+    tolerance : float
+        Refinement tolerance (CEMF exponent change per sub-step; ``inf``: never refine).
+    name : str
+        The stage's name.
 
     Examples
     --------
@@ -378,8 +507,25 @@ class Stage:
     # -- files --------------------------------------------------------------------------
     @classmethod
     def from_dict(cls, d: object) -> Stage:
-        """Build from the stage-file layout (see ``presets/virtual_stage.json``): ``d`` is
-        the parsed JSON object (a dict; anything else raises ``ValueError``)."""
+        """Build from the stage-file layout (see ``presets/virtual_stage.json``).
+
+        Parameters
+        ----------
+        d : dict
+            The parsed JSON object (anything else raises ``ValueError``).
+
+        Returns
+        -------
+        Stage
+
+        Examples
+        --------
+        >>> from piezohyst import virtual_stage
+        >>> from piezohyst.plant import Stage
+        >>> stage = virtual_stage()
+        >>> Stage.from_dict(stage.to_dict()) == stage
+        True
+        """
         if not isinstance(d, dict):
             raise ParameterError(f"a stage description must be a JSON object, got {type(d).__name__}")
         with malformed_as("the stage description"):
@@ -425,7 +571,27 @@ class Stage:
     @classmethod
     def from_file(cls, path: str | PathLike[str]) -> Stage:
         """Read a stage file (JSON, the layout of the packaged virtual stage; a ``.mat`` file:
-        the MATLAB file of :meth:`to_mat`)."""
+        the MATLAB file of :meth:`to_mat`).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The stage file (``piezohyst identify --model cemf`` writes one).
+
+        Returns
+        -------
+        Stage
+
+        Examples
+        --------
+        >>> import json, tempfile, pathlib
+        >>> from piezohyst import virtual_stage
+        >>> from piezohyst.plant import Stage
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "stage.json"
+        >>> _ = path.write_text(json.dumps(virtual_stage().to_dict()))
+        >>> Stage.from_file(path).sensor.quantization
+        1e-07
+        """
         if str(path).lower().endswith(".mat"):
             return load_mat_file(path, "stage", "stage file", cls.from_dict)
         return load_json_file(path, "stage file", cls.from_dict)
@@ -460,6 +626,19 @@ class Stage:
         return write_mat(path, "stage", {**self.to_dict(), "units": dict(STAGE_UNITS)}, overwrite=overwrite)
 
     def to_dict(self) -> dict[str, Any]:
+        """The stage-file layout (JSON-ready; :meth:`from_dict` reads it back).
+
+        Returns
+        -------
+        dict
+
+        Examples
+        --------
+        >>> from piezohyst import virtual_stage
+        >>> d = virtual_stage().to_dict()
+        >>> d["kind"], d["amplifier"]["max"], d["loop"]["sample_time"]
+        ('stage', 150.0, 0.0001)
+        """
         p = self.params
         return {
             "schema_version": 1,
@@ -494,12 +673,42 @@ class Stage:
         }
 
     def with_(self, **changes: Any) -> Stage:
-        """A copy with some fields replaced (``params``, ``amplifier``, ``sensor``, ...)."""
+        """A copy with some fields replaced (``params``, ``amplifier``, ``sensor``, ...).
+
+        Parameters
+        ----------
+        **changes
+            Fields of :class:`Stage` and their new values.
+
+        Returns
+        -------
+        Stage
+
+        Examples
+        --------
+        >>> from piezohyst import virtual_stage
+        >>> from piezohyst.plant import Sensor
+        >>> quiet = virtual_stage().with_(sensor=Sensor())
+        >>> quiet.sensor.noise_std, quiet.amplifier == virtual_stage().amplifier
+        (0.0, True)
+        """
         return replace(self, **changes)
 
     # -- core layout ----------------------------------------------------------------------
     def core_params(self) -> FloatArray:
-        """The flat parameter array of the Rust core (``StageParams::from_slice``)."""
+        """The flat parameter array of the Rust core (``StageParams::from_slice``).
+
+        Returns
+        -------
+        ndarray, shape (31,)
+
+        Examples
+        --------
+        >>> from piezohyst import virtual_stage
+        >>> p = virtual_stage().core_params()
+        >>> p.size, p[0], p[3]          # mass (kg), Tem (N/V), ...
+        (31, np.float64(0.0714), np.float64(10.5))
+        """
         p, a = self.params, self.amplifier
         taus = list(p.creep_taus) + [1.0] * (MAX_CREEP - len(p.creep_taus))
         weights = list(p.creep_weights) + [0.0] * (MAX_CREEP - len(p.creep_weights))
@@ -539,7 +748,18 @@ class Stage:
 
     @staticmethod
     def rest_state() -> FloatArray:
-        """The state at rest: ``[va, x, v, vh, creep[8]]`` all zero."""
+        """The state at rest: ``[va, x, v, vh, creep[8]]`` all zero.
+
+        Returns
+        -------
+        ndarray, shape (12,)
+
+        Examples
+        --------
+        >>> from piezohyst.plant import Stage
+        >>> Stage.rest_state().tolist() == [0.0] * 12
+        True
+        """
         return np.zeros(_core.STAGE_STATE_LEN)
 
     # -- simulation -----------------------------------------------------------------------
@@ -558,6 +778,36 @@ class Stage:
         ``voltage`` and ``cemf`` are the amplifier and CEMF voltages at the end of each period.
         Commands beyond the amplifier range raise ``ValueError`` (the amplifier would clip
         them; say so instead of clipping silently).
+
+        Parameters
+        ----------
+        command : array_like, shape (N,)
+            Voltage command per sample, V.
+        initial_state : array_like, optional
+            The state to start from (default: at rest), e.g. a previous run's ``final_state``.
+        sample_time : float, optional
+            Override the stage's sample time, s.
+        substeps : int, optional
+            Override the integration sub-steps per sample.
+        tolerance : float, optional
+            Override the refinement tolerance.
+
+        Returns
+        -------
+        StageResponse
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst import virtual_stage
+        >>> stage = virtual_stage()
+        >>> r = stage.simulate(np.full(2000, 150.0))           # a 150 V step, 0.2 s
+        >>> round(float(r.position[-1]) * 1e6, 2)
+        22.12
+        >>> stage.simulate([200.0])
+        Traceback (most recent call last):
+        ...
+        piezohyst.errors.ParameterError: command[0] = 200.0 V is outside the amplifier range [-20.0, 150.0] V
         """
         u = as_record(command, "command")
         self.check_command(u)
@@ -574,6 +824,25 @@ class Stage:
         return StageResponse(np.arange(u.size) * ts, u, va, x, vh, st, title=self.name)
 
     def check_command(self, u: FloatArray, name: str = "command") -> None:
+        """Refuse commands outside the amplifier's range (naming the first one).
+
+        Parameters
+        ----------
+        u : ndarray
+            Commands, V.
+        name : str
+            The argument's name, for the message.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst import virtual_stage
+        >>> virtual_stage().check_command(np.array([0.0, 150.0]))    # inside: nothing happens
+        >>> virtual_stage().check_command(np.array([0.0, -30.0]), "u")
+        Traceback (most recent call last):
+        ...
+        piezohyst.errors.ParameterError: u[1] = -30.0 V is outside the amplifier range [-20.0, 150.0] V
+        """
         a = self.amplifier
         bad = np.flatnonzero((u < a.v_min) | (u > a.v_max))
         if bad.size:
@@ -759,7 +1028,19 @@ class Stage:
     # -- measurements ---------------------------------------------------------------------
     def info(self) -> StageInfo:
         """Measure stroke, hysteresis at 1 Hz over the full 0..v_max range, first resonance and
-        creep per time decade, by simulation (not from the parameters)."""
+        creep per time decade, by simulation (not from the parameters).
+
+        Returns
+        -------
+        StageInfo
+
+        Examples
+        --------
+        >>> from piezohyst import virtual_stage
+        >>> info = virtual_stage().info()
+        >>> round(info.creep_percent_per_decade, 2), round(info.natural_frequency)
+        (1.42, 5100)
+        """
         v_max = self.amplifier.v_max
         ts = self.sample_time
         # 1 Hz full-range loop, third period
@@ -785,7 +1066,18 @@ class Stage:
 
     def measured_resonance(self) -> float:
         """The first resonance (Hz), measured by simulation: a random-phase multisine through the
-        stage with an ideal amplifier, the peak of the response spectrum (what :meth:`info` reports)."""
+        stage with an ideal amplifier, the peak of the response spectrum (what :meth:`info` reports).
+
+        Returns
+        -------
+        float
+
+        Examples
+        --------
+        >>> from piezohyst import virtual_stage
+        >>> round(virtual_stage().measured_resonance())     # above the mechanics' 5100 Hz
+        5478
+        """
         fs = 100_000.0
         ideal = self.with_(amplifier=Amplifier(self.amplifier.v_min, self.amplifier.v_max))
         n = 2**15
@@ -855,6 +1147,18 @@ def _json_inf(x: float) -> float | str:
 
 
 def virtual_stage() -> Stage:
-    """The default virtual stage (``piezohyst/presets/virtual_stage.json``)."""
+    """The default virtual stage (``piezohyst/presets/virtual_stage.json``).
+
+    Returns
+    -------
+    Stage
+
+    Examples
+    --------
+    >>> from piezohyst import virtual_stage
+    >>> stage = virtual_stage()
+    >>> stage.name, stage.sample_time, stage.amplifier.v_max
+    ('piezohyst virtual stage v1', 0.0001, 150.0)
+    """
     text = resources.files("piezohyst").joinpath("presets/virtual_stage.json").read_text()
     return Stage.from_dict(json.loads(text))

@@ -199,7 +199,22 @@ class Record:
 
     def si_units(self) -> dict[str, str]:
         """The unit of each signal as held (after conversion): ``{"input": "V", "output": "m"}``
-        (``""`` where the source said nothing), the form a model's ``units`` takes."""
+        (``""`` where the source said nothing), the form a model's ``units`` takes.
+
+        Returns
+        -------
+        dict
+
+        Examples
+        --------
+        >>> import tempfile, pathlib
+        >>> from piezohyst import load_record
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "run.csv"
+        >>> _ = path.write_text("\\n".join(["t [ms],v (V),x (um)", "0,0,0", "1,1,2", "2,2,4"]))
+        >>> rec = load_record(path, input="v (V)", output="x (um)", time="t [ms]")
+        >>> rec.si_units(), rec.fs, rec.output.tolist()
+        ({'input': 'V', 'output': 'm'}, 1000.0, [0.0, 2e-06, 4e-06])
+        """
         return {role: self.units[role].si for role in ("input", "output") if role in self.units}
 
     def __repr__(self) -> str:
@@ -236,6 +251,30 @@ class Record:
 
         Indices beyond the record and ranges of fewer than 2 samples are errors, never
         silently clipped.
+
+        Parameters
+        ----------
+        start : int
+            First sample kept.
+        stop : int, optional
+            One past the last sample kept (default: the end).
+
+        Returns
+        -------
+        Record
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst import Record
+        >>> rec = Record(np.arange(10.0), 2 * np.arange(10.0), fs=100.0)
+        >>> part = rec.trim(2, 5)
+        >>> part.input.tolist(), part.source
+        ([2.0, 3.0, 4.0], '[2:5]')
+        >>> rec.trim(8, 12)
+        Traceback (most recent call last):
+        ...
+        piezohyst.errors.ParameterError: stop = 12 is beyond the end of the record (10 samples)
         """
         a, b = self._span(start, stop, "start", "stop")
         return self._slice(a, b)
@@ -249,9 +288,26 @@ class Record:
         the end). The ranges may not overlap. With neither given, the first half trains
         and the second half validates.
 
+        Parameters
+        ----------
+        train, validate : (int, int or None), optional
+            The two sample ranges ``(start, stop)``.
+
         Returns
         -------
         train, validate : Record
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst import Record
+        >>> rec = Record(np.arange(10.0), 2 * np.arange(10.0), fs=100.0)
+        >>> train, val = rec.split()
+        >>> train.n, val.n
+        (5, 5)
+        >>> train, val = rec.split(train=(0, 8), validate=(8, None))
+        >>> val.output.tolist()
+        [16.0, 18.0]
         """
         if train is None and validate is None:
             h = self.n // 2
@@ -356,7 +412,24 @@ class Record:
 
     def to_pandas(self) -> pd.DataFrame:
         """A :class:`pandas.DataFrame` with columns ``time`` (the measured time, or
-        ``arange(n) / fs``), ``input`` and ``output``. Needs pandas."""
+        ``arange(n) / fs``), ``input`` and ``output``. Needs pandas.
+
+        Returns
+        -------
+        pandas.DataFrame
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst import Record
+        >>> rec = Record(np.arange(4.0), 2 * np.arange(4.0), fs=100.0)
+        >>> try:
+        ...     df = rec.to_pandas()
+        ... except ImportError:           # pandas is optional
+        ...     df = None
+        >>> df is None or list(df.columns) == ["time", "input", "output"]
+        True
+        """
         try:
             import pandas as pd
         except ImportError:

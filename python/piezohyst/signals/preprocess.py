@@ -202,6 +202,17 @@ def apply_lag(record: Record, lag: int) -> Record:
     samples without a partner are dropped (at the end for ``lag > 0``, at the start for
     ``lag < 0``). The time axis, if any, is the input's.
 
+    Parameters
+    ----------
+    record : Record
+        The record to realign.
+    lag : int
+        The output's delay in samples (negative: the output leads).
+
+    Returns
+    -------
+    Record
+
     Examples
     --------
     >>> import numpy as np
@@ -437,6 +448,17 @@ def replace_outliers(signal: npt.ArrayLike, indices: npt.ArrayLike) -> FloatArra
     their nearest good neighbours (the ends: the nearest good value). Keeps the time axis
     continuous, as a dynamic model needs.
 
+    Parameters
+    ----------
+    signal : array_like
+        The samples.
+    indices : array_like of int
+        The samples to replace.
+
+    Returns
+    -------
+    ndarray
+
     Examples
     --------
     >>> import numpy as np
@@ -476,6 +498,17 @@ def decimate(record: Record, factor: int) -> Record:
     run forward and backward (``filtfilt``) would also be zero-phase, but squares its
     magnitude response and needs long edge transients; the FIR is exact, stable and
     standard. Sample ``j`` of the result is sample ``j * factor`` of the record.
+
+    Parameters
+    ----------
+    record : Record
+        The record to decimate.
+    factor : int
+        Keep every ``factor``-th sample (>= 1).
+
+    Returns
+    -------
+    Record
 
     Examples
     --------
@@ -659,6 +692,17 @@ def processed_index(report: dict[str, Any], index: int) -> int:
     """The sample of the processed record that sample ``index`` of the input record maps to
     (rounded up; clipped to ``0`` when it falls inside a dropped lead-in), from the
     ``report`` of :func:`preprocess`.
+
+    Parameters
+    ----------
+    report : dict
+        The report :func:`preprocess` returned.
+    index : int
+        A sample of the input record.
+
+    Returns
+    -------
+    int
 
     Examples
     --------

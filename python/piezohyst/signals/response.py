@@ -71,6 +71,16 @@ class Response:
     units : dict of str to str
     final_state : ndarray or None
     title : str
+
+    Examples
+    --------
+    >>> from piezohyst.signals import Response
+    >>> r = Response([0.0, 0.1, 0.2], {"v": [0.0, 1.0, 2.0], "x": [0.0, 1e-6, 3e-6]},
+    ...              inputs=["v"], units={"v": "V", "x": "m"}, title="demo")
+    >>> r.x.tolist(), r.inputs.shape, r.outputs.shape, r.units["x"]
+    ([0.0, 1e-06, 3e-06], (1, 3), (1, 3), 'm')
+    >>> r
+    Response(demo: 3 samples over 0.2 s; signals v, x)
     """
 
     time: FloatArray
@@ -182,8 +192,13 @@ class Response:
         Examples
         --------
         >>> from piezohyst.signals import Response
-        >>> Response([0.0, 1.0], {"x": [1.0, 2.0]}).to_pandas().columns.tolist()  # doctest: +SKIP
-        ['x']
+        >>> r = Response([0.0, 0.1], {"v": [0.0, 1.0], "x": [0.0, 2.0]}, inputs=["v"])
+        >>> try:
+        ...     df = r.to_pandas()
+        ... except ImportError:           # pandas is optional
+        ...     df = None
+        >>> df is None or list(df.columns) == ["v", "x"]
+        True
         """
         pd = require_pandas(type(self).__name__)
         return pd.DataFrame(dict(self.signals), index=pd.Index(self.time, name="time"))
@@ -301,8 +316,27 @@ class Response:
     def plot(self, signals: Sequence[str] | None = None, *, ax: Axes | Iterable[Axes] | None = None) -> Figure:
         """One panel per unit: the named ``signals`` (default all) against time.
 
-        ``ax``: the axes to draw on, one per unit (in the order the units first appear);
-        by default a new figure. Returns the matplotlib figure.
+        Parameters
+        ----------
+        signals : sequence of str, optional
+            The signals to draw (default: all).
+        ax : matplotlib.axes.Axes or sequence of them, optional
+            The axes to draw on, one per unit (in the order the units first appear); by
+            default a new figure.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+
+        Examples
+        --------
+        >>> import matplotlib.pyplot as plt
+        >>> from piezohyst.signals import Response
+        >>> r = Response([0.0, 0.1], {"v": [0.0, 1.0], "x": [0.0, 2e-6]}, inputs=["v"], units={"v": "V", "x": "m"})
+        >>> fig = r.plot()
+        >>> len(fig.axes), fig.axes[1].get_ylabel()    # one panel per unit
+        (2, '(m)')
+        >>> plt.close(fig)
         """
         import matplotlib.pyplot as plt
         from matplotlib.axes import Axes
