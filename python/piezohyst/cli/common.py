@@ -7,6 +7,7 @@ import argparse
 import json
 import math
 import re
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn, TypedDict, Unpack
 
@@ -61,6 +62,24 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
         msg = " ".join(str(message).split())
         self.exit(2, f"{self.prog}: error: {msg} (see {self.prog} --help)\n")
+
+
+def _quantity(unit: str) -> Callable[[str], float]:
+    """argparse ``type=`` of an option that takes a quantity: a number with an optional unit
+    suffix (``5um``, ``1kHz``, ``2ms``, ``150V``), converted to SI; a bare number is in ``unit``,
+    the default unit each option's help names (:func:`piezohyst.signals.units.parse_quantity`:
+    the one parser of quantities; ``1_000`` is refused). argparse adds the option's name to the
+    message: ``argument --amp: '5kg': 'kg' is not a unit of length (m, mm, um (µm), nm)``."""
+    from ..signals.units import parse_quantity
+
+    def parse(text: str) -> float:
+        try:
+            return parse_quantity(text, unit, name="")
+        except ParameterError as e:
+            raise argparse.ArgumentTypeError(str(e).removeprefix(" = ")) from None
+
+    parse.__name__ = f"quantity ({unit})"  # argparse's fallback message names the type
+    return parse
 
 
 class _Fail(ParameterError):

@@ -28,6 +28,7 @@ from .common import (
     _parse_validate,
     _Parser,
     _pct,
+    _quantity,
     _record_options,
     _resolve_range,
     _units_line,
@@ -137,7 +138,12 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         help=_column_help("output (measured)", "default: the column named 'output', else the second of exactly two"),
     )
     g = i.add_mutually_exclusive_group()
-    g.add_argument("--fs", metavar="HZ", type=float, help="sample rate in Hz (> 0); this or --time is required")
+    g.add_argument(
+        "--fs",
+        metavar="HZ",
+        type=_quantity("Hz"),
+        help="sample rate (> 0): a bare number is in Hz, or give a unit: 10kHz; this or --time is required",
+    )
     g.add_argument(
         "--time",
         metavar="COL",
@@ -297,8 +303,9 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     i.add_argument(
         "--capacitance",
         metavar="F",
-        type=float,
-        help="cemf: the stack's capacitance in farads, taken as known (default: 1.8e-6, seed 1's 1800 nF)",
+        type=_quantity("F"),
+        help="cemf: the stack's capacitance, taken as known; a bare number is in farads, or give a unit: "
+        "1800nF, 1.8uF (default: 1.8e-6 F, seed 1's 1800 nF)",
     )
     i.add_argument(
         "--out",
@@ -511,13 +518,21 @@ def _identify(args: argparse.Namespace) -> int:
                     f"{val_where['range'][1]}], {val.n} samples",
                 )
             )
-        print(f"  {'':<11} {'RMSE (% of range)':>18} {'max error (%)':>14} {'RMSE':>11} {'max error':>11}")
+        unit = rec.units["output"].si if "output" in rec.units else ""
+        unit = f"({unit})" if unit else "(as read)"  # the output's unit: SI, or the file's when none was given
+        w1, w2 = max(11, len("RMSE " + unit)), max(11, len("max error " + unit))
+        print(
+            f"  {'':<11} {'RMSE (% of range)':>18} {'max error (%)':>14} {'RMSE ' + unit:>{w1}} "
+            f"{'max error ' + unit:>{w2}}"
+        )
         for name, m, where in rows:
             print(
                 f"  {name:<11} {_pct(m['rmse_percent']):>18} {_pct(m['max_error_percent']):>14} "
-                f"{m['rmse']:>11.4g} {m['max_error']:>11.4g}   ({where})"
+                f"{m['rmse']:>{w1}.4g} {m['max_error']:>{w2}.4g}   ({where})"
             )
         print(f"  units: {_units_line(rec)}")
+        if any(not c.si for c in rec.units.values()):
+            print("  (the model file carries the units the data give: name them with --input-unit / --output-unit)")
         if assessment:
             _print_whiteness(assessment)
         if plot is not None:
