@@ -778,11 +778,15 @@ def _auto(
     """``--model auto``: every candidate fitted, the league ranked, the winner's result."""
     from ..identify.dispatch import identify
     from ..identify.validation import league_table
+    from ..progress import Progress
 
     if extra.get("structure") == "fit" or extra.get("creep"):
         raise _Fail("--model auto chooses the structure and the creep itself: drop --structure fit / --creep")
     results: list[tuple[str, int, IdentificationResult | None, str | None]] = []
+    bar = Progress(len(_AUTO), "auto: candidates fitted") if common.get("progress") else None
     for kind, creep in _AUTO:
+        if bar is not None:
+            bar.update(len(results))
         kw = dict(extra)
         if kind in ("boucwen",) and "weights" in kw:
             results.append((kind, creep, None, "--weights apply to the linear families"))
@@ -798,6 +802,9 @@ def _auto(
             results.append((kind, creep, fitted, None))
         except ParameterError as e:
             results.append((kind, creep, None, str(e)))
+    if bar is not None:
+        bar.update(len(results))
+        bar.close()
     table, best = league_table(results, v.size)
     kind, creep, res, _ = results[best]
     assert res is not None  # league_table picks a fitted one
