@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 RUST_SOURCES := $(shell find crates -name '*.rs' -o -name 'Cargo.toml') Cargo.toml
 BUILT  := $(VENV)/.built
 
-.PHONY: demo test test-rust test-python test-c lint lint-rust lint-python bench bench-c clean wheel-check docs docs-check docs-browser-deps
+.PHONY: demo readme-demo test test-rust test-python test-c lint lint-rust lint-python bench bench-c clean wheel-check docs docs-check docs-browser-deps
 
 $(BIN)/python:
 	$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "Python >= 3.11 is required"'
@@ -20,6 +20,12 @@ $(BUILT): $(BIN)/python $(RUST_SOURCES) pyproject.toml
 
 demo: $(BUILT)
 	$(BIN)/python -m piezohyst demo --force   # regenerates ./piezohyst-report
+
+# the README's demo section from a full run (seed 0), and the run's numbers kept beside the
+# benchmarks' (tests/papers/test_demo_readme.py checks that the README equals them)
+readme-demo: $(BUILT)
+	$(BIN)/python -m piezohyst demo --force --seed 0 --readme README.md
+	cp piezohyst-report/results.json bench/results/demo_results.json
 
 test: test-rust test-python test-c
 
