@@ -58,3 +58,22 @@ def test_every_command_takes_quiet_and_refuses_abbreviations():
     for name, p in leaves.items():
         assert p.allow_abbrev is False, name
         assert "--quiet" in p._option_string_actions, name
+
+
+def test_quiet_silences_the_progress_only(tmp_path):
+    """identify with an optimizer and --progress prints its progress on stderr (plain lines: not
+    a terminal); --quiet silences it, the result on stdout stays."""
+    import numpy as np
+
+    rng = np.random.default_rng(2)
+    v = np.cumsum(rng.normal(0, 1, 1500))
+    v = 80 * (v - v.min()) / np.ptp(v)
+    y = ph.BoucWen(a=0.4, beta=0.02, gamma=0.01).simulate(v)
+    np.savetxt(tmp_path / "r.csv", np.c_[v, y], delimiter=",", header="input,output", comments="")
+    base = ["identify", "r.csv", "--model", "boucwen", "--fs", "1kHz", "--iterations", "15", "--seed", "0"]
+    loud = run(*base, "--out", "a.json", "--progress", cwd=tmp_path)
+    quiet = run(*base, "--out", "b.json", "--progress", "--quiet", cwd=tmp_path)
+    assert loud.returncode in (0, 3) and quiet.returncode == loud.returncode, loud.stderr + quiet.stderr
+    assert "15/15 (100 %)" in loud.stderr and "\r" not in loud.stderr
+    assert "/15" not in quiet.stderr and "identified by" in quiet.stdout
+    assert (tmp_path / "b.json").is_file()

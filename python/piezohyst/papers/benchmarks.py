@@ -33,6 +33,7 @@ from typing import Any, TypedDict
 
 from ..errors import DataError, ParameterError
 from ..outputs import check_output, check_output_dir, write_atomic
+from ..progress import is_silenced
 
 __all__ = ["BENCHMARKS", "Benchmark", "find_bench_dir", "run_suite", "summarize", "to_markdown", "update_readme"]
 
@@ -642,7 +643,9 @@ def main(args: argparse.Namespace, print_fn: _Print = print) -> Json:
         check_readme(Path(args.readme))
     if not args.report_only:
         results.mkdir(parents=True, exist_ok=True)
-        status = run_suite(chosen, bench_dir, results, quick=args.quick, print_fn=print_fn)
+        # the per-benchmark lines are progress: --quiet silences them (the table is still printed)
+        steps = print_fn if not is_silenced() else (lambda *a, **k: None)
+        status = run_suite(chosen, bench_dir, results, quick=args.quick, print_fn=steps)
     summary = summarize(chosen, results, status)
     summary["quick"] = bool(args.quick) and not args.report_only
     md = to_markdown(summary)
