@@ -111,7 +111,8 @@ def _track(args: argparse.Namespace) -> int:
     fs = 1.0 / stage.sample_time
     for name, unit, scale in (("freq", "Hz", 1.0), ("amp", "um", 1e6), ("duration", "s", 1.0)):
         if not getattr(args, name) > 0:
-            raise _Fail(f"--{name} = {getattr(args, name) * scale:g} {unit} must be > 0")
+            value = float(f"{getattr(args, name) * scale:.12g}")  # in the unit of a bare number
+            raise _Fail(f"--{name} = {value} must be > 0 ({unit})")
     if args.duration * fs > _TRACK_MAX_SAMPLES:
         raise _Fail(
             f"--duration = {args.duration:g} s is {args.duration * fs:.4g} samples at {fs:g} Hz; piezohyst track "
