@@ -5,13 +5,13 @@ BIN    := $(VENV)/bin
 RUST_SOURCES := $(shell find crates -name '*.rs' -o -name 'Cargo.toml') Cargo.toml
 BUILT  := $(VENV)/.built
 
-.PHONY: demo test test-rust test-python test-c lint lint-rust lint-python bench bench-c clean docs docs-check docs-browser-deps
+.PHONY: demo readme-demo test test-rust test-python test-c lint lint-rust lint-python bench bench-c clean wheel-check docs docs-check docs-browser-deps
 
 $(BIN)/python:
 	$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "Python >= 3.11 is required"'
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
-	$(BIN)/python -m pip install -q "maturin>=1.7,<2" "numpy>=1.26" "scipy>=1.11" "matplotlib>=3.8" "pyarrow>=14" "control>=0.10.1" "pytest>=8" "hypothesis>=6.100" "h5py>=3.10" "numpydoc==1.11.0"
+	$(BIN)/python -m pip install -q "maturin>=1.7,<2" "numpy>=1.26" "scipy>=1.11" "matplotlib>=3.8" "pyarrow>=14" "control>=0.10.1" "tqdm>=4.66" "pytest>=8" "hypothesis>=6.100" "h5py>=3.10" "numpydoc==1.11.0"
 
 # The extension is rebuilt (release, LTO) whenever a Rust source changes.
 $(BUILT): $(BIN)/python $(RUST_SOURCES) pyproject.toml
@@ -21,12 +21,18 @@ $(BUILT): $(BIN)/python $(RUST_SOURCES) pyproject.toml
 demo: $(BUILT)
 	$(BIN)/python -m piezohyst demo --force   # regenerates ./piezohyst-report
 
+# the README's demo section from a full run (seed 0), and the run's numbers kept beside the
+# benchmarks' (tests/papers/test_demo_readme.py checks that the README equals them)
+readme-demo: $(BUILT)
+	$(BIN)/python -m piezohyst demo --force --seed 0 --readme README.md
+	cp piezohyst-report/results.json bench/results/demo_results.json
+
 test: test-rust test-python test-c
 
 # The gates CI runs before the tests: formatting, lints, strict types, the stub against the
 # compiled module, and the core cross-built for a bare-metal Cortex-M4F (no_std, no allocator).
 EMBEDDED_TARGET := thumbv7em-none-eabihf
-PY_SOURCES := python tests bench examples docs
+PY_SOURCES := python tests bench examples docs build_backend
 
 lint: lint-rust lint-python
 
@@ -72,6 +78,16 @@ test-c: $(BUILT)
 	@# the docs' C example (docs/guides/export_c.rst) compiles against the header and library and runs
 	$(CC) $(C_FLAGS) examples/c/pi_inverse.c -Ltarget/release -lpiezohyst -Wl,-rpath,$(abspath target/release) -lm -o $(C_DIR)/pi_inverse
 	$(C_DIR)/pi_inverse
+
+# The wheel as pip builds it (`pip wheel .`, through build_backend/piezohyst_build.py): it ships
+# libpiezohyst (.so and .a) and piezohyst.h; `python -m piezohyst.capi --cflags --libs` run from
+# the wheel's files points into them; the docs' C example compiles against them alone and runs.
+# About 2.5 minutes on the 2-core machine (the extension's release build with LTO).
+WHEEL_DIR := target/wheel-check
+wheel-check: $(BUILT)
+	rm -rf $(WHEEL_DIR)
+	$(BIN)/python -m pip wheel . -w $(WHEEL_DIR) --no-deps -q
+	$(BIN)/python tests/c/check_wheel.py $(WHEEL_DIR)
 
 bench-c: $(BUILT)
 	$(BIN)/python bench/c_step.py

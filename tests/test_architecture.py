@@ -18,7 +18,7 @@ these rules:
    ``test_import_piezohyst_loads_no_application_wing`` checks that at run time.
 3. **No private name across wings**: ``from piezohyst.<wing>.<module> import _x`` only from the
    same wing. The top-level helper modules (``_core``, ``_io``, ``_validate``, ``errors``,
-   ``outputs``) are the shared base: any wing may import those modules and their public names,
+   ``outputs``, ``progress``) are the shared base: any wing may import those modules and their public names,
    never a private name inside them.
 """
 
@@ -114,7 +114,7 @@ def wing(module: str) -> str:
     return parts[1] if len(parts) > 2 or (len(parts) == 2 and parts[1] in WINGS) else ""
 
 
-WINGS = ("models", "signals", "optimize", "identify", "plant", "control", "export", "papers", "cli")
+WINGS = ("models", "signals", "optimize", "identify", "plant", "control", "export", "capi", "papers", "cli")
 
 
 def find_cycle(edges) -> list[str] | None:
@@ -193,7 +193,7 @@ def sources():
 
 def test_every_wing_is_a_package(sources):
     top = {m for m in sources if m.count(".") == 1}
-    expected = {f"{ROOT}.{m}" for m in ("__main__", "_io", "_validate", "errors", "outputs", *WINGS)}
+    expected = {f"{ROOT}.{m}" for m in ("__main__", "_io", "_validate", "errors", "outputs", "progress", *WINGS)}
     assert top == expected, f"modules at the top besides the wings and the shared base: {sorted(top - expected)}"
 
 

@@ -10,14 +10,16 @@ Python interface, batch evaluation, files and the command line, in sub-packages 
 - ``plant``: the simulated stage, flexure design, generic experiment helpers;
 - ``control``: controllers, closed-loop simulation, tuning;
 - ``export``: C code export;
+- ``capi``: the C library shipped in the wheel (``libpiezohyst``, ``piezohyst.h``) and the flags
+  to build against it (``python -m piezohyst.capi --cflags --libs``);
 - ``papers``: the seed papers' experiments, the demo and report, the benchmark suite, the
   Bouc–Wen benchmark workflow and the provenance presets (``mpi_seed2``, ``seed1_stage``);
 - ``cli``: the command line, one module per command.
 
 Shared helpers stay at the top: ``errors`` (the exception hierarchy), ``_validate``
 (argument checks), ``_io`` (JSON files in), ``outputs`` (the output policy every writer
-follows: regular files only, never an input, atomic files and sets) and ``_core`` (the Rust
-core). The
+follows: regular files only, never an input, atomic files and sets), ``progress`` (progress
+bars and lines on stderr) and ``_core`` (the Rust core). The
 library (every sub-package but ``papers`` and ``cli``) never imports ``papers`` or ``cli``;
 ``tests/test_architecture.py`` holds the rules.
 

@@ -10,15 +10,36 @@ def run(*args, cwd):
 
 
 def test_demo_quick_writes_the_report_and_prints_json(tmp_path):
-    out = run("demo", "--out", "report", "--quick", "--seed", "1", "--json", cwd=tmp_path)
+    readme = tmp_path / "R.md"
+    readme.write_text("# intro\n<!-- demo:begin -->\nstale numbers\n<!-- demo:end -->\nrest\n")
+    out = run("demo", "--out", "report", "--quick", "--seed", "1", "--json", "--readme", "R.md", cwd=tmp_path)
     assert out.returncode == 0, out.stderr
     numbers = json.loads(out.stdout)
     assert numbers["seed"] == 1 and numbers["quick"] is True
     assert set(numbers) >= {"identification", "seed1", "seed2", "figures"}
     assert "[5/5] write the report" in out.stderr  # progress per stage on stderr
+    # stderr is not a terminal: progress in plain lines, never a carriage return (issue 17)
+    assert "\r" not in out.stderr and "css: 25/25 (100 %)" in out.stderr
     report = tmp_path / "report"
     for name in ("index.html", "report.md", "results.json", *numbers["figures"].values()):
         assert (report / name).stat().st_size > 0, name
+    # --readme: the marked section holds this run's numbers, labelled quick, and nothing else changed
+    from piezohyst.papers.report import readme_markdown
+
+    text = readme.read_text()
+    saved = json.loads((report / "results.json").read_text())
+    assert readme_markdown(saved) in text and "stale numbers" not in text
+    assert text.startswith("# intro\n<!-- demo:begin -->") and text.endswith("<!-- demo:end -->\nrest\n")
+    assert "(seed 1, QUICK run: smaller budgets)" in text
+    # --report-only: the same section from the report on disk, without a run
+    again = tmp_path / "R2.md"
+    again.write_text("<!-- demo:begin --><!-- demo:end -->\n")
+    out = run("demo", "--out", "report", "--report-only", "--readme", "R2.md", cwd=tmp_path)
+    assert out.returncode == 0 and out.stderr == "", out.stderr
+    assert readme_markdown(saved) in again.read_text()
+    # the report's caption says which gains seed 1's main table compares
+    md = (report / "report.md").read_text()
+    assert "tuned by CSS on the identified model for the RMSE of SMC + CEMF (Case 2) alone" in md
 
 
 def test_demo_refuses_to_overwrite_without_force(tmp_path):

@@ -1,6 +1,9 @@
 """Population optimizers (docs/spec.md §4): CSS, PSO, MPSO, DE; ask/tell, minimize, determinism."""
 
 import dataclasses
+import io
+import sys
+import time
 
 import numpy as np
 import pytest
@@ -430,7 +433,29 @@ def test_progress_bar(capsys):
     assert capsys.readouterr().err == ""
     minimize(sphere, [(-5, 5)] * 2, method="pso", rng=0, population_size=8, max_iterations=10, progress=True)
     err = capsys.readouterr().err
-    assert err.startswith("\rpso [") and "10/10" in err and err.endswith("\n")
+    # stderr is not a terminal here: plain lines, no carriage return (a log stays readable)
+    assert err.startswith("pso: 10/10 (100 %), best ") and err.endswith(" s\n") and "\r" not in err
+    assert err.count("\n") == 1  # a run under a second: only the closing line
+
+
+def test_progress_bar_on_a_terminal(monkeypatch):
+    """On a terminal the optimizer's progress is a tqdm bar rewritten in place (a slow run:
+    the bar appears after half a second)."""
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    term = Terminal()
+    monkeypatch.setattr(sys, "stderr", term)
+
+    def slow(X):
+        time.sleep(0.06)
+        return np.sum(X**2, axis=1)
+
+    minimize(slow, [(-5, 5)] * 2, method="pso", rng=0, population_size=8, max_iterations=15, progress=True)
+    out = term.getvalue()
+    assert out.startswith("\rpso:") and "15/15" in out and out.endswith("\n")
 
 
 def test_result_object():

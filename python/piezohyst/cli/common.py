@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import math
 import re
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn, TypedDict, Unpack
 
@@ -48,11 +49,36 @@ class _Columns(_RecordOptions, total=False):
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse whose usage errors are one line on stderr with exit code 2 (docs/spec.md §8, §10)."""
+    """argparse whose usage errors are one line on stderr with exit code 2 (docs/spec.md §8, §10),
+    and which refuses abbreviated long options (``--forc`` is not ``--force``: an abbreviation that
+    a later option makes ambiguous would silently change meaning). Subcommand parsers are made by
+    this class too, so the rule holds on every level."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str) -> NoReturn:
         msg = " ".join(str(message).split())
         self.exit(2, f"{self.prog}: error: {msg} (see {self.prog} --help)\n")
+
+
+def _quantity(unit: str) -> Callable[[str], float]:
+    """argparse ``type=`` of an option that takes a quantity: a number with an optional unit
+    suffix (``5um``, ``1kHz``, ``2ms``, ``150V``), converted to SI; a bare number is in ``unit``,
+    the default unit each option's help names (:func:`piezohyst.signals.units.parse_quantity`:
+    the one parser of quantities; ``1_000`` is refused). argparse adds the option's name to the
+    message: ``argument --amp: '5kg': 'kg' is not a unit of length (m, mm, um (µm), nm)``."""
+    from ..signals.units import parse_quantity
+
+    def parse(text: str) -> float:
+        try:
+            return parse_quantity(text, unit, name="")
+        except ParameterError as e:
+            raise argparse.ArgumentTypeError(str(e).removeprefix(" = ")) from None
+
+    parse.__name__ = f"quantity ({unit})"  # argparse's fallback message names the type
+    return parse
 
 
 class _Fail(ParameterError):

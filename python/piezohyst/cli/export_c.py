@@ -13,8 +13,8 @@ from .common import (
     _count_arg,
     _existing_file,
     _Fail,
-    _number_arg,
     _Parser,
+    _quantity,
     _read_model,
 )
 
@@ -62,8 +62,9 @@ def _export_c_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         "--input-range",
         metavar=("LO", "HI"),
         nargs=2,
-        type=_number_arg,
-        help="input range the example drives the model over (default: the model's own range, e.g. an "
+        type=_quantity("V"),
+        help="input range the example drives the model over, in the model's input unit (V for a model of a "
+        "stack's voltage: a bare number is in V, or 500mV) (default: the model's own range, e.g. an "
         "MPI input_range, else [0, 2 max threshold] for PI models, else [-1, 1])",
     )
     e.add_argument(

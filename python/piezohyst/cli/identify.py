@@ -27,11 +27,11 @@ from .common import (
     _Fail,
     _integer,
     _load,
-    _number_arg,
     _parse_range,
     _parse_validate,
     _Parser,
     _pct,
+    _quantity,
     _record_options,
     _resolve_range,
     _units_line,
@@ -144,7 +144,12 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         help=_column_help("output (measured)", "default: the column named 'output', else the second of exactly two"),
     )
     g = i.add_mutually_exclusive_group()
-    g.add_argument("--fs", metavar="HZ", type=_number_arg, help="sample rate in Hz (> 0); this or --time is required")
+    g.add_argument(
+        "--fs",
+        metavar="HZ",
+        type=_quantity("Hz"),
+        help="sample rate (> 0): a bare number is in Hz, or give a unit: 10kHz; this or --time is required",
+    )
     g.add_argument(
         "--time",
         metavar="COL",
@@ -306,8 +311,9 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     i.add_argument(
         "--capacitance",
         metavar="F",
-        type=_number_arg,
-        help="cemf: the stack's capacitance in farads, taken as known (default: 1.8e-6, seed 1's 1800 nF)",
+        type=_quantity("F"),
+        help="cemf: the stack's capacitance, taken as known; a bare number is in farads, or give a unit: "
+        "1800nF, 1.8uF (default: 1.8e-6 F, seed 1's 1800 nF)",
     )
     i.add_argument(
         "--out",
@@ -524,13 +530,21 @@ def _identify(args: argparse.Namespace) -> int:
                     f"{val_where['range'][1]}], {val.n} samples",
                 )
             )
-        print(f"  {'':<11} {'RMSE (% of range)':>18} {'max error (%)':>14} {'RMSE':>11} {'max error':>11}")
+        unit = rec.units["output"].si if "output" in rec.units else ""
+        unit = f"({unit})" if unit else "(as read)"  # the output's unit: SI, or the file's when none was given
+        w1, w2 = max(11, len("RMSE " + unit)), max(11, len("max error " + unit))
+        print(
+            f"  {'':<11} {'RMSE (% of range)':>18} {'max error (%)':>14} {'RMSE ' + unit:>{w1}} "
+            f"{'max error ' + unit:>{w2}}"
+        )
         for name, m, where in rows:
             print(
                 f"  {name:<11} {_pct(m['rmse_percent']):>18} {_pct(m['max_error_percent']):>14} "
-                f"{m['rmse']:>11.4g} {m['max_error']:>11.4g}   ({where})"
+                f"{m['rmse']:>{w1}.4g} {m['max_error']:>{w2}.4g}   ({where})"
             )
         print(f"  units: {_units_line(rec)}")
+        if any(not c.si for c in rec.units.values()):
+            print("  (the model file carries the units the data give: name them with --input-unit / --output-unit)")
         if assessment:
             _print_whiteness(assessment)
         if plot is not None:
@@ -812,11 +826,15 @@ def _auto(
     """``--model auto``: every candidate fitted, the league ranked, the winner's result."""
     from ..identify.dispatch import identify
     from ..identify.validation import league_table
+    from ..progress import Progress
 
     if extra.get("structure") == "fit" or extra.get("creep"):
         raise _Fail("--model auto chooses the structure and the creep itself: drop --structure fit / --creep")
     results: list[tuple[str, int, IdentificationResult | None, str | None]] = []
+    bar = Progress(len(_AUTO), "auto: candidates fitted") if common.get("progress") else None
     for kind, creep in _AUTO:
+        if bar is not None:
+            bar.update(len(results))
         kw = dict(extra)
         if kind in ("boucwen",) and "weights" in kw:
             results.append((kind, creep, None, "--weights apply to the linear families"))
@@ -832,6 +850,9 @@ def _auto(
             results.append((kind, creep, fitted, None))
         except ParameterError as e:
             results.append((kind, creep, None, str(e)))
+    if bar is not None:
+        bar.update(len(results))
+        bar.close()
     table, best = league_table(results, v.size)
     kind, creep, res, _ = results[best]
     assert res is not None  # league_table picks a fitted one

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import atexit
+import contextlib
 import os
 import signal
 import sys
@@ -20,6 +21,7 @@ from typing import NoReturn
 
 from .._io import printable
 from ..errors import PiezohystError
+from ..progress import silenced
 from .bench import _bench, _bench_parser
 from .common import _Parser
 from .demo import _demo, _demo_parser
@@ -30,11 +32,63 @@ from .stage import _stage_info, _stage_parser
 from .stops import Interrupted, describe, exit_code, handled, received
 from .track import _track, _track_parser
 
-__all__ = ["main", "run"]
+__all__ = ["main", "run", "version_text"]
+
+
+def version_text() -> str:
+    """``piezohyst --version``: the installed package's version (its metadata) and the compiled
+    core's (the Rust crates' version built into ``piezohyst._core``).
+
+    Returns
+    -------
+    str
+        Two lines: ``piezohyst X.Y.Z`` and ``core (piezohyst._core, Rust) X.Y.Z``.
+
+    Examples
+    --------
+    >>> from piezohyst.cli.main import version_text
+    >>> version_text().splitlines()[1].startswith("core (piezohyst._core, Rust) ")
+    True
+    """
+    from importlib.metadata import PackageNotFoundError, version
+
+    from .. import _core
+
+    try:
+        package = version("piezohyst")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        package = f"{_core.__version__} (source tree, not installed)"
+    return f"piezohyst {package}\ncore (piezohyst._core, Rust) {_core.__version__}"
+
+
+class _Version(argparse.Action):
+    """``--version``: prints :func:`version_text` and exits 0 (computed only when asked)."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str = argparse.SUPPRESS, **kwargs: object) -> None:
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, help=str(kwargs.get("help", "")))
+
+    def __call__(self, parser: argparse.ArgumentParser, *args: object, **kwargs: object) -> None:
+        print(version_text())  # on stdout, as argparse's own version action
+        parser.exit(0)
+
+
+def _add_quiet(p: argparse.ArgumentParser) -> None:
+    """``--quiet`` on every command (each leaf parser: ``piezohyst demo --quiet``)."""
+    subs = [a for a in p._actions if isinstance(a, argparse._SubParsersAction)]
+    if subs:
+        for child in subs[0].choices.values():
+            _add_quiet(child)
+        return
+    p.add_argument(
+        "--quiet",
+        action="store_true",
+        help="no progress on stderr (bars, step lines); results, warnings and errors are still printed",
+    )
 
 
 def _parser() -> argparse.ArgumentParser:
     p = _Parser(prog="piezohyst", description="Piezo hysteresis modelling, identification and compensation.")
+    p.add_argument("--version", action=_Version, help="print the package's and the compiled core's versions and exit")
     p.add_argument("--debug", action="store_true", help="show a traceback on errors")
     sub = p.add_subparsers(dest="command", required=True)
     _demo_parser(sub)
@@ -44,6 +98,7 @@ def _parser() -> argparse.ArgumentParser:
     _track_parser(sub)
     _export_c_parser(sub)
     _bench_parser(sub)
+    _add_quiet(p)
     return p
 
 
@@ -68,7 +123,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         else "piezohyst"
     )
     try:
-        with handled():
+        with handled(), silenced() if args.quiet else contextlib.nullcontext():
             return _COMMANDS[args.command](args) or 0
     except KeyboardInterrupt as e:
         if debug:

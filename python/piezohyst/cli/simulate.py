@@ -23,10 +23,10 @@ from .common import (
     _Fail,
     _load,
     _named,
-    _number_arg,
     _parse_range,
     _Parser,
     _pct,
+    _quantity,
     _read_model,
     _record_options,
     _writable,
@@ -85,9 +85,9 @@ def _simulate_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     g.add_argument(
         "--fs",
         metavar="HZ",
-        type=_number_arg,
-        help="sample rate in Hz (> 0), for the time column of the CSV; must agree with the sample "
-        "time of a model that has one (rdpi, creep). Default: the model's, else no time column",
+        type=_quantity("Hz"),
+        help="sample rate (> 0; a bare number is in Hz, or 10kHz), for the time column of the CSV; must "
+        "agree with the sample time of a model that has one (rdpi, creep). Default: the model's, else no time column",
     )
     g.add_argument(
         "--time",
@@ -175,6 +175,17 @@ def _kind(model: AnyModel | Stage) -> str:
     from ..plant.stage import Stage
 
     return "stage" if isinstance(model, Stage) else model.kind
+
+
+def _model_units(model: object) -> dict[str, str]:
+    """The units of a model's (or stage's) input and output, as its file gives them; a stage is
+    in V and m."""
+    from ..plant.stage import Stage
+
+    if isinstance(model, Stage):
+        return {"input": "V", "output": "m"}
+    units = getattr(model, "units", None)
+    return {k: v for k, v in units.items() if isinstance(v, str)} if isinstance(units, dict) else {}
 
 
 def _read_input(
@@ -334,8 +345,11 @@ def _simulate(args: argparse.Namespace) -> None:
         raise _Fail(f"INPUT = '{input_path}': {e}") from None
     wall = time.perf_counter() - t0
 
+    units = _model_units(model)
     cols = ([("time", t)] if t is not None else []) + [("input", v), ("output", y)]
     lists = [np.asarray(c, dtype=np.float64).tolist() for _, c in cols]
+    # plain column names (readers select them by name: "time", "input", "output"); the units are
+    # the model file's, printed in the summary and under "units" in --json
     lines = [",".join(name for name, _ in cols)]
     lines += [
         ",".join(map(repr, row)) for row in zip(*lists, strict=False)
@@ -369,12 +383,14 @@ def _simulate(args: argparse.Namespace) -> None:
         "lag": args.lag,
         "score_from": args.score_from,
         "error": None if measured is None else fit_metrics(y[args.score_from :], measured[args.score_from :]),
+        "units": {"time": "s", "input": units.get("input", ""), "output": units.get("output", "")},
     }
     if args.json:
         print(json.dumps(summary, indent=2, allow_nan=False))
         return
     print(f"{_kind(model)} simulated on {v.size} samples of {input_path.name} in {wall:.3g} s -> {out}")
-    print(f"  output {summary['output']['min']:.6g} .. {summary['output']['max']:.6g}")
+    unit = f" {units['output']}" if units.get("output") else " (the model file gives no unit)"
+    print(f"  output {summary['output']['min']:.6g} .. {summary['output']['max']:.6g}{unit}")
     if measured is not None:
         m = summary["error"]
         scored = f" (samples {a + args.score_from}:{b}" + (f", output lagged {args.lag}" if args.lag else "") + ")"

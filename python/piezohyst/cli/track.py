@@ -11,8 +11,8 @@ from .common import (
     _atomic_savefig,
     _count_arg,
     _Fail,
-    _number_arg,
     _Parser,
+    _quantity,
     _writable,
 )
 
@@ -43,7 +43,12 @@ def _track_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         epilog=(
             "examples:\n"
             "  piezohyst track --controller smc-cemf --reference triangle --freq 5 --amp 5 --offset 7\n"
-            "  piezohyst track --controller absmc --reference sine --freq 80 --amp 8 --offset 9 --json\n\n"
+            "  piezohyst track --controller absmc --reference sine --freq 80Hz --amp 8um --offset 9um --json\n\n"
+            "units: --freq, --amp, --offset, --duration and --skip take a unit suffix (80Hz, 0.1kHz, 8um,\n"
+            "0.008mm, 500ms); a bare number is in Hz, um, um, s and s as before. Inside, and in --json,\n"
+            "everything is SI: freq_hz, amplitude_m, offset_m, duration_s, skip_s, and the metrics with\n"
+            'their units under "units" (rmse and max_error in m, the rest in % of range or ratios);\n'
+            "the text output prints um.\n\n"
             "exit status: 0 on success, 2 on bad input (one line on stderr naming the argument), 3 when\n"
             "--model looks like a model of another actuator: over the amplifier's voltage range its output\n"
             "span is off the stage's by more than 3x or strays from the stage's position by more than 10 %\n"
@@ -55,17 +60,45 @@ def _track_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
     t.add_argument("--stage", metavar="FILE", help="stage file (JSON; default: the built-in virtual stage)")
     t.add_argument("--controller", required=True, choices=_CONTROLLERS, help="controller kind")
     t.add_argument("--reference", default="sine", choices=_REFERENCES, help="reference kind (default sine)")
-    t.add_argument("--freq", type=_number_arg, default=10.0, help="reference frequency, Hz (default 10)")
-    t.add_argument("--amp", type=_number_arg, default=5.0, help="reference amplitude, um (default 5)")
-    t.add_argument("--offset", type=_number_arg, default=8.0, help="reference centre, um (default 8)")
-    t.add_argument("--duration", type=_number_arg, default=1.0, help="seconds (default 1)")
-    t.add_argument("--skip", type=_number_arg, default=0.2, help="seconds left out of the metrics (default 0.2)")
+    t.add_argument(
+        "--freq", type=_quantity("Hz"), default=10.0, help="reference frequency; a bare number is in Hz (default 10)"
+    )
+    t.add_argument(
+        "--amp",
+        type=_quantity("um"),
+        default=5e-6,
+        help="reference amplitude; a bare number is in um, or give a unit: 5um, 0.005mm, 5000nm (default 5 um)",
+    )
+    t.add_argument(
+        "--offset", type=_quantity("um"), default=8e-6, help="reference centre; a bare number is in um (default 8 um)"
+    )
+    t.add_argument(
+        "--duration", type=_quantity("s"), default=1.0, help="run length; a bare number is in s, or 500ms (default 1 s)"
+    )
+    t.add_argument(
+        "--skip",
+        type=_quantity("s"),
+        default=0.2,
+        help="time left out of the metrics; a bare number is in s (default 0.2 s)",
+    )
     t.add_argument("--model", metavar="MODEL.json", help="hysteresis model file for inverse / absmc")
     t.add_argument("--seed", type=_count_arg, default=0, help="sensor-noise seed (default 0)")
     t.add_argument("--json", action="store_true", help="print the metrics as JSON")
     t.add_argument("--plot", metavar="FILE.png", help="write the tracking figure (not overwritten without --force)")
     t.add_argument("--force", action="store_true", help="overwrite --plot")
 
+
+#: The unit of each number of ``track --json``'s ``metrics`` (SI; ``%`` of the reference's range;
+#: ``1`` for a ratio).
+_METRIC_UNITS = {
+    "rmse": "m",
+    "max_error": "m",
+    "rmse_percent": "%",
+    "max_error_percent": "%",
+    "normalized_max_error": "1",
+    "normalized_rms_error": "1",
+    "linearity_error": "%",
+}
 
 #: Longest `piezohyst track` run, samples (~1 GB of recorded signals).
 _TRACK_MAX_SAMPLES = 10_000_000
@@ -82,15 +115,16 @@ def _track(args: argparse.Namespace) -> int:
 
     stage = Stage.from_file(args.stage) if args.stage else virtual_stage()
     fs = 1.0 / stage.sample_time
-    for name in ("freq", "amp", "duration"):
+    for name, unit, scale in (("freq", "Hz", 1.0), ("amp", "um", 1e6), ("duration", "s", 1.0)):
         if not getattr(args, name) > 0:
-            raise _Fail(f"--{name} = {getattr(args, name)} must be > 0")
+            value = float(f"{getattr(args, name) * scale:.12g}")  # in the unit of a bare number
+            raise _Fail(f"--{name} = {value} must be > 0 ({unit})")
     if args.duration * fs > _TRACK_MAX_SAMPLES:
         raise _Fail(
             f"--duration = {args.duration:g} s is {args.duration * fs:.4g} samples at {fs:g} Hz; piezohyst track "
             f"runs at most {_TRACK_MAX_SAMPLES:.0e} (use piezohyst.closed_loop from Python for longer runs)"
         )
-    amp, off = args.amp * 1e-6, args.offset * 1e-6
+    amp, off = args.amp, args.offset  # SI (m): parsed by _quantity
     if args.reference == "sine":
         _, ref = refs.sine(args.freq, amp, args.duration, fs, offset=off)
     elif args.reference == "triangle":
@@ -167,13 +201,23 @@ def _track(args: argparse.Namespace) -> int:
         fig = res.plot(zoom=(args.skip, args.skip + min(0.5 / args.freq, args.duration - args.skip)))
         _atomic_savefig(fig, args.plot, "--plot", args.force)
     if args.json:
-        doc = {"controller": kind, "reference": args.reference, "freq_hz": args.freq, "metrics": m}
+        doc = {
+            "controller": kind,
+            "reference": args.reference,
+            "freq_hz": args.freq,
+            "amplitude_m": amp,
+            "offset_m": off,
+            "duration_s": args.duration,
+            "skip_s": args.skip,
+            "metrics": m,
+            "units": _METRIC_UNITS,
+        }
         if foreign is not None:
             doc["model_check"] = foreign
         print(json.dumps(doc, indent=2))
         return _distrust(foreign)
     print(
-        f"{kind} tracking a {args.freq:g} Hz {args.reference} ({args.amp:g} um around {args.offset:g} um), "
+        f"{kind} tracking a {args.freq:g} Hz {args.reference} ({amp * 1e6:g} um around {off * 1e6:g} um), "
         f"{args.duration:g} s, metrics after {args.skip:g} s"
     )
     print(f"  RMSE          {m['rmse'] * 1e6:9.4f} um  ({m['rmse_percent']:.3f} % of range)")

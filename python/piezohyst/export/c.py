@@ -430,15 +430,31 @@ def _repo_root() -> Path:
 
 
 def header_path() -> Path | None:
-    """``piezohyst.h`` of the C library, when piezohyst runs from its source tree."""
+    """``piezohyst.h`` of the C library: the source tree's when piezohyst runs from one, else the
+    copy the wheel ships (:func:`piezohyst.capi.header_path`)."""
     p = _repo_root() / "crates" / "capi" / "include" / "piezohyst.h"
-    return p if p.is_file() else None
+    if p.is_file():
+        return p
+    from .. import capi
+
+    try:
+        return capi.header_path()
+    except FileNotFoundError:
+        return None
 
 
 def library_path() -> Path | None:
-    """The built static library ``target/release/libpiezohyst.a``, if it exists."""
+    """The static library: the source tree's build ``target/release/libpiezohyst.a`` if it
+    exists, else the copy the wheel ships (:func:`piezohyst.capi.library_path`)."""
     p = _repo_root() / "target" / "release" / "libpiezohyst.a"
-    return p if p.is_file() else None
+    if p.is_file():
+        return p
+    from .. import capi
+
+    try:
+        return capi.library_path(static=True)
+    except FileNotFoundError:
+        return None
 
 
 #: Libraries the Rust static library needs from the system (``rustc --print native-static-libs``).

@@ -40,19 +40,18 @@ True
 
 from __future__ import annotations
 
-import math
 import numbers
-import sys
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
-from typing import IO, TYPE_CHECKING, Any, TypeAlias
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
 import numpy.typing as npt
 
 from .._validate import as_int, as_scalar
 from ..errors import ComputationError, ParameterError, ParameterTypeError
+from ..progress import Progress
 from ..signals.results import DataclassMatFile, html_table, require_pandas
 from .report import RunReport
 
@@ -1284,41 +1283,6 @@ METHODS: dict[str, type[Optimizer]] = {"css": CSS, "pso": PSO, "mpso": MPSO, "de
 # --------------------------------------------------------------------------------------------
 # minimize
 # --------------------------------------------------------------------------------------------
-class _ProgressBar:
-    """A dependency-free progress line on stderr, rewritten with ``\\r`` at most ~10 times/s.
-    A stream that fails (a terminal hung up: SIGHUP, then EIO) ends the bar, never the run: the
-    best result so far must still reach the caller."""
-
-    def __init__(self, name: str, total: int, stream: IO[str] | None = None, width: int = 30) -> None:
-        self.name, self.total, self.width = name, total, width
-        self.stream: IO[str] | None = sys.stderr if stream is None else stream
-        self._last = -math.inf
-        self._shown = False
-
-    def _write(self, text: str) -> None:
-        if self.stream is None:
-            return
-        try:
-            self.stream.write(text)
-            self.stream.flush()
-        except (OSError, ValueError):  # a closed or hung-up stream
-            self.stream = None
-
-    def update(self, it: int, best: float, force: bool = False) -> None:
-        now = time.perf_counter()
-        if not force and now - self._last < 0.1 and it < self.total:
-            return
-        self._last = now
-        n = int(self.width * it / self.total)
-        bar = "#" * n + "-" * (self.width - n)
-        self._write(f"\r{self.name} [{bar}] {it}/{self.total}  best {best:.6g}")
-        self._shown = True
-
-    def close(self) -> None:
-        if self._shown:
-            self._write("\n")
-
-
 def _method_class(method: str | type[Optimizer]) -> type[Optimizer]:
     if isinstance(method, type) and issubclass(method, Optimizer):
         return method
@@ -1439,7 +1403,8 @@ def minimize(
         returning ``True`` or raising ``StopIteration`` stops the run with
         ``message="stopped by callback"``, ``success=False``.
     progress : bool
-        Show a text progress bar on stderr.
+        Show the progress on stderr (:mod:`piezohyst.progress`: a bar on a terminal, plain
+        lines in a log, nothing inside :func:`piezohyst.progress.silenced`).
     polish : bool or dict
         Run L-BFGS-B (``scipy.optimize.minimize``, within the bounds) from the best point and
         keep the result if it is better; a dict gives L-BFGS-B options (default
@@ -1493,7 +1458,7 @@ def minimize(
         if "unexpected keyword" in str(e):
             raise ParameterTypeError(f"method {cls.name!r}: {e}") from None
         raise
-    bar = _ProgressBar(opt.name, opt.max_iterations) if progress else None
+    bar = Progress(opt.max_iterations, opt.name) if progress else None
     t0 = time.perf_counter()
     message, success = "maximum number of iterations reached", True
     try:
@@ -1501,7 +1466,7 @@ def minimize(
             X = opt.ask()
             opt.tell(_evaluate(fun_batch, X))
             if bar is not None:
-                bar.update(opt.iteration, opt.best_cost)
+                bar.update(opt.iteration, best=opt.best_cost)
             if callback is not None:
                 try:
                     stop = callback(opt.intermediate_result())
@@ -1517,7 +1482,7 @@ def minimize(
         message, success = "interrupted", False
     finally:
         if bar is not None:
-            bar.update(opt.iteration, opt.best_cost, force=True)
+            bar.update(opt.iteration, best=opt.best_cost)
             bar.close()
     res = opt.result(message=message, success=success)
     x0 = res.x  # not None once a finite cost was found

@@ -26,7 +26,16 @@ Results = dict[str, Any]
 #: One report table: ``(title, note, header, rows)``.
 Table = tuple[str, str, list[str], list[list[str]]]
 
-__all__ = ["write_report"]
+__all__ = ["MAIN_GAINS", "README_BEGIN", "README_END", "readme_markdown", "write_report"]
+
+#: The gain set of seed 1's main table, its figures and the README: tuned (CSS, on the identified
+#: model) for SMC + CEMF (Case 2) alone, then used unchanged for SMC (Case 1).
+MAIN_GAINS = "tuned for SMC+CEMF"
+#: What :data:`MAIN_GAINS` means, in every caption that shows it.
+_MAIN_GAINS_WORDS = "gains tuned for SMC + CEMF (Case 2) on the identified model, reused unchanged for SMC (Case 1)"
+
+#: The README's demo section: ``piezohyst demo --readme README.md`` replaces what is between.
+README_BEGIN, README_END = "<!-- demo:begin -->", "<!-- demo:end -->"
 
 _NOTE = (
     "The seeds measured real stages; piezohyst simulates its virtual stage (more physics than any "
@@ -110,7 +119,8 @@ def _figures(
         fig = _tracking_figure(
             runs,
             ["open loop", "SMC", "SMC+CEMF"],
-            f"Seed 1 case study: {name} (virtual stage, identical tuned gains)",
+            f"Seed 1 case study: {name} (virtual stage; same gains in both SMC runs:\n"
+            f"tuned for SMC + CEMF, reused for SMC)",
             (0.5, 0.5 + 0.5 / f),
         )
         fn = f"seed1_{name.replace(' ', '_').lower()}.png"
@@ -153,18 +163,32 @@ def _figures(
     figs["hysteresis loops"] = "hysteresis_loops.png"
     # optimizer convergence on the CEMF identification
     fig, ax = plt.subplots(figsize=(7, 4.2))
-    for method, c in results["identification"]["convergence"].items():
+    # like with like: every curve is the population optimizer alone, same iterations and
+    # population; CSS's least-squares polish (run after its last iteration, for the model the demo
+    # uses) is a separate marker, not part of its curve
+    for i, (method, c) in enumerate(results["identification"]["convergence"].items()):
+        best = np.asarray(c["best_cost"]) * 1e6
         ax.semilogy(
-            np.arange(1, len(c["best_cost"]) + 1),
-            np.asarray(c["best_cost"]) * 1e6,
+            np.arange(1, best.size + 1),
+            best,
             lw=1.2,
-            label=f"{method.upper()}{' + LS polish' if c.get('polished') else ''} "
-            f"({c['rmse_percent']:.2f} %, {c['wall_s']:.1f} s)",
+            color=f"C{i}",
+            label=f"{method.upper()} ({best[-1]:.3g} µm after {best.size} iterations)",
         )
+        if c.get("polished") and c.get("rmse") is not None:
+            ax.semilogy(
+                [best.size + 1],
+                [c["rmse"] * 1e6],
+                marker="*",
+                ms=11,
+                ls="none",
+                color=f"C{i}",
+                label=f"{method.upper()} + least-squares polish ({c['rmse'] * 1e6:.3g} µm; the model used)",
+            )
     ax.set(
         xlabel="iteration (one Rust batch of the population)",
         ylabel="best RMSE so far (µm)",
-        title="CEMF stage identification: optimizer convergence",
+        title="CEMF stage identification: optimizer convergence (population runs alone)",
     )
     ax.legend()
     fig.tight_layout()
@@ -234,7 +258,7 @@ def _tables(results: Results) -> list[Table]:
     out.append(("Seed 2, Table 2 — MPI model validation (max error % / RMS error % of range)", note, header, rows))
     s1 = results["seed1"]
     rows = []
-    for name, r in s1["rmse_um"]["tuned for SMC+CEMF"].items():
+    for name, r in s1["rmse_um"][MAIN_GAINS].items():
         seed = s1["seed_rmse_um"].get(name)
         seed_txt = (
             "—"
@@ -251,13 +275,14 @@ def _tables(results: Results) -> list[Table]:
                 seed_txt,
             ]
         )
-    g = s1["gains"]["tuned for SMC+CEMF"]
+    g = s1["gains"][MAIN_GAINS]
     out.append(
         (
             "Seed 1, Table 3 — tracking RMSE (µm)",
-            f"5 µm amplitude around 7 µm; gains tuned by CSS on the identified model for the mean RMSE of "
-            f"both cases (kp {g['kp']:.3g}, kv {g['kv']:.3g}, ks {g['ks']:.3g} V, phi {g['phi']:.3g} m/s), "
-            f"identical in both cases.",
+            f"5 µm amplitude around 7 µm; one gain set in both cases: tuned by CSS on the identified model "
+            f"for the RMSE of SMC + CEMF (Case 2) alone and reused unchanged for SMC (Case 1) (kp {g['kp']:.3g}, "
+            f"kv {g['kv']:.3g}, ks {g['ks']:.3g} V from seed 1's robustness rule, phi {g['phi']:.3g} m/s). "
+            f"Sets tuned for Case 1 alone and for both cases follow.",
             ["reference", "open loop", "SMC (Case 1)", "SMC + CEMF (Case 2)", "cut", "seed 1 (hardware)"],
             rows,
         )
@@ -383,3 +408,84 @@ def write_report(
     write_atomic(out_dir / "report.md", _markdown(results, tables, figures))
     write_atomic(out_dir / "index.html", _html(results, tables, figures))
     return figures
+
+
+def readme_markdown(results: Results) -> str:
+    """The README's headline table of the demo (its section between :data:`README_BEGIN` and
+    :data:`README_END`), from the demo's numbers (``results.json``): seed 1's Table 3 with
+    :data:`MAIN_GAINS`, seed 2's Tables 2-4, each with the seed's hardware number beside ours.
+
+    Parameters
+    ----------
+    results : dict
+        What :func:`~piezohyst.papers.demo.run_demo` returns (``results.json``).
+
+    Returns
+    -------
+    str
+        Markdown.
+
+    Examples
+    --------
+    >>> import json, pathlib
+    >>> from piezohyst.papers.report import readme_markdown
+    >>> root = pathlib.Path(__file__).resolve().parents[3]
+    >>> md = readme_markdown(json.loads((root / "bench/results/demo_results.json").read_text()))
+    >>> md.splitlines()[2].startswith("| the demo's tables (seed 0, full run) |")
+    True
+    """
+    ident, s1, s2 = results["identification"], results["seed1"], results["seed2"]
+    run = f"seed {results['seed']}, {'QUICK run: smaller budgets' if results['quick'] else 'full run'}"
+    rows: list[tuple[str, str, str]] = []
+    for name in ("triangle 5 Hz", "sine 5 Hz"):
+        ours, seed = s1["rmse_um"][MAIN_GAINS][name], s1["seed_rmse_um"].get(name)
+        rows.append(
+            (
+                f"seed 1 Table 3, {name}, SMC → SMC + CEMF (µm)",
+                "—" if seed is None else f"{seed['SMC']:.4g} → {seed['SMC+CEMF']:.4g}",
+                f"{ours['SMC']:.3g} → {ours['SMC+CEMF']:.3g}",
+            )
+        )
+    for f in (10, 100):
+        key = f"{f} Hz constant"
+        ours_t2, seed_t2 = ident["table2_mpi_validation"][key], ident["seed_table2"].get(key)
+        rows.append(
+            (
+                f"seed 2 Table 2, MPI fit at {f} Hz, max / RMS error (%)",
+                "—" if seed_t2 is None else f"{seed_t2[0]:.2f} / {seed_t2[1]:.2f}",
+                f"{ours_t2['max_error_percent']:.2f} / {ours_t2['rms_error_percent']:.2f}",
+            )
+        )
+    for f in (10, 100):
+        key = f"{f} Hz constant"
+        ours_t3, seed_t3 = s2["table3_linearity_percent"][key], s2["seed_table3"].get(key)
+        rows.append(
+            (
+                f"seed 2 Table 3, linearity at {f} Hz, without → with inverse (%)",
+                "—" if seed_t3 is None else f"{seed_t3[0]:.2f} → {seed_t3[1]:.2f}",
+                f"{ours_t3['none']:.2f} → {ours_t3['feedforward']:.2f}",
+            )
+        )
+    t4, seed_t4 = s2["table4_80hz"]["constant"], s2["seed_table4"]["constant"]
+    rows.append(
+        (
+            "seed 2 Table 4, 80 Hz normalized max error: none / feedforward / + ABSMC",
+            " / ".join(f"{smax:.4g}" for smax, _ in seed_t4),
+            " / ".join(f"{r['normalized_max_error']:.3f}" for r in t4.values()),
+        )
+    )
+    c = ident["cemf"]
+    lines = [
+        f"Seed 1's rows: {_MAIN_GAINS_WORDS}; the same gains in both columns. Seed 2: the MPI model by "
+        f"least squares, its inverse as feedforward, ABSMC behind it. The seeds measured hardware; piezohyst "
+        f"simulates its virtual stage.",
+        "",
+        f"| the demo's tables ({run}) | seed (hardware) | piezohyst (virtual stage) |",
+        "|---|---|---|",
+        *(f"| {a} | {b} | {d} |" for a, b, d in rows),
+        "",
+        f"CEMF stage model by CSS + least-squares polish: {c['fit_rmse_percent']:.2f} % RMSE; MPI model by "
+        f"least squares: {ident['mpi']['fit_rmse_percent']:.2f} %. Written by `piezohyst demo --readme README.md` "
+        f"from the run's `results.json` (kept in `bench/results/demo_results.json`).",
+    ]
+    return "\n".join(lines) + "\n"

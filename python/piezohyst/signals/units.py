@@ -1,5 +1,7 @@
 """Units of measured signals: parsed from column names (``t [ms]``, ``x (um)``, ``disp_um``) or
-given, and converted to SI (s, V, m, N, A) when a record is loaded.
+given, and converted to SI (s, V, m, N, A) when a record is loaded; and quantities written with
+a unit suffix (``5um``, ``1kHz``, ``150V``, ``2ms``), the one parser of the command line's
+quantities (:func:`parse_quantity`).
 
 Examples
 --------
@@ -13,12 +15,14 @@ Examples
 
 from __future__ import annotations
 
+import math
 import re
+from decimal import Decimal
 from typing import NamedTuple
 
 from ..errors import ParameterError
 
-__all__ = ["SI_UNITS", "UnitConversion", "parse_unit", "split_annotation"]
+__all__ = ["SI_UNITS", "UnitConversion", "parse_quantity", "parse_unit", "split_annotation"]
 
 #: The SI base unit of each quantity a record may carry.
 SI_UNITS = ("s", "V", "m", "N", "A")
@@ -145,3 +149,141 @@ def conversion_for(role: str, label: str, given: str | None, stored: str | None 
     if role == "time":
         return UnitConversion("s", "s", 1.0, "assumed")
     return UnitConversion("", "", 1.0, "assumed")
+
+
+# -- quantities: a number and an optional unit suffix ------------------------------------------
+#: A plain decimal number: ASCII digits, one optional decimal point and exponent, or inf / nan.
+#: Python's float() also takes "1_000" (digit separators) and other scripts' digits: not here.
+_NUMBER = r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|[+-]?(?:inf|infinity|nan)"
+_QUANTITY = re.compile(rf"(?P<number>{_NUMBER})\s*(?P<unit>[A-Za-zµμ]+)?", re.IGNORECASE)
+_NUMBER_ONLY = re.compile(_NUMBER, re.IGNORECASE)
+
+#: What each SI unit measures, for the messages.
+_DIMENSION = {
+    "m": "length",
+    "s": "time",
+    "V": "voltage",
+    "Hz": "frequency",
+    "F": "capacitance",
+    "N": "force",
+    "A": "current",
+}
+#: The spellings of each SI unit a quantity may carry (beyond the signal units above).
+_EXTRA: dict[str, tuple[str, float]] = {}
+for _p, _f in _PREFIX.items():
+    _EXTRA[_p + "Hz"] = ("Hz", _f)
+    _EXTRA[_p + "F"] = ("F", _f)
+_EXTRA.update({"hz": ("Hz", 1.0), "khz": ("Hz", 1e3), "mhz": ("Hz", 1e-3), "ms": ("s", 1e-3), "us": ("s", 1e-6)})
+_EXTRA.update({"MHz": ("Hz", 1e6), "KHz": ("Hz", 1e3), "uf": ("F", 1e-6), "nf": ("F", 1e-9), "pf": ("F", 1e-12)})
+
+
+def _quantity_unit(text: str) -> tuple[str, float] | None:
+    """``(SI unit, scale)`` of a quantity's unit spelling, or ``None``."""
+    hit = _EXTRA.get(text) or lookup_unit(text)
+    if hit is None:
+        t = text.replace("μ", "u").replace("µ", "u")
+        hit = _EXTRA.get(t)
+    return hit
+
+
+def _examples(si: str) -> str:
+    """Spellings of a unit for the messages: ``m, mm, um, nm``."""
+    return {
+        "m": "m, mm, um (µm), nm",
+        "s": "s, ms, us (µs), ns",
+        "V": "V, mV, kV",
+        "Hz": "Hz, kHz, MHz",
+        "F": "F, uF (µF), nF, pF",
+        "N": "N, mN, kN",
+        "A": "A, mA, uA",
+    }.get(si, si)
+
+
+def parse_quantity(text: object, unit: str, name: str = "value") -> float:
+    """A quantity written as a number with an optional unit suffix, in SI.
+
+    The one parser of the command line's quantities (``--amp 5um``, ``--freq 1kHz``, ``--fs
+    10kHz``, ``150V``, ``2ms``). A bare number is in ``unit`` (the option's documented default
+    unit), so it keeps its meaning; a suffix must measure the same thing as ``unit`` (a length
+    for ``um``). Numbers are plain decimals (ASCII digits, a point, an exponent; ``inf`` and
+    ``nan`` pass, for the option's own range check to name): ``1_000`` and other scripts'
+    digits are refused.
+
+    Parameters
+    ----------
+    text : str
+        The quantity as written: ``"5"``, ``"5um"``, ``"5 µm"``, ``"1e3 Hz"``.
+    unit : str
+        The unit of a bare number: one of ``m``, ``mm``, ``um``, ``nm``, ``s``, ``ms``, ``V``,
+        ``Hz``, ``kHz``, ``F``, ``uF`` ... (any spelling this module knows).
+    name : str
+        The argument the message names (``"--amp"``).
+
+    Returns
+    -------
+    float
+        The value in SI (m, s, V, Hz, F, N, A).
+
+    Raises
+    ------
+    ParameterError
+        Not a number, an unknown unit, or a unit of another quantity; the message names
+        ``name``, the text and the units accepted.
+
+    Examples
+    --------
+    >>> from piezohyst.signals.units import parse_quantity
+    >>> parse_quantity("5", "um"), parse_quantity("5um", "um"), parse_quantity("0.5 mm", "um")
+    (5e-06, 5e-06, 0.0005)
+    >>> parse_quantity("1kHz", "Hz"), parse_quantity("10", "Hz"), parse_quantity("2ms", "s")
+    (1000.0, 10.0, 0.002)
+    >>> parse_quantity("150V", "V"), parse_quantity("1.8uF", "F")
+    (150.0, 1.8e-06)
+    >>> parse_quantity("5kg", "um", "--amp")
+    Traceback (most recent call last):
+    ...
+    piezohyst.errors.ParameterError: --amp = '5kg': 'kg' is not a unit of length (m, mm, um (µm), nm)
+    >>> parse_quantity("1_000", "Hz", "--fs")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    piezohyst.errors.ParameterError: --fs = '1_000' is not a number ... (digit separators '_' are not accepted: ...)
+    """
+    base = _quantity_unit(unit)
+    if base is None:
+        raise ParameterError(f"unit = {unit!r} is not a known unit (the default unit of {name})")
+    si, default_scale = base
+    what = _DIMENSION.get(si, si)
+    if not isinstance(text, str):
+        raise ParameterError(f"{name} = {text!r} must be a number with an optional unit such as {unit!r}")
+    m = _QUANTITY.fullmatch(text.strip())
+    if m is None:
+        why = ""
+        if "_" in text:
+            why = " (digit separators '_' are not accepted: write 1000, not 1_000)"
+        elif not text.isascii() and not _QUANTITY.fullmatch(text.strip().rstrip("µμ")):
+            why = " (digits 0-9 only)"
+        raise ParameterError(f"{name} = {text!r} is not a number with an optional unit{why}")
+    suffix = m.group("unit")
+    if suffix is None:
+        return _scaled(m.group("number"), default_scale)
+    if _NUMBER_ONLY.fullmatch(m.group("number")) and m.group("number").lower().endswith(("inf", "infinity", "nan")):
+        raise ParameterError(f"{name} = {text!r}: {m.group('number')} takes no unit")
+    hit = _quantity_unit(suffix)
+    if hit is None:
+        raise ParameterError(f"{name} = {text!r}: {suffix!r} is not a unit of {what} ({_examples(si)})")
+    if hit[0] != si:
+        raise ParameterError(
+            f"{name} = {text!r}: {suffix!r} is a unit of {_DIMENSION.get(hit[0], hit[0])}, "
+            f"not of {what} ({_examples(si)})"
+        )
+    return _scaled(m.group("number"), hit[1])
+
+
+def _scaled(number: str, scale: float) -> float:
+    """The number written times ``scale``, rounded once: a power-of-ten scale shifts the decimal
+    exponent (``1.8uF`` is ``float("1.8e-6")``, as Python reads ``1.8e-6``; ``1.8 * 1e-6`` would
+    be ``1.8000000000000001e-06``)."""
+    exponent = round(math.log10(scale))
+    if 10.0**exponent == scale:
+        return float(Decimal(number).scaleb(exponent))
+    return float(number) * scale

@@ -1,0 +1,51 @@
+"""The README's headline numbers are the demo's (issue 17, item 6): its demo section is exactly
+what `piezohyst demo --readme README.md` writes from the run's results.json, kept in
+bench/results/demo_results.json; the captions say which gains are compared."""
+
+import json
+import re
+from pathlib import Path
+
+from piezohyst.papers.report import MAIN_GAINS, README_BEGIN, README_END, _tables, readme_markdown
+
+ROOT = Path(__file__).resolve().parents[2]
+RESULTS = ROOT / "bench" / "results" / "demo_results.json"
+
+
+def _section(text: str) -> str:
+    i, j = text.index(README_BEGIN), text.index(README_END)
+    return text[i + len(README_BEGIN) : j]
+
+
+def test_readme_numbers_are_the_demo_results():
+    results = json.loads(RESULTS.read_text())
+    assert results["seed"] == 0 and results["quick"] is False  # the README quotes a full run
+    section = _section((ROOT / "README.md").read_text())
+    assert readme_markdown(results) in section, (
+        "README's demo section is stale: run `make readme-demo` (piezohyst demo --readme README.md)"
+    )
+    # the figures a reader quotes, parsed back from the README, are the JSON's (3 significant digits)
+    ours = results["seed1"]["rmse_um"][MAIN_GAINS]["triangle 5 Hz"]
+    m = re.search(
+        r"\| seed 1 Table 3, triangle 5 Hz, SMC → SMC \+ CEMF \(µm\) \| [^|]+ \| ([\d.]+) → ([\d.]+) \|", section
+    )
+    assert m is not None
+    assert float(m.group(1)) == float(f"{ours['SMC']:.3g}") and float(m.group(2)) == float(f"{ours['SMC+CEMF']:.3g}")
+    t4 = results["seed2"]["table4_80hz"]["constant"]
+    m = re.search(r"\| seed 2 Table 4, 80 Hz [^|]+\| [^|]+ \| ([\d.]+) / ([\d.]+) / ([\d.]+) \|", section)
+    assert m is not None
+    assert [float(x) for x in m.groups()] == [round(r["normalized_max_error"], 3) for r in t4.values()]
+
+
+def test_captions_say_which_gains_are_compared():
+    """Seed 1's main table uses one gain set tuned for SMC + CEMF alone and reused for SMC: the
+    caption says so (it said "tuned for the mean RMSE of both cases" while the code used the
+    SMC + CEMF set)."""
+    results = json.loads(RESULTS.read_text())
+    tables = {title: note for title, note, _, _ in _tables(results)}
+    note = tables["Seed 1, Table 3 — tracking RMSE (µm)"]
+    assert "for the RMSE of SMC + CEMF (Case 2) alone and reused unchanged for SMC (Case 1)" in note
+    assert "both cases (kp" not in note and "mean RMSE of both" not in note
+    g = results["seed1"]["gains"][MAIN_GAINS]
+    assert f"kp {g['kp']:.3g}" in note and f"ks {g['ks']:.3g} V" in note  # the gains shown are the set used
+    assert "reused unchanged for SMC (Case 1)" in readme_markdown(results)
