@@ -249,3 +249,28 @@ def test_plot_carries_the_data():
         fig.canvas.draw()  # renders without error on Agg
     finally:
         plt.close(fig)
+
+
+def test_qr_bounded_solver_is_the_bvls_solution():
+    """The final Huber IRLS solves each reweighted problem through the QR factors of the
+    regressors (identify.core._qr_bounded_lstsq) instead of SciPy's BVLS: the same minimizer,
+    bounds active or not, a free offset column included; a rank-deficient matrix goes to BVLS."""
+    from scipy.optimize import lsq_linear
+
+    from piezohyst.identify.core import _qr_bounded_lstsq
+
+    rng = np.random.default_rng(3)
+    A = rng.standard_normal((400, 6))
+    A[:, 5] = 1.0
+    lb = np.array([0.0, 0.0, 0.0, 0.0, 0.0, -np.inf])
+    ub = np.full(6, np.inf)
+    for truth in ([1.0, 2.0, 0.5, 0.3, 0.1, -4.0], [1.0, -2.0, 0.5, -0.3, 0.1, 4.0]):  # bounds idle, active
+        y = A @ np.array(truth) + 0.01 * rng.standard_normal(400)
+        z = _qr_bounded_lstsq(A, y, (lb, ub))
+        ref = lsq_linear(A, y, bounds=(lb, ub), method="bvls").x
+        np.testing.assert_allclose(z, ref, rtol=1e-9, atol=1e-12)
+        assert np.all(z >= lb)
+    B = np.column_stack([A, A[:, 0]])  # two equal columns: rank deficient
+    y = B @ np.r_[1.0, 2.0, 0.5, 0.3, 0.1, -4.0, 1.0]
+    z = _qr_bounded_lstsq(B, y, (np.r_[lb, 0.0], np.r_[ub, np.inf]))
+    assert np.sqrt(np.mean((B @ z - y) ** 2)) < 1e-9

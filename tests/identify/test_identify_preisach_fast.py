@@ -23,8 +23,10 @@ def rmse(model, v, y):
 
 
 def test_preisach_fit_is_the_bounded_least_squares_solution():
+    # without the smoothness prior (smoothing=0; identify chooses its strength by hold-out)
     v, y = decaying(3000, 1500)
-    fit = identify(v, y, "preisach", levels=10)
+    fit = fit_linear(Preisach(10, (v.min(), v.max()), np.zeros(55)), v, y, smoothing=0)
+    assert fit.history["smoothing"] == 0
     m = fit.model
     A = _core.regressors(m.family, list(m.dims), m.to_row(), v)
     s = np.sqrt(np.mean(A**2, axis=0))
@@ -59,6 +61,8 @@ def test_preisach_48_levels_on_a_decaying_record():
     v, y = decaying(10_000, 4000)
     fit = identify(v[:7000], y[:7000], "preisach", levels=48)
     assert fit.train["rmse_percent"] < 0.2
-    # held out, the state carried from the training span (measured 1.98 %; 12 levels: 2.8 %)
+    # held out, the state carried from the training span: measured 1.03 % (the noise alone is
+    # 0.96 %); 1.98 % before the smoothness prior (12 levels: 2.8 %, now 2.6 %)
     e = fit.model.simulate(v)[7000:] - y[7000:]
-    assert np.sqrt(np.mean(e**2)) / np.ptp(y[7000:]) * 100 < 2.2
+    assert np.sqrt(np.mean(e**2)) / np.ptp(y[7000:]) * 100 < 1.1
+    assert fit.history["smoothing"] > 0

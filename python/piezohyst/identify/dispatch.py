@@ -25,6 +25,7 @@ from ..models.pi import PI, GeneralizedPI, ModifiedPI, RateDependentPI
 from ..optimize.core import minimize
 from .boucwen_benchmark import identify_boucwen_benchmark
 from .core import (
+    PREISACH_MEMORY,
     Callback,
     FitResult,
     FloatArray,
@@ -628,7 +629,7 @@ def _free_run(fit: Callable[[_Call, FloatArray, FloatArray], _Fitted]) -> Callab
 @_free_run
 def _fit_linear_kind(c: _Call, v: FloatArray, y: FloatArray) -> _Fitted:
     fit = _identify_linear(c.kind, v, y, c.fs, c.operators, c.levels, c.loss, c.delta, c.creep, c.offset, c.weights)
-    return fit.model, "ls", {}, False, fit.evaluations
+    return fit.model, "ls", dict(fit.history), False, fit.evaluations
 
 
 @_free_run
@@ -671,7 +672,7 @@ def _identify_linear(
         r = _default_thresholds(v, as_int(operators, "operators", minimum=1))
         template = _mpi_template(v, r, None, None, lags)
     elif model == "preisach":
-        template = _preisach_template(v, levels, None, 64)
+        template = _preisach_template(v, levels, None, PREISACH_MEMORY)
     else:
         if fs is None:
             raise ParameterError("fs is required for model = 'rdpi' (the rate needs the sample time)")

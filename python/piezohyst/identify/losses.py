@@ -12,6 +12,7 @@ import numpy.typing as npt
 
 from .._validate import as_record
 from ..errors import DataError, ParameterError
+from ..models.preisach import Preisach
 from .core import (
     FitResult,
     FloatArray,
@@ -19,6 +20,7 @@ from .core import (
     _bvls,
     _design,
     _fit_metrics,
+    _fit_preisach,
     _irls_huber,
     _what,
     check_samples,
@@ -53,8 +55,12 @@ def fit_linear_weighted(
 ) -> FitResult:
     """The linear parameters of ``model`` (its structure kept) fitted to a validated record by
     ``loss`` (``"squared"``, ``"huber"`` or ``"linf"``) with optional sample ``weights``
-    (``>= 0``; least squares minimizes ``sum w r^2``, the minimax fit ``max w |r|``)."""
+    (``>= 0``; least squares minimizes ``sum w r^2``, the minimax fit ``max w |r|``). A
+    Preisach grid's least squares (and Huber) fit is :func:`piezohyst.identify.core._fit_preisach`'s
+    with the sample weights: on its distinct relay patterns, with its smoothness prior."""
     t0 = time.perf_counter()
+    if isinstance(model, Preisach) and loss != "linf":
+        return _fit_preisach(model, v, y, loss, delta, t0, None, weights)
     A, lb, ub, build = _design(model, v, offset)
     check_samples(v.size, parameter_count(model, A.shape[1]), _what(model), "fewer operators or levels")
     scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-300)
