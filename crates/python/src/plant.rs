@@ -379,7 +379,8 @@ impl Stage {
             let scenarios = [scenario];
             let sc = runs(py, &scenarios).map_err(|e| ParameterError::new_err(strip_prefix(py, e)))?;
             let rows = stage_rows(&self.stage, &params)?;
-            let seeds = seeds.as_slice().map_err(|_| ParameterError::new_err("seeds must be a contiguous uint64 array"))?;
+            let seeds =
+                seeds.as_slice().map_err(|_| ParameterError::new_err("seeds must be a contiguous uint64 array"))?;
             if seeds.len() != rows.len() {
                 return Err(ParameterError::new_err(format!(
                     "seeds has length {}, params has {} rows; one seed per row",
