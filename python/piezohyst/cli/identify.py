@@ -103,6 +103,13 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         ),
     )
     i.add_argument("data", metavar="DATA", help="the record file (see the formats above)")
+    _identify_options(i)
+    _identify_outputs(i)
+
+
+def _identify_options(i: argparse.ArgumentParser) -> None:
+    """The fit's options (model, columns, ranges, preprocessing, optimizer), shared with ``piezohyst
+    fleet identify``: what it passes on to :func:`_identify` for each record."""
     i.add_argument(
         "--model",
         metavar="KIND",
@@ -294,6 +301,10 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         type=float,
         help="cemf: the stack's capacitance in farads, taken as known (default: 1.8e-6, seed 1's 1800 nF)",
     )
+
+
+def _identify_outputs(i: argparse.ArgumentParser) -> None:
+    """``--out --plot --force --json --progress --debug`` of ``piezohyst identify``."""
     i.add_argument(
         "--out",
         metavar="FILE",

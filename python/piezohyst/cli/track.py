@@ -15,6 +15,7 @@ from .common import (
 )
 
 if TYPE_CHECKING:
+    from ..control.simulation import ControllerLike
     from ..models.model import HysteresisModel
     from ..plant.stage import Stage
 
@@ -65,10 +66,55 @@ def _track_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
 _TRACK_MAX_SAMPLES = 10_000_000
 
 
-def _track(args: argparse.Namespace) -> int:
+def _build_controller(kind: str, stage: Stage, model_file: str | None) -> ControllerLike:
+    """The controller ``kind`` of ``piezohyst track`` designed for ``stage`` (shared with ``piezohyst
+    robustness``): inverse and absmc behind the hysteresis model file ``model_file``, or an MPI model
+    identified from a simulated measurement of ``stage``."""
     import numpy as np
 
     from ..control.controllers import ABSMC, PID, SMC, Compensated, InverseFeedforward, OpenLoop, VelocityObserver
+
+    fs = 1.0 / stage.sample_time
+
+    def hysteresis_model() -> HysteresisModel:
+        if model_file:
+            from ..models.model import HysteresisModel, load_model
+
+            loaded = load_model(model_file)
+            if not isinstance(loaded, HysteresisModel):
+                raise _Fail(
+                    f"--model = '{model_file}' is a {loaded.kind} model, not a hysteresis model of the stage's "
+                    f"actuator (pi, gpi/mpi, rdpi, preisach, boucwen, ...)"
+                )
+            return loaded
+        from ..identify.core import identify_mpi
+
+        t = np.arange(int(2.0 * fs)) / fs
+        u = 75 - 75 * np.clip(1 - 0.5 * t, 0.2, 1.0) * np.cos(2 * np.pi * 5 * t)
+        x = stage.simulate(u).position
+        from ..models.model import HysteresisModel
+
+        model = identify_mpi(u[:-1], x[1:], operators=9).model
+        assert isinstance(model, HysteresisModel)  # an MPI model
+        return model
+
+    c: OpenLoop | PID | SMC | InverseFeedforward | Compensated
+    if kind == "open-loop":
+        c = OpenLoop()
+    elif kind == "pid":
+        c = PID(kp=2e6, ki=2e9)
+    elif kind in ("smc", "smc-cemf"):
+        c = SMC(
+            stage.params, kp=1e6, kv=2e3, ks=20.0, phi=0.01, cemf=kind == "smc-cemf", observer=VelocityObserver(300.0)
+        )
+    elif kind == "inverse":
+        c = InverseFeedforward(hysteresis_model(), c1=stage.sample_time)
+    else:
+        c = Compensated(ABSMC.linearized(2000.0, 0.7, c1=2e3, lam=2e3, ks=5e3, gamma_d=1e4), hysteresis_model())
+    return c
+
+
+def _track(args: argparse.Namespace) -> int:
     from ..control.tuning import track
     from ..plant.stage import Stage, virtual_stage
     from ..signals import references as refs
@@ -93,42 +139,8 @@ def _track(args: argparse.Namespace) -> int:
     if args.plot and Path(args.plot).exists() and not args.force:
         raise _Fail(f"--plot {args.plot} exists; pass --force to overwrite it")
 
-    def hysteresis_model() -> HysteresisModel:
-        if args.model:
-            from ..models.model import HysteresisModel, load_model
-
-            loaded = load_model(args.model)
-            if not isinstance(loaded, HysteresisModel):
-                raise _Fail(
-                    f"--model = '{args.model}' is a {loaded.kind} model, not a hysteresis model of the stage's "
-                    f"actuator (pi, gpi/mpi, rdpi, preisach, boucwen, ...)"
-                )
-            return loaded
-        from ..identify.core import identify_mpi
-
-        t = np.arange(int(2.0 * fs)) / fs
-        u = 75 - 75 * np.clip(1 - 0.5 * t, 0.2, 1.0) * np.cos(2 * np.pi * 5 * t)
-        x = stage.simulate(u).position
-        from ..models.model import HysteresisModel
-
-        model = identify_mpi(u[:-1], x[1:], operators=9).model
-        assert isinstance(model, HysteresisModel)  # an MPI model
-        return model
-
     kind = args.controller
-    c: OpenLoop | PID | SMC | InverseFeedforward | Compensated
-    if kind == "open-loop":
-        c = OpenLoop()
-    elif kind == "pid":
-        c = PID(kp=2e6, ki=2e9)
-    elif kind in ("smc", "smc-cemf"):
-        c = SMC(
-            stage.params, kp=1e6, kv=2e3, ks=20.0, phi=0.01, cemf=kind == "smc-cemf", observer=VelocityObserver(300.0)
-        )
-    elif kind == "inverse":
-        c = InverseFeedforward(hysteresis_model(), c1=stage.sample_time)
-    else:
-        c = Compensated(ABSMC.linearized(2000.0, 0.7, c1=2e3, lam=2e3, ks=5e3, gamma_d=1e4), hysteresis_model())
+    c = _build_controller(kind, stage, args.model)
     foreign = _foreign_model(args.model, stage) if args.model and kind in ("inverse", "absmc") else None
     res = track(c, ref, stage=stage, rng=args.seed, skip=args.skip)
     m = res.metrics
