@@ -122,6 +122,9 @@ class _Job:
     plot: bool = False
 
 
+#: What a worker of a local cluster imports before its first record (see piezohyst.fleet.runner).
+_PRELOAD = ("piezohyst.cli.fleet", "piezohyst.identify", "piezohyst.identify.dispatch", "piezohyst.signals.data")
+
 #: One identification at a time per worker process: stdout/stderr are captured process-wide
 #: (and the Rust core's threads are the worker's to use).
 _LOCK = threading.Lock()
@@ -380,7 +383,7 @@ def _fleet_identify(args: argparse.Namespace) -> int:
                 f"{cluster.describe()}",
                 file=sys.stderr,
             )
-        with runner(cluster) as run:
+        with runner(cluster, _PRELOAD) as run:
             tasks = [(f"identify-{j.name}", (j,)) for j in todo]
             for o in run.run(_identify_task, tasks, progress):
                 j = by_name[o.key.removeprefix("identify-")]

@@ -120,11 +120,13 @@ def _robustness(args: argparse.Namespace) -> int:
     for t in targets:
         if t.exists() and not args.force:
             raise _Fail(f"'{t}' exists; pass --force to overwrite it")
-    controller = _build_controller(args.controller, stage, args.model)
-    problem = RobustnessProblem(stage, controller, ref, skip, perturbations, args.seed)
     prog = "piezohyst robustness"
     progress = Progress(prog, "chunks", mode=args.progress)
-    with runner(cluster) as run:
+    with runner(cluster) as run:  # a local cluster starts in the background meanwhile
+        controller = _build_controller(args.controller, stage, args.model)
+        problem = RobustnessProblem(stage, controller, ref, skip, perturbations, args.seed)
+        import scipy.stats  # noqa: F401 - the summary's rank correlation, loaded while the cluster starts
+
         res = robustness(problem, args.samples, run, chunk=args.chunk, progress=progress)
     doc: dict[str, Any] = {
         "controller": args.controller,
