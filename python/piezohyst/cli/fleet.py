@@ -123,14 +123,22 @@ class _Job:
 
 
 #: What a worker of a local cluster imports before its first record (see piezohyst.fleet.runner).
-_PRELOAD = ("piezohyst.cli.fleet", "piezohyst.identify", "piezohyst.identify.dispatch", "piezohyst.signals.data")
+_PRELOAD = (
+    "scipy.signal",
+    "piezohyst.cli.fleet",
+    "piezohyst.identify",
+    "piezohyst.identify.dispatch",
+    "piezohyst.signals.data",
+)
 
 #: One identification at a time per worker process: stdout/stderr are captured process-wide
 #: (and the Rust core's threads are the worker's to use).
 _LOCK = threading.Lock()
 
-#: Which process ran a task (the summary's ``worker`` column).
-_WORKER = f"{socket.gethostname()}:{os.getpid()}"
+
+def _worker() -> str:
+    """Which process runs this task (the summary's ``worker`` column), as host:pid."""
+    return f"{socket.gethostname()}:{os.getpid()}"
 
 
 def _identify_task(job: _Job) -> dict[str, Any]:
@@ -153,7 +161,7 @@ def _identify_task(job: _Job) -> dict[str, Any]:
                     "error": " ".join(str(e).split()) or type(e).__name__,
                     "stderr": err.getvalue(),
                     "seconds": time.perf_counter() - t0,
-                    "worker": _WORKER,
+                    "worker": _worker(),
                 }
         text = Path(ns.out).read_text(encoding="utf-8")
         png = Path(ns.plot).read_bytes() if ns.plot and Path(ns.plot).is_file() else None
@@ -166,7 +174,7 @@ def _identify_task(job: _Job) -> dict[str, Any]:
         "stderr": err.getvalue(),
         "seconds": time.perf_counter() - t0,
         "error": None if status != "failed" else f"identify exited with status {code}",
-        "worker": _WORKER,
+        "worker": _worker(),
     }
 
 
