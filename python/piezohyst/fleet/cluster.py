@@ -230,8 +230,9 @@ class _DaskRunner(Runner):
                 progress.close(done, len(tasks), time.perf_counter() - start)
 
 
-#: Modules every local worker starts with (imported once by the fork server, see :func:`runner`).
-PRELOAD = ("numpy", "scipy.special", "scipy.stats", "piezohyst", "piezohyst.fleet")
+#: Modules every local worker starts with (imported once by the fork server, see :func:`runner`):
+#: what a robustness chunk needs. A command adds its own (fleet identify: identify's modules).
+PRELOAD = ("numpy", "piezohyst", "piezohyst.fleet")
 
 
 def _start_method(preload: Sequence[str]) -> str:

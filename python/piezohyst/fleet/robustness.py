@@ -146,8 +146,6 @@ def draw(perturbations: Sequence[Perturbation], seed: int, start: int, stop: int
     """Samples ``start..stop``: their factors ``(n, P)`` and their sensor-noise seeds ``(n,)``
     (uint64). Sample ``i`` draws from ``SeedSequence(seed, spawn_key=(i,))`` only: ``P`` uniform
     numbers (mapped to each perturbation's distribution), then its noise seed."""
-    from scipy.special import ndtri
-
     n, k = stop - start, len(perturbations)
     u = np.empty((n, k))
     seeds = np.empty(n, dtype=np.uint64)
@@ -161,6 +159,8 @@ def draw(perturbations: Sequence[Perturbation], seed: int, start: int, stop: int
         if p.distribution == "uniform":
             factors[:, c] = 1.0 + spread * (2.0 * u[:, c] - 1.0)
         else:
+            from scipy.special import ndtri
+
             factors[:, c] = 1.0 + spread * ndtri(_PHI_M3 + (1.0 - 2.0 * _PHI_M3) * u[:, c])
     return factors, seeds
 
