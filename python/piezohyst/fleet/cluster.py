@@ -278,7 +278,7 @@ def runner(cluster: ClusterPlan, preload: Sequence[str] = ()) -> Iterator[Runner
                     n_workers=cluster.workers,
                     threads_per_worker=1,
                     processes=True,
-                    dashboard_address=None,
+                    dashboard_address="127.0.0.1:0",  # its HTTP server on a free loopback port, not 8787
                     silence_logs=logging.CRITICAL,  # failures reach the caller as outcomes
                     env=env,
                 )
