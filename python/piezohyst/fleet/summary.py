@@ -34,7 +34,7 @@ def robust_z(x: npt.ArrayLike) -> npt.NDArray[np.float64]:
     --------
     >>> z = robust_z([1.0, 1.1, 0.9, 1.05, 0.95, 5.0])
     >>> [round(float(v), 2) for v in z]
-    [0.0, 0.67, -0.67, 0.34, -0.34, 26.98]
+    [-0.22, 0.67, -1.12, 0.22, -0.67, 35.75]
     """
     a = np.asarray(x, dtype=np.float64)
     out = np.full(a.shape, np.nan)
