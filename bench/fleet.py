@@ -24,8 +24,10 @@ process: interpreter start, imports, cluster start-up and shutdown included):
     500 no-op tasks (submit to result). Data moved per task: the pickled size of a fleet task's
     argument and result and of a robustness chunk's.
 
-The machine's load average at the start and the end is recorded: on the shared 2-core machine
-other work competes for the cores, and ratios carry that noise.
+Each configuration runs ``--repeats`` times (default 2; robustness at least 3) in ABBA order and
+the median is reported, with every wall time. The machine's load average at the start and the end
+is recorded: on the shared 2-core machine other work competes for the cores, and ratios carry that
+noise.
 """
 
 from __future__ import annotations
@@ -97,26 +99,32 @@ def timed_cli(args: list[str], **env: str) -> tuple[float, dict[str, Any]]:
     return wall, json.loads(p.stdout)
 
 
-def bench_fleet(n: int, samples: int, tmp: Path) -> dict[str, Any]:
+def bench_fleet(n: int, samples: int, tmp: Path, repeats: int) -> dict[str, Any]:
     recs = make_records(tmp / "recs", n, samples)
     base = ["fleet", "identify", *map(str, recs), "--model", "boucwen", "--fs", "1000", "--seed", "0"]
-    out: dict[str, Any] = {"records": n, "samples_per_record": samples, "runs": {}}
-    params = {}
-    for name, extra in (
+    out: dict[str, Any] = {"records": n, "samples_per_record": samples, "repeats": repeats, "runs": {}}
+    configs = (
         ("serial", ["--scheduler", "serial"]),
         ("workers1", ["--workers", "1"]),
         ("workers2", ["--workers", "2"]),
-    ):
-        dest = tmp / f"out-{name}"
-        wall, summary = timed_cli([*base, "--out", str(dest), *extra], RAYON_NUM_THREADS="1")
-        out["runs"][name] = {
-            "command": f"RAYON_NUM_THREADS=1 piezohyst {' '.join(base[:2])} RECS/*.csv --model boucwen --fs 1000 "
-            f"--seed 0 --out DIR {' '.join(extra)}",
-            "wall_s": wall,
-            "records_per_s": n / wall,
-            "counts": summary["counts"],
-        }
-        params[name] = {p.name: json.loads(p.read_text())["parameters"] for p in sorted(dest.glob("part*.json"))}
+    )
+    walls: dict[str, list[float]] = {name: [] for name, _ in configs}
+    params = {}
+    for r in range(repeats):
+        # ABBA order: a load that drifts during the run weighs on every configuration alike
+        for name, extra in configs if r % 2 == 0 else configs[::-1]:
+            dest = tmp / f"out-{name}-{r}"
+            wall, summary = timed_cli([*base, "--out", str(dest), *extra], RAYON_NUM_THREADS="1")
+            walls[name].append(wall)
+            params[name] = {p.name: json.loads(p.read_text())["parameters"] for p in sorted(dest.glob("part*.json"))}
+            out["runs"][name] = {
+                "command": f"RAYON_NUM_THREADS=1 piezohyst {' '.join(base[:2])} RECS/*.csv --model boucwen --fs 1000 "
+                f"--seed 0 --out DIR {' '.join(extra)}",
+                "counts": summary["counts"],
+            }
+    for name, w in walls.items():
+        med = float(np.median(w))
+        out["runs"][name].update(walls_s=w, wall_s=med, records_per_s=n / med)
     r = out["runs"]
     out["speedup_2_vs_1_workers"] = r["workers1"]["wall_s"] / r["workers2"]["wall_s"]
     out["speedup_2_workers_vs_serial"] = r["serial"]["wall_s"] / r["workers2"]["wall_s"]
@@ -126,7 +134,7 @@ def bench_fleet(n: int, samples: int, tmp: Path) -> dict[str, Any]:
     return out
 
 
-def bench_robustness(runs: int) -> dict[str, Any]:
+def bench_robustness(runs: int, repeats: int) -> dict[str, Any]:
     base = [
         "robustness",
         "--controller",
@@ -138,18 +146,22 @@ def bench_robustness(runs: int) -> dict[str, Any]:
         "--seed",
         "0",
     ]
-    out: dict[str, Any] = {"runs": runs, "run_seconds": 0.2, "rate_hz": 10_000, "cases": {}}
-    docs = {}
-    for name, extra in (("serial", ["--scheduler", "serial"]), ("local", [])):
-        wall, doc = timed_cli([*base, *extra])
-        docs[name] = doc
-        out["cases"][name] = {
-            "command": f"piezohyst {' '.join(base)} {' '.join(extra)}".strip(),
-            "cluster": doc["cluster"],
-            "wall_s": wall,
-            "inside_s": doc["wall_time_s"],
-            "runs_per_s": runs / wall,
-        }
+    out: dict[str, Any] = {"runs": runs, "run_seconds": 0.2, "rate_hz": 10_000, "repeats": repeats, "cases": {}}
+    configs = (("serial", ["--scheduler", "serial"]), ("local", []))
+    docs: dict[str, dict[str, Any]] = {}
+    walls: dict[str, list[float]] = {name: [] for name, _ in configs}
+    for r in range(repeats):
+        for name, extra in configs if r % 2 == 0 else configs[::-1]:
+            wall, doc = timed_cli([*base, *extra])
+            docs[name] = doc
+            walls[name].append(wall)
+            out["cases"][name] = {
+                "command": f"piezohyst {' '.join(base)} {' '.join(extra)}".strip(),
+                "cluster": doc["cluster"],
+            }
+    for name, w in walls.items():
+        med = float(np.median(w))
+        out["cases"][name].update(walls_s=w, wall_s=med, runs_per_s=runs / med)
     out["identical"] = all(docs["serial"][k] == docs["local"][k] for k in ("percentiles", "worst", "nominal"))
     out["target_s"] = 10.0
     out["pass"] = out["cases"]["local"]["wall_s"] <= 10.0 and out["identical"]
@@ -210,16 +222,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--samples", type=int, default=10_000)
     ap.add_argument("--runs", type=int, default=10_000)
     ap.add_argument("--tasks", type=int, default=500)
+    ap.add_argument("--repeats", type=int, default=2, help="runs of each configuration, in ABBA order (median)")
     ap.add_argument("--quick", action="store_true", help="8 records of 3000 samples, 2000 runs")
     ap.add_argument("--out", type=Path, default=HERE / "results" / "fleet.json")
     args = ap.parse_args(argv)
     if args.quick:
-        args.records, args.samples, args.runs, args.tasks = 8, 3000, 2000, 200
+        args.records, args.samples, args.runs, args.tasks, args.repeats = 8, 3000, 2000, 200, 1
     load0 = os.getloadavg()
     with tempfile.TemporaryDirectory(prefix="bench-fleet-") as tmp:
-        fleet = bench_fleet(args.records, args.samples, Path(tmp))
-        doc = next(Path(tmp, "out-workers2").glob("part*.json")).read_text()
-    robust = bench_robustness(args.runs)
+        fleet = bench_fleet(args.records, args.samples, Path(tmp), args.repeats)
+        doc = next(Path(tmp, "out-workers2-0").glob("part*.json")).read_text()
+    robust = bench_robustness(args.runs, max(args.repeats, 3))
     overhead = bench_overhead(args.tasks)
     overhead["bytes"]["fleet_task_result_typical"] = len(pickle.dumps({"document": doc, "png": None}))
     payload = {
