@@ -236,21 +236,20 @@ PRELOAD = ("numpy", "piezohyst", "piezohyst.fleet")
 
 
 def _start_method(preload: Sequence[str]) -> str:
-    """``forkserver`` where the platform has it, with ``preload`` imported once in the server:
-    each worker is then a fork of an interpreter that has Dask, NumPy and piezohyst loaded, which
-    takes a fraction of a second where a spawned worker imports them all again (seconds on a busy
-    2-core machine), and stops as fast. The server imports modules only (no Rust thread pool, no
-    event loop runs in it), so forking it is safe. ``spawn`` elsewhere."""
+    """``forkserver`` where the platform has it, started now with Dask and ``preload`` imported
+    once in the server: each worker is then a fork of an interpreter that has Dask, NumPy and
+    piezohyst loaded, which takes a fraction of a second where a spawned worker imports them all
+    again (seconds on a busy 2-core machine), and stops as fast. Started before this process
+    imports Dask itself, the server's imports run beside ours. The server imports modules only (no
+    Rust thread pool, no event loop runs in it), so forking it is safe. ``spawn`` elsewhere."""
     import multiprocessing
 
     if "forkserver" not in multiprocessing.get_all_start_methods():  # pragma: no cover - not POSIX
         return "spawn"
-    import dask
-    from distributed.utils import get_mp_context
+    import multiprocessing.forkserver
 
-    with dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"}):
-        get_mp_context()  # type: ignore[no-untyped-call]  # Dask's own preload list first; ours replaces it
     multiprocessing.get_context("forkserver").set_forkserver_preload(["distributed", *PRELOAD, *preload])
+    multiprocessing.forkserver.ensure_running()
     return "forkserver"
 
 
@@ -264,15 +263,15 @@ def runner(cluster: ClusterPlan, preload: Sequence[str] = ()) -> Iterator[Runner
     if cluster.scheduler == "serial":
         yield Runner(cluster)
         return
-    import dask
-    from distributed import Client, LocalCluster
-
     if cluster.scheduler == "local":
         assert cluster.workers is not None and cluster.rust_threads is not None  # plan() sets both
         env = {"RAYON_NUM_THREADS": str(cluster.rust_threads)}
         method = _start_method(preload)
 
         def start() -> tuple[Any, Any]:
+            import dask
+            from distributed import Client, LocalCluster
+
             with dask.config.set({"distributed.worker.multiprocessing-method": method}):
                 lc = LocalCluster(  # type: ignore[no-untyped-call]
                     n_workers=cluster.workers,
@@ -303,6 +302,8 @@ def runner(cluster: ClusterPlan, preload: Sequence[str] = ()) -> Iterator[Runner
                     client.close()
                     lc.close()
         return
+    from distributed import Client
+
     try:
         client = Client(cluster.scheduler, timeout="10s")  # type: ignore[no-untyped-call]
     except OSError as e:
