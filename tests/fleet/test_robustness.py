@@ -124,6 +124,18 @@ def test_a_result_is_the_same_whatever_the_chunk_size_and_its_worst_cases_are_it
     assert d["sensitivity_spearman"]["stiffness"] > 0.5
 
 
+def test_a_feedforward_inverse_errs_both_ways_off_nominal():
+    # the inverse compensates the nominal gain: a softer or a stiffer part are both off, so the
+    # error ranks with |factor - 1|, not with the factor
+    from piezohyst.cli.track import _build_controller
+
+    inverse = _build_controller("inverse", STAGE, None)
+    p = RobustnessProblem(STAGE, inverse, REF, 80, tuple(parse_perturbations("stiffness=±20%")), 2)
+    res = robustness(p, 200, Runner(plan("serial", env={})), chunk=100)
+    assert abs(res.sensitivity()["stiffness"]) < 0.3
+    assert res.sensitivity(deviation=True)["stiffness"] > 0.8
+
+
 def test_samples_and_chunk_are_checked():
     serial = Runner(plan("serial", env={}))
     with pytest.raises(ParameterError, match="--samples"):

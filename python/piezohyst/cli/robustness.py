@@ -192,7 +192,9 @@ def _print(doc: dict[str, Any], samples: int) -> None:
         print(f"  {label:<11}{doc['nominal'][key] * um:>9.4g}{cells}")
     print(f"  diverged: {doc['diverged']}, runs that saturated the amplifier: {doc['saturated_runs']}")
     sens = ", ".join(f"{k} {v:+.2f}" for k, v in doc["sensitivity_spearman"].items())
+    dev = ", ".join(f"{k} {v:+.2f}" for k, v in doc["sensitivity_spearman_deviation"].items())
     print(f"  RMSE's rank correlation with each factor: {sens}")
+    print(f"  ... with each factor's distance from nominal: {dev}")
     print("  worst parts:")
     for w in doc["worst"]:
         parts = ", ".join(f"{k} x{v['factor']:.4f}" for k, v in w["parameters"].items())

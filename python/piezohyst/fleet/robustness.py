@@ -279,8 +279,11 @@ class RobustnessResult:
             )
         return out
 
-    def sensitivity(self) -> dict[str, float]:
-        """Spearman rank correlation of each factor with the RMSE (which parameter drives the error)."""
+    def sensitivity(self, *, deviation: bool = False) -> dict[str, float]:
+        """Spearman rank correlation of each factor with the RMSE: which parameter drives the
+        error, and which way (a feedback loop: a stiffer part lags more). ``deviation=True``: of
+        ``|factor - 1|`` instead, for an error that grows both ways off nominal (a feedforward
+        inverse: any gain mismatch), where the plain correlation is near 0."""
         from scipy.stats import spearmanr
 
         rmse = self.metrics[:, 0]
@@ -290,7 +293,8 @@ class RobustnessResult:
             if ok.sum() < 3:
                 out[name] = math.nan
                 continue
-            rho = spearmanr(self.factors[ok, c], rmse[ok]).statistic
+            f = self.factors[ok, c]
+            rho = spearmanr(np.abs(f - 1.0) if deviation else f, rmse[ok]).statistic
             out[name] = float(rho)
         return out
 
@@ -307,6 +311,7 @@ class RobustnessResult:
             "diverged": int(np.count_nonzero(~np.isfinite(m[:, 0]))),
             "saturated_runs": int(np.count_nonzero(m[:, 2] > 0)),
             "sensitivity_spearman": self.sensitivity(),
+            "sensitivity_spearman_deviation": self.sensitivity(deviation=True),
             "worst": self.worst(),
             "wall_time_s": self.wall_time,
             "errors": list(self.errors),
