@@ -363,13 +363,13 @@ class RobustnessResult:
         ax2.set_xlabel("time (s)")
         ax2.set_ylabel("tracking error (µm)")
         ax2.legend(fontsize=7)
-        sens = self.sensitivity()
+        sens, dev = self.sensitivity(), self.sensitivity(deviation=True)
         for c, name in enumerate(self.names):
             a = fig.add_subplot(grid[1, c])
             ok = np.isfinite(rmse_um)
             a.plot(100 * (self.factors[ok, c] - 1), rmse_um[ok], ".", ms=1.5, alpha=0.4)
             a.set_xlabel(f"{name} (% off nominal)", fontsize=8)
-            a.set_title(f"Spearman {sens[name]:+.2f}", fontsize=8)
+            a.set_title(f"Spearman {sens[name]:+.2f}; with |off nominal| {dev[name]:+.2f}", fontsize=8)
             if c == 0:
                 a.set_ylabel("RMSE (µm)")
             a.tick_params(labelsize=7)

@@ -128,7 +128,8 @@ def distribution_figure(
     outliers (``|robust z| > cutoff``) in red and labelled with the row's ``record`` name."""
     import matplotlib.pyplot as plt
 
-    cols = [c for c in columns if sum(_finite(r.get(c)) for r in rows) >= 1]
+    # columns that vary (a parameter every record shares, such as Bouc-Wen's n = 1, says nothing)
+    cols = [c for c in columns if len({float(r[c]) for r in rows if _finite(r.get(c))}) > 1]
     n = max(1, len(cols))
     ncol = min(4, n)
     nrow = math.ceil(n / ncol)
