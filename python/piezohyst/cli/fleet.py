@@ -346,12 +346,14 @@ _BASE_COLUMNS = (
 
 
 def _read_done(path: Path) -> dict[str, Any] | None:
-    """A finished record's model file, or None when it is not a whole model file."""
+    """A finished record's model file, or None when it is not a whole model file (or holds the
+    best model found before an interrupted fit, ``"partial": true``)."""
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, ValueError):
         return None
-    return doc if isinstance(doc, dict) and "kind" in doc and "fit" in doc else None
+    whole = isinstance(doc, dict) and "kind" in doc and "fit" in doc and not doc.get("partial")
+    return doc if whole else None
 
 
 def _fleet(args: argparse.Namespace) -> int:
@@ -412,7 +414,7 @@ def _fleet_identify(args: argparse.Namespace) -> int:
                     j, r["status"], doc, task_seconds=r["seconds"], resumed="no", error=r["error"], worker=r["worker"]
                 )
     ordered = [rows[j.name] for j in jobs]
-    summary = _summarize(ordered, out, args.progress != "none")
+    summary = _summarize(ordered, out)
     summary["wall_time_s"] = time.perf_counter() - t0
     summary["cluster"] = cluster.describe()
     failed = [r for r in ordered if r["status"] == "failed"]
@@ -433,7 +435,7 @@ def _any_resumed(rows: list[dict[str, Any]]) -> bool:
     return any(r.get("resumed") == "yes" for r in rows)
 
 
-def _summarize(rows: list[dict[str, Any]], out: Path, figure: bool) -> dict[str, Any]:
+def _summarize(rows: list[dict[str, Any]], out: Path) -> dict[str, Any]:
     """Outlier flags, DIR/summary.csv, DIR/summary.parquet and DIR/report.png; the summary as a dict."""
     from ..fleet.summary import OUTLIER_Z, distribution_figure, outliers, robust_z, write_table
 
