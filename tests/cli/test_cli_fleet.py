@@ -147,9 +147,15 @@ def test_a_rerun_rewrites_exactly_the_deleted_models(tmp_path):
     gone = [f"{r.stem}.json" for r in recs[1::2]] + [f"{recs[0].stem}.json"]  # 5 of 8
     for name in gone:
         (out / name).unlink()
+    # a file holding an interrupted fit's best model is not finished either
+    partial = out / f"{recs[2].stem}.json"
+    doc = json.loads(partial.read_text())
+    partial.write_text(json.dumps({**doc, "partial": True}))
+    before[partial.name] = partial.stat()
+    gone.append(partial.name)
     p = run(*cmd, "--json")
     assert p.returncode == first.returncode, p.stderr
-    assert json.loads(p.stdout)["resumed"] == 3
+    assert json.loads(p.stdout)["resumed"] == 2
     after = {f.name: f.stat() for f in out.glob("*.json")}
     assert sorted(after) == sorted(before)
     for name, st in after.items():
@@ -194,9 +200,11 @@ def test_a_manifest_gives_per_record_columns_rates_and_names(tmp_path):
         "--scheduler",
         "serial",
         "--json",
+        "--plots",
         cwd=tmp_path,
     )
     assert p.returncode == 0, p.stderr
+    assert (tmp_path / "out" / "first.png").stat().st_size > 10_000  # identify's --plot, per record
     first = json.loads((tmp_path / "out" / "first.json").read_text())
     second = json.loads((tmp_path / "out" / "second.json").read_text())
     assert first["fit"]["data"]["fs"] == 1000.0 and first["fit"]["data"]["train"]["samples"] == 1500
