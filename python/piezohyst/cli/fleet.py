@@ -368,8 +368,6 @@ def _fleet_identify(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     cluster = plan(args.scheduler, args.workers)
     jobs = _jobs(args)
-    for j in {tuple(sorted((k, repr(v)) for k, v in j.options.items())): j for j in jobs}.values():
-        _preflight(j.options)
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise _Fail(f"--out = '{args.out}' is a file; give a directory")
@@ -387,13 +385,17 @@ def _fleet_identify(args: argparse.Namespace) -> int:
     by_name = {j.name: j for j in todo}
     if todo:
         progress = Progress(prog, "records", mode=args.progress)
-        if args.progress != "none":
-            print(
-                f"{prog}: {len(todo)} record(s) to identify, {len(jobs) - len(todo)} done before; on "
-                f"{cluster.describe()}",
-                file=sys.stderr,
-            )
-        with runner(cluster, _PRELOAD) as run:
+        with runner(cluster, _PRELOAD) as run:  # a local cluster starts in the background meanwhile
+            for opts in {tuple(sorted((k, repr(v)) for k, v in j.options.items())): j.options for j in todo}.values():
+                _preflight(opts)
+            # the report's libraries load while the records are identified
+            threading.Thread(target=_import_report_libraries, daemon=True).start()
+            if args.progress != "none":
+                print(
+                    f"{prog}: {len(todo)} record(s) to identify, {len(jobs) - len(todo)} done before; on "
+                    f"{cluster.describe()}",
+                    file=sys.stderr,
+                )
             tasks = [(f"identify-{j.name}", (j,)) for j in todo]
             for o in run.run(_identify_task, tasks, progress):
                 j = by_name[o.key.removeprefix("identify-")]
@@ -429,6 +431,14 @@ def _fleet_identify(args: argparse.Namespace) -> int:
     if failed:
         return 1
     return 3 if any(r["status"] == "untrusted" for r in ordered) else 0
+
+
+def _import_report_libraries() -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot
+    import pyarrow.parquet  # noqa: F401
 
 
 def _any_resumed(rows: list[dict[str, Any]]) -> bool:
