@@ -114,7 +114,7 @@ def wing(module: str) -> str:
     return parts[1] if len(parts) > 2 or (len(parts) == 2 and parts[1] in WINGS) else ""
 
 
-WINGS = ("models", "signals", "optimize", "identify", "plant", "control", "export", "capi", "papers", "cli")
+WINGS = ("models", "signals", "optimize", "identify", "plant", "control", "export", "capi", "fleet", "papers", "cli")
 
 
 def find_cycle(edges) -> list[str] | None:

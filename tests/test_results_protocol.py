@@ -131,6 +131,18 @@ def _tuning():
     )
 
 
+def _robustness():
+    from piezohyst.fleet.cluster import Runner, plan
+    from piezohyst.fleet.robustness import RobustnessProblem, parse_perturbations, robustness
+
+    stage = ph.virtual_stage()
+    _, ref = ph.sine(20, 4e-6, 0.02, 1 / stage.sample_time, offset=7e-6)
+    problem = RobustnessProblem(
+        stage, ph.PID(kp=2e6, ki=2e9), ref, 20, tuple(parse_perturbations("mass=±10%,stiffness=±20%")), 3
+    )
+    return robustness(problem, 12, Runner(plan("serial", env={})), chunk=6)
+
+
 FACTORIES = {
     "piezohyst.signals.response.Response": _response,
     "piezohyst.plant.stage.StageResponse": _stage_response,
@@ -141,6 +153,7 @@ FACTORIES = {
     "piezohyst.optimize.core.OptimizeResult": _minimize,
     "piezohyst.optimize.core.IntermediateResult": _intermediate,
     "piezohyst.control.tuning.TuningResult": _tuning,
+    "piezohyst.fleet.robustness.RobustnessResult": _robustness,
 }
 
 

@@ -1,3 +1,5 @@
 from .cli.main import run
 
-run()
+# guarded: Dask's worker processes (multiprocessing spawn) import the main module again
+if __name__ == "__main__":
+    run()

@@ -249,6 +249,12 @@ class Stage:
         self, scenarios: Sequence[_ScenarioSpec], initial_state: _Array1, skip: int
     ) -> _Array2:
         """As ``closed_loop_batch_tracking``."""
+    def closed_loop_batch_stages(
+        self, params: _Array2, scenario: _ScenarioSpec, seeds: npt.NDArray[np.uint64], initial_state: _Array1, skip: int
+    ) -> _Array2:
+        """``(S, 3)`` ``[rmse, max_error, saturated_fraction]`` of one scenario on ``S`` stages: row
+        ``j`` of ``params`` (``(S, STAGE_PARAM_LEN)``) replaces this stage's parameters, ``seeds[j]``
+        the scenario's noise seed (GIL released, rayon across rows)."""
 
 def virtual_stage_params() -> _Array1:
     """The Rust core's copy of the packaged virtual stage's parameters (flat layout of

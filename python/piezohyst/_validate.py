@@ -26,7 +26,9 @@ def as_record(x: object, name: str, *, min_length: int = 1, copy: bool = True, f
     if raw.dtype.kind in "cbUSO" and raw.dtype.kind != "O":
         raise ParameterTypeError(f"{name} must be real numbers, got dtype {raw.dtype}")
     try:
-        a = np.array(x, dtype=np.float64, copy=True) if copy else np.ascontiguousarray(x, dtype=np.float64)
+        # aligned too: an array unpickled from a message buffer (Dask) may sit at any byte offset,
+        # and the Rust core reads aligned memory only (copied then, as a non-contiguous one is)
+        a = np.array(x, dtype=np.float64, copy=True) if copy else np.require(x, np.float64, ["C", "A"])
     except (TypeError, ValueError) as e:
         raise ParameterTypeError(f"{name} must be a 1-D array of numbers: {e}") from None
     if a.ndim != 1:

@@ -3,6 +3,7 @@ stages and the codec itself; MATLAB-valid names; clear errors on foreign files."
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -28,6 +29,10 @@ def same(a, b) -> bool:
         return type(a) is type(b) and len(a) == len(b) and all(same(x, y) for x, y in zip(a, b, strict=True))
     if isinstance(a, float):
         return type(b) is float and np.float64(a).tobytes() == np.float64(b).tobytes()
+    if dataclasses.is_dataclass(a) and not isinstance(a, type):  # field by field: arrays inside
+        return type(a) is type(b) and all(
+            same(getattr(a, f.name), getattr(b, f.name)) for f in dataclasses.fields(a) if f.compare
+        )
     return type(a) is type(b) and a == b
 
 

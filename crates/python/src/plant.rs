@@ -359,6 +359,117 @@ impl Stage {
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         guarded(|| tracking(py, &self.stage, &self.sensor, &scenarios, &initial_state, skip))
     }
+    /// Tracking figures of one scenario on many stages: row `j` of `params` (`(S,
+    /// STAGE_PARAM_LEN)`, this stage's layout) replaces this stage's parameters (same control
+    /// period, integration settings and sensor) and `seeds[j]` the scenario's noise seed. An
+    /// `(S, 3)` array as `closed_loop_batch_tracking` (GIL released, rayon across rows; each
+    /// row's figures are the same whatever the number of threads). The engine of Monte-Carlo
+    /// robustness over part-to-part variation.
+    fn closed_loop_batch_stages<'py>(
+        &self,
+        py: Python<'py>,
+        params: PyReadonlyArray2<'py, f64>,
+        scenario: ScenarioArg<'py>,
+        seeds: PyReadonlyArray1<'py, u64>,
+        initial_state: PyReadonlyArray1<'py, f64>,
+        skip: usize,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        guarded(|| {
+            let init = StageState::from_array(slice(&initial_state, "initial_state")?).map_err(err)?;
+            let scenarios = [scenario];
+            let sc = runs(py, &scenarios).map_err(|e| ParameterError::new_err(strip_prefix(py, e)))?;
+            let rows = stage_rows(&self.stage, &params)?;
+            let seeds =
+                seeds.as_slice().map_err(|_| ParameterError::new_err("seeds must be a contiguous uint64 array"))?;
+            if seeds.len() != rows.len() {
+                return Err(ParameterError::new_err(format!(
+                    "seeds has length {}, params has {} rows; one seed per row",
+                    seeds.len(),
+                    rows.len()
+                )));
+            }
+            stages_tracking(py, &rows, &self.sensor, &sc[0], seeds, init, skip)
+        })
+    }
+}
+
+/// The stages of the rows of `params` (`(S, STAGE_PARAM_LEN)`, C order) with `base`'s control
+/// period and integration settings; an invalid row raises, naming it.
+fn stage_rows(base: &CoreStage, params: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<CoreStage>> {
+    let shape = params.shape();
+    let width = piezohyst_core::stage::PARAM_LEN;
+    if shape[1] != width {
+        return Err(ParameterError::new_err(format!(
+            "params has shape ({}, {}), expected (S, {width})",
+            shape[0], shape[1]
+        )));
+    }
+    if !params.is_c_contiguous() {
+        return Err(ParameterError::new_err("params must be a C-contiguous float64 array"));
+    }
+    let p = params.as_slice().map_err(|_| ParameterError::new_err("params must be a C-contiguous float64 array"))?;
+    let py = params.py();
+    let mut stages = Vec::with_capacity(shape[0]);
+    for j in 0..shape[0] {
+        let row = &p[j * width..(j + 1) * width];
+        check_finite_fast(&format!("params[{j}]"), row)?;
+        let st = stage(row, base.ts, base.substeps, base.tolerance)
+            .map_err(|e| ParameterError::new_err(format!("params[{j}]: {}", e.value(py))))?;
+        stages.push(st);
+    }
+    Ok(stages)
+}
+
+/// `[rmse, max_error, saturated_fraction]` of `sc` on each stage (rayon across stages).
+fn stages_tracking<'py>(
+    py: Python<'py>,
+    stages: &[CoreStage],
+    se: &Sensor,
+    sc: &Run<'_>,
+    seeds: &[u64],
+    init: StageState,
+    skip: usize,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    if skip >= sc.reference.len() {
+        return Err(ParameterError::new_err(format!(
+            "skip = {skip} leaves nothing of the reference's {} samples",
+            sc.reference.len()
+        )));
+    }
+    let rows: Vec<[f64; 3]> = interruptible(py, |stop| {
+        stages
+            .par_iter()
+            .zip(seeds.par_iter())
+            .map(|(st, &seed)| {
+                if stop.stopped() {
+                    return [f64::NAN; 3];
+                }
+                with_controller(&sc.controller, |c| {
+                    let mut ss = init;
+                    let mut sst = se.state(ss.x, seed);
+                    let mut cst = vec![0.0; c.state_len()];
+                    c.reset(&mut cst, ss.x);
+                    let t = run_tracking(
+                        Loop {
+                            stage: st,
+                            stage_state: &mut ss,
+                            sensor: se,
+                            sensor_state: &mut sst,
+                            controller: c,
+                            controller_state: &mut cst,
+                        },
+                        Trajectory { position: sc.reference, velocity: sc.velocity, acceleration: sc.acceleration },
+                        skip,
+                    );
+                    let n = t.samples.max(1) as f64;
+                    [(t.sse / n).sqrt(), t.max_error, t.saturated as f64 / sc.reference.len() as f64]
+                })
+                .expect("validated before the run")
+            })
+            .collect()
+    })?;
+    let flat: Vec<f64> = rows.iter().flatten().copied().collect();
+    Ok(Array2::from_shape_vec((rows.len(), 3), flat).expect("shape").into_pyarray(py))
 }
 
 /// The message of a `scenarios[0]: ...` error without its prefix (a single run).

@@ -116,6 +116,13 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         ),
     )
     i.add_argument("data", metavar="DATA", help="the record file (see the formats above)")
+    _identify_options(i)
+    _identify_outputs(i)
+
+
+def _identify_options(i: argparse.ArgumentParser) -> None:
+    """The fit's options (model, columns, ranges, preprocessing, optimizer), shared with ``piezohyst
+    fleet identify``: what it passes on to :func:`_identify` for each record."""
     i.add_argument(
         "--model",
         metavar="KIND",
@@ -315,6 +322,10 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         help="cemf: the stack's capacitance, taken as known; a bare number is in farads, or give a unit: "
         "1800nF, 1.8uF (default: 1.8e-6 F, seed 1's 1800 nF)",
     )
+
+
+def _identify_outputs(i: argparse.ArgumentParser) -> None:
+    """``--out --plot --force --json --progress --debug`` of ``piezohyst identify``."""
     i.add_argument(
         "--out",
         metavar="FILE",

@@ -1,5 +1,6 @@
 """The ``piezohyst`` command line: the parser and :func:`main`; one module per command
-(``demo``, ``stage``, ``identify``, ``simulate``, ``track``, ``export-c``, ``bench``), their
+(``demo``, ``stage``, ``identify``, ``simulate``, ``track``, ``export-c``, ``bench``, ``fleet``,
+``robustness``), their
 shared checks and readers in :mod:`piezohyst.cli.common`.
 
 Every bad input ends the command with a one-line reason on stderr and exit code 2 (usage
@@ -26,7 +27,9 @@ from .bench import _bench, _bench_parser
 from .common import _Parser
 from .demo import _demo, _demo_parser
 from .export_c import _export_c, _export_c_parser
+from .fleet import _fleet, _fleet_parser
 from .identify import _identify, _identify_parser
+from .robustness import _robustness, _robustness_parser
 from .simulate import _simulate, _simulate_parser
 from .stage import _stage_info, _stage_parser
 from .stops import Interrupted, describe, exit_code, handled, received
@@ -99,6 +102,8 @@ def _parser() -> argparse.ArgumentParser:
     _export_c_parser(sub)
     _bench_parser(sub)
     _add_quiet(p)
+    _fleet_parser(sub)
+    _robustness_parser(sub)
     return p
 
 
@@ -111,6 +116,8 @@ _COMMANDS: dict[str, Callable[[argparse.Namespace], int | None]] = {
     "track": _track,
     "export-c": _export_c,
     "bench": _bench,
+    "fleet": _fleet,
+    "robustness": _robustness,
 }
 
 
@@ -119,7 +126,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     debug = args.debug or getattr(args, "sub_debug", False)
     prog = (
         f"piezohyst {args.command}"
-        if args.command in ("identify", "simulate", "track", "export-c", "bench")
+        if args.command in ("identify", "simulate", "track", "export-c", "bench", "fleet", "robustness")
         else "piezohyst"
     )
     try:

@@ -17,6 +17,7 @@ from .common import (
 )
 
 if TYPE_CHECKING:
+    from ..control.simulation import ControllerLike
     from ..models.model import HysteresisModel
     from ..plant.stage import Stage
     from ..signals.metrics import FloatArray
@@ -104,10 +105,59 @@ _METRIC_UNITS = {
 _TRACK_MAX_SAMPLES = 10_000_000
 
 
-def _track(args: argparse.Namespace) -> int:
+def _build_controller(
+    kind: str, stage: Stage, model_file: str | None, *, model: HysteresisModel | None = None
+) -> ControllerLike:
+    """The controller ``kind`` of ``piezohyst track`` designed for ``stage`` (shared with ``piezohyst
+    robustness``): inverse and absmc behind ``model`` (already read and checked) or the hysteresis
+    model file ``model_file``, else an MPI model identified from a simulated measurement of ``stage``."""
     import numpy as np
 
     from ..control.controllers import ABSMC, PID, SMC, Compensated, InverseFeedforward, OpenLoop, VelocityObserver
+
+    fs = 1.0 / stage.sample_time
+
+    def hysteresis_model() -> HysteresisModel:
+        if model is not None:
+            return model
+        if model_file:
+            from ..models.model import HysteresisModel, load_model
+
+            loaded = load_model(model_file)
+            if not isinstance(loaded, HysteresisModel):
+                raise _Fail(
+                    f"--model = '{model_file}' is a {loaded.kind} model, not a hysteresis model of the stage's "
+                    f"actuator (pi, gpi/mpi, rdpi, preisach, boucwen, ...)"
+                )
+            return loaded
+        from ..identify.core import identify_mpi
+
+        t = np.arange(int(2.0 * fs)) / fs
+        u = 75 - 75 * np.clip(1 - 0.5 * t, 0.2, 1.0) * np.cos(2 * np.pi * 5 * t)
+        x = stage.simulate(u).position
+        from ..models.model import HysteresisModel
+
+        fitted = identify_mpi(u[:-1], x[1:], operators=9).model
+        assert isinstance(fitted, HysteresisModel)  # an MPI model
+        return fitted
+
+    c: OpenLoop | PID | SMC | InverseFeedforward | Compensated
+    if kind == "open-loop":
+        c = OpenLoop()
+    elif kind == "pid":
+        c = PID(kp=2e6, ki=2e9)
+    elif kind in ("smc", "smc-cemf"):
+        c = SMC(
+            stage.params, kp=1e6, kv=2e3, ks=20.0, phi=0.01, cemf=kind == "smc-cemf", observer=VelocityObserver(300.0)
+        )
+    elif kind == "inverse":
+        c = InverseFeedforward(hysteresis_model(), c1=stage.sample_time)
+    else:
+        c = Compensated(ABSMC.linearized(2000.0, 0.7, c1=2e3, lam=2e3, ks=5e3, gamma_d=1e4), hysteresis_model())
+    return c
+
+
+def _track(args: argparse.Namespace) -> int:
     from ..control.tuning import track
     from ..errors import ParameterError
     from ..plant.stage import Stage, virtual_stage
@@ -155,33 +205,7 @@ def _track(args: argparse.Namespace) -> int:
             given = loaded
     foreign = None if given is None else _foreign_model(given, args.model, stage, ref)
 
-    def hysteresis_model() -> HysteresisModel:
-        if given is not None:
-            return given
-        from ..identify.core import identify_mpi
-
-        t = np.arange(int(2.0 * fs)) / fs
-        u = 75 - 75 * np.clip(1 - 0.5 * t, 0.2, 1.0) * np.cos(2 * np.pi * 5 * t)
-        x = stage.simulate(u).position
-        from ..models.model import HysteresisModel
-
-        model = identify_mpi(u[:-1], x[1:], operators=9).model
-        assert isinstance(model, HysteresisModel)  # an MPI model
-        return model
-
-    c: OpenLoop | PID | SMC | InverseFeedforward | Compensated
-    if kind == "open-loop":
-        c = OpenLoop()
-    elif kind == "pid":
-        c = PID(kp=2e6, ki=2e9)
-    elif kind in ("smc", "smc-cemf"):
-        c = SMC(
-            stage.params, kp=1e6, kv=2e3, ks=20.0, phi=0.01, cemf=kind == "smc-cemf", observer=VelocityObserver(300.0)
-        )
-    elif kind == "inverse":
-        c = InverseFeedforward(hysteresis_model(), c1=stage.sample_time)
-    else:
-        c = Compensated(ABSMC.linearized(2000.0, 0.7, c1=2e3, lam=2e3, ks=5e3, gamma_d=1e4), hysteresis_model())
+    c = _build_controller(kind, stage, None, model=given)
     try:
         res = track(c, ref, stage=stage, rng=args.seed, skip=args.skip)
     except ParameterError as e:  # e.g. the inverse's limits: no output range at the amplifier limits

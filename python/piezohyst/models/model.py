@@ -246,6 +246,10 @@ class HysteresisModel:
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         self.__dict__.update(state)
+        # a pickle's buffers may land unaligned (Dask's messages); the core reads aligned rows
+        self._row = np.require(self._row, np.float64, ["C", "A"])
+        self._row.setflags(write=False)
+        self._state = np.require(self._state, np.float64, ["C", "A"])
         self._compiled = _core.Model(self.family, list(self.dims), self._row)
 
     # -- parameters -----------------------------------------------------------------

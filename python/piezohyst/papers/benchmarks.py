@@ -13,7 +13,7 @@ Examples
 --------
 >>> from piezohyst.benchmarks import BENCHMARKS
 >>> [b.name for b in BENCHMARKS]
-['pi_batch', 'closed_loop', 'identify_mpi', 'c_step', 'control', 'demo', 'load_csv', 'identify_speed']
+['pi_batch', 'closed_loop', 'identify_mpi', 'c_step', 'control', 'demo', 'load_csv', 'identify_speed', 'fleet']
 """
 
 from __future__ import annotations
@@ -384,6 +384,54 @@ def _identify_speed_rows(d: Json) -> list[Row]:
     return rows
 
 
+def _fleet_rows(d: Json) -> list[Row]:
+    f, r, o = d["fleet_identify"], d["robustness"], d["overhead"]
+    runs = f["runs"]
+    what = f"{f['records']} × {f['samples_per_record']:,}-sample records, boucwen, RAYON_NUM_THREADS=1"
+    local, serial = r["cases"]["local"], r["cases"]["serial"]
+    return [
+        _row(
+            f"fleet identify, {what}: 2 workers, wall with start-up "
+            f"({runs['workers2']['records_per_s']:.3g} records/s)",
+            runs["workers2"]["wall_s"],
+            "s",
+            "1 worker",
+            runs["workers1"]["wall_s"],
+            ratio=f["speedup_2_vs_1_workers"],
+            ratio_label="faster",
+            target="≥ 1.6×",
+            passed=f["pass"],
+        ),
+        _row(
+            f"fleet identify, {what}: 2 workers vs one process without Dask",
+            runs["workers2"]["wall_s"],
+            "s",
+            "--scheduler serial",
+            runs["serial"]["wall_s"],
+            ratio=f["speedup_2_workers_vs_serial"],
+            ratio_label="faster",
+        ),
+        _row(
+            f"robustness, {r['runs']:,} closed-loop runs of 0.2 s at 10 kHz ({local['runs_per_s']:.4g} runs/s)",
+            local["wall_s"],
+            "s",
+            "--scheduler serial (rayon)",
+            serial["wall_s"],
+            ratio=serial["wall_s"] / local["wall_s"],
+            ratio_label="faster",
+            target="≤ 10 s",
+            passed=r["pass"],
+        ),
+        _row(
+            "Dask per-task overhead (no-op task, 2 workers)",
+            o["per_task_overhead_s"] * 1e3,
+            "ms",
+            "— (cluster start-up, s)",
+            o["cluster_start_s"],
+        ),
+    ]
+
+
 BENCHMARKS: tuple[Benchmark, ...] = (
     Benchmark(
         "pi_batch",
@@ -422,6 +470,13 @@ BENCHMARKS: tuple[Benchmark, ...] = (
         "Preisach 48 levels and huber + structure fit, against baselines in the same run",
         ("--quick",),
         _identify_speed_rows,
+    ),
+    Benchmark(
+        "fleet",
+        "fleet.py",
+        "Dask scale-out: fleet identify 2 vs 1 workers, robustness runs/s, per-task overhead",
+        ("--quick",),
+        _fleet_rows,
     ),
 )
 _BY_NAME = {b.name: b for b in BENCHMARKS}
