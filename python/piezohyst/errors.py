@@ -148,7 +148,7 @@ class DataError(PiezohystError, ValueError):
     ...     load_model(path)
     ... except DataError as e:
     ...     print(str(e).split(": ", 1)[1])
-    schema_version = None is not supported (this version reads 1)
+    schema_version = null is not supported (this version reads the integer 1)
     """
 
 

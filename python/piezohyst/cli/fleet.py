@@ -478,7 +478,8 @@ def _summarize(rows: list[dict[str, Any]], out: Path) -> dict[str, Any]:
             f"{len(good)} records: parameter distributions, outliers (|robust z| > {OUTLIER_Z:g}) in red",
         )
         try:
-            _atomic_savefig(fig, out / "report.png")
+            # the fleet's own summary of DIR, rebuilt from every record on each run (as summary.csv)
+            _atomic_savefig(fig, out / "report.png", name="report.png", force=True)
         finally:
             plt.close(fig)
         report = str(out / "report.png")

@@ -101,9 +101,9 @@ def _parser() -> argparse.ArgumentParser:
     _track_parser(sub)
     _export_c_parser(sub)
     _bench_parser(sub)
-    _add_quiet(p)
     _fleet_parser(sub)
     _robustness_parser(sub)
+    _add_quiet(p)  # last: every command registered above gets it
     return p
 
 

@@ -798,7 +798,7 @@ def model_from_dict(d: JSONDict) -> AnyModel:
     >>> model_from_dict({"schema_version": 2, "kind": "pi"})
     Traceback (most recent call last):
     ...
-    piezohyst.errors.ParameterError: schema_version = 2 is not supported (this version reads 1)
+    piezohyst.errors.ParameterError: schema_version = 2 is not supported (this version reads the integer 1)
     """
     with malformed_as("the model description"):
         return _model_from_dict(d)
