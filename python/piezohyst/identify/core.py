@@ -14,6 +14,7 @@ underscore) take records already validated (finite 1-D float64 arrays of checked
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -77,8 +78,10 @@ class FitResult(RunReport):
 
     As every :class:`~piezohyst.optimize.RunReport`: ``wall_time`` (s), ``evaluations`` (the
     bounded least-squares solves: 1, or 1 plus the reweighted solves of the Huber loss),
-    ``history`` (empty: a linear fit does not iterate over candidates) and ``partial``
-    (always ``False``: a linear fit is not interrupted halfway)."""
+    ``history`` (empty: a linear fit does not iterate over candidates; a Preisach grid's holds
+    the smoothing strengths it chose among, :func:`fit_linear`) and ``partial`` (always
+    ``False``: a linear fit is not interrupted halfway); ``condition``: the conditioning of
+    the least-squares problem."""
 
     model: LinearModel
     metrics: Metrics
@@ -86,6 +89,9 @@ class FitResult(RunReport):
     evaluations: int = 1
     history: dict[str, Any] = field(default_factory=dict)
     partial: bool = False
+    #: The 2-norm condition number of the equilibrated regressors the least squares solved
+    #: (PI family; ``nan`` when not computed: a Preisach grid's hundreds of columns).
+    condition: float = math.nan
 
     def __repr__(self) -> str:
         m = self.metrics
@@ -404,6 +410,8 @@ def _design(
     The family's parameter row is unchanged."""
     lb, ub, build = _layout(model)
     A = _core.regressors(model.family, list(model.dims), model.to_row(), v)
+    if isinstance(model, RateDependentPI):
+        A, lb, build = _rate_interpolation(model, A, lb, build)
     if not offset or _has_constant(A):
         return A, lb, ub, build
     A = np.column_stack([A, np.ones(v.size)])
@@ -412,6 +420,62 @@ def _design(
         return build(t[:-1]).with_output_map(offset=float(t[-1]))
 
     return A, np.append(lb, -np.inf), np.append(ub, np.inf), build_offset
+
+
+#: The rate-dependent PI's fit keeps every play weight ``w_i + c_i rate`` non-negative up to
+#: this many times the record's largest (filtered) input rate (:func:`_rate_interpolation`).
+RATE_MARGIN = 4.0
+
+
+def _rate_interpolation(
+    model: RateDependentPI, A: FloatArray, lb: FloatArray, build: Callable[[FloatArray], LinearModel]
+) -> tuple[FloatArray, FloatArray, Callable[[FloatArray], LinearModel]]:
+    """The rate-dependent PI's weights ``w_i + c_i rate`` fitted as ``a_i (1 - rho) + b_i rho``,
+    ``rho = rate / R``, ``a_i, b_i >= 0`` (the weights at rate 0 and at ``R``), ``R`` =
+    :data:`RATE_MARGIN` times the record's largest rate: ``(A, lb, build)`` with the columns
+    ``z_i (1 - rho)`` and ``z_i rho`` in place of ``z_i`` and ``z_i rate``.
+
+    The same model (``w_i = a_i``, ``c_i = (b_i - a_i) / R``), well posed: with ``c_i`` free
+    the fit could trade ``w_i`` against ``c_i`` wherever the record's rate varies little (one
+    frequency: the columns ``z_i`` and ``z_i rate`` nearly collinear; rates in 1e4-1e6 V/s
+    beside weights of 1e-2), and a weight that goes negative at a faster rate than the
+    training's makes the model non-monotone there (a 10 Hz sine trained, 30 Hz held out: 4.8 %
+    of the range where the fixed structure gives 1.9 %; now 1.1 %). The rate at each sample is
+    read off the regressors (``z_i rate / z_i``), the core's definition, not a second one."""
+    n = model.thresholds.size
+    slots = _linear_slots(model)
+    starts = np.cumsum([0] + [size for size, _ in slots])[:-1]
+    # the play weights: the non-negative slot of n; the rate weights: the free slot of n
+    iw = next(int(a) for (size, nonneg), a in zip(slots, starts, strict=True) if size == n and nonneg and a > 0)
+    ic = next(int(a) for (size, nonneg), a in zip(slots, starts, strict=True) if size == n and not nonneg)
+    Z, ZR = A[:, iw : iw + n], A[:, ic : ic + n]
+    j = np.argmax(np.abs(Z), axis=1)
+    rows = np.arange(A.shape[0])
+    zj = Z[rows, j]
+    moving = zj != 0.0
+    top = float(np.max(np.abs(ZR[rows, j][moving] / zj[moving]))) if np.any(moving) else 0.0
+    if not (np.isfinite(top) and top > 0.0):
+        return A, lb, build  # no rate: the rate weights have nothing to act on
+    R = RATE_MARGIN * top
+    A = A.copy()
+    A[:, iw : iw + n] = Z - ZR / R
+    A[:, ic : ic + n] = ZR / R
+    lb = lb.copy()
+    lb[ic : ic + n] = 0.0
+
+    def build_rates(t: FloatArray) -> LinearModel:
+        t = np.array(t, dtype=np.float64)
+        t[ic : ic + n] = (t[ic : ic + n] - t[iw : iw + n]) / R
+        return build(t)
+
+    return A, lb, build_rates
+
+
+def _condition(A: FloatArray) -> float:
+    """2-norm condition number of a regressor matrix with its columns equilibrated (the
+    matrix the bounded least squares solve): ``inf`` when rank deficient."""
+    s = np.linalg.svd(A, compute_uv=False)
+    return float(s[0] / s[-1]) if s.size and s[-1] > 0 else math.inf
 
 
 def _fit_linear(
@@ -439,7 +503,8 @@ def _fit_linear(
         z, k = _irls_huber(A, y, bounds, z, delta, _qr_bounded_lstsq)
         solves += k
     fitted = build(z / scale)
-    return FitResult(fitted, _fit_metrics(fitted.simulate(v), y), time.perf_counter() - t0, solves)
+    metrics = _fit_metrics(fitted.simulate(v), y)
+    return FitResult(fitted, metrics, time.perf_counter() - t0, solves, condition=_condition(A))
 
 
 def _fit_preisach(

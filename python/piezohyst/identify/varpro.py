@@ -487,7 +487,8 @@ def identify_vp(
         ``method`` is ``"vp-<optimizer>"`` (``+polish``, ``+huber``); ``evaluations`` counts
         the candidate structures evaluated (search and polish); ``history`` holds the
         optimizer's per-iteration history plus ``"parameters"`` (the searched names),
-        ``"structure"`` (every structure parameter of the result by name) and, when polished,
+        ``"structure"`` (every structure parameter of the result by name), ``"condition"``
+        (the 2-norm condition number of the final fit's equilibrated regressors) and, when polished,
         ``"polish"`` (costs before and after, evaluations, SciPy's message, the screened
         costs).
 
@@ -636,6 +637,7 @@ def identify_vp(
     final = _fit_linear(problem.template(structure), v, y, loss, delta, offset=bool(offset))
     fitted = final.model
     evaluations += final.evaluations
+    history["condition"] = final.condition
     train = _fit_metrics(fitted.simulate(v), y)
     val = None
     if validate is not None:
