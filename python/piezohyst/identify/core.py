@@ -543,9 +543,11 @@ def _fit_preisach(
     (``smoothing=None``) the strength is chosen among :data:`PREISACH_SMOOTHINGS` by hold-out:
     each fits the record but its last :data:`PREISACH_HOLDOUT` and predicts that end, the
     state carried (the regressors are the free run's: the prediction is a product, not a
-    simulation); the best prediction wins (RMSE, or the Huber cost with ``loss="huber"``). A
-    decaying record's end has its smallest loops, so the hold-out asks what a validation
-    span asks. ``smoothing = 0`` is the plain non-negative least squares. ``weights``: sample
+    simulation); the best prediction wins (RMSE, or the Huber cost with ``loss="huber"``, the
+    hold-out fits then weighted by one IRLS step's Huber weights, from which the final IRLS
+    starts), among the strengths whose fit misses its own data by at most
+    :data:`PREISACH_FIT_TOLERANCE` more than the fit without the prior. A decaying record's end
+    has its smallest loops, so the hold-out asks what a validation span asks. ``smoothing = 0`` is the plain non-negative least squares. ``weights``: sample
     weights (``sum w r^2``). The result's ``history`` holds the strengths tried, their
     hold-out errors and the one used (``smoothing``)."""
     lb, _, build = _layout(model)
@@ -556,13 +558,19 @@ def _fit_preisach(
     bits = np.packbits(cells.T > 0.5, axis=1)
     patterns, first, group = np.unique(bits, axis=0, return_index=True, return_inverse=True)
     group = group.ravel()
-    constant = np.all(cells[:, first] == cells[:1, first], axis=0)
+    constant = (cells.max(axis=0) == cells.min(axis=0))[first]  # reductions, no copy of the matrix
     kept = np.flatnonzero(~constant)
     counts = np.bincount(group, minlength=patterns.shape[0])
-    # one unknown per kept group: the weight of each of its cells (their columns summed)
-    B = np.concatenate([A[:, :head], cells[:, first[kept]] * counts[kept]], axis=1)
+    # one unknown per kept group: the weight of each of its cells (their columns summed, count
+    # times the first's), the columns equilibrated to unit RMS in place (the matrix is N x ~L^2/2)
+    C = cells[:, first[kept]]
+    norm = np.maximum(np.sqrt(np.einsum("ij,ij->j", C, C) / v.size), 1e-300)
+    C /= norm
+    head_scale = np.maximum(np.sqrt(np.mean(A[:, :head] ** 2, axis=0)), 1e-300)
+    B = np.concatenate([A[:, :head] / head_scale, C], axis=1)
+    del C
+    scale = np.concatenate([head_scale, counts[kept] * norm])  # B's columns are the regressors / scale
     blb = np.concatenate([lb[:head], lb[head:][first[kept]]])
-    scale = np.maximum(np.sqrt(np.mean(B**2, axis=0)), 1e-300)
     unit_penalty = None  # the prior of strength 1 per sample of the data term
     if kept.size > 1 and (smoothing is None or smoothing > 0):
         column = np.full(patterns.shape[0], -1)
@@ -572,7 +580,6 @@ def _fit_preisach(
         if cost > 0:
             # in the equilibrated unknowns z = u * scale, relative to the data term's size
             unit_penalty = (float(np.mean(scale[head:] ** 2)) / cost) * DD / np.outer(scale, scale)
-    B = B / scale
     bounds = (blb * scale, np.full(blb.size, np.inf))
     # the normal equations square the conditioning: solve for the output in units of its RMS, so
     # a record in other units (a gain) gives the same fit to rounding, not to the solver's tolerance
@@ -593,17 +600,17 @@ def _fit_preisach(
     history: dict[str, Any] = {}
     dn = None if delta is None else delta / unit
     solves = 0
-    z = None
+    h = None  # the Huber weights (square roots) of the fit without the prior, when chosen by hold-out
     choose = unit_penalty is not None and smoothing is None and k >= B.shape[1] and v.size - k >= 2
     if unit_penalty is None or (smoothing is None and not choose):  # nothing to smooth, or too short to hold out
         smoothing = 0.0
     if choose and loss == "huber":
         # the hold-out's fits must not chase the glitches either: they are weighted by the Huber
-        # weights of the fit without the prior (the IRLS's last), and score the end by its cost
-        z = _gram_nnls(G, b, free)
-        z, n_irls = _irls_huber(B, yn, bounds, z, dn, _bounded_lstsq_gram)
-        solves += 1 + n_irls
-        h = _huber_sqrt_weights(B @ z - yn, dn, float(np.ptp(yn)) or 1.0)
+        # weights of the least-squares fit without the prior (one IRLS step: the glitches stand
+        # out of its residuals), and score the end by its cost; the final IRLS starts from them
+        z0 = _gram_nnls(G, b, free)
+        solves += 1
+        h = _huber_sqrt_weights(B @ z0 - yn, dn, float(np.ptp(yn)) or 1.0)
         Bh, yh = B[:k] * h[:k, None], yn[:k] * h[:k]
         G1, b1, yy = Bh.T @ Bh, Bh.T @ yh, float(yh @ yh)
     if choose:
@@ -617,16 +624,18 @@ def _fit_preisach(
     assert smoothing is not None
     penalty = None if unit_penalty is None or smoothing == 0 else smoothing * float(np.sum(w)) * unit_penalty
     history["smoothing"] = smoothing
-    if z is None or penalty is not None:
+    if h is None:
         z = _gram_nnls(G if penalty is None else G + penalty, b, free)
-        solves += 1
-        if loss == "huber":
+    else:  # warm start: the Huber weights of the least-squares fit without the prior
+        z = _bounded_lstsq_gram(B * h[:, None], yn * h, bounds, penalty)
+    solves += 1
+    if loss == "huber":
 
-            def solve(A_: FloatArray, y_: FloatArray, b_: tuple[FloatArray, FloatArray]) -> FloatArray:
-                return _bounded_lstsq_gram(A_, y_, b_, penalty)
+        def solve(A_: FloatArray, y_: FloatArray, b_: tuple[FloatArray, FloatArray]) -> FloatArray:
+            return _bounded_lstsq_gram(A_, y_, b_, penalty)
 
-            z, n_irls = _irls_huber(B, yn, bounds, z, dn, solve)
-            solves += n_irls
+        z, n_irls = _irls_huber(B, yn, bounds, z, dn, solve)
+        solves += n_irls
     zb = z * unit / scale
     zb[0] += centre
     per_cell = np.zeros(patterns.shape[0])
