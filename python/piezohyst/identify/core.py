@@ -14,11 +14,12 @@ underscore) take records already validated (finite 1-D float64 arrays of checked
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Protocol, TypeAlias, runtime_checkable
+from typing import TYPE_CHECKING, Any, ParamSpec, Protocol, TypeAlias, TypeVar, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
@@ -507,6 +508,34 @@ def _fit_linear(
     return FitResult(fitted, metrics, time.perf_counter() - t0, solves, condition=_condition(A))
 
 
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
+
+
+def _one_blas_thread(fit: Callable[_P, _R]) -> Callable[_P, _R]:
+    """Run ``fit`` with BLAS (OpenBLAS, MKL, ...) limited to one thread (threadpoolctl), the
+    limit lifted after. The fits call BLAS thousands of times on matrices of a few hundred to
+    a thousand columns, where a second thread barely helps and, on a shared machine, costs:
+    waiting threads spin, and a busy core stalls every call (measured on the 2-core machine
+    at load 3-6: a 1178 x 1178 Cholesky 0.017 s on one thread, 0.215 s on two; the 48-level
+    Preisach fit of bench/identify_speed.py 2.1-2.2 s CPU on one, 2.9-3.2 s on two, and 6.2-6.7 s
+    wall on two at load 5-6)."""
+
+    @functools.wraps(fit)
+    def limited(*args: _P.args, **kwargs: _P.kwargs) -> _R:
+        try:
+            from threadpoolctl import threadpool_limits
+        except ImportError:  # an environment from before the dependency: BLAS keeps its threads
+            return fit(*args, **kwargs)
+        import scipy.linalg  # noqa: F401  (loads SciPy's BLAS first: the limit covers the libraries loaded)
+
+        with threadpool_limits(limits=1, user_api="blas"):
+            return fit(*args, **kwargs)
+
+    return limited
+
+
+@_one_blas_thread
 def _fit_preisach(
     model: Preisach,
     v: FloatArray,
@@ -547,9 +576,10 @@ def _fit_preisach(
     hold-out fits then weighted by one IRLS step's Huber weights, from which the final IRLS
     starts), among the strengths whose fit misses its own data by at most
     :data:`PREISACH_FIT_TOLERANCE` more than the fit without the prior. A decaying record's end
-    has its smallest loops, so the hold-out asks what a validation span asks. ``smoothing = 0`` is the plain non-negative least squares. ``weights``: sample
-    weights (``sum w r^2``). The result's ``history`` holds the strengths tried, their
-    hold-out errors and the one used (``smoothing``)."""
+    has its smallest loops, so the hold-out asks what a validation span asks. ``smoothing = 0``
+    is the plain non-negative least squares. ``weights``: sample weights (``sum w r^2``). The
+    result's ``history`` holds the strengths tried, their hold-out errors and the one used
+    (``smoothing``)."""
     lb, _, build = _layout(model)
     A = _core.regressors(model.family, list(model.dims), model.to_row(), v)
     head = A.shape[1] - model.weights.size  # offset and slope, then one column per cell

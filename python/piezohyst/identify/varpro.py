@@ -63,6 +63,7 @@ from .._validate import as_int, as_record, as_scalar
 from ..errors import ParameterError, ParameterTypeError
 from ..models.creep import Creep
 from ..models.pi import PI, Envelope, GeneralizedPI, RateDependentPI
+from .core import _one_blas_thread
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from .core import Callback, IdentificationResult, LinearModel, RngLike
@@ -404,6 +405,7 @@ def _small_solve(A: FloatArray, y: FloatArray, bounds: tuple[FloatArray, FloatAr
     return _small_bounded_lstsq(A, y, bounds[0], bounds[1])
 
 
+@_one_blas_thread
 def identify_vp(
     input: npt.ArrayLike,
     output: npt.ArrayLike,
