@@ -370,9 +370,9 @@ def _identify_speed_rows(d: Json) -> list[Row]:
             value, base = c["held_out_percent"], c["baseline_held_out_percent"]
             rows.append(
                 _row(
-                    f"{c['case']}: worst of {len(c['records'])} records",
+                    f"{c['case']}: RMSE % of range, worst of {len(c['records'])} records",
                     value,
-                    "% of range",
+                    "%",
                     c["baseline"].split(":")[0],
                     base,
                     ratio=base / value if value > 0 else None,
@@ -386,9 +386,9 @@ def _identify_speed_rows(d: Json) -> list[Row]:
             worst = max(c["records"], key=lambda r: r["ratio_to_best"])
             rows.append(
                 _row(
-                    f"{c['case']}: held out / best family's, worst of {len(c['records'])} records",
+                    f"{c['case']}: RMSE % of range vs the best fixed family's, worst of {len(c['records'])} records",
                     worst["held_out_percent"],
-                    "% of range",
+                    "%",
                     f"best family ({worst['best_family']})",
                     worst["best_family_held_out_percent"],
                     ratio=1.0 / c["ratio_to_best"],
