@@ -21,6 +21,21 @@ Cases (wall clock, ``time.perf_counter``, one process, the same record for a cas
     robust fit shows; and the process CPU time (``cpu_s``: on a shared machine the wall time
     carries the other processes' load).
 
+``preisach-decaying`` (accuracy)
+    ``identify(v[:7000], y[:7000], "preisach", levels=48)`` on 10,000-sample decaying-amplitude
+    records from other generators (a PI of 40 operators, a Preisach of a Gaussian density on a
+    160-level grid, the 7-operator PI; a decaying sine, a decaying two-tone, 70 decaying
+    cycles), scored on samples 7000: with the state carried (``tests/identify/
+    test_preisach_decaying.py``'s records). Baseline ``plain``: the previous method (no smoothness
+    prior, a 64-extremum memory). Target: <= 1.5 % of the validation range, the worst record.
+
+``rdpi-fit`` (accuracy)
+    ``identify(..., "rdpi", structure="fit", rng=0)`` on the 5 kHz records of
+    ``tests/identify/test_rdpi_conditioning.py`` (+-150 V; a rate-dependent PI, a PI behind a
+    resonance, a Bouc-Wen behind one; lead-in, offset, noise), held out with the state carried,
+    against the best of the fixed-structure families (pi, mpi, preisach, rdpi) in the same run;
+    with the condition number of the fit's equilibrated regressors. Target: <= 1.5x the best.
+
 Each case records its wall time, its baseline's, and the training RMSE (% of range) of both, so
 a faster result that fits worse shows. ``--quick`` skips the slow ``bvls-full`` baseline.
 """
@@ -78,12 +93,15 @@ def bench_preisach(quick: bool) -> dict[str, Any]:
     from piezohyst.models import Preisach
 
     v, y = preisach_record()
-    t0 = time.perf_counter()
+    identify(v[:500], y[:500], "preisach", levels=8)  # imports (SciPy's optimizers) outside the timings
+    t0, c0 = time.perf_counter(), time.process_time()
     fit = identify(v, y, "preisach", levels=48)
-    wall = time.perf_counter() - t0
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     out: dict[str, Any] = {
         "case": "identify(preisach, levels=48), 10,000 samples",
         "wall_s": wall,
+        "cpu_s": cpu,
+        "smoothing": fit.history["smoothing"],
         "train_rmse_percent": fit.train["rmse_percent"],
         "target_s": 5.0,
         "baseline": "bvls-full: scipy lsq_linear(method='bvls') on the whole equilibrated regressor matrix",
@@ -133,6 +151,81 @@ def bench_huber_fit() -> dict[str, Any]:
     }
 
 
+def bench_preisach_decaying() -> dict[str, Any]:
+    from piezohyst import fit_linear, identify
+    from piezohyst.models import Preisach
+
+    records = _test_module("test_preisach_decaying")
+    k = records.K
+    cases = [("pi40", "sine", 0), ("gauss", "two-tone", 1), ("pi7", "two-tone", 0), ("pi40", "70 cycles", 1)]
+    cases += [("gauss", "70 cycles", 0), ("pi7", "sine", 2)]
+    rows = []
+    t0 = time.perf_counter()
+    for kind, shape, seed in cases:
+        v, y = records.record(kind, shape, seed)
+        fit = identify(v[:k], y[:k], "preisach", levels=48)
+        lo_hi = (float(v[:k].min()), float(v[:k].max()))
+        plain = fit_linear(Preisach(48, lo_hi, np.zeros(1176), memory=64), v[:k], y[:k], smoothing=0)
+        rows.append(
+            {
+                "record": f"{kind}, {shape}, seed {seed}",
+                "held_out_percent": records.held_out_percent(fit.model, v, y),
+                "smoothing": fit.history["smoothing"],
+                "baseline_held_out_percent": records.held_out_percent(plain.model, v, y),
+            }
+        )
+    worst = max(r["held_out_percent"] for r in rows)
+    return {
+        "case": "identify(preisach, levels=48) on decaying-amplitude records, held out with the state carried",
+        "metric": "held_out_percent",
+        "records": rows,
+        "held_out_percent": worst,
+        "target_percent": 1.5,
+        "baseline": "plain: NNLS without the smoothness prior, memory 64 (the previous method)",
+        "baseline_held_out_percent": max(r["baseline_held_out_percent"] for r in rows),
+        "wall_s": time.perf_counter() - t0,
+    }
+
+
+def _test_module(name: str) -> Any:
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(name, HERE.parent / "tests" / "identify" / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def bench_rdpi_fit() -> dict[str, Any]:
+    records = _test_module("test_rdpi_conditioning")
+    rows = []
+    t0 = time.perf_counter()
+    for kind, shape in (("rdpi", "chirp"), ("pi+resonance", "triangle"), ("boucwen+resonance", "multisine")):
+        v, y = records.record(kind, shape, 0)
+        families = {m: records.held_out(v, y, m).validation["rmse_percent"] for m in ("pi", "mpi", "preisach", "rdpi")}
+        fit = records.held_out(v, y, "rdpi", structure="fit", rng=0)
+        best = min(families, key=families.__getitem__)
+        rows.append(
+            {
+                "record": f"{kind}, {shape}",
+                "held_out_percent": fit.validation["rmse_percent"],
+                "best_family": best,
+                "best_family_held_out_percent": families[best],
+                "ratio_to_best": fit.validation["rmse_percent"] / families[best],
+                "condition": fit.history["condition"],
+            }
+        )
+    return {
+        "case": "identify(rdpi, structure='fit') on 5 kHz records, held out with the state carried",
+        "metric": "ratio_to_best",
+        "records": rows,
+        "ratio_to_best": max(r["ratio_to_best"] for r in rows),
+        "target_ratio": 1.5,
+        "wall_s": time.perf_counter() - t0,
+    }
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", default=str(HERE / "results" / "identify_speed.json"))
@@ -143,7 +236,7 @@ def main() -> None:
         "timestamp_utc": datetime.now(UTC).isoformat(timespec="seconds"),
         "machine": machine_info(),
         "extension_sha256": extension_digest(),
-        "cases": [bench_preisach(args.quick), bench_huber_fit()],
+        "cases": [bench_preisach(args.quick), bench_huber_fit(), bench_preisach_decaying(), bench_rdpi_fit()],
     }
     text = json.dumps(result, indent=2)
     Path(args.out).write_text(text + "\n")

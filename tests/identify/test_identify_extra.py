@@ -274,3 +274,28 @@ def test_qr_bounded_solver_is_the_bvls_solution():
     y = B @ np.r_[1.0, 2.0, 0.5, 0.3, 0.1, -4.0, 1.0]
     z = _qr_bounded_lstsq(B, y, (np.r_[lb, 0.0], np.r_[ub, np.inf]))
     assert np.sqrt(np.mean((B @ z - y) ** 2)) < 1e-9
+
+
+def test_the_heavy_fits_run_blas_on_one_thread(monkeypatch):
+    """The Preisach fit and variable projection hold BLAS to one thread while they run (on a
+    shared machine a second thread's spinning cost 1.5-3x; identify.core._one_blas_thread),
+    and give it back after."""
+    threadpoolctl = pytest.importorskip("threadpoolctl")
+    import importlib
+
+    core = importlib.import_module("piezohyst.identify.core")
+    varpro = importlib.import_module("piezohyst.identify.varpro")
+
+    def blas_threads():
+        return {i["num_threads"] for i in threadpoolctl.threadpool_info() if i["user_api"] == "blas"}
+
+    seen = []
+    for module, name in ((core, "_gram_nnls"), (varpro, "_small_bounded_lstsq")):
+        real = getattr(module, name)
+        monkeypatch.setattr(module, name, lambda *a, _real=real, **k: seen.append(blas_threads()) or _real(*a, **k))
+    before = blas_threads()
+    v = drive(800, 2)
+    ph.identify(v, v**2, "preisach", levels=6)
+    ph.identify(v, v**2, "mpi", structure="fit", operators=3, rng=0, max_iterations=2)
+    assert len(seen) > 2 and all(s == {1} for s in seen)
+    assert blas_threads() == before

@@ -382,6 +382,47 @@ def test_mat_v5_size_is_bounded(tmp_path):
         load_record(f, input="u", output="y", fs=1.0, max_bytes=1_000_000)
 
 
+def test_mat_v5_reads_only_what_was_named(tmp_path, monkeypatch):
+    # a numeric variable over the limit that nobody asks for is never read (it used to stop
+    # the whole file); a struct whose fields decompress past the limit is listed by name and
+    # refused when a field is asked for, never decompressed past the limit
+    f = tmp_path / "mixed.mat"
+    big = np.zeros(2_000_000)  # 16 MB of zeros: a few kB compressed
+    scipy.io.savemat(
+        f, {"big": big, "s": {"wave": big, "gain": 2.0}, "u": np.arange(10.0), "y": np.ones(10)}, do_compression=True
+    )
+    assert f.stat().st_size < 100_000
+    read: list[object] = []
+    real = scipy.io.loadmat
+    monkeypatch.setattr(scipy.io, "loadmat", lambda *a, **k: read.append(k.get("variable_names")) or real(*a, **k))
+    rec = load_record(f, input="u", output="y", fs=1.0, max_bytes=1_000_000)
+    np.testing.assert_array_equal(rec.input, np.arange(10.0))
+    assert read and all(names in (["u"], ["y"]) for names in read)  # 'big' and 's' never read
+    with pytest.raises(
+        DataError, match=r"MATLAB variable 'big' of shape \(1, 2000000\) \(double\) would take 16,000,000"
+    ):
+        load_record(f, input="big", output="y", fs=1.0, max_bytes=1_000_000)
+    with pytest.raises(DataError, match=r"MATLAB variable 's' of shape \(1, 1\) \(struct\) would take [0-9,]+ bytes"):
+        load_record(f, input="s.wave", output="y", fs=1.0, max_bytes=1_000_000)
+    # under a limit that holds it, the struct's fields are variables like any other
+    rec = load_record(f, input="s.wave", output="big", fs=1.0)
+    assert rec.n == 2_000_000
+
+
+def test_mat_v5_decompressed_size_is_counted_not_held(tmp_path):
+    from piezohyst.signals.data import _Mat5Index
+
+    f = tmp_path / "z.mat"
+    scipy.io.savemat(f, {"a": np.zeros(3_000_000), "b": np.arange(4.0)}, do_compression=True)
+    index = _Mat5Index(f, 2)
+    assert [c for *_, c in index.elements] == [True, True] and index.complex == [False, False]
+    # the element: tags and headers, then 24,000,000 bytes of data
+    assert 24_000_000 < index.decompressed_size(0, 10**9) < 24_000_100
+    # stopped just past the limit: at most one 1 MiB piece beyond it
+    assert 1_000_000 < index.decompressed_size(0, 1_000_000) <= 1_000_000 + (1 << 20)
+    assert index.decompressed_size(1, 10**9) < 200
+
+
 @needs_h5py
 def test_hdf5_external_links_storage_and_virtual_datasets_are_refused(tmp_path):
     secret = tmp_path / "secret.bin"

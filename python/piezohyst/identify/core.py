@@ -14,10 +14,12 @@ underscore) take records already validated (finite 1-D float64 arrays of checked
 
 from __future__ import annotations
 
+import functools
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Protocol, TypeAlias, runtime_checkable
+from typing import TYPE_CHECKING, Any, ParamSpec, Protocol, TypeAlias, TypeVar, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
@@ -77,8 +79,10 @@ class FitResult(RunReport):
 
     As every :class:`~piezohyst.optimize.RunReport`: ``wall_time`` (s), ``evaluations`` (the
     bounded least-squares solves: 1, or 1 plus the reweighted solves of the Huber loss),
-    ``history`` (empty: a linear fit does not iterate over candidates) and ``partial``
-    (always ``False``: a linear fit is not interrupted halfway).
+    ``history`` (empty: a linear fit does not iterate over candidates; a Preisach grid's holds
+    the smoothing strengths it chose among, :func:`fit_linear`) and ``partial`` (always
+    ``False``: a linear fit is not interrupted halfway); ``condition``: the conditioning of
+    the least-squares problem.
 
     Parameters
     ----------
@@ -95,6 +99,8 @@ class FitResult(RunReport):
         Empty for a linear fit.
     partial : bool
         Always ``False``.
+    condition : float
+        Condition number of the equilibrated regressors of the least-squares problem.
 
     Examples
     --------
@@ -112,6 +118,9 @@ class FitResult(RunReport):
     evaluations: int = 1
     history: dict[str, Any] = field(default_factory=dict)
     partial: bool = False
+    #: The 2-norm condition number of the equilibrated regressors the least squares solved
+    #: (PI family; ``nan`` when not computed: a Preisach grid's hundreds of columns).
+    condition: float = math.nan
 
     def __repr__(self) -> str:
         m = self.metrics
@@ -533,6 +542,8 @@ def _design(
     The family's parameter row is unchanged."""
     lb, ub, build = _layout(model)
     A = _core.regressors(model.family, list(model.dims), model.to_row(), v)
+    if isinstance(model, RateDependentPI):
+        A, lb, build = _rate_interpolation(model, A, lb, build)
     if not offset or _has_constant(A):
         return A, lb, ub, build
     A = np.column_stack([A, np.ones(v.size)])
@@ -541,6 +552,62 @@ def _design(
         return build(t[:-1]).with_output_map(offset=float(t[-1]))
 
     return A, np.append(lb, -np.inf), np.append(ub, np.inf), build_offset
+
+
+#: The rate-dependent PI's fit keeps every play weight ``w_i + c_i rate`` non-negative up to
+#: this many times the record's largest (filtered) input rate (:func:`_rate_interpolation`).
+RATE_MARGIN = 4.0
+
+
+def _rate_interpolation(
+    model: RateDependentPI, A: FloatArray, lb: FloatArray, build: Callable[[FloatArray], LinearModel]
+) -> tuple[FloatArray, FloatArray, Callable[[FloatArray], LinearModel]]:
+    """The rate-dependent PI's weights ``w_i + c_i rate`` fitted as ``a_i (1 - rho) + b_i rho``,
+    ``rho = rate / R``, ``a_i, b_i >= 0`` (the weights at rate 0 and at ``R``), ``R`` =
+    :data:`RATE_MARGIN` times the record's largest rate: ``(A, lb, build)`` with the columns
+    ``z_i (1 - rho)`` and ``z_i rho`` in place of ``z_i`` and ``z_i rate``.
+
+    The same model (``w_i = a_i``, ``c_i = (b_i - a_i) / R``), well posed: with ``c_i`` free
+    the fit could trade ``w_i`` against ``c_i`` wherever the record's rate varies little (one
+    frequency: the columns ``z_i`` and ``z_i rate`` nearly collinear; rates in 1e4-1e6 V/s
+    beside weights of 1e-2), and a weight that goes negative at a faster rate than the
+    training's makes the model non-monotone there (a 10 Hz sine trained, 30 Hz held out: 4.8 %
+    of the range where the fixed structure gives 1.9 %; now 1.1 %). The rate at each sample is
+    read off the regressors (``z_i rate / z_i``), the core's definition, not a second one."""
+    n = model.thresholds.size
+    slots = _linear_slots(model)
+    starts = np.cumsum([0] + [size for size, _ in slots])[:-1]
+    # the play weights: the non-negative slot of n; the rate weights: the free slot of n
+    iw = next(int(a) for (size, nonneg), a in zip(slots, starts, strict=True) if size == n and nonneg and a > 0)
+    ic = next(int(a) for (size, nonneg), a in zip(slots, starts, strict=True) if size == n and not nonneg)
+    Z, ZR = A[:, iw : iw + n], A[:, ic : ic + n]
+    j = np.argmax(np.abs(Z), axis=1)
+    rows = np.arange(A.shape[0])
+    zj = Z[rows, j]
+    moving = zj != 0.0
+    top = float(np.max(np.abs(ZR[rows, j][moving] / zj[moving]))) if np.any(moving) else 0.0
+    if not (np.isfinite(top) and top > 0.0):
+        return A, lb, build  # no rate: the rate weights have nothing to act on
+    R = RATE_MARGIN * top
+    A = A.copy()
+    A[:, iw : iw + n] = Z - ZR / R
+    A[:, ic : ic + n] = ZR / R
+    lb = lb.copy()
+    lb[ic : ic + n] = 0.0
+
+    def build_rates(t: FloatArray) -> LinearModel:
+        t = np.array(t, dtype=np.float64)
+        t[ic : ic + n] = (t[ic : ic + n] - t[iw : iw + n]) / R
+        return build(t)
+
+    return A, lb, build_rates
+
+
+def _condition(A: FloatArray) -> float:
+    """2-norm condition number of a regressor matrix with its columns equilibrated (the
+    matrix the bounded least squares solve): ``inf`` when rank deficient."""
+    s = np.linalg.svd(A, compute_uv=False)
+    return float(s[0] / s[-1]) if s.size and s[-1] > 0 else math.inf
 
 
 def _fit_linear(
@@ -570,7 +637,8 @@ def _fit_linear(
         z, k = _irls_huber(A, y, bounds, z, delta, _qr_bounded_lstsq)
         solves += k
     fitted = build(z / scale)
-    return FitResult(fitted, _fit_metrics(fitted.simulate(v), y), time.perf_counter() - t0, solves)
+    metrics = _fit_metrics(fitted.simulate(v), y)
+    return FitResult(fitted, metrics, time.perf_counter() - t0, solves, condition=_condition(A))
 
 
 def parameter_count(model: LinearModel, columns: int) -> int:
@@ -593,6 +661,34 @@ def _what(model: LinearModel) -> str:
     return f"a {type(model).__name__} model of {model.thresholds.size} operators"
 
 
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
+
+
+def _one_blas_thread(fit: Callable[_P, _R]) -> Callable[_P, _R]:
+    """Run ``fit`` with BLAS (OpenBLAS, MKL, ...) limited to one thread (threadpoolctl), the
+    limit lifted after. The fits call BLAS thousands of times on matrices of a few hundred to
+    a thousand columns, where a second thread barely helps and, on a shared machine, costs:
+    waiting threads spin, and a busy core stalls every call (measured on the 2-core machine
+    at load 3-6: a 1178 x 1178 Cholesky 0.017 s on one thread, 0.215 s on two; the 48-level
+    Preisach fit of bench/identify_speed.py 2.1-2.2 s CPU on one, 2.9-3.2 s on two, and 6.2-6.7 s
+    wall on two at load 5-6)."""
+
+    @functools.wraps(fit)
+    def limited(*args: _P.args, **kwargs: _P.kwargs) -> _R:
+        try:
+            from threadpoolctl import threadpool_limits
+        except ImportError:  # an environment from before the dependency: BLAS keeps its threads
+            return fit(*args, **kwargs)
+        import scipy.linalg  # noqa: F401  (loads SciPy's BLAS first: the limit covers the libraries loaded)
+
+        with threadpool_limits(limits=1, user_api="blas"):
+            return fit(*args, **kwargs)
+
+    return limited
+
+
+@_one_blas_thread
 def _fit_preisach(
     model: Preisach,
     v: FloatArray,
@@ -629,11 +725,14 @@ def _fit_preisach(
     (``smoothing=None``) the strength is chosen among :data:`PREISACH_SMOOTHINGS` by hold-out:
     each fits the record but its last :data:`PREISACH_HOLDOUT` and predicts that end, the
     state carried (the regressors are the free run's: the prediction is a product, not a
-    simulation); the best prediction wins (RMSE, or the Huber cost with ``loss="huber"``). A
-    decaying record's end has its smallest loops, so the hold-out asks what a validation
-    span asks. ``smoothing = 0`` is the plain non-negative least squares. ``weights``: sample
-    weights (``sum w r^2``). The result's ``history`` holds the strengths tried, their
-    hold-out errors and the one used (``smoothing``)."""
+    simulation); the best prediction wins (RMSE, or the Huber cost with ``loss="huber"``, the
+    hold-out fits then weighted by one IRLS step's Huber weights, from which the final IRLS
+    starts), among the strengths whose fit misses its own data by at most
+    :data:`PREISACH_FIT_TOLERANCE` more than the fit without the prior. A decaying record's end
+    has its smallest loops, so the hold-out asks what a validation span asks. ``smoothing = 0``
+    is the plain non-negative least squares. ``weights``: sample weights (``sum w r^2``). The
+    result's ``history`` holds the strengths tried, their hold-out errors and the one used
+    (``smoothing``)."""
     lb, _, build = _layout(model)
     A = _core.regressors(model.family, list(model.dims), model.to_row(), v)
     head = A.shape[1] - model.weights.size  # offset and slope, then one column per cell
@@ -642,13 +741,19 @@ def _fit_preisach(
     bits = np.packbits(cells.T > 0.5, axis=1)
     patterns, first, group = np.unique(bits, axis=0, return_index=True, return_inverse=True)
     group = group.ravel()
-    constant = np.all(cells[:, first] == cells[:1, first], axis=0)
+    constant = (cells.max(axis=0) == cells.min(axis=0))[first]  # reductions, no copy of the matrix
     kept = np.flatnonzero(~constant)
     counts = np.bincount(group, minlength=patterns.shape[0])
-    # one unknown per kept group: the weight of each of its cells (their columns summed)
-    B = np.concatenate([A[:, :head], cells[:, first[kept]] * counts[kept]], axis=1)
+    # one unknown per kept group: the weight of each of its cells (their columns summed, count
+    # times the first's), the columns equilibrated to unit RMS in place (the matrix is N x ~L^2/2)
+    C = cells[:, first[kept]]
+    norm = np.maximum(np.sqrt(np.einsum("ij,ij->j", C, C) / v.size), 1e-300)
+    C /= norm
+    head_scale = np.maximum(np.sqrt(np.mean(A[:, :head] ** 2, axis=0)), 1e-300)
+    B = np.concatenate([A[:, :head] / head_scale, C], axis=1)
+    del C
+    scale = np.concatenate([head_scale, counts[kept] * norm])  # B's columns are the regressors / scale
     blb = np.concatenate([lb[:head], lb[head:][first[kept]]])
-    scale = np.maximum(np.sqrt(np.mean(B**2, axis=0)), 1e-300)
     unit_penalty = None  # the prior of strength 1 per sample of the data term
     if kept.size > 1 and (smoothing is None or smoothing > 0):
         column = np.full(patterns.shape[0], -1)
@@ -658,7 +763,6 @@ def _fit_preisach(
         if cost > 0:
             # in the equilibrated unknowns z = u * scale, relative to the data term's size
             unit_penalty = (float(np.mean(scale[head:] ** 2)) / cost) * DD / np.outer(scale, scale)
-    B = B / scale
     bounds = (blb * scale, np.full(blb.size, np.inf))
     # the normal equations square the conditioning: solve for the output in units of its RMS, so
     # a record in other units (a gain) gives the same fit to rounding, not to the solver's tolerance
@@ -679,17 +783,17 @@ def _fit_preisach(
     history: dict[str, Any] = {}
     dn = None if delta is None else delta / unit
     solves = 0
-    z = None
+    h = None  # the Huber weights (square roots) of the fit without the prior, when chosen by hold-out
     choose = unit_penalty is not None and smoothing is None and k >= B.shape[1] and v.size - k >= 2
     if unit_penalty is None or (smoothing is None and not choose):  # nothing to smooth, or too short to hold out
         smoothing = 0.0
     if choose and loss == "huber":
         # the hold-out's fits must not chase the glitches either: they are weighted by the Huber
-        # weights of the fit without the prior (the IRLS's last), and score the end by its cost
-        z = _gram_nnls(G, b, free)
-        z, n_irls = _irls_huber(B, yn, bounds, z, dn, _bounded_lstsq_gram)
-        solves += 1 + n_irls
-        h = _huber_sqrt_weights(B @ z - yn, dn, float(np.ptp(yn)) or 1.0)
+        # weights of the least-squares fit without the prior (one IRLS step: the glitches stand
+        # out of its residuals), and score the end by its cost; the final IRLS starts from them
+        z0 = _gram_nnls(G, b, free)
+        solves += 1
+        h = _huber_sqrt_weights(B @ z0 - yn, dn, float(np.ptp(yn)) or 1.0)
         Bh, yh = B[:k] * h[:k, None], yn[:k] * h[:k]
         G1, b1, yy = Bh.T @ Bh, Bh.T @ yh, float(yh @ yh)
     if choose:
@@ -703,16 +807,18 @@ def _fit_preisach(
     assert smoothing is not None
     penalty = None if unit_penalty is None or smoothing == 0 else smoothing * float(np.sum(w)) * unit_penalty
     history["smoothing"] = smoothing
-    if z is None or penalty is not None:
+    if h is None:
         z = _gram_nnls(G if penalty is None else G + penalty, b, free)
-        solves += 1
-        if loss == "huber":
+    else:  # warm start: the Huber weights of the least-squares fit without the prior
+        z = _bounded_lstsq_gram(B * h[:, None], yn * h, bounds, penalty)
+    solves += 1
+    if loss == "huber":
 
-            def solve(A_: FloatArray, y_: FloatArray, b_: tuple[FloatArray, FloatArray]) -> FloatArray:
-                return _bounded_lstsq_gram(A_, y_, b_, penalty)
+        def solve(A_: FloatArray, y_: FloatArray, b_: tuple[FloatArray, FloatArray]) -> FloatArray:
+            return _bounded_lstsq_gram(A_, y_, b_, penalty)
 
-            z, n_irls = _irls_huber(B, yn, bounds, z, dn, solve)
-            solves += n_irls
+        z, n_irls = _irls_huber(B, yn, bounds, z, dn, solve)
+        solves += n_irls
     zb = z * unit / scale
     zb[0] += centre
     per_cell = np.zeros(patterns.shape[0])

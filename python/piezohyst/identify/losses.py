@@ -18,6 +18,7 @@ from .core import (
     FloatArray,
     LinearModel,
     _bvls,
+    _condition,
     _design,
     _fit_metrics,
     _fit_preisach,
@@ -77,7 +78,8 @@ def fit_linear_weighted(
             z, k = _irls_huber(A * s[:, None], y * s, bounds, z, delta, _bvls)
             solves += k
     fitted = build(z / scale)
-    return FitResult(fitted, _fit_metrics(fitted.simulate(v), y), time.perf_counter() - t0, solves)
+    metrics = _fit_metrics(fitted.simulate(v), y)
+    return FitResult(fitted, metrics, time.perf_counter() - t0, solves, condition=_condition(A))
 
 
 def _minimax(A: FloatArray, y: FloatArray, w: FloatArray, bounds: tuple[FloatArray, FloatArray]) -> FloatArray:

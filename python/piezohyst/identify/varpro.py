@@ -63,6 +63,7 @@ from .._validate import as_int, as_record, as_scalar
 from ..errors import ParameterError, ParameterTypeError
 from ..models.creep import Creep
 from ..models.pi import PI, Envelope, GeneralizedPI, RateDependentPI
+from .core import _one_blas_thread
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from .core import Callback, IdentificationResult, LinearModel, RngLike
@@ -404,6 +405,7 @@ def _small_solve(A: FloatArray, y: FloatArray, bounds: tuple[FloatArray, FloatAr
     return _small_bounded_lstsq(A, y, bounds[0], bounds[1])
 
 
+@_one_blas_thread
 def identify_vp(
     input: npt.ArrayLike,
     output: npt.ArrayLike,
@@ -487,7 +489,8 @@ def identify_vp(
         ``method`` is ``"vp-<optimizer>"`` (``+polish``, ``+huber``); ``evaluations`` counts
         the candidate structures evaluated (search and polish); ``history`` holds the
         optimizer's per-iteration history plus ``"parameters"`` (the searched names),
-        ``"structure"`` (every structure parameter of the result by name) and, when polished,
+        ``"structure"`` (every structure parameter of the result by name), ``"condition"``
+        (the 2-norm condition number of the final fit's equilibrated regressors) and, when polished,
         ``"polish"`` (costs before and after, evaluations, SciPy's message, the screened
         costs).
 
@@ -643,6 +646,7 @@ def identify_vp(
     final = _fit_linear(problem.template(structure), v, y, loss, delta, offset=bool(offset))
     fitted = final.model
     evaluations += final.evaluations
+    history["condition"] = final.condition
     train = _fit_metrics(fitted.simulate(v), y)
     val = None
     if validate is not None:

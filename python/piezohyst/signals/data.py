@@ -35,12 +35,13 @@ array([1., 2.])
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import os
 import re
 import warnings
-from collections.abc import Callable, Hashable, Mapping, Sequence
+from collections.abc import Callable, Hashable, Iterator, Mapping, Sequence
 from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING, Any, Protocol, TypeVar
@@ -816,41 +817,188 @@ _MAT_ITEMSIZE = {
 
 
 def open_mat(path: Path, dataset: str | None, limit: int = MAX_ARRAY_BYTES) -> _ContainerTable:
-    """A MATLAB file: v7.3 through :func:`open_hdf5`; v4-v7 through scipy, after the declared
-    size of every numeric variable (:func:`scipy.io.whosmat`) is checked against ``limit``."""
+    """A MATLAB file: v7.3 through :func:`open_hdf5`; v4-v7 through scipy, one variable at a
+    time and none before its size is checked against ``limit``.
+
+    The variables are listed from their headers (:func:`scipy.io.whosmat`; v5-v7: each
+    element's tag and array flags, :class:`_Mat5Index`); a numeric variable is read only when
+    it is asked for (``loadmat(..., variable_names=[name])``), after its declared size and, in a
+    v5-v7 file, the size its element decompresses to (counted by streaming zlib, stopped past
+    the limit) are checked. Structs are read when the file is opened (their fields are the
+    variables' names), each after the same check; a struct over the limit is listed by its
+    name and refused when one of its fields is asked for. Cells, sparse matrices, strings and
+    objects are never read."""
     from scipy.io import loadmat, whosmat
     from scipy.io.matlab import matfile_version
 
+    source = str(path)
     try:
-        major, _ = matfile_version(str(path))
+        major, _ = matfile_version(source)
     except Exception as e:
         raise DataError(f"{path}: not a MATLAB .mat file ({type(e).__name__}: {e})") from None
     if major == 2:
         return open_hdf5(path, dataset, matlab=True, limit=limit)
+    version = 4 if major == 0 else 5
+
+    def unreadable(e: Exception) -> DataError:
+        return DataError(f"{path}: not a readable MATLAB v{version} file ({type(e).__name__}: {e})")
+
     try:
-        # a damaged header's sizes overflow scipy's arithmetic: the error below says so, not a warning
-        with np.errstate(all="ignore"), warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            # scipy reads a v4 header of an unknown byte order and warns the data "may be corrupt"
-            warnings.filterwarnings("error", message=".*may be corrupt")
-            for name, shape, cls in whosmat(str(path)):
-                if cls in _MAT_ITEMSIZE:
-                    size = math.prod(int(k) for k in shape) * _MAT_ITEMSIZE[cls]
-                    _check_size(str(path), f"MATLAB variable {name!r} of shape {tuple(shape)} ({cls})", size, limit)
-            d = loadmat(str(path), simplify_cells=True)
+        with _mat_header_checks():
+            listing = whosmat(source)
+            index = _Mat5Index(path, len(listing)) if version == 5 else None
     except DataError:
         raise
     except Exception as e:
-        raise DataError(
-            f"{path}: not a readable MATLAB v{4 if major == 0 else 5} file ({type(e).__name__}: {e})"
-        ) from None
-    arrays: dict[str, AnyArray] = {}
-    _flatten_mat(d, "", arrays)
+        raise unreadable(e) from None
+    variables: dict[str, tuple[int, ...]] = {}
+    where: dict[str, tuple[int, tuple[int, ...], str]] = {}  # numeric name -> (element, shape, class)
+    too_big: dict[str, DataError] = {}  # structs over the limit, by name
+    arrays: dict[str, AnyArray] = {}  # the structs' fields
+
+    def check(i: int, name: str, shape: tuple[int, ...], cls: str) -> None:
+        what = f"MATLAB variable {name!r} of shape {shape} ({cls})"
+        if cls in _MAT_ITEMSIZE:
+            _check_size(source, what, int(np.prod(shape)) * _MAT_ITEMSIZE[cls], limit)
+        if index is not None:
+            _check_size(source, what, index.decompressed_size(i, limit), limit)
+
+    def read(name: str) -> AnyArray | Mapping[str, object]:
+        try:
+            with _mat_header_checks():
+                d = loadmat(source, variable_names=[name], simplify_cells=True)
+        except Exception as e:
+            raise unreadable(e) from None
+        value: AnyArray | Mapping[str, object] = d[name]
+        return value
+
+    for i, (name, dims, cls) in enumerate(listing):
+        shape = tuple(int(k) for k in dims)
+        if name.startswith("__"):
+            continue
+        if cls in _MAT_NUMERIC and not (index is not None and index.complex[i]):
+            where[name] = (i, shape, cls)
+            squeezed = tuple(k for k in shape if k != 1)  # as loadmat(simplify_cells=True) returns it
+            if int(np.prod(shape)) > 0:
+                variables[name] = squeezed
+        elif cls in _MAT_NUMERIC:
+            where[name] = (i, shape, cls)  # complex: read to say so when asked for
+        elif cls == "struct":
+            try:
+                check(i, name, shape, cls)
+            except DataError as e:
+                too_big[name] = e
+                continue
+            _flatten_mat({name: read(name)}, "", arrays)
+    variables.update(_numeric_shapes(arrays))
 
     def lookup(name: str) -> AnyArray:
-        return _dict_lookup(arrays)(name.replace("/", "."))
+        name = name.replace("/", ".")
+        if name in arrays:
+            return np.asarray(arrays[name])
+        head = name.split(".", 1)[0]
+        if head in too_big and head != name:
+            raise too_big[head]
+        if name not in where:
+            raise KeyError(name)
+        i, shape, cls = where[name]
+        check(i, name, shape, cls)
+        return np.asarray(read(name))
 
-    return _ContainerTable(str(path), "MAT", _numeric_shapes(arrays), lookup, dataset)
+    return _ContainerTable(source, "MAT", variables, lookup, dataset)
+
+
+@contextlib.contextmanager
+def _mat_header_checks() -> Iterator[None]:
+    """scipy's MATLAB reader on a damaged file: overflowing header arithmetic is left to the
+    reader's own error (not a warning), and a v4 header of an unknown byte order, which scipy
+    reads with a warning that the data "may be corrupt", is an error."""
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        warnings.filterwarnings("error", message=".*may be corrupt")
+        yield
+
+
+#: MATLAB classes read as numeric arrays.
+_MAT_NUMERIC = ("double", "single", "int8", "uint8", "int16", "uint16", "int32", "uint32", "int64", "uint64")
+
+#: miCOMPRESSED and miMATRIX, the data types of a MATLAB v5 file's top-level elements.
+_MI_COMPRESSED, _MI_MATRIX = 15, 14
+
+
+class _Mat5Index:
+    """Where each top-level element of a MATLAB v5-v7 file lies, whether it is compressed,
+    and its complex flag, read from the 8-byte tags and the array flags only (the layout
+    scipy's reader walks, one element per variable :func:`scipy.io.whosmat` lists);
+    :meth:`decompressed_size` counts what an element decompresses to without keeping it."""
+
+    def __init__(self, path: Path, count: int) -> None:
+        import zlib
+
+        self.path = path
+        self.elements: list[tuple[int, int, bool]] = []  # (payload offset, byte count, compressed)
+        self.complex: list[bool] = []
+        size = path.stat().st_size
+        with open(path, "rb") as f:
+            f.seek(126)
+            self.order = "<" if f.read(2) == b"IM" else ">"
+            pos = 128
+            while pos + 8 <= size:
+                f.seek(pos)
+                mdtype, nbytes = np.frombuffer(f.read(8), dtype=f"{self.order}u4").tolist()
+                if nbytes == 0 or pos + 8 + nbytes > size:
+                    raise DataError(f"{path}: not a readable MATLAB v5 file (element at byte {pos} runs past the end)")
+                head = f.read(min(nbytes, 4096))
+                if mdtype == _MI_COMPRESSED:
+                    try:
+                        head = zlib.decompressobj().decompress(head, 24)
+                    except zlib.error as e:
+                        raise DataError(f"{path}: not a readable MATLAB v5 file (zlib: {e})") from None
+                    inner = np.frombuffer(head[:4], dtype=f"{self.order}u4") if len(head) >= 4 else [0]
+                    if int(inner[0]) != _MI_MATRIX:
+                        raise DataError(f"{path}: not a readable MATLAB v5 file (a compressed element is not a matrix)")
+                    flags = head[16:20]
+                elif mdtype == _MI_MATRIX:
+                    flags = head[8:12]
+                else:
+                    raise DataError(f"{path}: not a readable MATLAB v5 file (element of type {mdtype} at byte {pos})")
+                word = int(np.frombuffer(flags, dtype=f"{self.order}u4")[0]) if len(flags) == 4 else 0
+                self.complex.append(bool(word & 0x0800))
+                self.elements.append((pos + 8, nbytes, mdtype == _MI_COMPRESSED))
+                pos += 8 + nbytes
+        if len(self.elements) != count:
+            raise DataError(
+                f"{path}: not a readable MATLAB v5 file ({len(self.elements)} elements for {count} variables)"
+            )
+
+    def decompressed_size(self, i: int, limit: int) -> int:
+        """Bytes element ``i`` takes when read: its byte count, or for a compressed one the
+        bytes its zlib stream decompresses to, counted in 1 MiB pieces and stopped once past
+        ``limit`` (the count returned is then above ``limit``)."""
+        import zlib
+
+        offset, nbytes, compressed = self.elements[i]
+        if not compressed:
+            return nbytes
+        d = zlib.decompressobj()
+        total = 0
+        chunk = 1 << 20
+        with open(self.path, "rb") as f:
+            f.seek(offset)
+            left, data = nbytes, b""
+            while total <= limit and not d.eof:
+                if not data and left > 0:
+                    data = f.read(min(chunk, left))
+                    left -= len(data)
+                try:
+                    out = d.decompress(data, chunk)  # at most 1 MiB out; the rest of the input waits
+                except zlib.error as e:
+                    raise DataError(f"{self.path}: not a readable MATLAB v5 file (zlib: {e})") from None
+                total += len(out)
+                data = d.unconsumed_tail
+                if not out and not data and left == 0:
+                    break
+        return total
 
 
 def _import_h5py() -> ModuleType:
