@@ -26,6 +26,7 @@ from .. import _core
 from .._validate import as_int, as_record, as_scalar
 from ..errors import ParameterError, ParameterTypeError
 from ..models.creep import Creep
+from ..models.model import Drift
 from ..models.pi import PI, Envelope, GeneralizedPI, RateDependentPI
 from ..models.preisach import Preisach
 from ..optimize.report import RunReport
@@ -38,9 +39,11 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 __all__ = [
     "CEMF_PARAMETERS",
     "LOSSES",
+    "DriftBasis",
     "FitResult",
     "IdentificationResult",
     "default_huber_delta",
+    "delayed",
     "fit_linear",
     "fit_metrics",
     "huber_cost",
@@ -64,6 +67,82 @@ RngLike: TypeAlias = int | np.integer[Any] | np.random.Generator | np.random.See
 Callback: TypeAlias = "Callable[[IntermediateResult], object]"
 #: A bounded linear least-squares solver ``(A, y, (lower, upper)) -> z``.
 BoundedSolver: TypeAlias = Callable[[FloatArray, FloatArray, tuple[FloatArray, FloatArray]], FloatArray]
+
+
+@dataclass(frozen=True)
+class DriftBasis:
+    """The shape of a drift term fitted with a model: exponential settling terms
+    ``1 - exp(-k / tau)`` (``taus`` in samples) and, with ``linear``, a ramp ``k``, ``k`` the
+    samples since the simulation's first sample (the training record's). Their weights are
+    fitted with the model's linear parameters (free columns of the least squares); :meth:`drift`
+    turns the weights into the model's :class:`~piezohyst.models.model.Drift`.
+
+    Examples
+    --------
+    >>> b = DriftBasis(taus=(100.0,), linear=True)
+    >>> b.name, b.columns(3).shape
+    ('exp(100)+linear', (3, 2))
+    """
+
+    taus: tuple[float, ...] = ()
+    linear: bool = False
+
+    def __post_init__(self) -> None:
+        taus = tuple(as_scalar(t, "drift tau", positive=True) for t in self.taus)
+        object.__setattr__(self, "taus", taus)
+        object.__setattr__(self, "linear", bool(self.linear))
+
+    @property
+    def empty(self) -> bool:
+        """No column: no drift."""
+        return not self.taus and not self.linear
+
+    @property
+    def name(self) -> str:
+        parts = [f"exp({t:.6g})" for t in self.taus] + (["linear"] if self.linear else [])
+        return "+".join(parts) or "none"
+
+    @property
+    def size(self) -> int:
+        return len(self.taus) + int(self.linear)
+
+    def columns(self, n: int) -> FloatArray:
+        """The ``(n, size)`` basis over samples ``0 ... n - 1``: the exponentials, then the ramp."""
+        k = np.arange(n, dtype=np.float64)
+        cols = [-np.expm1(-k / t) for t in self.taus]
+        if self.linear:
+            cols.append(k)
+        return np.column_stack(cols) if cols else np.zeros((n, 0))
+
+    def drift(self, weights: npt.ArrayLike) -> Drift | None:
+        """The model's drift term for the fitted ``weights`` (the basis' column order); ``None``
+        for the empty basis."""
+        w = np.asarray(weights, dtype=np.float64)
+        if self.empty:
+            return None
+        m = len(self.taus)
+        return Drift(taus=self.taus, weights=tuple(float(x) for x in w[:m]), slope=float(w[m]) if self.linear else 0.0)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "taus": list(self.taus), "linear": self.linear}
+
+
+def delayed(input: npt.ArrayLike, delay: int) -> FloatArray:
+    """The input a model with an input delay of ``delay`` samples sees: ``input`` shifted late
+    by ``delay`` samples, the first sample held before the record starts.
+
+    Examples
+    --------
+    >>> delayed([1.0, 2.0, 3.0, 4.0], 2).tolist()
+    [1.0, 1.0, 1.0, 2.0]
+    """
+    v = as_record(input, "input")
+    d = as_int(delay, "delay", minimum=0)
+    if d == 0:
+        return v
+    if d >= v.size:
+        return np.full(v.size, v[0])
+    return np.concatenate([np.full(d, v[0]), v[:-d]])
 
 
 @runtime_checkable
@@ -353,23 +432,34 @@ def _has_constant(A: FloatArray) -> bool:
 
 
 def _design(
-    model: LinearModel, v: FloatArray, offset: bool
+    model: LinearModel, v: FloatArray, offset: bool, drift: DriftBasis | None = None
 ) -> tuple[FloatArray, FloatArray, FloatArray, Callable[[FloatArray], LinearModel]]:
     """``(A, lb, ub, build)``: the regressors of ``model`` on ``v`` with their bounds, and the
     map from a solution to a model. With ``offset`` and no constant column in the family's
     regressors, a column of ones is appended (unbounded) and ``build`` puts its coefficient in
     the model's output map (``output_map.offset``; the gain stays 1, the weights absorb it).
-    The family's parameter row is unchanged."""
+    With a ``drift`` basis its columns are appended last (unbounded) and ``build`` gives the
+    model their :class:`~piezohyst.models.model.Drift`. The family's parameter row is unchanged."""
     lb, ub, build = _layout(model)
     A = _core.regressors(model.family, list(model.dims), model.to_row(), v)
-    if not offset or _has_constant(A):
+    if offset and not _has_constant(A):
+        A = np.column_stack([A, np.ones(v.size)])
+        lb, ub = np.append(lb, -np.inf), np.append(ub, np.inf)
+        family = build
+
+        def build(t: FloatArray) -> LinearModel:
+            return family(t[:-1]).with_output_map(offset=float(t[-1]))
+
+    if drift is None or drift.empty:
         return A, lb, ub, build
-    A = np.column_stack([A, np.ones(v.size)])
+    k = drift.size
+    A = np.column_stack([A, drift.columns(v.size)])
+    mapped = build
 
-    def build_offset(t: FloatArray) -> LinearModel:
-        return build(t[:-1]).with_output_map(offset=float(t[-1]))
+    def build_drift(t: FloatArray) -> LinearModel:
+        return mapped(t[:-k]).with_drift(drift.drift(t[-k:]))
 
-    return A, np.append(lb, -np.inf), np.append(ub, np.inf), build_offset
+    return A, np.append(lb, np.full(k, -np.inf)), np.append(ub, np.full(k, np.inf)), build_drift
 
 
 def _fit_linear(
@@ -380,26 +470,38 @@ def _fit_linear(
     delta: float | None,
     t0: float | None = None,
     offset: bool = False,
+    drift: DriftBasis | None = None,
+    start: int = 0,
 ) -> FitResult:
-    """:func:`fit_linear` of validated records (equal lengths) with a checked loss."""
+    """:func:`fit_linear` of validated records (equal lengths) with a checked loss; with a
+    ``drift`` basis fitted too, and the samples before ``start`` simulated but left out of the
+    cost (the metrics are of the whole record)."""
     t0 = time.perf_counter() if t0 is None else t0
     if isinstance(model, Preisach):  # its own offset constant: no column to add
-        return _fit_preisach(model, v, y, loss, delta, t0)
-    A, lb, ub, build = _design(model, v, offset)
+        return _fit_preisach(model, v, y, loss, delta, t0, drift, start)
+    A, lb, ub, build = _design(model, v, offset, drift)
+    A, yf = A[start:], y[start:]
     scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-300)  # equilibrate the columns
     A = A / scale
     bounds = (lb * scale, ub * scale)
-    z = np.clip(_bvls(A, y, bounds), *bounds)
+    z = np.clip(_bvls(A, yf, bounds), *bounds)
     solves = 1
     if loss == "huber":
-        z, k = _irls_huber(A, y, bounds, z, delta, _bvls)
+        z, k = _irls_huber(A, yf, bounds, z, delta, _bvls)
         solves += k
     fitted = build(z / scale)
     return FitResult(fitted, _fit_metrics(fitted.simulate(v), y), time.perf_counter() - t0, solves)
 
 
 def _fit_preisach(
-    model: Preisach, v: FloatArray, y: FloatArray, loss: str, delta: float | None, t0: float
+    model: Preisach,
+    v: FloatArray,
+    y: FloatArray,
+    loss: str,
+    delta: float | None,
+    t0: float,
+    drift: DriftBasis | None = None,
+    start: int = 0,
 ) -> FitResult:
     """:func:`fit_linear` of a Preisach grid, on the distinct relay patterns the record excites.
 
@@ -411,7 +513,7 @@ def _fit_preisach(
     matrix took minutes), each group's weight is shared equally by its cells (the smoothest
     density that fits) and never-switched cells get weight 0 (their effect is the offset's)."""
     lb, _, build = _layout(model)
-    A = _core.regressors(model.family, list(model.dims), model.to_row(), v)
+    A = _core.regressors(model.family, list(model.dims), model.to_row(), v)[start:]
     head = A.shape[1] - model.weights.size  # offset and slope, then one column per cell
     cells = A[:, head:]
     # distinct relay patterns: the columns as packed bits (a relay is 0 or 1)
@@ -420,8 +522,10 @@ def _fit_preisach(
     group = group.ravel()
     constant = np.all(cells[:, first] == cells[:1, first], axis=0)
     kept = np.flatnonzero(~constant)
-    B = np.concatenate([A[:, :head], cells[:, first[kept]]], axis=1)
-    blb = np.concatenate([lb[:head], lb[head:][first[kept]]])
+    extra = 0 if drift is None else drift.size
+    T = np.zeros((v.size, 0)) if drift is None else drift.columns(v.size)
+    B = np.concatenate([A[:, :head], cells[:, first[kept]], T[start:]], axis=1)
+    blb = np.concatenate([lb[:head], lb[head:][first[kept]], np.full(extra, -np.inf)])
     scale = np.maximum(np.sqrt(np.mean(B**2, axis=0)), 1e-300)
     B = B / scale
     bounds = (blb * scale, np.full(blb.size, np.inf))
@@ -429,9 +533,10 @@ def _fit_preisach(
     # a record in other units (a gain) gives the same fit to rounding, not to the solver's tolerance
     # (and about its mean when the first column is the free offset's constant one: a record with
     # an offset then gives the same fit to rounding too)
-    centre = float(np.mean(y)) if np.all(A[:, 0] == 1.0) and lb[0] == -np.inf else 0.0
-    unit = float(np.sqrt(np.mean((y - centre) ** 2))) or 1.0
-    yn = (y - centre) / unit
+    yf = y[start:]
+    centre = float(np.mean(yf)) if np.all(A[:, 0] == 1.0) and lb[0] == -np.inf else 0.0
+    unit = float(np.sqrt(np.mean((yf - centre) ** 2))) or 1.0
+    yn = (yf - centre) / unit
     z = _bounded_lstsq_gram(B, yn, bounds)
     solves = 1
     if loss == "huber":
@@ -440,10 +545,12 @@ def _fit_preisach(
     zb = z * unit / scale
     zb[0] += centre
     total = np.zeros(patterns.shape[0])
-    total[kept] = zb[head:]
+    total[kept] = zb[head : zb.size - extra]
     counts = np.bincount(group, minlength=patterns.shape[0])
     theta = np.concatenate([zb[:head], total[group] / counts[group]])
     fitted = build(theta)
+    if drift is not None and not drift.empty:
+        fitted = fitted.with_drift(drift.drift(zb[zb.size - extra :]))
     return FitResult(fitted, _fit_metrics(fitted.simulate(v), y), time.perf_counter() - t0, solves)
 
 

@@ -12,7 +12,7 @@ import numpy.typing as npt
 
 from .._validate import as_record
 from ..errors import DataError, ParameterError
-from .core import FitResult, FloatArray, LinearModel, _bvls, _design, _fit_metrics, _irls_huber
+from .core import DriftBasis, FitResult, FloatArray, LinearModel, _bvls, _design, _fit_metrics, _irls_huber
 
 __all__ = ["check_weights", "fit_linear_weighted"]
 
@@ -39,16 +39,20 @@ def fit_linear_weighted(
     weights: FloatArray | None,
     *,
     offset: bool = False,
+    drift: DriftBasis | None = None,
+    start: int = 0,
 ) -> FitResult:
     """The linear parameters of ``model`` (its structure kept) fitted to a validated record by
     ``loss`` (``"squared"``, ``"huber"`` or ``"linf"``) with optional sample ``weights``
-    (``>= 0``; least squares minimizes ``sum w r^2``, the minimax fit ``max w |r|``)."""
+    (``>= 0``; least squares minimizes ``sum w r^2``, the minimax fit ``max w |r|``), a
+    ``drift`` basis fitted with it, the samples before ``start`` left out of the cost."""
     t0 = time.perf_counter()
-    A, lb, ub, build = _design(model, v, offset)
+    A, lb, ub, build = _design(model, v, offset, drift)
+    w = np.ones(v.size) if weights is None else np.array(weights, dtype=np.float64)
+    w[:start] = 0.0
     scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-300)
     A = A / scale
     bounds = (lb * scale, ub * scale)
-    w = np.ones(v.size) if weights is None else weights
     solves = 1
     if loss == "linf":
         z = _minimax(A, y, w, bounds)

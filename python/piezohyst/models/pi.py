@@ -367,17 +367,22 @@ class ModifiedPI(GeneralizedPI):
 
     @classmethod
     def from_gpi(cls, model: GeneralizedPI) -> ModifiedPI:
-        """The same parameters, units, creep and output map as ``model``, named ``"mpi"``."""
-        return cls(
-            model.thresholds,
-            model.weights,
-            model.polynomial,
-            model.rising,
-            model.falling,
-            model.input_range,
-            creep=model.creep,
-            units=model.units,
-        ).with_output_map(model.output_map)
+        """The same parameters, units, creep, output map, input delay and drift as ``model``,
+        named ``"mpi"``."""
+        return (
+            cls(
+                model.thresholds,
+                model.weights,
+                model.polynomial,
+                model.rising,
+                model.falling,
+                model.input_range,
+                creep=model.creep,
+                units=model.units,
+            )
+            .with_output_map(model.output_map)
+            ._copy_with(model.input_delay, model.drift)
+        )
 
 
 class EnvelopeInverse:
