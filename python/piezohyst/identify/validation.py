@@ -339,17 +339,21 @@ def plot_validation(
 def parameter_count(model: object) -> int:
     """Parameters a fit adjusts: the linear families' regressor columns (their structure is
     fixed), Bouc–Wen's four (``a``, ``beta``, ``gamma``, ``d``; ``n = 1``), else the model's
-    row length."""
+    row length; plus one for an input delay and one per drift term."""
     from ..models.differential import BoucWen
     from ..models.pi import PI, GeneralizedPI, RateDependentPI
     from ..models.preisach import Preisach
 
+    drift = getattr(model, "drift", None)
+    extra = int(getattr(model, "input_delay", 0) > 0)
+    if drift is not None:
+        extra += len(drift.taus) + int(drift.slope != 0.0)
     if isinstance(model, (PI, GeneralizedPI, RateDependentPI, Preisach)):
-        return int(_layout(model)[0].size)
+        return int(_layout(model)[0].size) + extra
     if isinstance(model, BoucWen):
-        return 4
+        return 4 + extra
     row = getattr(model, "to_row", None)
-    return int(np.size(row())) if callable(row) else 0
+    return int(np.size(row())) + extra if callable(row) else 0
 
 
 def league_table(

@@ -295,7 +295,9 @@ class HysteresisModel:
         equal GPI with identity envelopes). ``ParameterError`` when the family cannot hold
         the map (an offset on RDPI or Bouc–Wen; a negative gain on non-negative weights).
         ``input_range``: the inputs the row will see (e.g. the amplifier's limits), the input
-        range of the GPI a PI becomes (default: unbounded)."""
+        range of the GPI a PI becomes (default: unbounded). The input delay and the drift are
+        kept (they are not in the row: the core's compensated controllers, which invert the
+        row, leave them out, as :class:`Inverse` does)."""
         if self._map.is_identity:
             return self
         why = ""
@@ -309,7 +311,7 @@ class HysteresisModel:
                 f"parameter row of a {self.kind} model{why}; the core's compensated controllers invert the "
                 "family's row: use a pi, gpi/mpi or preisach model, or one fitted with offset=False (--no-offset)"
             )
-        return folded
+        return folded._copy_with(self._delay, self._drift)
 
     def _fold_map(self, offset: float, gain: float, input_range: tuple[float, float] | None) -> HysteresisModel | None:
         """The model with the map folded into its row, or ``None`` if the family cannot hold it."""

@@ -1,0 +1,125 @@
+"""Structure decisions on the training span (issue 14): the fit's start (lead-in, wiping-out),
+the input delay by training error on shifted regressors, a drift term by an internal split,
+and identify() holding them in the model so its file reproduces the validation figure."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import piezohyst as ph
+from piezohyst.errors import ParameterError
+from piezohyst.identify.core import DriftBasis, delayed
+from piezohyst.identify.dispatch import identify
+from piezohyst.identify.structure import choose_structure, decide_structure, drift_bases, fit_start
+
+FS = 1000.0
+
+
+def excitation(n: int, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / FS
+    f = rng.uniform(0.8, 1.5, 3)
+    phases = rng.uniform(0, 6, 3)
+    return 2.0 + sum(a * np.sin(2 * np.pi * fi * t + p) for a, fi, p in zip((1.0, 0.5, 0.3), f, phases, strict=True))
+
+
+def truth_output(v: np.ndarray, delay: int, noise: float, seed: int = 1) -> np.ndarray:
+    """A PI loop on the thresholds ``identify`` fits with (9 over half the input range) read
+    ``delay`` samples late, with noise: the fitted family holds the truth, the delay is the
+    question."""
+    r = np.arange(9) * np.ptp(v) / 2 / 9
+    y = 3.0 * ph.PI(r, np.linspace(0.5, 0.05, 9), p0=0.4).simulate(delayed(v, delay))
+    return y + noise * np.ptp(y) * np.random.default_rng(seed).standard_normal(v.size)
+
+
+def test_delayed_holds_the_first_sample():
+    assert delayed([1.0, 2.0, 3.0], 0).tolist() == [1.0, 2.0, 3.0]
+    assert delayed([1.0, 2.0, 3.0], 1).tolist() == [1.0, 1.0, 2.0]
+    assert delayed([1.0, 2.0, 3.0], 5).tolist() == [1.0, 1.0, 1.0]
+
+
+def test_fit_start_skips_a_quiet_lead_in_and_the_first_unwiped_stretch():
+    t = np.arange(6000) / FS
+    v = 2.0 + np.sin(2 * np.pi * t) * np.exp(-t / 3.0)  # its extremes: 0.25 s (max), 0.75 s (min)
+    quiet = np.concatenate([np.full(700, 2.0), v])
+    start, why = fit_start(quiet, FS)
+    assert abs(why["lead_in"] - 700) <= 2
+    # after the lead-in: until the input has reached both ends of its range (within 2 % of it):
+    # its first minimum (at 750 samples; within 2 % of the range from about 690)
+    assert 680 <= why["lead_in"] + why["wipe_out"] - 700 <= 750
+    assert start == why["lead_in"] + why["wipe_out"]
+    # without fs no lead-in is looked for; a growing excitation reaches its ends only at the end:
+    # nothing is skipped for them (the cap: 30 % of the span)
+    assert fit_start(quiet)[1]["lead_in"] == 0
+    t = np.arange(3000) / FS
+    assert fit_start(np.sin(2 * np.pi * 2 * t) * t, FS)[1]["wipe_out"] == 0
+
+
+@pytest.mark.parametrize("delay", [0, 2, 7])
+def test_choose_structure_finds_the_delay_of_a_record(delay):
+    v = excitation(6000)
+    y = truth_output(v, delay, 0.001)
+    # the family that holds the truth finds the delay exactly; a 12-level Preisach, which
+    # approximates the loop, within a sample (its misfit leans on the delay)
+    for kind, tolerance in (("pi", 0), ("preisach", 1)):
+        choice = decide_structure(v, y, kind, fs=FS, drift="none")
+        assert abs(choice.delay - delay) <= tolerance, (kind, choice.delay_rmse)
+        assert choice.drift.empty and choice.drift_rmse == {}
+
+
+def test_a_drift_is_kept_only_when_the_split_says_so():
+    v = excitation(8000)
+    y = truth_output(v, 3, 0.001)
+    clean = decide_structure(v, y, "pi", fs=FS)
+    assert clean.delay == 3 and clean.drift.empty  # no drift: none is kept
+    assert set(clean.drift_rmse) == {"none", *(b.name for b in drift_bases(v.size))}
+    drifting = y + 0.05 * np.ptp(y) * np.arange(v.size) / v.size
+    chosen = decide_structure(v, drifting, "pi", fs=FS)
+    assert chosen.delay == 3 and not chosen.drift.empty
+    assert chosen.drift_rmse[chosen.drift.name] < 0.5 * chosen.drift_rmse["none"]
+
+
+def test_choose_structure_checks_its_arguments():
+    v = excitation(200)
+    y = truth_output(v, 0, 0.0)
+    tmpl = ph.PI([0.5, 1.0], [0.0, 0.0])
+    with pytest.raises(ParameterError, match="start = 195 leaves 5 samples"):
+        choose_structure(tmpl, v, y, start=195)
+    with pytest.raises(ParameterError, match="split = 1.0"):
+        choose_structure(tmpl, v, y, split=1.0)
+    with pytest.raises(ParameterError, match="kind = 'cemf'"):
+        decide_structure(v, y, "cemf")
+
+
+@pytest.mark.parametrize(
+    ("kind", "creep"), [("pi", 0), ("gpi", 2), ("mpi", 0), ("rdpi", 2), ("preisach", 0), ("boucwen", 0)]
+)
+def test_identify_holds_delay_and_drift_and_its_model_reproduces_the_validation(kind, creep):
+    v = excitation(5000)
+    y = truth_output(v, 4, 0.002) + 0.03 * np.arange(v.size) / v.size
+    a, b = 0, 3000
+    basis = DriftBasis(taus=(float(b - a),))
+    kw = {"max_iterations": 15, "rng": 0} if kind == "boucwen" else {}
+    res = identify(
+        v[a:b], y[a:b], kind, fs=FS, creep=creep, validate=(v[b:], y[b:]), gap=v[b:b], input_delay=4, drift=basis,
+        fit_start=300, diagnosis=False, **kw,
+    )  # fmt: skip
+    model = res.model
+    assert model.input_delay == 4 and model.drift is not None and model.drift.taus == (3000.0,)
+    assert res.assessment["fit_start"] == 300
+    back = ph.models.model.model_from_dict(model.to_dict())
+    sim = back.simulate(v)
+    assert ph.fit_metrics(sim[b:], y[b:])["rmse_percent"] == pytest.approx(res.validation["rmse_percent"], abs=1e-9)
+    assert ph.fit_metrics(sim[300:b], y[300:b])["rmse_percent"] == pytest.approx(res.train["rmse_percent"], abs=1e-9)
+
+
+def test_identify_refuses_drift_where_it_does_not_apply():
+    v = excitation(1000)
+    y = truth_output(v, 0, 0.0)
+    with pytest.raises(ParameterError, match="drift / fit_start apply"):
+        identify(v, y, "mpi", structure="fit", drift=DriftBasis(linear=True))
+    with pytest.raises(ParameterError, match="input_delay applies to models with an output map"):
+        identify(v, y, "cemf", fs=FS, input_delay=2)
+    with pytest.raises(ParameterError, match="input_delay = -1"):
+        identify(v, y, "pi", input_delay=-1)
