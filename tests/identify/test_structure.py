@@ -41,19 +41,23 @@ def test_delayed_holds_the_first_sample():
 
 def test_fit_start_skips_a_quiet_lead_in_and_the_first_unwiped_stretch():
     t = np.arange(6000) / FS
-    v = 2.0 + np.sin(2 * np.pi * t) * np.exp(-t / 3.0)  # its extremes: 0.25 s (max), 0.75 s (min)
+    v = 2.0 + np.sin(2 * np.pi * t) * np.exp(-t / 3.0)
     quiet = np.concatenate([np.full(700, 2.0), v])
     start, why = fit_start(quiet, FS)
-    assert abs(why["lead_in"] - 700) <= 2
-    # after the lead-in: until the input has reached both ends of its range (within 2 % of it):
-    # its first minimum (at 750 samples; within 2 % of the range from about 690)
-    assert 680 <= why["lead_in"] + why["wipe_out"] - 700 <= 750
-    assert start == why["lead_in"] + why["wipe_out"]
-    # without fs no lead-in is looked for; a growing excitation reaches its ends only at the end:
-    # nothing is skipped for them (the cap: 30 % of the span)
+    assert abs(why["lead_in"] - 700) <= 2 and start == why["lead_in"] + why["wipe_out"]
+    # after the lead-in: until the input has swept 80 % of its range (from its first maximum,
+    # 0.25 s in, down past the middle of the first descent)
+    rest = quiet[why["lead_in"] :]
+    swept = np.maximum.accumulate(rest) - np.minimum.accumulate(rest)
+    k = why["wipe_out"]
+    assert swept[k] >= 0.8 * np.ptp(rest) > swept[k - 1]
+    assert 250 < k < 750
+    # without fs no lead-in is looked for; a growing excitation sweeps its range only at the end:
+    # at most 30 % of the span is skipped
     assert fit_start(quiet)[1]["lead_in"] == 0
     t = np.arange(3000) / FS
-    assert fit_start(np.sin(2 * np.pi * 2 * t) * t, FS)[1]["wipe_out"] == 0
+    _, growing = fit_start(np.sin(2 * np.pi * 2 * t) * t, FS)
+    assert growing["wipe_out"] == int(0.3 * (3000 - growing["lead_in"]))
 
 
 @pytest.mark.parametrize("delay", [0, 2, 7])

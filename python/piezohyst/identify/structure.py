@@ -78,16 +78,20 @@ def default_max_delay(fs: float | None, n: int) -> int:
     return int(max(0, min(m, (n - 1) // 5)))
 
 
-def fit_start(input: npt.ArrayLike, fs: float | None = None, *, cap: float = 0.3) -> tuple[int, dict[str, Any]]:
+def fit_start(
+    input: npt.ArrayLike, fs: float | None = None, *, sweep: float = 0.8, cap: float = 0.3
+) -> tuple[int, dict[str, Any]]:
     """The first sample of a training span the fit's cost should count, with the reasons.
 
     ``lead_in``: with ``fs``, the samples of a quiet lead-in
     (:func:`~piezohyst.signals.preprocess.find_excitation_start`, 0 when the span starts
-    excited). ``wipe_out``: then the samples until the input has reached both ends of its range
-    (within 2 % of it), where a rate-independent hysteresis has forgotten its initial memory;
-    when that takes more than ``cap`` of the excited span (a growing excitation), until the
-    first end is reached, and 0 when even that takes longer. Returns ``(start, report)``,
-    ``start = lead_in + wipe_out``.
+    excited). ``wipe_out``: then the samples until the input has swept ``sweep`` of its range
+    (the running maximum minus the running minimum): the model starts at rest, the actuator
+    where its past left it (on a descending branch at a minimum, say), and they disagree until
+    an excursion of the input has wiped that memory out (a play operator of threshold ``r`` is
+    determined by a monotone excursion of ``2 r``; the default thresholds reach half the range:
+    80 % leaves the widest few). At most ``cap`` of the excited span. Returns ``(start,
+    report)``, ``start = lead_in + wipe_out``.
 
     Examples
     --------
@@ -95,12 +99,13 @@ def fit_start(input: npt.ArrayLike, fs: float | None = None, *, cap: float = 0.3
     >>> v = np.concatenate([np.zeros(500), np.sin(np.linspace(0, 20 * np.pi, 4000))])
     >>> start, why = fit_start(v, fs=1000.0)
     >>> why["lead_in"], why["wipe_out"]
-    (501, 281)
+    (501, 240)
     """
     from ..signals.preprocess import find_excitation_start
 
     v = as_record(input, "input", min_length=2)
     frac = as_scalar(cap, "cap", positive=True)
+    share = as_scalar(sweep, "sweep", positive=True)
     lead = 0
     if fs is not None:
         try:
@@ -108,15 +113,9 @@ def fit_start(input: npt.ArrayLike, fs: float | None = None, *, cap: float = 0.3
         except DataError:
             lead = 0
     rest = v[lead:]
-    lo, hi = float(rest.min()), float(rest.max())
-    tol = 0.02 * (hi - lo)
-    first_hi = int(np.argmax(rest >= hi - tol))
-    first_lo = int(np.argmax(rest <= lo + tol))
-    wipe = max(first_hi, first_lo)
-    if wipe > frac * rest.size:
-        wipe = min(first_hi, first_lo)
-        if wipe > frac * rest.size:
-            wipe = 0
+    swept = np.maximum.accumulate(rest) - np.minimum.accumulate(rest)
+    reached = np.flatnonzero(swept >= share * swept[-1])
+    wipe = int(min(reached[0], frac * rest.size)) if swept[-1] > 0 else 0
     return lead + wipe, {"lead_in": lead, "wipe_out": wipe, "start": lead + wipe}
 
 
