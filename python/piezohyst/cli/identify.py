@@ -110,7 +110,9 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         required=True,
         choices=_KindsOrAuto(_KINDS),
         help=f"model to identify: {', '.join(_KINDS)} (required). Or auto: it fits pi, gpi, mpi, rdpi, "
-        "preisach and boucwen (the PI family with and without --creep 2), ranks them by validation "
+        "preisach and boucwen (the PI family with and without --creep 2, mpi also with --creep 4 and "
+        "with --creep 4 --creep-horizon 10), each with its input delay, drift term and fit start chosen "
+        "on the training range (--lag auto, --drift auto), ranks them by validation "
         "error (state carried) and saves the winner: the simplest model within one standard error "
         "of the best (without --validate: by BIC on the training range); the league table is printed "
         'and put under "league" in --json. pi/gpi/mpi/rdpi/preisach: least '
@@ -196,6 +198,14 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         "time constants) by variable projection: --optimizer over them, least squares inside",
     )
     i.add_argument("--creep", metavar="M", type=int, default=0, help="pi/gpi/mpi/rdpi: add M creep lags (default 0)")
+    i.add_argument(
+        "--creep-horizon",
+        metavar="X",
+        type=float,
+        default=1.0,
+        help="with --creep: the creep lags' time constants span 2 samples to X times the training range's "
+        "duration (default 1; 10 models creep slower than the record, which a short record shows as a trend)",
+    )
     # preprocessing (issue 14, item 2): piezohyst.signals.preprocess on DATA (and a --validate file)
     i.add_argument(
         "--lag",
@@ -410,6 +420,10 @@ def _identify(args: argparse.Namespace) -> int:
         extra["structure"] = "fit"
     if args.creep:
         extra["creep"] = args.creep
+    if args.creep_horizon != 1.0:
+        if not args.creep or not (math.isfinite(args.creep_horizon) and args.creep_horizon > 0):
+            raise _Fail(f"--creep-horizon = {args.creep_horizon:g} needs --creep M and must be a finite number > 0")
+        extra["creep_horizon"] = args.creep_horizon
     honest = _honest_options(args, rec, data, columns, (a, b), None if val_spec is None else (c, d), n)
     if args.model != "boucwen-benchmark":
         extra.update(honest.pop("identify"))
@@ -802,18 +816,22 @@ def _honest_options(
     return {"identify": kw, "note": note}
 
 
-#: ``--model auto``'s candidates: (kind, creep lags).
+#: ``--model auto``'s candidates: (kind, creep lags, creep horizon in training durations). The
+#: MPI with four lags twice: over the record's time scales, and reaching ten times its duration
+#: (creep slower than the record, which a short training range shows as a trend).
 _AUTO = (
-    ("pi", 0),
-    ("pi", 2),
-    ("gpi", 0),
-    ("gpi", 2),
-    ("mpi", 0),
-    ("mpi", 2),
-    ("rdpi", 0),
-    ("rdpi", 2),
-    ("preisach", 0),
-    ("boucwen", 0),
+    ("pi", 0, 1.0),
+    ("pi", 2, 1.0),
+    ("gpi", 0, 1.0),
+    ("gpi", 2, 1.0),
+    ("mpi", 0, 1.0),
+    ("mpi", 2, 1.0),
+    ("mpi", 4, 1.0),
+    ("mpi", 4, 10.0),
+    ("rdpi", 0, 1.0),
+    ("rdpi", 2, 1.0),
+    ("preisach", 0, 1.0),
+    ("boucwen", 0, 1.0),
 )
 
 
@@ -843,6 +861,7 @@ def _decide(
             operators=common["operators"],
             levels=common["levels"],
             creep=extra.get("creep", 0) if own == kind else 0,
+            creep_horizon=extra.get("creep_horizon", 1.0) if own == kind else 1.0,
             delay=lag,
             max_delay=top,
             drift=model_drift,
@@ -901,38 +920,45 @@ def _auto(
     if extra.get("structure") == "fit" or extra.get("creep"):
         raise _Fail("--model auto chooses the structure and the creep itself: drop --structure fit / --creep")
     results: list[tuple[str, int, IdentificationResult | None, str | None]] = []
-    choices: dict[tuple[str, int], StructureChoice] = {}
-    for kind, creep in _AUTO:
+    labels: list[str] = []
+    choices: dict[int, StructureChoice] = {}
+    for kind, creep, horizon in _AUTO:
         kw = dict(extra)
+        labels.append(kind + (f"+creep{creep}" if creep else "") + (f"x{horizon:g}T" if horizon != 1.0 else ""))
         if kind in ("boucwen",) and "weights" in kw:
             results.append((kind, creep, None, "--weights apply to the linear families"))
             continue
         if creep:
             kw["creep"] = creep
+        if horizon != 1.0:
+            kw["creep_horizon"] = horizon
         try:
             # Bouc-Wen takes the decisions of the MPI (rate independent, no creep): the same regressors
-            choice = choices.get(("mpi", 0)) if kind == "boucwen" else None
+            choice = choices.get(_AUTO.index(("mpi", 0, 1.0))) if kind == "boucwen" else None
             if choice is None:
                 choice = _decide(v, y, kind, common, kw, fs, model_lag, model_drift)
-            choices[(kind, creep)] = choice
+            choices[len(results)] = choice
             kw.update(_structure_options(choice))
             fitted = identify(v, y, model=kind, **{**common, "progress": False}, diagnosis=False, **kw)
             results.append((kind, creep, fitted, None))
         except ParameterError as e:
             results.append((kind, creep, None, str(e)))
-    table, best = league_table(results, v.size)
+    table, best = league_table(results, v.size, labels=labels)
     kind, creep, res, _ = results[best]
     assert res is not None  # league_table picks a fitted one
-    chosen = choices[(kind, creep)]
+    chosen = choices[best]
     if not getattr(res, "assessment", {}).get("trusted", True):  # the winner's diagnosis
         kw = {**extra, "creep": creep} if creep else dict(extra)
+        if _AUTO[best][2] != 1.0:
+            kw["creep_horizon"] = _AUTO[best][2]
         res = identify(v, y, model=kind, **{**common, "progress": False}, **kw, **_structure_options(chosen))
     for row in table:
-        c = choices.get((row["kind"], row["creep"]))
+        c = choices.get(labels.index(row["name"]))
         if c is not None and row["rank"] is not None:
             row["input_delay"] = c.delay
             row["drift"] = c.drift.name
             row["fit_start"] = c.start
+            row["creep_horizon"] = _AUTO[labels.index(row["name"])][2]
     return kind, res, table, chosen.to_dict()
 
 

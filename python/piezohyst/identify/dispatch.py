@@ -96,6 +96,7 @@ class _Call:
     weights: FloatArray | None = None
     drift: DriftBasis | None = None
     start: int = 0
+    creep_horizon: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -160,6 +161,7 @@ def identify(
     input_delay: int = 0,
     drift: DriftBasis | None = None,
     fit_start: int = 0,
+    creep_horizon: float = 1.0,
     **options: Any,
 ) -> IdentificationResult:
     """Identify a hysteresis model from an input/output record (free-run simulation error).
@@ -199,8 +201,8 @@ def identify(
         ``polish``, ``starts`` of :func:`piezohyst.varpro.identify_vp` are accepted then.
     creep : int
         PI family only: number of creep lags added to the model (needs ``fs``). Fixed
-        structure: time constants log-spaced over ``[2 Ts, T]`` (``T`` the record's duration),
-        one in the middle of each of ``creep`` equal decade bands; ``structure="fit"`` searches
+        structure: time constants log-spaced over ``[2 Ts, creep_horizon T]`` (``T`` the
+        record's duration), one in the middle of each of ``creep`` equal decade bands; ``structure="fit"`` searches
         each within its band.
     optimizer : str
         ``"ls"`` for the linear families; ``"css"``, ``"pso"``, ``"mpso"`` or ``"de"`` for the
@@ -273,6 +275,10 @@ def identify(
         least-squares columns; ``boucwen`` with the squared loss: projected out of every
         candidate, as the offset), held by the model (:meth:`~piezohyst.HysteresisModel.with_drift`),
         counted from the training record's first sample.
+    creep_horizon : float
+        The upper edge of the slowest creep band, in record durations (default 1; fixed
+        structure): ``10`` places lags slower than the record, whose response to the input's
+        level a short training record shows as a trend.
     fit_start : int
         Samples at the start of the training record simulated but left out of the fit's cost
         (a quiet lead-in, the wiping-out of the unknown initial memory:
@@ -332,6 +338,12 @@ def identify(
         w = check_weights(weights, np.size(input))
     d = as_int(input_delay, "input_delay", minimum=0)
     start = as_int(fit_start, "fit_start", minimum=0)
+    horizon = as_scalar(creep_horizon, "creep_horizon", positive=True)
+    if horizon != 1.0 and (structure == "fit" or model not in ("pi", "gpi", "mpi", "rdpi")):
+        raise ParameterError(
+            f"creep_horizon applies to the PI family with a fixed structure, not to model = {model!r}"
+            f"{' with structure = fit' if structure == 'fit' else ''}"
+        )
     if drift is not None and not isinstance(drift, DriftBasis):
         raise ParameterTypeError(f"drift must be a DriftBasis or None, got {type(drift).__name__}")
     basis = None if drift is None or drift.empty else drift
@@ -376,6 +388,7 @@ def identify(
         options,
         basis,
         start,
+        horizon,
     )
     if model == "boucwen-benchmark":
         return res
@@ -430,6 +443,7 @@ def _identify(
     options: dict[str, Any],
     drift: DriftBasis | None = None,
     start: int = 0,
+    horizon: float = 1.0,
 ) -> IdentificationResult:
     """The kind's fit (:func:`identify` once its own arguments are checked)."""
     if structure not in STRUCTURES:
@@ -516,6 +530,7 @@ def _identify(
         weights,
         drift,
         start,
+        horizon,
     )
     return _named(kind.fit(call), model)
 
@@ -688,7 +703,20 @@ def _free_run(fit: Callable[[_Call, FloatArray, FloatArray], _Fitted]) -> Callab
 @_free_run
 def _fit_linear_kind(c: _Call, v: FloatArray, y: FloatArray) -> _Fitted:
     fit = _identify_linear(
-        c.kind, v, y, c.fs, c.operators, c.levels, c.loss, c.delta, c.creep, c.offset, c.weights, c.drift, c.start
+        c.kind,
+        v,
+        y,
+        c.fs,
+        c.operators,
+        c.levels,
+        c.loss,
+        c.delta,
+        c.creep,
+        c.offset,
+        c.weights,
+        c.drift,
+        c.start,
+        c.creep_horizon,
     )
     return fit.model, "ls", {}, False, fit.evaluations
 
@@ -722,22 +750,23 @@ def _identify_linear(
     weights: FloatArray | None = None,
     drift: DriftBasis | None = None,
     start: int = 0,
+    horizon: float = 1.0,
 ) -> FitResult:
     """The least-squares kinds' fit, from the validated record (the checks and their order
     are those of :func:`identify_pi`, :func:`identify_mpi`, :func:`identify_preisach` and
     :func:`fit_linear`, without validating the record again)."""
-    template = _linear_template(model, v, fs, operators, levels, creep)
+    template = _linear_template(model, v, fs, operators, levels, creep, horizon)
     if loss == "linf" or weights is not None:
         return fit_linear_weighted(template, v, y, loss, delta, weights, offset=offset, drift=drift, start=start)
     return _fit_linear(template, v, y, loss, delta, offset=offset, drift=drift, start=start)
 
 
 def _linear_template(
-    model: str, v: FloatArray, fs: float | None, operators: int, levels: int, creep: int = 0
+    model: str, v: FloatArray, fs: float | None, operators: int, levels: int, creep: int = 0, horizon: float = 1.0
 ) -> LinearModel:
     """The fixed structure of a least-squares kind for the training input ``v`` (its linear
     parameters zero): default thresholds, envelopes, grid and creep lags."""
-    lags = _default_creep(v.size, fs, creep)
+    lags = _default_creep(v.size, fs, creep, horizon)
     template: LinearModel
     if model == "pi":
         r = _default_thresholds(v, as_int(operators, "operators", minimum=1))
@@ -755,15 +784,16 @@ def _linear_template(
     return template
 
 
-def _default_creep(n: int, fs: float | None, terms: int) -> Creep | None:
+def _default_creep(n: int, fs: float | None, terms: int, horizon: float = 1.0) -> Creep | None:
     """``terms`` creep lags for a record of ``n`` samples at ``fs``: one time constant in the
-    middle (in decades) of each of ``terms`` equal bands of ``[2 Ts, n Ts]``; ``None`` for 0."""
+    middle (in decades) of each of ``terms`` equal bands of ``[2 Ts, horizon n Ts]``; ``None``
+    for 0."""
     if not terms:
         return None
     if fs is None:
         raise ParameterError(f"fs is required with creep = {terms} (the lags need the sample time)")
     fs = as_scalar(fs, "fs", positive=True)
-    lo, hi = np.log10(2.0 / fs), np.log10(n / fs)
+    lo, hi = np.log10(2.0 / fs), np.log10(horizon * n / fs)
     w = (hi - lo) / terms
     return Creep(1.0 / fs, 10.0 ** (lo + w * (np.arange(terms) + 0.5)), np.zeros(terms))
 

@@ -400,6 +400,7 @@ def decide_structure(
     max_delay: int | None = None,
     drift: str = "auto",
     start: int | str = "auto",
+    creep_horizon: float = 1.0,
 ) -> StructureChoice:
     """What a careful engineer decides before fitting ``kind`` to a training span: the fit's
     first sample, the input delay and a drift term (:func:`choose_structure` on the kind's
@@ -414,7 +415,7 @@ def decide_structure(
     fs : float, optional
         Sample rate, Hz: the lead-in's length, the default ``max_delay`` (20 ms of samples).
     operators, levels, creep : int
-        The kind's structure, as :func:`~piezohyst.identify` fits it.
+        The kind's structure, as :func:`~piezohyst.identify` fits it (``creep_horizon`` too).
     delay : int or "auto"
         The input delay in samples, or ``"auto"``: searched from 0 to ``max_delay``.
     drift : {"auto", "none"}
@@ -441,7 +442,9 @@ def decide_structure(
     else:
         s = as_int(start, "start", minimum=0)
     own = kind in _OWN_TEMPLATE
-    template = _linear_template(kind if own else "mpi", v, fs, operators, levels, creep if own else 0)
+    template = _linear_template(
+        kind if own else "mpi", v, fs, operators, levels, creep if own else 0, creep_horizon if own else 1.0
+    )
     bases = drift_bases(v.size) if drift == "auto" else ()
     if delay == "auto":
         top = default_max_delay(fs, v.size) if max_delay is None else as_int(max_delay, "max_delay", minimum=0)

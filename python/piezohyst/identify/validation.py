@@ -357,10 +357,13 @@ def parameter_count(model: object) -> int:
 
 
 def league_table(
-    results: list[tuple[str, int, IdentificationResult | None, str | None]], n_train: int
+    results: list[tuple[str, int, IdentificationResult | None, str | None]],
+    n_train: int,
+    *,
+    labels: list[str] | None = None,
 ) -> tuple[list[dict[str, Any]], int]:
     """Rank fitted candidates ``(kind, creep, result or None, error)``: ``(rows, index of the
-    chosen result)``.
+    chosen result)``; ``labels`` name them (default: ``kind+creepM``).
 
     With validation data: by validation RMSE (state carried, as :func:`identify` scores it),
     the chosen model being the one with the fewest parameters whose validation MSE is within
@@ -401,6 +404,9 @@ def league_table(
         limit = float("nan")
         criterion = "BIC (train)"
     order = sorted(score, key=lambda i: score[i])
+    names = [k + (f"+creep{c}" if c else "") for k, c, _, _ in results] if labels is None else list(labels)
+    if len(names) != len(results):
+        raise ParameterError(f"labels has {len(names)} names for {len(results)} candidates")
     rows: list[dict[str, Any]] = []
     for rank, i in enumerate(order, 1):
         kind, creep, got, _ = results[i]
@@ -409,7 +415,7 @@ def league_table(
         rows.append(
             {
                 "rank": rank,
-                "name": kind + (f"+creep{creep}" if creep else ""),
+                "name": names[i],
                 "kind": kind,
                 "creep": creep,
                 "parameters": k[i],
@@ -422,12 +428,12 @@ def league_table(
                 "chosen": i == chosen,
             }
         )
-    for kind, creep, got, err in results:
+    for j, (kind, creep, got, err) in enumerate(results):
         if got is None:
             rows.append(
                 {
                     "rank": None,
-                    "name": kind + (f"+creep{creep}" if creep else ""),
+                    "name": names[j],
                     "kind": kind,
                     "creep": creep,
                     "error": err,
