@@ -12,7 +12,9 @@ engineer decides before fitting, :func:`choose_structure` decides from the train
   reached the extremes of its range: until then the model, started at rest, and the actuator,
   started wherever its past left it, disagree for reasons no parameter can fix). The model is
   still simulated from the training span's first sample; the samples before the fit's start
-  are left out of the fit's cost, not out of the simulation;
+  are left out of the fit's cost, not out of the simulation. Whether to skip the wiping-out
+  too is weighed by the internal split below (on a span of one or two cycles the first sweep
+  is data the fit cannot spare);
 - **the input delay** (samples): the delay of the model's input (``HysteresisModel.input_delay``)
   whose fit has the smallest training error (one parameter: the in-sample error is a fair
   judge), searched on a grid from 0 to ``max_delay`` then refined to the sample;
@@ -134,6 +136,8 @@ class StructureChoice:
     split: int | None = None
     #: Effective samples of the internal score (autocorrelation discounted).
     n_eff: float | None = None
+    #: Internal-split RMSE (output units) of each fit start weighed (the earliest and the wiped).
+    start_rmse: dict[int, float] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -144,6 +148,7 @@ class StructureChoice:
             "drift_rmse": dict(self.drift_rmse),
             "split": self.split,
             "n_eff": self.n_eff,
+            "start_rmse": {str(k): v for k, v in sorted(self.start_rmse.items())},
         }
 
 
@@ -267,6 +272,7 @@ def choose_structure(
     delay: int | None = None,
     drifts: tuple[DriftBasis, ...] = (),
     split: float = 0.7,
+    earliest: int | None = None,
 ) -> StructureChoice:
     """The input delay and drift basis of a linear model's fit to a training span (see the
     module's description), from ``template``'s structure (its linear parameters are ignored).
@@ -285,6 +291,11 @@ def choose_structure(
         The drift bases tried against none (empty: no drift).
     split : float
         The internal split: the fit on this fraction of ``[start, n)``, scored on the rest.
+    earliest : int, optional
+        An earlier fit start to weigh against ``start`` (the end of a quiet lead-in, when
+        ``start`` also skips the wiping-out): the internal split keeps the one whose fit
+        predicts the rest better (on a span of a cycle or two the first sweep is data the fit
+        cannot spare; on a longer one, a transient it should not explain).
 
     Returns
     -------
@@ -344,6 +355,15 @@ def choose_structure(
     drift_rmse: dict[str, float] = {}
     m = s + int(frac * (n - s))
     n_eff = None
+    start_rmse: dict[int, float] = {}
+    if earliest is not None and as_int(earliest, "earliest", minimum=0) < s and n - m >= 8 and m - s >= 8:
+        none = np.zeros((n, 0))
+        for lo in (int(earliest), s):
+            G, b, _, fr = gram.normal(best, lo, m, none)
+            r = gram.rows(best, m, n) @ _solve(G, b, fr) - gram.y[m:]
+            start_rmse[lo] = unit * math.sqrt(float(np.mean(r * r)))
+        if start_rmse[int(earliest)] < start_rmse[s]:
+            s = int(earliest)
     if drifts and n - m >= 8 and m - s >= 8:
         scores: dict[str, tuple[float, DriftBasis]] = {}
         residual_none = None
@@ -366,7 +386,16 @@ def choose_structure(
         if name != "none" and scores[name][0] * (1 + math.sqrt(2.0 / n_eff)) < base:
             chosen = scores[name][1]
         drift_rmse = {k: unit * math.sqrt(mse) for k, (mse, _) in scores.items()}
-    return StructureChoice(best, chosen, s, rmse, drift_rmse, split=m if drift_rmse else None, n_eff=n_eff)
+    return StructureChoice(
+        best,
+        chosen,
+        s,
+        rmse,
+        drift_rmse,
+        split=m if drift_rmse or start_rmse else None,
+        n_eff=n_eff,
+        start_rmse=start_rmse,
+    )
 
 
 def drift_bases(n: int, spec: tuple[tuple[str, float | None], ...] = DRIFT_BASES) -> tuple[DriftBasis, ...]:
@@ -435,8 +464,10 @@ def decide_structure(
         raise ParameterError(f"kind = {kind!r}: structure decisions apply to {[*_OWN_TEMPLATE, 'boucwen']}")
     if drift not in ("auto", "none"):
         raise ParameterError(f"drift = {drift!r} must be 'auto' or 'none'")
+    earliest = None
     if start == "auto":
-        s, _ = fit_start(v, fs)
+        s, why = fit_start(v, fs)
+        earliest = why["lead_in"]
     elif isinstance(start, str):
         raise ParameterError(f"start = {start!r} must be 'auto' or a number of samples")
     else:
@@ -448,7 +479,8 @@ def decide_structure(
     bases = drift_bases(v.size) if drift == "auto" else ()
     if delay == "auto":
         top = default_max_delay(fs, v.size) if max_delay is None else as_int(max_delay, "max_delay", minimum=0)
-        return choose_structure(template, v, y, start=s, max_delay=top, drifts=bases)
+        return choose_structure(template, v, y, start=s, max_delay=top, drifts=bases, earliest=earliest)
     if isinstance(delay, str):
         raise ParameterError(f"delay = {delay!r} must be 'auto' or a number of samples")
-    return choose_structure(template, v, y, start=s, delay=as_int(delay, "delay", minimum=0), drifts=bases)
+    d = as_int(delay, "delay", minimum=0)
+    return choose_structure(template, v, y, start=s, delay=d, drifts=bases, earliest=earliest)
