@@ -865,6 +865,9 @@ def _decide(
             delay=lag,
             max_delay=top,
             drift=model_drift,
+            # a given delay alone changes nothing else of the fit; a decision taken on the
+            # training range (an auto delay, a drift term) takes the fit's start with it
+            start="auto" if lag == "auto" or model_drift == "auto" else 0,
         )
     except ParameterError as e:
         raise _Fail(f"choosing the input delay and drift on the training range: {e}") from None
