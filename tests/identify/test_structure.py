@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import piezohyst as ph
+from piezohyst import _core
 from piezohyst.errors import ParameterError
 from piezohyst.identify.core import DriftBasis, delayed
 from piezohyst.identify.dispatch import identify
@@ -127,3 +128,24 @@ def test_identify_refuses_drift_where_it_does_not_apply():
         identify(v, y, "cemf", fs=FS, input_delay=2)
     with pytest.raises(ParameterError, match="input_delay = -1"):
         identify(v, y, "pi", input_delay=-1)
+
+
+def test_the_delayed_gram_is_the_normal_equations_of_the_shifted_rows():
+    from piezohyst.identify.structure import _DelayedGram, _reduced_design
+
+    v = excitation(600)
+    y = truth_output(v, 2, 0.01)
+    A, free = _reduced_design(ph.PI([0.3, 0.6], [0.0, 0.0], creep=ph.Creep(1 / FS, [0.05], [0.0])), v)
+    gram = _DelayedGram(A, free, y)
+    T = DriftBasis(taus=(300.0,), linear=True).columns(v.size)
+    for d in (0, 1, 7, 150, 599, 700):  # a delay beyond the rows: every row is the held first one
+        for lo, hi in ((0, 600), (40, 420), (300, 310)):
+            G, b, yy, fr = gram.normal(d, lo, hi, T)
+            X = np.column_stack([gram.rows(d, lo, hi), T[lo:hi]])
+            assert np.allclose(G, X.T @ X, rtol=1e-10, atol=1e-9) and np.allclose(b, X.T @ y[lo:hi])
+            assert yy == pytest.approx(float(y[lo:hi] @ y[lo:hi])) and fr.size == X.shape[1]
+    # the rows are the regressors of the held, delayed input (exact for a rate-independent core)
+    pi = ph.PI([0.3, 0.6], [0.0, 0.0])
+    raw = _core.regressors(pi.family, list(pi.dims), pi.to_row(), v)
+    shifted = _DelayedGram(raw, np.zeros(raw.shape[1], dtype=bool), y).rows(5, 0, v.size)
+    assert np.array_equal(shifted, _core.regressors(pi.family, list(pi.dims), pi.to_row(), delayed(v, 5)))

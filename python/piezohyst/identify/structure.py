@@ -184,8 +184,10 @@ class _DelayedGram:
         """``(G, b, y'y, free)`` of rows ``[lo, hi)`` of ``[A_d | T]`` against ``y``."""
         A, y = self.A, self.y
         held = max(0, min(hi, d) - lo)  # rows k < d: the held first row
-        j0, j1 = max(lo, d) - d, hi - d  # the shifted rows A[j0:j1] answer y[k0:hi]
-        k0 = max(lo, d)
+        k0 = min(max(lo, d), hi)
+        j0, j1 = k0 - d, hi - d  # the shifted rows A[j0:j1] answer y[k0:hi]
+        if j1 <= 0:  # a delay beyond the span: every row is the held first one
+            j0 = j1 = 0
         a0 = A[0]
         G_aa = self._gram_to(j1) - self._gram_to(j0) + held * np.outer(a0, a0)
         b_a = A[j0:j1].T @ y[k0:hi] + a0 * float(np.sum(y[lo : lo + held]))
