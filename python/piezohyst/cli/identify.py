@@ -222,8 +222,8 @@ def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         "--drift",
         metavar="none|auto|remove[:K]",
         default=None,
-        help="'auto': a drift term of the model (an exponential settling or a ramp of the output, "
-        "counted from the training range's start, in the model file) fitted when an internal split "
+        help="'auto': a drift term of the model (an exponential settling of the output with the training "
+        "range's duration as time constant, counted from its start, in the model file) fitted when an internal split "
         "of the training range says it predicts better (pi, gpi, mpi, rdpi, preisach, boucwen; "
         "fixed structure). 'remove': a slow polynomial drift (degree K, default 1) removed from the "
         "record before the fit, fitted together with a rate-independent function of the input. "
