@@ -451,7 +451,8 @@ def _identify(args: argparse.Namespace) -> int:
         kind, res, league, structure = _auto(fit_input, fit_output, common, extra, train.fs, model_lag, model_drift)
     else:
         if model_lag is not None or model_drift == "auto":
-            choice = _decide(fit_input, fit_output, kind, common, extra, train.fs, model_lag, model_drift)
+            start = "auto" if model_drift == "auto" else 0
+            choice = _decide(fit_input, fit_output, kind, common, extra, train.fs, model_lag, model_drift, start)
             structure = choice.to_dict()
             extra.update(_structure_options(choice))
         res = identify(fit_input, fit_output, model=kind, **common, **extra)
@@ -844,10 +845,14 @@ def _decide(
     fs: float,
     model_lag: tuple[int | str, int | None] | None,
     model_drift: str,
+    start: int | str = 0,
 ) -> StructureChoice:
     """The structure decisions of ``kind`` on the training range (the model's input delay, its
     drift basis, the fit's first sample): :func:`piezohyst.identify.structure.decide_structure`;
-    a kind it does not cover (variable projection) takes an MPI's."""
+    a kind it does not cover (variable projection) takes an MPI's. ``start``: the fit's first
+    sample, ``"auto"`` for :func:`~piezohyst.identify.structure.fit_start` (``--model auto``, a
+    drift term: the decisions on the training range take it with them; a delay alone, given or
+    chosen, changes nothing else of the fit)."""
     from ..identify.structure import decide_structure
 
     lag, top = (0, None) if model_lag is None else model_lag
@@ -865,9 +870,7 @@ def _decide(
             delay=lag,
             max_delay=top,
             drift=model_drift,
-            # a given delay alone changes nothing else of the fit; a decision taken on the
-            # training range (an auto delay, a drift term) takes the fit's start with it
-            start="auto" if lag == "auto" or model_drift == "auto" else 0,
+            start=start,
         )
     except ParameterError as e:
         raise _Fail(f"choosing the input delay and drift on the training range: {e}") from None
@@ -939,7 +942,7 @@ def _auto(
             # Bouc-Wen takes the decisions of the MPI (rate independent, no creep): the same regressors
             choice = choices.get(_AUTO.index(("mpi", 0, 1.0))) if kind == "boucwen" else None
             if choice is None:
-                choice = _decide(v, y, kind, common, kw, fs, model_lag, model_drift)
+                choice = _decide(v, y, kind, common, kw, fs, model_lag, model_drift, "auto")
             choices[len(results)] = choice
             kw.update(_structure_options(choice))
             fitted = identify(v, y, model=kind, **{**common, "progress": False}, diagnosis=False, **kw)
