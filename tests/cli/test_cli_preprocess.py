@@ -160,7 +160,14 @@ def test_validate_file_gets_the_same_preprocessing(records, tmp_path):
               "--json", "--force", "--out", tmp_path / "m.json", cwd=tmp_path)  # fmt: skip
     assert out.returncode == 0, out.stderr
     p = json.loads(out.stdout)["preprocessing"]
-    assert p["validation_file"]["lag"] == {"mode": "given", "samples": 5, "seconds": 0.01, "max_lag": None}
+    # the model holds DATA's input delay (chosen on it) and simulates the validation file with it
+    assert p["validation_file"]["lag"] == {
+        "mode": "auto",
+        "samples": 5,
+        "seconds": 0.01,
+        "max_lag": None,
+        "in_model": True,
+    }
 
 
 @pytest.mark.parametrize(
@@ -168,7 +175,7 @@ def test_validate_file_gets_the_same_preprocessing(records, tmp_path):
     [
         (("--lag", "soon"), "--lag = 'soon' must be 'auto', 'auto:M' or an integer"),
         (("--lag", "auto:x"), "--lag = 'auto:x': auto:M needs M"),
-        (("--drift", "yes"), "--drift = 'yes' must be 'none', 'remove' or 'remove:K'"),
+        (("--drift", "yes"), "--drift = 'yes' must be 'none', 'auto', 'remove' or 'remove:K'"),
         (("--drift", "remove:9"), "order = 9 must be 1 to 5"),
         (("--lead-in", "-3"), "--lead-in = '-3' must be 'auto', 'none' or a number of samples"),
         (("--decimate", "0"), "--decimate = 0 must be >= 1"),
@@ -186,4 +193,6 @@ def test_text_output_says_what_was_done(records, tmp_path):
     out = run("identify", records["lag"], "--model", "pi", "--fs", FS, "--lag", "auto", "--decimate", "2",
               "--force", "--out", tmp_path / "m.json", cwd=tmp_path)  # fmt: skip
     assert out.returncode == 0, out.stderr
-    assert "preprocessing: lag 5 samples (auto) removed; decimated by 2 to 250 Hz" in out.stdout
+    assert "preprocessing: decimated by 2 to 250 Hz" in out.stdout
+    # the delay is the model's, chosen on the decimated training range: 5 samples at 500 Hz are 2.5 at 250 Hz
+    assert "input delay: 2 samples (0.008 s), held by the model, chosen on the training range" in out.stdout

@@ -385,3 +385,32 @@ def test_exported_controller_example_matches_python(tmp_path, stage, mpi, c_libr
         position = float(_core.simulate(fam, dims, row, np.array([u]), plant)[0])
         expected.append((k, x, y, u))
     assert np.array_equal(rows, np.array(expected)), name
+
+
+def test_exported_delayed_model_runs_its_delay_line(tmp_path, capsys, mpi, c_library):
+    """A model with an input delay (issue 14): the C model step runs the delay line in its state
+    (the trace is Python's simulate, bit for bit); the inverse inverts the undelayed model on the
+    core state; the drift is not exported, and export-c says so."""
+    drift = ph.models.model.Drift(taus=(50.0,), weights=(1e-7,), slope=1e-9)
+    model = with_map(mpi, True).with_input_delay(3).with_drift(drift)
+    mpath = tmp_path / "delayed.json"
+    model.save(mpath)
+    out = tmp_path / "c"
+    code, _, err = run_cli(capsys, "export-c", str(mpath), "--out", str(out))
+    assert code == 0 and "has a drift term" in err and "not exported" in err and err.count("\n") == 1
+    header = (out / "piezohyst_model.h").read_text()
+    n_core = _core.family_sizes(model.family, list(model.dims))[1]
+    assert "#define PIEZOHYST_MODEL_INPUT_DELAY 3" in header
+    assert f"#define PIEZOHYST_MODEL_CORE_STATE_LEN {n_core}" in header
+    assert f"#define PIEZOHYST_MODEL_STATE_LEN {n_core + 4}" in header
+    assert "drift" in header and "not exported" in header
+    exe = build_example(out, c_library, False)
+    r = subprocess.run([str(exe)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stdout + r.stderr  # the undelayed model reproduces the inverse's target
+    trace = subprocess.run([str(exe), "--trace"], capture_output=True, text=True, check=True).stdout
+    rows = np.array([[float(x) for x in line.split()] for line in trace.splitlines()])
+    v = rows[:, 1]
+    forward = model.with_drift(None)  # what C runs: delay line, core, output map
+    assert np.array_equal(rows[:, 2], forward.simulate(v))
+    assert np.array_equal(rows[:, 3], model.inverse().simulate(rows[:, 2]))
+    assert model.state.size == n_core + 4  # Python's state has the same layout

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 from pathlib import Path
 
 from ..outputs import check_output_dir
@@ -85,6 +86,13 @@ def _export_c(args: argparse.Namespace) -> None:
             f"MODEL = '{model_path}': kind 'boucwen-benchmark' (the Noel-Schoukens oscillator) has no C "
             f"export: the C library runs the hysteresis families (pi, gpi/mpi, rdpi, preisach, boucwen, "
             f"creep, duhem, dahl); simulate it with 'piezohyst simulate'"
+        )
+    if model.drift is not None:
+        print(
+            f"piezohyst export-c: warning: MODEL = '{model_path}' has a drift term (a trend of its training "
+            "record's sensor, counted from that record's start): it is not exported; the C model is the "
+            "actuator's (delay line, hysteresis, output map)",
+            file=sys.stderr,
         )
     controller = None
     if args.controller is not None:

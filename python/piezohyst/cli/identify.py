@@ -41,6 +41,7 @@ from .common import (
 
 if TYPE_CHECKING:
     from ..identify.core import IdentificationResult
+    from ..identify.structure import StructureChoice
     from ..signals.data import Record
     from .common import FloatArray, _Columns, _Range
 
@@ -129,7 +130,9 @@ def _identify_options(i: argparse.ArgumentParser) -> None:
         required=True,
         choices=_KindsOrAuto(_KINDS),
         help=f"model to identify: {', '.join(_KINDS)} (required). Or auto: it fits pi, gpi, mpi, rdpi, "
-        "preisach and boucwen (the PI family with and without --creep 2), ranks them by validation "
+        "preisach and boucwen (the PI family with and without --creep 2, mpi also with --creep 4 and "
+        "with --creep 4 --creep-horizon 10), each with its input delay, drift term and fit start chosen "
+        "on the training range (--lag auto, --drift auto), ranks them by validation "
         "error (state carried) and saves the winner: the simplest model within one standard error "
         "of the best (without --validate: by BIC on the training range); the league table is printed "
         'and put under "league" in --json. pi/gpi/mpi/rdpi/preisach: least '
@@ -222,20 +225,36 @@ def _identify_options(i: argparse.ArgumentParser) -> None:
     i.add_argument(
         "--creep", metavar="M", type=_count_arg, default=0, help="pi/gpi/mpi/rdpi: add M creep lags (default 0)"
     )
+    i.add_argument(
+        "--creep-horizon",
+        metavar="X",
+        type=float,
+        default=1.0,
+        help="with --creep: the creep lags' time constants span 2 samples to X times the training range's "
+        "duration (default 1; 10 models creep slower than the record, which a short record shows as a trend)",
+    )
     # preprocessing (issue 14, item 2): piezohyst.signals.preprocess on DATA (and a --validate file)
     i.add_argument(
         "--lag",
         metavar="auto|N",
-        default="0",
-        help="input->output delay in samples removed before the fit (the output is advanced; 'auto' or "
-        "'auto:M' estimates it up to M samples, default M: 20 ms of samples, at least 10) (default: 0)",
+        default=None,
+        help="input->output delay in samples, held by the model (its input_delay: the model file "
+        "simulates the record as given); 'auto' or 'auto:M' chooses it on the training range (the "
+        "delay whose fit has the smallest training error, up to M samples, default M: 20 ms of "
+        "samples, at least 10). A negative N (output leading the input) cannot be a model's: the "
+        "record is realigned instead (the output delayed), as for cemf and boucwen-benchmark "
+        "(default: 0; --model auto: auto)",
     )
     i.add_argument(
         "--drift",
-        metavar="none|remove[:K]",
-        default="none",
-        help="'remove' a slow polynomial drift of the output (degree K, default 1), fitted together with "
-        "a rate-independent function of the input; creep is modelled instead by --creep (default: none)",
+        metavar="none|auto|remove[:K]",
+        default=None,
+        help="'auto': a drift term of the model (an exponential settling of the output with the training "
+        "range's duration as time constant, counted from its start, in the model file) fitted when an internal split "
+        "of the training range says it predicts better (pi, gpi, mpi, rdpi, preisach, boucwen; "
+        "fixed structure). 'remove': a slow polynomial drift (degree K, default 1) removed from the "
+        "record before the fit, fitted together with a rate-independent function of the input. "
+        "Creep is modelled by --creep (default: none; --model auto: auto)",
     )
     i.add_argument(
         "--lead-in",
@@ -382,7 +401,8 @@ def _identify(args: argparse.Namespace) -> int:
     if fs is None and args.time is None:
         raise _Fail("the sample rate is unknown: give --fs HZ or --time COL")
     rec = _load(data, **columns)
-    rec, preprocessing, train_spec, val_spec = _preprocess(args, rec, train_spec, val_spec)
+    model_lag, model_drift = _model_structure_flags(args)
+    rec, preprocessing, train_spec, val_spec = _preprocess(args, rec, train_spec, val_spec, model_lag, model_drift)
     n = rec.n
     val: Record | None = None
     val_where: _Where
@@ -437,6 +457,10 @@ def _identify(args: argparse.Namespace) -> int:
         extra["structure"] = "fit"
     if args.creep:
         extra["creep"] = args.creep
+    if args.creep_horizon != 1.0:
+        if not args.creep or not (math.isfinite(args.creep_horizon) and args.creep_horizon > 0):
+            raise _Fail(f"--creep-horizon = {args.creep_horizon:g} needs --creep M and must be a finite number > 0")
+        extra["creep_horizon"] = args.creep_horizon
     honest = _honest_options(args, rec, data, columns, (a, b), None if val_spec is None else (c, d), n)
     if args.model != "boucwen-benchmark":
         extra.update(honest.pop("identify"))
@@ -459,9 +483,14 @@ def _identify(args: argparse.Namespace) -> int:
     )
     league = None
     kind = args.model
+    structure: dict[str, Any] | None = None
     if kind == "auto":
-        kind, res, league = _auto(fit_input, fit_output, common, extra, train.fs)
+        kind, res, league, structure = _auto(fit_input, fit_output, common, extra, train.fs, model_lag, model_drift)
     else:
+        if model_lag is not None or model_drift == "auto":
+            choice = _decide(fit_input, fit_output, kind, common, extra, train.fs, model_lag, model_drift)
+            structure = choice.to_dict()
+            extra.update(_structure_options(choice))
         res = identify(fit_input, fit_output, model=kind, **common, **extra)
 
     fit = res.to_dict()
@@ -475,6 +504,13 @@ def _identify(args: argparse.Namespace) -> int:
     fit["preprocessing"] = preprocessing
     output_map = getattr(res.model, "output_map", None)  # cemf, boucwen-benchmark: none
     fit["output_map"] = None if output_map is None else output_map.to_dict()
+    fit.update(_structure_report(res.model, train.fs, model_lag, model_drift, structure))
+    if preprocessing.get("lag") is not None and preprocessing["lag"].get("in_model"):
+        # the model's input delay, known now: DATA and a --validate file are simulated with it
+        preprocessing["lag"]["samples"] = fit["input_delay"]["samples"]
+        preprocessing["lag"]["seconds"] = fit["input_delay"]["seconds"]
+        if preprocessing.get("validation_file") is not None:
+            preprocessing["validation_file"]["lag"] = dict(preprocessing["lag"])
     doc = _model_document(res, kind, train.fs)
     if isinstance(doc.get("units"), dict):  # the model's signals are in the record's (SI) units
         doc["units"] = {
@@ -556,6 +592,7 @@ def _identify(args: argparse.Namespace) -> int:
         print(f"  units: {_units_line(rec)}")
         if any(not c.si for c in rec.units.values()):
             print("  (the model file carries the units the data give: name them with --input-unit / --output-unit)")
+        _print_structure(fit)
         if assessment:
             _print_whiteness(assessment)
         if plot is not None:
@@ -602,26 +639,64 @@ def _model_document(res: IdentificationResult, kind: str, fs: float) -> dict[str
     return res.model.to_dict()
 
 
+def _parse_lag(args: argparse.Namespace) -> tuple[int | str, int | None]:
+    """``--lag``: ``(0 | N | "auto", M or None)``; no flag: 0, or ``"auto"`` for ``--model auto``."""
+    if args.lag is None:
+        return ("auto" if args.model == "auto" else 0), None
+    lag = str(args.lag).strip()
+    if lag == "auto" or lag.startswith("auto:"):
+        if lag == "auto":
+            return "auto", None
+        return "auto", _integer(
+            lag[5:], f"--lag = '{args.lag}': auto:M needs M, the largest lag searched, a number of samples"
+        )
+    return _integer(lag, f"--lag = '{args.lag}' must be 'auto', 'auto:M' or an integer number of samples", signed=True), None
+
+
+#: Kinds whose model holds an input delay (the others have no output map: the record is realigned).
+_DELAY_KINDS = ("pi", "gpi", "mpi", "rdpi", "preisach", "boucwen", "auto")
+#: Kinds that fit a drift term (fixed structure).
+_DRIFT_KINDS = ("pi", "gpi", "mpi", "rdpi", "preisach", "boucwen", "auto")
+
+
+def _model_structure_flags(args: argparse.Namespace) -> tuple[tuple[int | str, int | None] | None, str]:
+    """What the model itself holds: ``(lag, max lag)`` of its input delay (``None``: the record is
+    realigned by the preprocessing, or no delay) and its drift mode (``"auto"`` or ``"none"``)."""
+    lag, top = _parse_lag(args)
+    model_lag: tuple[int | str, int | None] | None = None
+    if args.model in _DELAY_KINDS and (lag == "auto" or (isinstance(lag, int) and lag > 0)):
+        model_lag = (lag, top)
+    drift = "auto" if args.drift is None and args.model == "auto" else str(args.drift or "none")
+    if drift == "auto":
+        if args.model not in _DRIFT_KINDS or args.structure == "fit":
+            raise _Fail(
+                f"--drift auto fits a drift term of pi, gpi, mpi, rdpi, preisach or boucwen with a fixed structure, "
+                f"not --model {args.model}{' --structure fit' if args.structure == 'fit' else ''}"
+            )
+        return model_lag, "auto"
+    return model_lag, "none"
+
+
 def _preprocess(
-    args: argparse.Namespace, rec: Record, train: _Range | None, validate: _Range | None
+    args: argparse.Namespace,
+    rec: Record,
+    train: _Range | None,
+    validate: _Range | None,
+    model_lag: tuple[int | str, int | None] | None = None,
+    model_drift: str = "none",
 ) -> tuple[Record, dict[str, Any], _Range | None, _Range | None]:
     """``--lag --drift --lead-in --outliers --decimate`` applied to DATA; the ``--train`` /
-    ``--validate`` ranges (rows of DATA) mapped into the processed record."""
+    ``--validate`` ranges (rows of DATA) mapped into the processed record. A lag the model
+    holds (``model_lag``) and a drift it fits (``model_drift = "auto"``) leave the record as it is."""
     from ..signals.preprocess import preprocess, processed_index
 
     options: dict[str, Any] = {}
-    lag = str(args.lag).strip()
-    if lag == "auto" or lag.startswith("auto:"):
-        options["lag"] = "auto"
-        if lag != "auto":
-            options["max_lag"] = _integer(
-                lag[5:], f"--lag = '{args.lag}': auto:M needs M, the largest lag searched, a number of samples"
-            )
-    else:
-        options["lag"] = _integer(
-            lag, f"--lag = '{args.lag}' must be 'auto', 'auto:M' or an integer number of samples", signed=True
-        )
-    drift = str(args.drift)
+    lag, top = _parse_lag(args)
+    if model_lag is None:
+        options["lag"] = lag
+        if top is not None:
+            options["max_lag"] = top
+    drift = "none" if model_drift == "auto" else str(args.drift or "none")
     if drift == "remove" or drift.startswith("remove:"):
         options["drift"] = "remove"
         if drift != "remove":
@@ -629,7 +704,7 @@ def _preprocess(
                 drift[7:], f"--drift = '{args.drift}': remove:K needs K, the polynomial degree (1 to 5)"
             )
     elif drift != "none":
-        raise _Fail(f"--drift = '{args.drift}' must be 'none', 'remove' or 'remove:K'")
+        raise _Fail(f"--drift = '{args.drift}' must be 'none', 'auto', 'remove' or 'remove:K'")
     lead = str(args.lead_in)
     if lead in ("auto", "none"):
         options["lead_in"] = lead
@@ -646,7 +721,18 @@ def _preprocess(
     except (ValueError, TypeError) as e:
         raise _Fail(f"preprocessing DATA: {e}") from None
     _warn_outliers(report, "DATA")
-    if report["steps"] and not args.json:
+    if model_lag is not None:  # the model's input delay: reported here too (the record is not shifted)
+        report["lag"] = {
+            "mode": "auto" if model_lag[0] == "auto" else "given",
+            "samples": None if model_lag[0] == "auto" else model_lag[0],
+            "seconds": None,
+            "max_lag": model_lag[1],
+            "in_model": True,
+        }
+        report["steps"].insert(
+            report["steps"].index("drift") if "drift" in report["steps"] else len(report["steps"]), "lag"
+        )
+    if report["steps"] and not args.json and _summary(report):
         print(f"preprocessing: {_summary(report)}")
     if report["steps"]:
         report["ranges_of_data"] = {"train": None if train is None else list(train)}
@@ -707,7 +793,7 @@ def _preprocess_file(args: argparse.Namespace, val: Record, report: dict[str, An
 
     if not report["steps"]:
         return val
-    lag = 0 if report["lag"] is None else int(report["lag"]["samples"])
+    lag = 0 if report["lag"] is None or report["lag"].get("in_model") else int(report["lag"]["samples"])
     lead = str(args.lead_in)
     drift = report["drift"]
     try:
@@ -746,7 +832,7 @@ def _summary(report: dict[str, Any]) -> str:
         parts.append(f"{o['count']} glitch(es) " + ("interpolated over" if o["replaced"] else "flagged"))
     if report["lead_in"] is not None:
         parts.append(f"lead-in of {report['lead_in']['samples']} samples dropped")
-    if report["lag"] is not None:
+    if report["lag"] is not None and not report["lag"].get("in_model"):
         parts.append(f"lag {report['lag']['samples']} samples ({report['lag']['mode']}) removed")
     if report["drift"] is not None:
         parts.append(f"drift of order {report['drift']['order']} removed (change {report['drift']['change']:.4g})")
@@ -816,25 +902,109 @@ def _honest_options(
     return {"identify": kw, "note": note}
 
 
-#: ``--model auto``'s candidates: (kind, creep lags).
+#: ``--model auto``'s candidates: (kind, creep lags, creep horizon in training durations). The
+#: MPI with four lags twice: over the record's time scales, and reaching ten times its duration
+#: (creep slower than the record, which a short training range shows as a trend).
 _AUTO = (
-    ("pi", 0),
-    ("pi", 2),
-    ("gpi", 0),
-    ("gpi", 2),
-    ("mpi", 0),
-    ("mpi", 2),
-    ("rdpi", 0),
-    ("rdpi", 2),
-    ("preisach", 0),
-    ("boucwen", 0),
+    ("pi", 0, 1.0),
+    ("pi", 2, 1.0),
+    ("gpi", 0, 1.0),
+    ("gpi", 2, 1.0),
+    ("mpi", 0, 1.0),
+    ("mpi", 2, 1.0),
+    ("mpi", 4, 1.0),
+    ("mpi", 4, 10.0),
+    ("rdpi", 0, 1.0),
+    ("rdpi", 2, 1.0),
+    ("preisach", 0, 1.0),
+    ("boucwen", 0, 1.0),
 )
 
 
+def _decide(
+    v: FloatArray,
+    y: FloatArray,
+    kind: str,
+    common: dict[str, Any],
+    extra: dict[str, Any],
+    fs: float,
+    model_lag: tuple[int | str, int | None] | None,
+    model_drift: str,
+) -> StructureChoice:
+    """The structure decisions of ``kind`` on the training range (the model's input delay, its
+    drift basis, the fit's first sample): :func:`piezohyst.identify.structure.decide_structure`;
+    a kind it does not cover (variable projection) takes an MPI's."""
+    from ..identify.structure import decide_structure
+
+    lag, top = (0, None) if model_lag is None else model_lag
+    own = kind if kind in ("pi", "gpi", "mpi", "rdpi", "preisach", "boucwen") and "structure" not in extra else "mpi"
+    try:
+        return decide_structure(
+            v,
+            y,
+            own,
+            fs=fs,
+            operators=common["operators"],
+            levels=common["levels"],
+            creep=extra.get("creep", 0) if own == kind else 0,
+            creep_horizon=extra.get("creep_horizon", 1.0) if own == kind else 1.0,
+            delay=lag,
+            max_delay=top,
+            drift=model_drift,
+            # a delay line (given or chosen) starts held at the record's first input and a drift
+            # term is a decision taken on the training range: both take the fit's start with
+            # them (the same delay, given or found, gives the same model); no delay and no drift
+            # leave the fit as it was
+            start=0 if lag == 0 and model_drift != "auto" else "auto",
+        )
+    except ParameterError as e:
+        raise _Fail(f"choosing the input delay and drift on the training range: {e}") from None
+
+
+def _structure_options(choice: StructureChoice) -> dict[str, Any]:
+    """``identify`` keywords of a structure choice."""
+    return {
+        "input_delay": choice.delay,
+        "drift": None if choice.drift.empty else choice.drift,
+        "fit_start": choice.start,
+    }
+
+
+def _structure_report(
+    model: object,
+    fs: float,
+    model_lag: tuple[int | str, int | None] | None,
+    model_drift: str,
+    structure: dict[str, Any] | None,
+) -> dict[str, Any]:
+    """The ``--json`` fields of the model's input delay and drift, and what decided them."""
+    delay = int(getattr(model, "input_delay", 0))
+    drift = getattr(model, "drift", None)
+    mode = None if model_lag is None else ("auto" if model_lag[0] == "auto" else "given")
+    return {
+        "input_delay": {"samples": delay, "seconds": delay / fs, "mode": mode},
+        "drift": {
+            "mode": model_drift,
+            "basis": None if structure is None else structure["drift"]["name"],
+            "term": None if drift is None else drift.to_dict(),
+            "time_origin": "the training range's first sample",
+        },
+        "structure": structure,
+    }
+
+
 def _auto(
-    v: FloatArray, y: FloatArray, common: dict[str, Any], extra: dict[str, Any], fs: float
-) -> tuple[str, IdentificationResult, list[dict[str, Any]]]:
-    """``--model auto``: every candidate fitted, the league ranked, the winner's result."""
+    v: FloatArray,
+    y: FloatArray,
+    common: dict[str, Any],
+    extra: dict[str, Any],
+    fs: float,
+    model_lag: tuple[int | str, int | None] | None,
+    model_drift: str,
+) -> tuple[str, IdentificationResult, list[dict[str, Any]], dict[str, Any] | None]:
+    """``--model auto``: every candidate's structure decided on the training range (input delay,
+    drift, fit start), every candidate fitted, the league ranked, the winner's result and its
+    structure decisions."""
     from ..identify.dispatch import identify
     from ..identify.validation import league_table
     from ..progress import Progress
@@ -842,11 +1012,14 @@ def _auto(
     if extra.get("structure") == "fit" or extra.get("creep"):
         raise _Fail("--model auto chooses the structure and the creep itself: drop --structure fit / --creep")
     results: list[tuple[str, int, IdentificationResult | None, str | None]] = []
+    labels: list[str] = []
+    choices: dict[int, StructureChoice] = {}
     bar = Progress(len(_AUTO), "auto: candidates fitted") if common.get("progress") else None
-    for kind, creep in _AUTO:
+    for kind, creep, horizon in _AUTO:
         if bar is not None:
             bar.update(len(results))
         kw = dict(extra)
+        labels.append(kind + (f"+creep{creep}" if creep else "") + (f"x{horizon:g}T" if horizon != 1.0 else ""))
         if kind in ("boucwen",) and "weights" in kw:
             results.append((kind, creep, None, "--weights apply to the linear families"))
             continue
@@ -856,7 +1029,15 @@ def _auto(
         if signum is not None:  # a stop signal: rank what was fitted before it
             results.append((kind, creep, None, f"stopped by {stops.describe(signum)}"))
             continue
+        if horizon != 1.0:
+            kw["creep_horizon"] = horizon
         try:
+            # Bouc-Wen takes the decisions of the MPI (rate independent, no creep): the same regressors
+            choice = choices.get(_AUTO.index(("mpi", 0, 1.0))) if kind == "boucwen" else None
+            if choice is None:
+                choice = _decide(v, y, kind, common, kw, fs, model_lag, model_drift)
+            choices[len(results)] = choice
+            kw.update(_structure_options(choice))
             fitted = identify(v, y, model=kind, **{**common, "progress": False}, diagnosis=False, **kw)
             results.append((kind, creep, fitted, None))
         except ParameterError as e:
@@ -864,27 +1045,56 @@ def _auto(
     if bar is not None:
         bar.update(len(results))
         bar.close()
-    table, best = league_table(results, v.size)
+    table, best = league_table(results, v.size, labels=labels)
     kind, creep, res, _ = results[best]
     assert res is not None  # league_table picks a fitted one
+    chosen = choices[best]
     if not getattr(res, "assessment", {}).get("trusted", True) and stops.received() is None:  # the winner's diagnosis
         kw = {**extra, "creep": creep} if creep else dict(extra)
-        res = identify(v, y, model=kind, **{**common, "progress": False}, **kw)
-    return kind, res, table
+        if _AUTO[best][2] != 1.0:
+            kw["creep_horizon"] = _AUTO[best][2]
+        res = identify(v, y, model=kind, **{**common, "progress": False}, **kw, **_structure_options(chosen))
+    for row in table:
+        c = choices.get(labels.index(row["name"]))
+        if c is not None and row["rank"] is not None:
+            row["input_delay"] = c.delay
+            row["drift"] = c.drift.name
+            row["fit_start"] = c.start
+            row["creep_horizon"] = _AUTO[labels.index(row["name"])][2]
+    return kind, res, table, chosen.to_dict()
 
 
 def _print_league(league: list[dict[str, Any]]) -> None:
-    print(f"  {'rank':<5}{'model':<14}{'params':>7}{'train %':>11}{'validation %':>14}  ranked by")
+    print(
+        f"  {'rank':<5}{'model':<14}{'params':>7}{'delay':>6}  {'drift':<14}{'train %':>9}"
+        f"{'validation %':>14}  ranked by"
+    )
     for row in league:
         if row["rank"] is None:
-            print(f"  {'-':<5}{row['name']:<14}{'':>7}{'':>11}{'':>14}  not fitted: {row['error']}")
+            print(f"  {'-':<5}{row['name']:<14}{'':>7}{'':>6}  {'':<14}{'':>9}{'':>14}  not fitted: {row['error']}")
             continue
         mark = "  <- saved" if row["chosen"] else ""
         val = "-" if row["validation_rmse_percent"] is None else f"{row['validation_rmse_percent']:.4g}"
         print(
-            f"  {row['rank']:<5}{row['name']:<14}{row['parameters']:>7}{row['train_rmse_percent']:>11.4g}"
-            f"{val:>14}  {row['criterion']}{mark}"
+            f"  {row['rank']:<5}{row['name']:<14}{row['parameters']:>7}{row.get('input_delay', 0):>6}  "
+            f"{row.get('drift', 'none'):<14}{row['train_rmse_percent']:>9.4g}{val:>14}  {row['criterion']}{mark}"
         )
+
+
+def _print_structure(fit: dict[str, Any]) -> None:
+    """The model's input delay and drift, when it has them or they were chosen."""
+    d = fit["input_delay"]
+    if d["samples"] or d["mode"] is not None:
+        how = {"auto": "chosen on the training range", "given": "given"}.get(d["mode"] or "", "")
+        print(
+            f"  input delay: {d['samples']} samples ({d['seconds']:.4g} s), held by the model"
+            + (f", {how}" if how else "")
+        )
+    drift = fit["drift"]
+    if drift["mode"] == "auto":
+        term = drift["term"]
+        what = "none" if term is None else f"{drift['basis']} (from the training range's first sample)"
+        print(f"  drift term: {what}, chosen by an internal split of the training range")
 
 
 def _print_whiteness(assessment: dict[str, Any]) -> None:

@@ -112,7 +112,8 @@ def _simulate_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         type=_count_arg,
         default=0,
         help="the --output column lags the input by N samples (a sensor delay): compare "
-        "output[k + N] with the simulation at k (default 0)",
+        "output[k + N] with the simulation at k (default 0). A model file with an input_delay "
+        "(identify --lag, --model auto) simulates that delay itself: leave --lag 0 for it",
     )
     s.add_argument(
         "--score-from",

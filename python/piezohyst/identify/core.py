@@ -28,6 +28,7 @@ from .. import _core
 from .._validate import as_int, as_record, as_scalar
 from ..errors import ParameterError, ParameterTypeError
 from ..models.creep import Creep
+from ..models.model import Drift
 from ..models.pi import PI, Envelope, GeneralizedPI, RateDependentPI
 from ..models.preisach import Preisach
 from ..optimize.report import RunReport
@@ -40,9 +41,11 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 __all__ = [
     "CEMF_PARAMETERS",
     "LOSSES",
+    "DriftBasis",
     "FitResult",
     "IdentificationResult",
     "default_huber_delta",
+    "delayed",
     "fit_linear",
     "fit_metrics",
     "huber_cost",
@@ -66,6 +69,82 @@ RngLike: TypeAlias = int | np.integer[Any] | np.random.Generator | np.random.See
 Callback: TypeAlias = "Callable[[IntermediateResult], object]"
 #: A bounded linear least-squares solver ``(A, y, (lower, upper)) -> z``.
 BoundedSolver: TypeAlias = Callable[[FloatArray, FloatArray, tuple[FloatArray, FloatArray]], FloatArray]
+
+
+@dataclass(frozen=True)
+class DriftBasis:
+    """The shape of a drift term fitted with a model: exponential settling terms
+    ``1 - exp(-k / tau)`` (``taus`` in samples) and, with ``linear``, a ramp ``k``, ``k`` the
+    samples since the simulation's first sample (the training record's). Their weights are
+    fitted with the model's linear parameters (free columns of the least squares); :meth:`drift`
+    turns the weights into the model's :class:`~piezohyst.models.model.Drift`.
+
+    Examples
+    --------
+    >>> b = DriftBasis(taus=(100.0,), linear=True)
+    >>> b.name, b.columns(3).shape
+    ('exp(100)+linear', (3, 2))
+    """
+
+    taus: tuple[float, ...] = ()
+    linear: bool = False
+
+    def __post_init__(self) -> None:
+        taus = tuple(as_scalar(t, "drift tau", positive=True) for t in self.taus)
+        object.__setattr__(self, "taus", taus)
+        object.__setattr__(self, "linear", bool(self.linear))
+
+    @property
+    def empty(self) -> bool:
+        """No column: no drift."""
+        return not self.taus and not self.linear
+
+    @property
+    def name(self) -> str:
+        parts = [f"exp({t:.6g})" for t in self.taus] + (["linear"] if self.linear else [])
+        return "+".join(parts) or "none"
+
+    @property
+    def size(self) -> int:
+        return len(self.taus) + int(self.linear)
+
+    def columns(self, n: int) -> FloatArray:
+        """The ``(n, size)`` basis over samples ``0 ... n - 1``: the exponentials, then the ramp."""
+        k = np.arange(n, dtype=np.float64)
+        cols = [-np.expm1(-k / t) for t in self.taus]
+        if self.linear:
+            cols.append(k)
+        return np.column_stack(cols) if cols else np.zeros((n, 0))
+
+    def drift(self, weights: npt.ArrayLike) -> Drift | None:
+        """The model's drift term for the fitted ``weights`` (the basis' column order); ``None``
+        for the empty basis."""
+        w = np.asarray(weights, dtype=np.float64)
+        if self.empty:
+            return None
+        m = len(self.taus)
+        return Drift(taus=self.taus, weights=tuple(float(x) for x in w[:m]), slope=float(w[m]) if self.linear else 0.0)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "taus": list(self.taus), "linear": self.linear}
+
+
+def delayed(input: npt.ArrayLike, delay: int) -> FloatArray:
+    """The input a model with an input delay of ``delay`` samples sees: ``input`` shifted late
+    by ``delay`` samples, the first sample held before the record starts.
+
+    Examples
+    --------
+    >>> delayed([1.0, 2.0, 3.0, 4.0], 2).tolist()
+    [1.0, 1.0, 1.0, 2.0]
+    """
+    v = as_record(input, "input")
+    d = as_int(delay, "delay", minimum=0)
+    if d == 0:
+        return v
+    if d >= v.size:
+        return np.full(v.size, v[0])
+    return np.concatenate([np.full(d, v[0]), v[:-d]])
 
 
 @runtime_checkable
@@ -533,25 +612,36 @@ def _has_constant(A: FloatArray) -> bool:
 
 
 def _design(
-    model: LinearModel, v: FloatArray, offset: bool
+    model: LinearModel, v: FloatArray, offset: bool, drift: DriftBasis | None = None
 ) -> tuple[FloatArray, FloatArray, FloatArray, Callable[[FloatArray], LinearModel]]:
     """``(A, lb, ub, build)``: the regressors of ``model`` on ``v`` with their bounds, and the
     map from a solution to a model. With ``offset`` and no constant column in the family's
     regressors, a column of ones is appended (unbounded) and ``build`` puts its coefficient in
     the model's output map (``output_map.offset``; the gain stays 1, the weights absorb it).
-    The family's parameter row is unchanged."""
+    With a ``drift`` basis its columns are appended last (unbounded) and ``build`` gives the
+    model their :class:`~piezohyst.models.model.Drift`. The family's parameter row is unchanged."""
     lb, ub, build = _layout(model)
     A = _core.regressors(model.family, list(model.dims), model.to_row(), v)
     if isinstance(model, RateDependentPI):
         A, lb, build = _rate_interpolation(model, A, lb, build)
-    if not offset or _has_constant(A):
+    if offset and not _has_constant(A):
+        A = np.column_stack([A, np.ones(v.size)])
+        lb, ub = np.append(lb, -np.inf), np.append(ub, np.inf)
+        family = build
+
+        def build(t: FloatArray) -> LinearModel:
+            return family(t[:-1]).with_output_map(offset=float(t[-1]))
+
+    if drift is None or drift.empty:
         return A, lb, ub, build
-    A = np.column_stack([A, np.ones(v.size)])
+    k = drift.size
+    A = np.column_stack([A, drift.columns(v.size)])
+    mapped = build
 
-    def build_offset(t: FloatArray) -> LinearModel:
-        return build(t[:-1]).with_output_map(offset=float(t[-1]))
+    def build_drift(t: FloatArray) -> LinearModel:
+        return mapped(t[:-k]).with_drift(drift.drift(t[-k:]))
 
-    return A, np.append(lb, -np.inf), np.append(ub, np.inf), build_offset
+    return A, np.append(lb, np.full(k, -np.inf)), np.append(ub, np.full(k, np.inf)), build_drift
 
 
 #: The rate-dependent PI's fit keeps every play weight ``w_i + c_i rate`` non-negative up to
@@ -619,22 +709,26 @@ def _fit_linear(
     t0: float | None = None,
     offset: bool = False,
     smoothing: float | None = None,
+    drift: DriftBasis | None = None,
+    start: int = 0,
 ) -> FitResult:
     """:func:`fit_linear` of validated records (equal lengths) with a checked loss
-    (``smoothing``: Preisach only, checked)."""
+    (``smoothing``: Preisach only, checked); with a ``drift`` basis fitted too, and the samples
+    before ``start`` simulated but left out of the cost (the metrics are of the whole record)."""
     t0 = time.perf_counter() if t0 is None else t0
     if isinstance(model, Preisach):  # its own offset constant: no column to add
         check_samples(v.size, parameter_count(model, 0), _what(model), "fewer levels")
-        return _fit_preisach(model, v, y, loss, delta, t0, smoothing)
-    A, lb, ub, build = _design(model, v, offset)
+        return _fit_preisach(model, v, y, loss, delta, t0, smoothing, None, drift, start)
+    A, lb, ub, build = _design(model, v, offset, drift)
     check_samples(v.size, parameter_count(model, A.shape[1]), _what(model), "fewer operators")
+    A, yf = A[start:], y[start:]
     scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-300)  # equilibrate the columns
     A = A / scale
     bounds = (lb * scale, ub * scale)
-    z = np.clip(_bvls(A, y, bounds), *bounds)
+    z = np.clip(_bvls(A, yf, bounds), *bounds)
     solves = 1
     if loss == "huber":
-        z, k = _irls_huber(A, y, bounds, z, delta, _qr_bounded_lstsq)
+        z, k = _irls_huber(A, yf, bounds, z, delta, _qr_bounded_lstsq)
         solves += k
     fitted = build(z / scale)
     metrics = _fit_metrics(fitted.simulate(v), y)
@@ -698,6 +792,8 @@ def _fit_preisach(
     t0: float,
     smoothing: float | None = None,
     weights: FloatArray | None = None,
+    drift: DriftBasis | None = None,
+    start: int = 0,
 ) -> FitResult:
     """:func:`fit_linear` of a Preisach grid, on the distinct relay patterns the record excites,
     with a smoothness prior of strength ``smoothing`` along the lines of constant loop width.
@@ -734,7 +830,7 @@ def _fit_preisach(
     result's ``history`` holds the strengths tried, their hold-out errors and the one used
     (``smoothing``)."""
     lb, _, build = _layout(model)
-    A = _core.regressors(model.family, list(model.dims), model.to_row(), v)
+    A = _core.regressors(model.family, list(model.dims), model.to_row(), v)[start:]
     head = A.shape[1] - model.weights.size  # offset and slope, then one column per cell
     cells = A[:, head:]
     # distinct relay patterns: the columns as packed bits (a relay is 0 or 1)
@@ -743,48 +839,56 @@ def _fit_preisach(
     group = group.ravel()
     constant = (cells.max(axis=0) == cells.min(axis=0))[first]  # reductions, no copy of the matrix
     kept = np.flatnonzero(~constant)
+    n = A.shape[0]  # the rows from the fit's start
     counts = np.bincount(group, minlength=patterns.shape[0])
     # one unknown per kept group: the weight of each of its cells (their columns summed, count
     # times the first's), the columns equilibrated to unit RMS in place (the matrix is N x ~L^2/2)
     C = cells[:, first[kept]]
-    norm = np.maximum(np.sqrt(np.einsum("ij,ij->j", C, C) / v.size), 1e-300)
+    norm = np.maximum(np.sqrt(np.einsum("ij,ij->j", C, C) / n), 1e-300)
     C /= norm
     head_scale = np.maximum(np.sqrt(np.mean(A[:, :head] ** 2, axis=0)), 1e-300)
-    B = np.concatenate([A[:, :head] / head_scale, C], axis=1)
-    del C
-    scale = np.concatenate([head_scale, counts[kept] * norm])  # B's columns are the regressors / scale
-    blb = np.concatenate([lb[:head], lb[head:][first[kept]]])
+    # a drift basis: free columns after the cells', equilibrated like them
+    extra = 0 if drift is None else drift.size
+    T = np.zeros((n, 0)) if drift is None else drift.columns(v.size)[start:]
+    drift_scale = np.maximum(np.sqrt(np.mean(T**2, axis=0)), 1e-300)
+    B = np.concatenate([A[:, :head] / head_scale, C, T / drift_scale], axis=1)
+    del C, T
+    # B's columns are the regressors / scale
+    scale = np.concatenate([head_scale, counts[kept] * norm, drift_scale])
+    blb = np.concatenate([lb[:head], lb[head:][first[kept]], np.full(extra, -np.inf)])
+    cells_end = head + kept.size  # the cells' unknowns are B's columns head:cells_end
     unit_penalty = None  # the prior of strength 1 per sample of the data term
     if kept.size > 1 and (smoothing is None or smoothing > 0):
         column = np.full(patterns.shape[0], -1)
         column[kept] = head + np.arange(kept.size)
         DD = _diagonal_smoothness(model.levels, column[group], B.shape[1])
-        cost = float(np.mean(np.diag(DD)[head:]))
+        cost = float(np.mean(np.diag(DD)[head:cells_end]))
         if cost > 0:
             # in the equilibrated unknowns z = u * scale, relative to the data term's size
-            unit_penalty = (float(np.mean(scale[head:] ** 2)) / cost) * DD / np.outer(scale, scale)
+            unit_penalty = (float(np.mean(scale[head:cells_end] ** 2)) / cost) * DD / np.outer(scale, scale)
     bounds = (blb * scale, np.full(blb.size, np.inf))
     # the normal equations square the conditioning: solve for the output in units of its RMS, so
     # a record in other units (a gain) gives the same fit to rounding, not to the solver's tolerance
     # (and about its mean when the first column is the free offset's constant one: a record with
     # an offset then gives the same fit to rounding too)
-    centre = float(np.mean(y)) if np.all(A[:, 0] == 1.0) and lb[0] == -np.inf else 0.0
-    unit = float(np.sqrt(np.mean((y - centre) ** 2))) or 1.0
-    yn = (y - centre) / unit
-    w = np.ones(v.size) if weights is None else weights
+    yf = y[start:]
+    centre = float(np.mean(yf)) if np.all(A[:, 0] == 1.0) and lb[0] == -np.inf else 0.0
+    unit = float(np.sqrt(np.mean((yf - centre) ** 2))) or 1.0
+    yn = (yf - centre) / unit
+    w = np.ones(n) if weights is None else weights[start:]
     if weights is not None:
-        sw = np.sqrt(weights)
+        sw = np.sqrt(w)
         B, yn = B * sw[:, None], yn * sw
     free = np.isneginf(bounds[0])
     # the Gram matrix in two parts: the choice of the smoothing fits the first, predicts the end
-    k = round((1.0 - PREISACH_HOLDOUT) * v.size)
+    k = round((1.0 - PREISACH_HOLDOUT) * n)
     G1, b1, yy = B[:k].T @ B[:k], B[:k].T @ yn[:k], float(yn[:k] @ yn[:k])
     G, b = G1 + B[k:].T @ B[k:], b1 + B[k:].T @ yn[k:]
     history: dict[str, Any] = {}
     dn = None if delta is None else delta / unit
     solves = 0
     h = None  # the Huber weights (square roots) of the fit without the prior, when chosen by hold-out
-    choose = unit_penalty is not None and smoothing is None and k >= B.shape[1] and v.size - k >= 2
+    choose = unit_penalty is not None and smoothing is None and k >= B.shape[1] and n - k >= 2
     if unit_penalty is None or (smoothing is None and not choose):  # nothing to smooth, or too short to hold out
         smoothing = 0.0
     if choose and loss == "huber":
@@ -822,9 +926,11 @@ def _fit_preisach(
     zb = z * unit / scale
     zb[0] += centre
     per_cell = np.zeros(patterns.shape[0])
-    per_cell[kept] = zb[head:]
+    per_cell[kept] = zb[head:cells_end]
     theta = np.concatenate([zb[:head], per_cell[group]])
     fitted = build(theta)
+    if drift is not None and not drift.empty:
+        fitted = fitted.with_drift(drift.drift(zb[cells_end:]))
     return FitResult(fitted, _fit_metrics(fitted.simulate(v), y), time.perf_counter() - t0, solves, history)
 
 

@@ -21,12 +21,14 @@ from ..errors import ParameterError, ParameterTypeError
 from ..models.boucwen_benchmark import FS, UPSAMPLE, BoucWenBenchmark
 from ..models.creep import Creep
 from ..models.differential import BoucWen
+from ..models.model import HysteresisModel
 from ..models.pi import PI, GeneralizedPI, ModifiedPI, RateDependentPI
 from ..optimize.core import minimize
 from .boucwen_benchmark import identify_boucwen_benchmark
 from .core import (
     PREISACH_MEMORY,
     Callback,
+    DriftBasis,
     FitResult,
     FloatArray,
     IdentificationResult,
@@ -40,6 +42,7 @@ from .core import (
     _preisach_template,
     check_fit_scale,
     check_samples,
+    delayed,
     identify_cemf,
     minimize_huber,
 )
@@ -63,6 +66,9 @@ STRUCTURES = ("fixed", "fit")
 
 #: Kinds whose fitted model has no output map (not a :class:`~piezohyst.HysteresisModel`).
 _NO_OUTPUT_MAP = ("cemf", "boucwen-benchmark")
+
+#: Kinds that fit a drift term and start their cost later (fixed structure).
+_DRIFT_KINDS = ("pi", "gpi", "mpi", "rdpi", "preisach", "boucwen")
 
 #: Keywords :func:`identify` passes on to :func:`piezohyst.varpro.identify_vp`.
 _VP_OPTIONS = ("envelope", "bounds", "polish", "starts")
@@ -91,6 +97,9 @@ class _Call:
     t0: float
     offset: bool = True
     weights: FloatArray | None = None
+    drift: DriftBasis | None = None
+    start: int = 0
+    creep_horizon: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -152,6 +161,10 @@ def identify(
     periodic: int | str | None = None,
     weights: npt.ArrayLike | None = None,
     diagnosis: bool = True,
+    input_delay: int = 0,
+    drift: DriftBasis | None = None,
+    fit_start: int = 0,
+    creep_horizon: float = 1.0,
     **options: Any,
 ) -> IdentificationResult:
     """Identify a hysteresis model from an input/output record (free-run simulation error).
@@ -191,8 +204,8 @@ def identify(
         ``polish``, ``starts`` of :func:`piezohyst.varpro.identify_vp` are accepted then.
     creep : int
         PI family only: number of creep lags added to the model (needs ``fs``). Fixed
-        structure: time constants log-spaced over ``[2 Ts, T]`` (``T`` the record's duration),
-        one in the middle of each of ``creep`` equal decade bands; ``structure="fit"`` searches
+        structure: time constants log-spaced over ``[2 Ts, creep_horizon T]`` (``T`` the
+        record's duration), one in the middle of each of ``creep`` equal decade bands; ``structure="fit"`` searches
         each within its band.
     optimizer : str
         ``"ls"`` for the linear families; ``"css"``, ``"pso"``, ``"mpso"`` or ``"de"`` for the
@@ -254,6 +267,26 @@ def identify(
     diagnosis : bool
         When the fit is not trustworthy (:func:`~piezohyst.identify.validation.trust`), refit
         to name the likely cause (:func:`~piezohyst.identify.validation.diagnose`).
+    input_delay : int
+        The model's input delay in samples (every kind with an output map): the family is
+        fitted to the input delayed (:func:`~piezohyst.identify.structure.delayed`, the first
+        sample held) and the model holds the delay
+        (:meth:`~piezohyst.HysteresisModel.with_input_delay`), so it simulates the record as
+        given. :func:`~piezohyst.identify.structure.choose_structure` chooses it.
+    drift : DriftBasis, optional
+        A drift term fitted with the model (linear families with a fixed structure: free
+        least-squares columns; ``boucwen`` with the squared loss: projected out of every
+        candidate, as the offset), held by the model (:meth:`~piezohyst.HysteresisModel.with_drift`),
+        counted from the training record's first sample.
+    creep_horizon : float
+        The upper edge of the slowest creep band, in record durations (default 1; fixed
+        structure): ``10`` places lags slower than the record, whose response to the input's
+        level a short training record shows as a trend.
+    fit_start : int
+        Samples at the start of the training record simulated but left out of the fit's cost
+        (a quiet lead-in, the wiping-out of the unknown initial memory:
+        :func:`~piezohyst.identify.structure.fit_start`); linear families with a fixed
+        structure and ``boucwen``. The reported training metrics cover the whole record.
     **options
         Further keywords of :func:`identify_cemf` or of
         :func:`~piezohyst.boucwen_benchmark.identify_boucwen_benchmark` (e.g. ``bounds``,
@@ -306,8 +339,36 @@ def identify(
                 f"model = {model!r}{' with structure = fit' if structure == 'fit' else ''}"
             )
         w = check_weights(weights, np.size(input))
+    d = as_int(input_delay, "input_delay", minimum=0)
+    start = as_int(fit_start, "fit_start", minimum=0)
+    horizon = as_scalar(creep_horizon, "creep_horizon", positive=True)
+    if horizon != 1.0 and (structure == "fit" or model not in ("pi", "gpi", "mpi", "rdpi")):
+        raise ParameterError(
+            f"creep_horizon applies to the PI family with a fixed structure, not to model = {model!r}"
+            f"{' with structure = fit' if structure == 'fit' else ''}"
+        )
+    if drift is not None and not isinstance(drift, DriftBasis):
+        raise ParameterTypeError(f"drift must be a DriftBasis or None, got {type(drift).__name__}")
+    basis = None if drift is None or drift.empty else drift
+    if (basis is not None or start) and (structure == "fit" or model not in _DRIFT_KINDS):
+        raise ParameterError(
+            f"drift / fit_start apply to the fixed-structure linear families and boucwen, not to model = "
+            f"{model!r}{' with structure = fit' if structure == 'fit' else ''}"
+        )
+    if basis is not None and model == "boucwen" and loss != "squared":
+        raise ParameterError(f"drift applies to boucwen with loss = 'squared', not {loss!r}")
+    if start and start >= np.size(input) - 1:
+        raise ParameterError(f"fit_start = {start} leaves fewer than 2 samples of the training record to fit")
+    if d and model in _NO_OUTPUT_MAP:
+        raise ParameterError(f"input_delay applies to models with an output map; model = {model!r} has none")
+    fit_input: npt.ArrayLike = input
+    fit_validate = validate
+    if d:
+        fit_input = delayed(input, d)
+        if validate is not None:  # the fitters report it: as the delayed model sees it
+            fit_validate = (delayed(validate[0], d), validate[1])
     res = _identify(
-        input,
+        fit_input,
         output,
         model,
         fs,
@@ -319,7 +380,7 @@ def identify(
         rng,
         max_iterations,
         population_size,
-        validate,
+        fit_validate,
         progress,
         callback,
         loss,
@@ -328,9 +389,15 @@ def identify(
         offset,
         t0,
         options,
+        basis,
+        start,
+        horizon,
     )
     if model == "boucwen-benchmark":
         return res
+    if d:
+        assert isinstance(res.model, HysteresisModel)  # the kinds with an output map
+        res = replace(res, model=res.model.with_input_delay(d))
     return _assess(
         res,
         input,
@@ -343,6 +410,7 @@ def identify(
         fs,
         diagnosis,
         model,
+        start,
         dict(
             operators=operators,
             levels=levels,
@@ -376,6 +444,9 @@ def _identify(
     offset: bool | None,
     t0: float,
     options: dict[str, Any],
+    drift: DriftBasis | None = None,
+    start: int = 0,
+    horizon: float = 1.0,
 ) -> IdentificationResult:
     """The kind's fit (:func:`identify` once its own arguments are checked)."""
     if structure not in STRUCTURES:
@@ -460,6 +531,9 @@ def _identify(
         t0,
         bool(offset),
         weights,
+        drift,
+        start,
+        horizon,
     )
     return _named(kind.fit(call), model)
 
@@ -484,10 +558,12 @@ def _assess(
     fs: float | None,
     diagnosis: bool,
     model: str,
+    start: int,
     settings: dict[str, Any],
 ) -> ValidatedResult:
-    """The fitted model scored honestly: training record (warm-up and periodic state as asked),
-    validation record with the state carried (or from rest), whiteness, verdict, diagnosis."""
+    """The fitted model scored honestly: training record (warm-up and periodic state as asked;
+    from the fit's start when later), validation record with the state carried (or from
+    rest), whiteness, verdict, diagnosis."""
     # the kind's fitter has validated the records (each is validated once): only converted here
     v = np.asarray(input, dtype=np.float64)
     y = np.asarray(output, dtype=np.float64)
@@ -500,11 +576,14 @@ def _assess(
     if wu >= v.size - 1:
         raise ParameterError(f"warmup = {wu} leaves fewer than 2 samples of the training record ({v.size}) to score")
     sim = res.simulate if res.simulator is None else res.simulator  # the records are valid already
-    train, r_train = scored_metrics(sim, v, y, warmup=wu, periodic=period)
+    tw = max(wu, start)  # the training samples the fit counted
+    train, r_train = scored_metrics(sim, v, y, warmup=tw, periodic=period)
     assessment: dict[str, Any] = {"validate_from": validate_from, "warmup": wu, "periodic": period}
-    assessment["train"] = residual_whiteness(r_train, v[wu:]) if r_train.size >= 4 else None
+    if start:
+        assessment["fit_start"] = start
+    assessment["train"] = residual_whiteness(r_train, v[tw:]) if r_train.size >= 4 else None
     val = None
-    scored = (train, r_train, v[wu:])
+    scored = (train, r_train, v[tw:])
     if validate is not None:
         vv = np.asarray(validate[0], dtype=np.float64)
         vy = np.asarray(validate[1], dtype=np.float64)
@@ -628,13 +707,28 @@ def _free_run(fit: Callable[[_Call, FloatArray, FloatArray], _Fitted]) -> Callab
 
 @_free_run
 def _fit_linear_kind(c: _Call, v: FloatArray, y: FloatArray) -> _Fitted:
-    fit = _identify_linear(c.kind, v, y, c.fs, c.operators, c.levels, c.loss, c.delta, c.creep, c.offset, c.weights)
+    fit = _identify_linear(
+        c.kind,
+        v,
+        y,
+        c.fs,
+        c.operators,
+        c.levels,
+        c.loss,
+        c.delta,
+        c.creep,
+        c.offset,
+        c.weights,
+        c.drift,
+        c.start,
+        c.creep_horizon,
+    )
     return fit.model, "ls", dict(fit.history), False, fit.evaluations
 
 
 @_free_run
 def _fit_boucwen(c: _Call, v: FloatArray, y: FloatArray) -> _Fitted:
-    return _identify_boucwen(v, y, c.loss, c.delta, c.search, c.offset)
+    return _identify_boucwen(v, y, c.loss, c.delta, c.search, c.offset, c.drift, c.start)
 
 
 def _fit_cemf(c: _Call) -> IdentificationResult:
@@ -659,11 +753,25 @@ def _identify_linear(
     creep: int = 0,
     offset: bool = False,
     weights: FloatArray | None = None,
+    drift: DriftBasis | None = None,
+    start: int = 0,
+    horizon: float = 1.0,
 ) -> FitResult:
     """The least-squares kinds' fit, from the validated record (the checks and their order
     are those of :func:`identify_pi`, :func:`identify_mpi`, :func:`identify_preisach` and
     :func:`fit_linear`, without validating the record again)."""
-    lags = _default_creep(v.size, fs, creep)
+    template = _linear_template(model, v, fs, operators, levels, creep, horizon)
+    if loss == "linf" or weights is not None:
+        return fit_linear_weighted(template, v, y, loss, delta, weights, offset=offset, drift=drift, start=start)
+    return _fit_linear(template, v, y, loss, delta, offset=offset, drift=drift, start=start)
+
+
+def _linear_template(
+    model: str, v: FloatArray, fs: float | None, operators: int, levels: int, creep: int = 0, horizon: float = 1.0
+) -> LinearModel:
+    """The fixed structure of a least-squares kind for the training input ``v`` (its linear
+    parameters zero): default thresholds, envelopes, grid and creep lags."""
+    lags = _default_creep(v.size, fs, creep, horizon)
     template: LinearModel
     if model == "pi":
         r = _default_thresholds(v, as_int(operators, "operators", minimum=1))
@@ -678,26 +786,32 @@ def _identify_linear(
             raise ParameterError("fs is required for model = 'rdpi' (the rate needs the sample time)")
         r = _default_thresholds(v, as_int(operators, "operators", minimum=1))
         template = RateDependentPI(r, np.zeros(r.size), 1.0 / float(fs), 1.0, 0.0, creep=lags)
-    if loss == "linf" or weights is not None:
-        return fit_linear_weighted(template, v, y, loss, delta, weights, offset=offset)
-    return _fit_linear(template, v, y, loss, delta, offset=offset)
+    return template
 
 
-def _default_creep(n: int, fs: float | None, terms: int) -> Creep | None:
+def _default_creep(n: int, fs: float | None, terms: int, horizon: float = 1.0) -> Creep | None:
     """``terms`` creep lags for a record of ``n`` samples at ``fs``: one time constant in the
-    middle (in decades) of each of ``terms`` equal bands of ``[2 Ts, n Ts]``; ``None`` for 0."""
+    middle (in decades) of each of ``terms`` equal bands of ``[2 Ts, horizon n Ts]``; ``None``
+    for 0."""
     if not terms:
         return None
     if fs is None:
         raise ParameterError(f"fs is required with creep = {terms} (the lags need the sample time)")
     fs = as_scalar(fs, "fs", positive=True)
-    lo, hi = np.log10(2.0 / fs), np.log10(n / fs)
+    lo, hi = np.log10(2.0 / fs), np.log10(horizon * n / fs)
     w = (hi - lo) / terms
     return Creep(1.0 / fs, 10.0 ** (lo + w * (np.arange(terms) + 0.5)), np.zeros(terms))
 
 
 def _identify_boucwen(
-    v: FloatArray, y: FloatArray, loss: str, delta: float | None, search: dict[str, Any], offset: bool = False
+    v: FloatArray,
+    y: FloatArray,
+    loss: str,
+    delta: float | None,
+    search: dict[str, Any],
+    offset: bool = False,
+    drift: DriftBasis | None = None,
+    start: int = 0,
 ) -> _Fitted:
     """Bouc–Wen by a population optimizer: ``(model, method, history, partial, evaluations)``.
 
@@ -705,8 +819,12 @@ def _identify_boucwen(
     projection): each simulated output is scored with its best offset — the mean residual
     for the RMSE, the median for the Huber cost — so the search runs over the shape alone
     and an offset in the record cannot bend the loop; the fitted model carries the offset
-    in its output map. Bouc–Wen scales with ``a`` and ``d``: no gain is fitted."""
+    in its output map. Bouc–Wen scales with ``a`` and ``d``: no gain is fitted. A ``drift``
+    basis (squared loss) is projected out with the offset (the least-squares drift of each
+    candidate's residual); the samples before ``start`` are simulated, not scored."""
     search = dict(search)
+    if drift is not None or start:
+        return _identify_boucwen_projected(v, y, search, offset, drift, start)
     search.pop("validate")
     optimizer = search.pop("optimizer")
     method = "de" if optimizer == "ls" else optimizer
@@ -759,6 +877,49 @@ def _identify_boucwen(
     fitted = BoucWen(*np.asarray(res.x, dtype=np.float64))
     if offset:
         fitted = fitted.with_output_map(offset=float(centre(y - fitted.simulate(v))[0]))
+    return fitted, method, dict(res.history), res.interrupted, int(res.nfev)
+
+
+def _identify_boucwen_projected(
+    v: FloatArray, y: FloatArray, search: dict[str, Any], offset: bool, drift: DriftBasis | None, start: int
+) -> _Fitted:
+    """Bouc–Wen with the squared loss on the samples from ``start``, the offset (with
+    ``offset``) and the ``drift`` columns projected out of every candidate's residual."""
+    search.pop("validate")
+    optimizer = search.pop("optimizer")
+    method = "de" if optimizer == "ls" else optimizer
+    family = BoucWen(1.0, 1.0, 0.0).family
+    bounds = _boucwen_bounds(v, y)
+    n = v.size
+    cols = [np.ones((n, 1))] if offset else []
+    if drift is not None:
+        cols.append(drift.columns(n))
+    basis = np.column_stack(cols) if cols else np.zeros((n, 0))
+    scale = np.maximum(np.sqrt(np.mean(basis[start:] ** 2, axis=0)), 1e-300)
+    q, _ = np.linalg.qr(basis[start:] / scale) if basis.shape[1] else (np.zeros((n - start, 0)), None)
+    ys = y[start:]
+
+    def residual(rows: FloatArray) -> FloatArray:
+        out: FloatArray = _core.batch_simulate(family, [], np.ascontiguousarray(rows), v)[..., start:]
+        with np.errstate(invalid="ignore", over="ignore"):
+            r = ys - out
+            r = r - (r @ q) @ q.T  # the best offset and drift of each candidate, removed
+        return r
+
+    def cost(rows: FloatArray) -> FloatArray:
+        r = residual(rows)
+        with np.errstate(invalid="ignore", over="ignore"):
+            c: FloatArray = np.sqrt(np.mean(r * r, axis=-1))
+        return np.where(np.isfinite(c), c, np.inf)
+
+    res = minimize(cost, bounds, method=method, polish=True, **search)
+    fitted = BoucWen(*np.asarray(res.x, dtype=np.float64))
+    if basis.shape[1]:
+        coef = np.linalg.lstsq(basis[start:], ys - fitted.simulate(v)[start:], rcond=None)[0]
+        if offset:
+            fitted = fitted.with_output_map(offset=float(coef[0]))
+        if drift is not None:
+            fitted = fitted.with_drift(drift.drift(coef[1:] if offset else coef))
     return fitted, method, dict(res.history), res.interrupted, int(res.nfev)
 
 

@@ -14,6 +14,7 @@ from .._validate import as_record
 from ..errors import DataError, ParameterError
 from ..models.preisach import Preisach
 from .core import (
+    DriftBasis,
     FitResult,
     FloatArray,
     LinearModel,
@@ -53,21 +54,25 @@ def fit_linear_weighted(
     weights: FloatArray | None,
     *,
     offset: bool = False,
+    drift: DriftBasis | None = None,
+    start: int = 0,
 ) -> FitResult:
     """The linear parameters of ``model`` (its structure kept) fitted to a validated record by
     ``loss`` (``"squared"``, ``"huber"`` or ``"linf"``) with optional sample ``weights``
-    (``>= 0``; least squares minimizes ``sum w r^2``, the minimax fit ``max w |r|``). A
+    (``>= 0``; least squares minimizes ``sum w r^2``, the minimax fit ``max w |r|``), a
+    ``drift`` basis fitted with it, the samples before ``start`` left out of the cost. A
     Preisach grid's least squares (and Huber) fit is :func:`piezohyst.identify.core._fit_preisach`'s
     with the sample weights: on its distinct relay patterns, with its smoothness prior."""
     t0 = time.perf_counter()
+    w = np.ones(v.size) if weights is None else np.array(weights, dtype=np.float64)
+    w[:start] = 0.0
     if isinstance(model, Preisach) and loss != "linf":
-        return _fit_preisach(model, v, y, loss, delta, t0, None, weights)
-    A, lb, ub, build = _design(model, v, offset)
+        return _fit_preisach(model, v, y, loss, delta, t0, None, w, drift, start)
+    A, lb, ub, build = _design(model, v, offset, drift)
     check_samples(v.size, parameter_count(model, A.shape[1]), _what(model), "fewer operators or levels")
     scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-300)
     A = A / scale
     bounds = (lb * scale, ub * scale)
-    w = np.ones(v.size) if weights is None else weights
     solves = 1
     if loss == "linf":
         z = _minimax(A, y, w, bounds)

@@ -343,24 +343,31 @@ def plot_validation(
 def parameter_count(model: object) -> int:
     """Parameters a fit adjusts: the linear families' regressor columns (their structure is
     fixed), Bouc–Wen's four (``a``, ``beta``, ``gamma``, ``d``; ``n = 1``), else the model's
-    row length."""
+    row length; plus one for an input delay and one per drift term."""
     from ..models.differential import BoucWen
     from ..models.pi import PI, GeneralizedPI, RateDependentPI
     from ..models.preisach import Preisach
 
+    drift = getattr(model, "drift", None)
+    extra = int(getattr(model, "input_delay", 0) > 0)
+    if drift is not None:
+        extra += len(drift.taus) + int(drift.slope != 0.0)
     if isinstance(model, (PI, GeneralizedPI, RateDependentPI, Preisach)):
-        return int(_layout(model)[0].size)
+        return int(_layout(model)[0].size) + extra
     if isinstance(model, BoucWen):
-        return 4
+        return 4 + extra
     row = getattr(model, "to_row", None)
-    return int(np.size(row())) if callable(row) else 0
+    return int(np.size(row())) + extra if callable(row) else 0
 
 
 def league_table(
-    results: list[tuple[str, int, IdentificationResult | None, str | None]], n_train: int
+    results: list[tuple[str, int, IdentificationResult | None, str | None]],
+    n_train: int,
+    *,
+    labels: list[str] | None = None,
 ) -> tuple[list[dict[str, Any]], int]:
     """Rank fitted candidates ``(kind, creep, result or None, error)``: ``(rows, index of the
-    chosen result)``.
+    chosen result)``; ``labels`` name them (default: ``kind+creepM``).
 
     With validation data: by validation RMSE (state carried, as :func:`identify` scores it),
     the chosen model being the one with the fewest parameters whose validation MSE is within
@@ -401,6 +408,9 @@ def league_table(
         limit = float("nan")
         criterion = "BIC (train)"
     order = sorted(score, key=lambda i: score[i])
+    names = [k + (f"+creep{c}" if c else "") for k, c, _, _ in results] if labels is None else list(labels)
+    if len(names) != len(results):
+        raise ParameterError(f"labels has {len(names)} names for {len(results)} candidates")
     rows: list[dict[str, Any]] = []
     for rank, i in enumerate(order, 1):
         kind, creep, got, _ = results[i]
@@ -409,7 +419,7 @@ def league_table(
         rows.append(
             {
                 "rank": rank,
-                "name": kind + (f"+creep{creep}" if creep else ""),
+                "name": names[i],
                 "kind": kind,
                 "creep": creep,
                 "parameters": k[i],
@@ -422,12 +432,12 @@ def league_table(
                 "chosen": i == chosen,
             }
         )
-    for kind, creep, got, err in results:
+    for j, (kind, creep, got, err) in enumerate(results):
         if got is None:
             rows.append(
                 {
                     "rank": None,
-                    "name": kind + (f"+creep{creep}" if creep else ""),
+                    "name": names[j],
                     "kind": kind,
                     "creep": creep,
                     "error": err,

@@ -4,6 +4,22 @@ A model is a parameter set (immutable once built) plus an internal state used by
 :meth:`HysteresisModel.step`. :meth:`HysteresisModel.simulate` never touches the internal
 state: it runs a whole record from a given (default: relaxed) initial state. All loops over
 samples run in the Rust core.
+
+Around the family's core sits the measurement chain of the record the model was identified
+on, each part a property of the model (identity by default) and of its file::
+
+    y[k] = gain * h(v[k - input_delay]) + offset + drift(k)
+
+- ``input_delay`` (:meth:`HysteresisModel.with_input_delay`): the input reaches the core
+  ``input_delay`` samples late (a sensor's filter, a DAQ's latency); before a simulation's
+  first sample the input is taken as held at its first value;
+- the output map ``gain``, ``offset`` (:class:`OutputMap`): a sensor's gain and zero;
+- ``drift`` (:class:`Drift`): a slow trend of the record (a sensor settling), a function of
+  ``k``, the samples since the simulation's first sample (the training span's start, for an
+  identified model).
+
+The delay line and ``k`` are part of the model's state (after the core's slots), so a run
+continued from a final state is the same run.
 """
 
 from __future__ import annotations
@@ -20,7 +36,7 @@ import numpy.typing as npt
 
 from .. import _core
 from .._io import PathLike, check_parameter_tree, json_text, load_json_file, malformed_as, printable, write_atomic
-from .._validate import as_record, as_scalar
+from .._validate import as_int, as_record, as_scalar, as_vector
 from ..errors import ParameterError, ParameterTypeError
 from ..signals.matfile import load_mat_file, write_mat
 from ..signals.response import Response
@@ -30,6 +46,7 @@ __all__ = [
     "IDENTITY_MAP",
     "SCHEMA_VERSION",
     "AnyModel",
+    "Drift",
     "HysteresisModel",
     "Inverse",
     "OutputMap",
@@ -43,6 +60,9 @@ JSONDict = dict[str, Any]
 
 #: Version of the model-file layout written by :meth:`HysteresisModel.save`.
 SCHEMA_VERSION = 1
+
+#: Largest input delay a model holds, in samples.
+MAX_INPUT_DELAY = 100_000
 
 _REGISTRY: dict[str, type[HysteresisModel]] = {}
 
@@ -195,6 +215,73 @@ class OutputMap:
 IDENTITY_MAP = OutputMap()
 
 
+@dataclass(frozen=True)
+class Drift:
+    """A slow trend added to a model's output: ``drift(k) = slope k + sum_j weights_j
+    (1 - exp(-k / taus_j))``, ``k`` the samples since the simulation's first sample.
+
+    It models what a record's sensor adds over time whatever the input (a capacitive or
+    optical sensor warming up, a DAQ's zero drifting): a linear trend and exponential settling
+    terms. It is a property of the *record*, counted from the start of the simulation: an
+    identified model's drift is counted from its training span's first sample, and predicts
+    the trend only for runs that start there (``piezohyst identify`` reports it; the inverse
+    and the exported C model leave it out, see :class:`Inverse`).
+
+    Parameters
+    ----------
+    taus : sequence of float
+        Settling time constants in samples (> 0, finite).
+    weights : sequence of float
+        The settled change of each term, output units (one per tau).
+    slope : float
+        Output units per sample.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> d = Drift(taus=(100.0,), weights=(2.0,), slope=0.01)
+    >>> d.evaluate(np.array([0.0, 100.0])).round(4).tolist()
+    [0.0, 2.2642]
+    """
+
+    taus: tuple[float, ...] = ()
+    weights: tuple[float, ...] = ()
+    slope: float = 0.0
+
+    def __post_init__(self) -> None:
+        taus = as_vector(self.taus, "drift.taus")
+        weights = as_vector(self.weights, "drift.weights", length=taus.size)
+        bad = np.flatnonzero(~(taus > 0))
+        if bad.size:
+            raise ParameterError(f"drift.taus[{bad[0]}] = {taus[bad[0]]} must be > 0 (samples)")
+        object.__setattr__(self, "taus", tuple(float(x) for x in taus))
+        object.__setattr__(self, "weights", tuple(float(x) for x in weights))
+        object.__setattr__(self, "slope", as_scalar(self.slope, "drift.slope"))
+
+    def evaluate(self, k: FloatArray) -> FloatArray:
+        """The drift at samples ``k`` (since the simulation's first sample)."""
+        out: FloatArray = self.slope * k
+        for tau, w in zip(self.taus, self.weights, strict=True):
+            out = out - w * np.expm1(-k / tau)
+        return out
+
+    def to_dict(self) -> JSONDict:
+        return {"slope": self.slope, "taus": list(self.taus), "weights": list(self.weights)}
+
+    @classmethod
+    def from_any(cls, d: object) -> Drift | None:
+        """A ``Drift``, a model file's ``{"slope", "taus", "weights"}`` (absent keys: none), or
+        ``None`` (no drift)."""
+        if d is None or isinstance(d, Drift):
+            return d
+        if isinstance(d, dict):
+            unknown = sorted(set(d) - {"slope", "taus", "weights"})
+            if unknown:
+                raise ParameterError(f"drift has unknown keys {unknown}; expected 'slope', 'taus' and 'weights'")
+            return cls(tuple(d.get("taus", ())), tuple(d.get("weights", ())), d.get("slope", 0.0))
+        raise ParameterTypeError(f"drift must be a Drift or {{'slope': ..., 'taus': ..., 'weights': ...}}, got {d!r}")
+
+
 def _register(cls: _ModelType) -> _ModelType:
     _REGISTRY[cls.kind] = cls
     return cls
@@ -235,6 +322,8 @@ class HysteresisModel:
         self._row.setflags(write=False)
         self.units = _units(units)
         self._map = IDENTITY_MAP
+        self._delay = 0
+        self._drift: Drift | None = None
         self._state = self.initial_state()
 
     # The compiled core model is not picklable: pickles carry the row, and it is rebuilt
@@ -323,7 +412,10 @@ class HysteresisModel:
         equal GPI with identity envelopes). ``ParameterError`` when the family cannot hold
         the map (an offset on RDPI or Bouc–Wen; a negative gain on non-negative weights).
         ``input_range``: the inputs the row will see (e.g. the amplifier's limits), the input
-        range of the GPI a PI becomes (default: unbounded).
+        range of the GPI a PI becomes (default: unbounded). The input delay and the drift are
+        kept (they are not in the row: the core's compensated controllers, which invert the
+        row, leave them out, as :class:`Inverse` does).
+
 
         Parameters
         ----------
@@ -357,15 +449,92 @@ class HysteresisModel:
                 f"parameter row of a {self.kind} model{why}; the core's compensated controllers invert the "
                 "family's row: use a pi, gpi/mpi or preisach model, or one fitted with offset=False (--no-offset)"
             )
-        return folded
+        return folded._copy_with(self._delay, self._drift)
 
     def _fold_map(self, offset: float, gain: float, input_range: tuple[float, float] | None) -> HysteresisModel | None:
         """The model with the map folded into its row, or ``None`` if the family cannot hold it."""
         return None
 
+    # -- input delay and drift ----------------------------------------------------------
+    @property
+    def input_delay(self) -> int:
+        """Samples by which the input reaches the family's core late (0 by default)."""
+        return self._delay
+
+    @property
+    def drift(self) -> Drift | None:
+        """The record's drift added to the output (:class:`Drift`), or ``None``."""
+        return self._drift
+
+    def with_input_delay(self, samples: int) -> Self:
+        """A copy of this model whose input reaches the core ``samples`` samples late
+        (``y[k] = gain * h(v[k - samples]) + offset``; before a simulation's first sample the
+        input is held at its first value). The delay line is part of the state (after the
+        core's slots, oldest first, then the samples since the start); the copy starts relaxed.
+
+        Parameters
+        ----------
+        samples : int
+            The delay in samples (``>= 0``; 0 removes it).
+
+        Returns
+        -------
+        HysteresisModel
+            A copy of the model with the delay.
+
+        Examples
+        --------
+        >>> from piezohyst import PI
+        >>> m = PI([0.5], [1.0], p0=1.0).with_input_delay(2)
+        >>> m.simulate([1.0, 2.0, 3.0, 3.0]).tolist()
+        [1.5, 1.5, 1.5, 3.5]
+        """
+        d = as_int(samples, "input_delay", minimum=0)
+        if d > MAX_INPUT_DELAY:
+            raise ParameterError(f"input_delay = {d} must be <= {MAX_INPUT_DELAY} samples")
+        return self._copy_with(d, self._drift)
+
+    def with_drift(self, drift: Drift | Mapping[str, Any] | None) -> Self:
+        """A copy of this model with the given drift term (a :class:`Drift`, a model file's
+        mapping, or ``None`` for none); the copy starts relaxed.
+
+        Parameters
+        ----------
+        drift : Drift, mapping or None
+            The trend added to the output, counted in samples from the start of a simulation.
+
+        Returns
+        -------
+        HysteresisModel
+            A copy of the model with the drift.
+
+        Examples
+        --------
+        >>> from piezohyst import PI
+        >>> from piezohyst.models.model import Drift
+        >>> m = PI([0.5], [1.0], p0=1.0).with_drift(Drift(slope=0.5))
+        >>> m.simulate([0.0, 0.0, 0.0]).tolist()
+        [0.0, 0.5, 1.0]
+        """
+        return self._copy_with(self._delay, Drift.from_any(dict(drift) if isinstance(drift, Mapping) else drift))
+
+    def _copy_with(self, delay: int, drift: Drift | None) -> Self:
+        new = copy.copy(self)
+        new._delay = delay
+        new._drift = drift
+        new.units = dict(self.units)
+        new._state = new.initial_state()
+        return new
+
+    def _extra_state(self) -> int:
+        """State slots after the core's: the delay line and the samples since the start."""
+        return self._delay + 1 if (self._delay or self._drift is not None) else 0
+
     # -- state ------------------------------------------------------------------------
     def initial_state(self) -> FloatArray:
         """The relaxed initial state (input and memory at zero; Preisach: all relays down).
+        With an input delay or a drift, the core's slots are followed by the delay line and the
+        samples since the start (0: the delay line takes the next run's first input).
 
         Returns
         -------
@@ -377,7 +546,9 @@ class HysteresisModel:
         >>> PI([0.5], [1.0], p0=1.0).initial_state().tolist()   # one play operator
         [0.0]
         """
-        return self._compiled.initial_state()
+        core = self._compiled.initial_state()
+        extra = self._extra_state()
+        return np.concatenate([core, np.zeros(extra)]) if extra else core
 
     @property
     def state(self) -> FloatArray:
@@ -392,7 +563,34 @@ class HysteresisModel:
         s = as_record(value, name, min_length=0)
         if s.size != self._state.size:
             raise ParameterError(f"{name} has length {s.size}, expected {self._state.size} for this model")
+        if self._extra_state() and not (s[-1] >= 0.0 and s[-1] == np.floor(s[-1])):
+            raise ParameterError(
+                f"{name}[{s.size - 1}] = {s[-1]} (samples since the start) must be a whole number >= 0"
+            )
         return s
+
+    def _run(self, v: FloatArray, st: FloatArray) -> FloatArray:
+        """The output for input ``v`` from the full state ``st`` (updated in place): the delay
+        line, the core, the output map, the drift."""
+        extra = self._extra_state()
+        if not extra:
+            return self._map.apply(self._compiled.simulate(v, st))
+        nc = st.size - extra
+        d = self._delay
+        age = float(st[-1])
+        vin = v
+        if d:
+            line = np.full(d, v[0]) if age == 0.0 else st[nc : nc + d]
+            w = np.concatenate([line, v])
+            vin = w[: v.size]
+            st[nc : nc + d] = w[v.size :]
+        core = st[:nc].copy()
+        y = self._map.apply(self._compiled.simulate(vin, core))
+        st[:nc] = core
+        if self._drift is not None:
+            y = y + self._drift.evaluate(age + np.arange(v.size, dtype=np.float64))
+        st[-1] = age + v.size
+        return y
 
     def reset(self) -> None:
         """Return the internal state to the relaxed initial state.
@@ -439,7 +637,7 @@ class HysteresisModel:
         """
         v = as_record(input, "input")
         st = self.initial_state() if initial_state is None else self._checked_state(initial_state, "initial_state")
-        return self._map.apply(self._compiled.simulate(v, st))
+        return self._run(v, st)
 
     def response(
         self,
@@ -491,7 +689,7 @@ class HysteresisModel:
         v = as_record(input, "input")
         t = _time_base(v.size, fs, time)
         st = self.initial_state() if initial_state is None else self._checked_state(initial_state, "initial_state")
-        y = self._map.apply(self._compiled.simulate(v, st))
+        y = self._run(v, st)
         return Response(
             t,
             {"input": v, "output": y},
@@ -522,12 +720,14 @@ class HysteresisModel:
         """
         v = np.array([as_scalar(value, "value")])
         st = self._state.copy()
-        y = self._map.apply(self._compiled.simulate(v, st))
+        y = self._run(v, st)
         self._state = st
         return float(y[0])
 
     def inverse(self) -> Inverse:
-        """The exact per-sample inverse of this model (docs/spec.md §2.1).
+        """The exact per-sample inverse of this model (docs/spec.md §2.1), output map included;
+        an input delay and a drift are left out (see :class:`Inverse`).
+
 
         Returns
         -------
@@ -545,7 +745,9 @@ class HysteresisModel:
     # -- files ----------------------------------------------------------------------
     def to_dict(self, *, include_state: bool = False) -> JSONDict:
         """JSON-ready description: ``schema_version``, ``kind``, ``parameters``, ``units``,
-        and ``output_map`` (``{"offset", "gain"}``) when the map is not the identity.
+        ``output_map`` (``{"offset", "gain"}``) when the map is not the identity,
+        ``input_delay`` (samples) when not 0 and ``drift`` (:meth:`Drift.to_dict`) when set.
+
 
         Parameters
         ----------
@@ -571,6 +773,10 @@ class HysteresisModel:
         }
         if not self._map.is_identity:
             d["output_map"] = self._map.to_dict()
+        if self._delay:
+            d["input_delay"] = self._delay
+        if self._drift is not None:
+            d["drift"] = self._drift.to_dict()
         if include_state:
             d["state"] = self._state.tolist()
         return d
@@ -709,6 +915,8 @@ class HysteresisModel:
             and self.dims == other.dims
             and np.array_equal(self._row, other._row)
             and self._map == other._map
+            and self._delay == other._delay
+            and self._drift == other._drift
         )
 
     # models compare by parameters and carry a mutable state: not hashable
@@ -718,6 +926,10 @@ class HysteresisModel:
         args = ", ".join(f"{k}={_short(v)}" for k, v in self.parameters.items())
         if not self._map.is_identity:
             args += f", output_map=(offset={self._map.offset:.6g}, gain={self._map.gain:.6g})"
+        if self._delay:
+            args += f", input_delay={self._delay}"
+        if self._drift is not None:
+            args += f", drift={self._drift}"
         return f"{type(self).__name__}({args})"
 
 
@@ -835,6 +1047,12 @@ def _model_from_dict(d: object) -> AnyModel:
         raise ParameterError(f"parameters of kind {kind!r} are not valid: {e}") from None
     if d.get("output_map") is not None:  # absent: the identity (files written before the map)
         model = model.with_output_map(OutputMap.from_any(d["output_map"]))
+    if d.get("input_delay") is not None:  # absent: none (files written before the delay)
+        if isinstance(d["input_delay"], bool) or not isinstance(d["input_delay"], int):
+            raise ParameterError(f"input_delay = {d['input_delay']!r} must be a whole number of samples")
+        model = model.with_input_delay(d["input_delay"])
+    if d.get("drift") is not None:
+        model = model.with_drift(Drift.from_any(d["drift"]))
     if "state" in d:
         model.state = d["state"]
     return model
@@ -890,6 +1108,15 @@ class Inverse:
     output is found by bracketing and safeguarded Newton, and the forward state is advanced
     with it, so the inverse always stays consistent with the model it inverts.
 
+    **Input delay and drift are not inverted.** A compensator cannot undo a delay: it would
+    have to know the desired output ``input_delay`` samples ahead. The inverse inverts the
+    undelayed model: driven by its inputs, a model with an input delay of ``d`` samples
+    follows the desired output ``d`` samples late (``y[k] = desired[k - d]``); when the desired
+    trajectory is known ahead (a planned scan), give it ``d`` samples early. The drift is a
+    trend of the record's sensor, not a motion of the actuator: the inverse leaves it out (it
+    does not drive the actuator to follow a sensor's drift). Its state is the family core's
+    (without the delay line); a model state given to it is taken for its core part.
+
     Parameters
     ----------
     model : HysteresisModel
@@ -908,17 +1135,26 @@ class Inverse:
 
     def __init__(self, model: HysteresisModel) -> None:
         self.model = model
-        self._state = model.initial_state()
+        self._state = model._compiled.initial_state()
         self._last_input = 0.0
 
     @property
     def state(self) -> FloatArray:
-        """The forward model's state the inverse tracks (a copy)."""
+        """The forward model's core state the inverse tracks (a copy)."""
         return self._state.copy()
 
     @state.setter
     def state(self, value: npt.ArrayLike) -> None:
-        self._state = self.model._checked_state(value, "state")
+        self._state = self._checked(value, "state")
+
+    def _checked(self, value: object, name: str) -> FloatArray:
+        """The core part of a state: the core's state, or a whole model state (checked)."""
+        m = self.model
+        s = as_record(value, name, min_length=0)
+        core = self._state.size
+        if s.size != core:
+            s = m._checked_state(s, name)[:core].copy()
+        return s
 
     def reset(self) -> None:
         """Back to the relaxed state.
@@ -933,7 +1169,7 @@ class Inverse:
         >>> inv.state.tolist()
         [0.0]
         """
-        self._state = self.model.initial_state()
+        self._state = self.model._compiled.initial_state()
         self._last_input = 0.0
 
     def simulate(self, desired: npt.ArrayLike, *, initial_state: npt.ArrayLike | None = None) -> FloatArray:
@@ -964,7 +1200,7 @@ class Inverse:
         """
         yd = as_record(desired, "desired")
         m = self.model
-        st = m.initial_state() if initial_state is None else m._checked_state(initial_state, "initial_state")
+        st = m._compiled.initial_state() if initial_state is None else self._checked(initial_state, "initial_state")
         return m._compiled.inverse(m._map.invert(yd), st, 0.0)
 
     def response(
@@ -1015,7 +1251,7 @@ class Inverse:
         yd = as_record(desired, "desired")
         t = _time_base(yd.size, fs, time)
         m = self.model
-        st = m.initial_state() if initial_state is None else m._checked_state(initial_state, "initial_state")
+        st = m._compiled.initial_state() if initial_state is None else self._checked(initial_state, "initial_state")
         v = m._compiled.inverse(m._map.invert(yd), st, 0.0)
         return Response(
             t,

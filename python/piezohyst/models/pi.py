@@ -562,7 +562,8 @@ class ModifiedPI(GeneralizedPI):
 
     @classmethod
     def from_gpi(cls, model: GeneralizedPI) -> ModifiedPI:
-        """The same parameters, units, creep and output map as ``model``, named ``"mpi"``.
+        """The same parameters, units, creep, output map, input delay and drift as ``model``,
+        named ``"mpi"``.
 
         Parameters
         ----------
@@ -581,16 +582,20 @@ class ModifiedPI(GeneralizedPI):
         >>> m.kind, m.simulate([0.0, 0.5]).tolist() == mpi_seed2().simulate([0.0, 0.5]).tolist()
         ('mpi', True)
         """
-        return cls(
-            model.thresholds,
-            model.weights,
-            model.polynomial,
-            model.rising,
-            model.falling,
-            model.input_range,
-            creep=model.creep,
-            units=model.units,
-        ).with_output_map(model.output_map)
+        return (
+            cls(
+                model.thresholds,
+                model.weights,
+                model.polynomial,
+                model.rising,
+                model.falling,
+                model.input_range,
+                creep=model.creep,
+                units=model.units,
+            )
+            .with_output_map(model.output_map)
+            ._copy_with(model.input_delay, model.drift)
+        )
 
 
 class EnvelopeInverse:

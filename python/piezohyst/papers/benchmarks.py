@@ -12,8 +12,9 @@ bench:end -->`` with the table.
 Examples
 --------
 >>> from piezohyst.benchmarks import BENCHMARKS
->>> [b.name for b in BENCHMARKS]
-['pi_batch', 'closed_loop', 'identify_mpi', 'c_step', 'control', 'demo', 'load_csv', 'identify_speed', 'fleet']
+>>> [b.name for b in BENCHMARKS]  # doctest: +NORMALIZE_WHITESPACE
+['pi_batch', 'closed_loop', 'identify_mpi', 'c_step', 'control', 'demo', 'load_csv',
+ 'identify_speed', 'fleet', 'identify_auto']
 """
 
 from __future__ import annotations
@@ -464,6 +465,37 @@ def _fleet_rows(d: Json) -> list[Row]:
     ]
 
 
+_AUTO_RECORDS = {
+    "yan9a": "yan9a (200 Hz, measured)",
+    "5khz": "5 kHz ±150 V lookalikes (time column, lead-in)",
+    "10khz": "10 kHz two-column lookalikes with drift",
+}
+
+
+def _identify_auto_rows(d: Json) -> list[Row]:
+    rows: list[Row] = []
+    for kind, s in d["summary"].items():
+        if not s["runs"]:
+            continue
+        base = s.get("baseline_median_percent")
+        rows.append(
+            _row(
+                f"identify --model auto, {_AUTO_RECORDS.get(kind, kind)}: median validation RMSE (state carried), "
+                f"{s['met']}/{s['runs']} runs within target"
+                + ("" if s.get("baseline_met") is None else f" (baseline {s['baseline_met']}/{s['runs']})"),
+                s["median_percent"],
+                "% of range",
+                "--lag 0 --drift none",
+                base,
+                ratio=None if base is None else base / s["median_percent"],
+                ratio_label="lower",
+                target=f"≤ {s['target_percent']:g} % every run",
+                passed=s["met"] == s["runs"] and s["reproduced"],
+            )
+        )
+    return rows
+
+
 BENCHMARKS: tuple[Benchmark, ...] = (
     Benchmark(
         "pi_batch",
@@ -509,6 +541,13 @@ BENCHMARKS: tuple[Benchmark, ...] = (
         "Dask scale-out: fleet identify 2 vs 1 workers, robustness runs/s, per-task overhead",
         ("--quick",),
         _fleet_rows,
+    ),
+    Benchmark(
+        "identify_auto",
+        "identify_auto.py",
+        "issue 14's acceptance command on yan9a and lookalike records, against --lag 0 --drift none",
+        ("--quick",),
+        _identify_auto_rows,
     ),
 )
 _BY_NAME = {b.name: b for b in BENCHMARKS}
