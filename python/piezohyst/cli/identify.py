@@ -650,7 +650,9 @@ def _parse_lag(args: argparse.Namespace) -> tuple[int | str, int | None]:
         return "auto", _integer(
             lag[5:], f"--lag = '{args.lag}': auto:M needs M, the largest lag searched, a number of samples"
         )
-    return _integer(lag, f"--lag = '{args.lag}' must be 'auto', 'auto:M' or an integer number of samples", signed=True), None
+    return _integer(
+        lag, f"--lag = '{args.lag}' must be 'auto', 'auto:M' or an integer number of samples", signed=True
+    ), None
 
 
 #: Kinds whose model holds an input delay (the others have no output map: the record is realigned).
