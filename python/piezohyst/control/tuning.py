@@ -24,7 +24,16 @@ from .._validate import as_record, as_scalar
 from ..errors import ComputationError, ParameterError, ParameterTypeError
 from ..optimize.report import RunReport
 from .controllers import is_controller
-from .simulation import ClosedLoopResult, ControllerLike, FloatArray, RngLike, _prepare, closed_loop, seed_from
+from .simulation import (
+    ClosedLoopResult,
+    ControllerLike,
+    FloatArray,
+    RngLike,
+    UserController,
+    _prepare,
+    closed_loop,
+    seed_from,
+)
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..optimize.core import IntermediateResult, Optimizer
@@ -35,7 +44,7 @@ __all__ = ["TuningResult", "stage_from_model", "track", "tune"]
 
 
 def track(
-    controller: ControllerLike,
+    controller: ControllerLike | UserController,
     reference: npt.ArrayLike,
     *,
     stage: Stage | None = None,
