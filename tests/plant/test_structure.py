@@ -22,7 +22,13 @@ def _linear_stage(**amp: float) -> Stage:
     """The virtual stage's mechanics and amplifier lag, without hysteresis, creep,
     electrostriction or slew limit: a linear system."""
     p = dataclasses.replace(
-        BASE.params, hyst_alpha=0.0, hyst_beta=0.0, hyst_gamma=0.0, electrostriction=0.0, creep_taus=(), creep_weights=()
+        BASE.params,
+        hyst_alpha=0.0,
+        hyst_beta=0.0,
+        hyst_gamma=0.0,
+        electrostriction=0.0,
+        creep_taus=(),
+        creep_weights=(),
     )
     return BASE.with_(params=p, amplifier=Amplifier(bandwidth=3000.0, **amp), sensor=Sensor())
 
@@ -81,7 +87,7 @@ def test_a_voltage_driven_law_drives_the_stage():
     # the CEMF law's loop is another: the plain stage differs by far more
     x_cemf = BASE.with_(params=p).simulate(u).position
     assert np.abs(x_cemf[1:] - h[:-1]).max() / np.ptp(x) > 0.05
-    lo, hi = stage.stroke()
+    _, hi = stage.stroke()
     assert np.isclose(hi, law.simulate([0.0, 150.0])[-1], rtol=1e-9)
     # an identified model works the same (GPI with creep); the closed loop runs on it
     fit = identify_stage_mpi(BASE, np.random.default_rng(0))

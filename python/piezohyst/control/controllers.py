@@ -74,8 +74,10 @@ __all__ = [
     "Compensated",
     "InverseFeedforward",
     "OpenLoop",
+    "SampleRateWarning",
     "VelocityObserver",
     "cemf_model_parameters",
+    "check_sample_rate",
 ]
 
 
@@ -220,6 +222,7 @@ class OpenLoop:
     c2: float = 0.0
     u_min: float | None = None
     u_max: float | None = None
+    tuned_sample_time: float | None = field(default=None, repr=False, compare=False)
 
     @property
     def uses_reference_derivatives(self) -> bool:
@@ -355,6 +358,7 @@ class PID:
     offset: float = 0.0
     u_min: float | None = None
     u_max: float | None = None
+    tuned_sample_time: float | None = field(default=None, repr=False, compare=False)
 
     #: the step uses only the reference position
     uses_reference_derivatives = False
@@ -674,9 +678,11 @@ class SMC:
     (seed 1's Case 2), ``False`` omits it (Case 1). ``switching="super_twisting"`` replaces
     ``Ks sat(s/phi)`` by ``k1 |s|^(1/2) sign(s) + nu``, ``nu' = k2 sign(s)`` (chattering-free).
     Units: ``kp`` 1/s², ``kv`` and ``alpha`` 1/s, ``ks`` V, ``phi`` m/s.
-    ``model_terms="measured"`` is seed 1's ``B x' + K x`` on the measured motion (positive
-    position feedback that can latch at a voltage limit when the identified stiffness asks for
-    more than the amplifier gives); ``"desired"`` evaluates them on the reference.
+    ``model_terms="desired"`` (the default) evaluates ``B x' + K x`` on the reference
+    (desired compensation: the stage's own stiffness and damping act on the error, and the loop
+    recovers from a voltage limit); ``"measured"`` is seed 1's form on the measured motion, a
+    positive feedback of the position estimate that latches at a voltage limit when the
+    identified stiffness asks for more than the amplifier gives (kept for reproducing seed 1).
     The sliding dynamics ``e'' + (kv + alpha) e' + (alpha kv + kp) e = 0`` must be stable.
     """
 
@@ -690,10 +696,11 @@ class SMC:
     switching: str = "boundary_layer"
     k1: float = 0.0
     k2: float = 0.0
-    model_terms: str = "measured"
+    model_terms: str = "desired"
     observer: VelocityObserver = field(default_factory=lambda: VelocityObserver(300.0))
     u_min: float | None = None
     u_max: float | None = None
+    tuned_sample_time: float | None = field(default=None, repr=False, compare=False)
 
     uses_reference_derivatives = True
 
@@ -767,6 +774,7 @@ class ABSMC:
     observer: VelocityObserver = field(default_factory=VelocityObserver)
     u_min: float | None = None
     u_max: float | None = None
+    tuned_sample_time: float | None = field(default=None, repr=False, compare=False)
 
     uses_reference_derivatives = True
 
@@ -846,6 +854,7 @@ class CemfFeedforward:
     model: StageParameters
     u_min: float | None = None
     u_max: float | None = None
+    tuned_sample_time: float | None = field(default=None, repr=False, compare=False)
 
     uses_reference_derivatives = True
 
@@ -884,6 +893,7 @@ class Compensated:
 
     inner: DomainController
     model: HysteresisModel
+    tuned_sample_time: float | None = field(default=None, repr=False, compare=False)
 
     @property
     def uses_reference_derivatives(self) -> bool:
@@ -913,6 +923,7 @@ class InverseFeedforward:
     model: HysteresisModel
     c1: float = 0.0
     c2: float = 0.0
+    tuned_sample_time: float | None = field(default=None, repr=False, compare=False)
 
     @property
     def uses_reference_derivatives(self) -> bool:
@@ -935,6 +946,7 @@ class ILC:
     gain: float = 0.5
     forgetting: float = 1.0
     lead: int = 3
+    tuned_sample_time: float | None = field(default=None, repr=False, compare=False)
 
     @property
     def uses_reference_derivatives(self) -> bool:
@@ -953,6 +965,53 @@ class ILC:
             raise ParameterTypeError("inner must not itself be an ILC")
         kind, params, inverse, _ = self.inner.core(stage, limits=limits)
         return kind, params, inverse, (n, gain, q, lead, int(stage.sensor.delay))
+
+
+class SampleRateWarning(UserWarning):
+    """A controller runs at another sample rate than the one it was tuned at
+    (``tuned_sample_time``, set by :func:`piezohyst.tune`): its discrete-time behaviour (the
+    observer, the filters, the switching) changes with the rate, and gains tuned at 10 kHz need
+    not hold at 5 kHz. Tune again at the rate it runs at."""
+
+
+def check_sample_rate(controller: object, sample_time: float) -> None:
+    """Warn (:class:`SampleRateWarning`) when ``controller`` (or the controller it wraps) was
+    tuned at another sample time than ``sample_time`` (s).
+
+    Parameters
+    ----------
+    controller : controller configuration
+        Any controller; one without ``tuned_sample_time`` (or with ``None``) is not checked.
+    sample_time : float
+        The sample time it is about to run at, s.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> from piezohyst import PID
+    >>> from piezohyst.control.controllers import SampleRateWarning, check_sample_rate
+    >>> pid = PID(kp=1e5, tuned_sample_time=1e-4)
+    >>> with warnings.catch_warnings(record=True) as w:
+    ...     warnings.simplefilter("always")
+    ...     check_sample_rate(pid, 2e-4)
+    >>> issubclass(w[0].category, SampleRateWarning), str(w[0].message)[:23]
+    (True, 'PID was tuned at 10 kHz')
+    """
+    import warnings
+
+    c: object | None = controller
+    while c is not None:
+        tuned = getattr(c, "tuned_sample_time", None)
+        if tuned is not None and not math.isclose(float(tuned), float(sample_time), rel_tol=1e-9):
+            warnings.warn(
+                f"{type(c).__name__} was tuned at {1e-3 / tuned:g} kHz (sample time {tuned:g} s) and runs at "
+                f"{1e-3 / sample_time:g} kHz ({sample_time:g} s): its discrete-time behaviour changes with the "
+                "rate; tune it again at the rate it runs at",
+                SampleRateWarning,
+                stacklevel=3,
+            )
+            return
+        c = getattr(c, "inner", None)
 
 
 def is_controller(c: object) -> bool:

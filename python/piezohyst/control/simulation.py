@@ -19,7 +19,7 @@ from ..errors import ParameterError, ParameterTypeError
 from ..signals.metrics import tracking_metrics
 from ..signals.response import Response
 from ..signals.results import require_pandas
-from .controllers import is_controller
+from .controllers import check_sample_rate, is_controller
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import pandas as pd
@@ -397,6 +397,7 @@ def closed_loop(
     if not is_controller(controller) and callable(getattr(controller, "step", None)):
         return _closed_loop_python(stage, controller, reference, velocity, acceleration, rng, init)
     x, v, a, spec = _prepare(stage, controller, reference, velocity, acceleration)  # type: ignore[arg-type]
+    check_sample_rate(controller, stage.sample_time)
     d = stage.compiled.closed_loop(_core.Scenario(spec, x, v, a, seed_from(rng)), init)
     return _result(stage, d, controller)
 
@@ -458,6 +459,7 @@ def closed_loop_batch(
             x, v, a, spec = _prepare(stage, controller, reference, None, None)
         except (ValueError, TypeError) as e:
             raise type(e)(f"scenarios[{j}]: {e}") from None
+        check_sample_rate(controller, stage.sample_time)
         prepared.append(controller)
         core.append((spec, x, v, a, int(seeds_rng.integers(0, 2**63 - 1))))
     out = stage.compiled.closed_loop_batch(core, init)

@@ -30,6 +30,7 @@ from .simulation import (
     FloatArray,
     RngLike,
     UserController,
+    _check_reference,
     _prepare,
     closed_loop,
     seed_from,
@@ -75,6 +76,39 @@ def track(
     if first >= res.reference.size - 1:
         raise ParameterError(f"skip = {skip} s leaves fewer than 2 of the reference's {res.reference.size} samples")
     return res._with_skip(first)
+
+
+def _plants(stage: Stage, stages: Sequence[Stage] | None) -> list[Stage]:
+    """The plants a tuning runs on: ``stage``, or ``stage`` then ``stages``."""
+    from ..plant.stage import Stage
+
+    if stages is None:
+        return [stage]
+    if isinstance(stages, Stage) or not isinstance(stages, Sequence) or not stages:
+        raise ParameterTypeError("stages must be a non-empty list of Stage")
+    for j, s in enumerate(stages):
+        if not isinstance(s, Stage):
+            raise ParameterTypeError(f"stages[{j}] must be a Stage, got {type(s).__name__}")
+        if s.sample_time != stage.sample_time:
+            raise ParameterError(
+                f"stages[{j}] runs at {s.sample_time} s, the tuning stage at {stage.sample_time} s: tune at one rate"
+            )
+    return [stage, *stages]
+
+
+def _aggregator(aggregate: str | float) -> Callable[[FloatArray], FloatArray]:
+    """Per-candidate cost over plants (axis 0): mean, worst or a percentile."""
+    if aggregate == "mean":
+        return lambda c: np.asarray(c.mean(axis=0))
+    if aggregate == "worst":
+        return lambda c: np.asarray(c.max(axis=0))
+    if isinstance(aggregate, str) or isinstance(aggregate, bool):
+        raise ParameterError(f"aggregate = {aggregate!r} must be 'mean', 'worst' or a percentile in (0, 100]")
+    q = as_scalar(aggregate, "aggregate")
+    if not 0 < q <= 100:
+        raise ParameterError(f"aggregate = {q} must be 'mean', 'worst' or a percentile in (0, 100]")
+    # an infinite cost (unstable, saturated) counts as the largest: percentile of +inf is inf
+    return lambda c: np.asarray(np.percentile(c, q, axis=0, method="higher"))
 
 
 def stage_from_model(stage: Stage, model: StageParameters) -> Stage:
@@ -128,10 +162,13 @@ def tune(
     saturation_limit: float = 0.01,
     log_scale: bool = True,
     variants: Iterable[Mapping[str, object]] | None = None,
+    stages: Sequence[Stage] | None = None,
+    aggregate: str | float = "mean",
     progress: bool = False,
     callback: Callable[[IntermediateResult], object] | None = None,
 ) -> TuningResult:
-    """Tune ``gains`` of ``controller`` for the closed-loop tracking RMSE on ``stage``.
+    """Tune ``gains`` of ``controller`` for the closed-loop tracking RMSE on ``stage``, or on a
+    set of ``stages`` (robust tuning: worst case or a percentile over perturbed plants).
 
     Parameters
     ----------
@@ -157,6 +194,37 @@ def tune(
         Field overrides the same gains must serve, e.g. ``[{"cemf": False}, {"cemf": True}]``
         (seed 1 compares its two cases with identical gains): the cost is the mean RMSE over
         every variant and reference, and a candidate must satisfy the constraints in each.
+    stages : list of Stage, optional
+        Tune for this set of plants instead of ``stage`` alone (e.g.
+        :func:`piezohyst.plant.perturbations` of the identified model's stage: the plant as
+        identified and its ±20 % variants): each candidate runs on every stage (the same
+        references, variants and noise seeds), must satisfy the saturation constraint on each,
+        and its cost is ``aggregate`` of the per-stage costs. The controller is packed for
+        ``stage`` (the nominal plant; its feedforward defaults, limits and observer delay come
+        from there) and run unchanged on the others, as it would run on a stage it was not
+        identified on.
+    aggregate : {"mean", "worst"} or float
+        How the per-stage costs combine: their mean, their maximum, or a percentile (a number
+        in ``(0, 100]``; 100 is the worst case).
+
+    Returns
+    -------
+    TuningResult
+        The best controller (its ``tuned_sample_time`` set to ``stage``'s sample time when
+        it has that field), its cost (``rmse``, m) and the optimizer's history.
+
+    Examples
+    --------
+    >>> import piezohyst as ph
+    >>> from piezohyst.plant import perturbations
+    >>> stage = ph.virtual_stage()
+    >>> _, ref = ph.triangle(5, 5e-6, 0.3, 1 / stage.sample_time, offset=7e-6)
+    >>> pid = ph.PID(ff_gain=1 / stage.params.static_gain)
+    >>> box = {"kp": (1e4, 1e7), "ki": (1e8, 1e11)}
+    >>> res = ph.tune(pid, box, ref, stage=stage, stages=perturbations(stage, ["stiffness"]),
+    ...               aggregate="worst", rng=1, max_iterations=4, population_size=8)
+    >>> bool(res.rmse < 0.1e-6), res.controller.tuned_sample_time
+    (True, 0.0001)
     """
     from ..optimize.core import minimize
     from ..plant.stage import virtual_stage
@@ -195,6 +263,8 @@ def tune(
         for n in v:
             if n not in fields:
                 raise ParameterError(f"variants: {type(controller).__name__} has no field {n!r}")
+    plants = _plants(stage, stages)
+    combine = _aggregator(aggregate)
 
     def candidate(theta: FloatArray) -> ControllerLike:
         values = 10.0**theta if log_scale else theta
@@ -211,6 +281,9 @@ def tune(
                     for var in variants
                     for r, seed in zip(refs, seeds, strict=False)
                 ]
+                for plant in plants[1:]:  # the references within each plant's stroke
+                    for r in refs:
+                        _check_reference(plant, r)
             except (ValueError, TypeError):
                 valid.append(False)
                 continue
@@ -218,11 +291,14 @@ def tune(
             scen.extend((spec, x, v, a, int(seed)) for (x, v, a, spec), seed in specs)
         out = np.full(len(X), np.inf)
         if scen:
-            m = stage.compiled.closed_loop_batch_tracking(scen, stage.rest_state(), first)
-            m = m.reshape(-1, len(variants) * len(refs), 3)
-            rmse = m[:, :, 0].mean(axis=1)
-            rmse[(m[:, :, 2] > saturation_limit).any(axis=1)] = np.inf
-            out[np.flatnonzero(valid)] = rmse
+            per_plant = []
+            for plant in plants:
+                m = plant.compiled.closed_loop_batch_tracking(scen, plant.rest_state(), first)
+                m = m.reshape(-1, len(variants) * len(refs), 3)
+                rmse = m[:, :, 0].mean(axis=1)
+                rmse[(m[:, :, 2] > saturation_limit).any(axis=1)] = np.inf
+                per_plant.append(rmse)
+            out[np.flatnonzero(valid)] = combine(np.array(per_plant))
         return out
 
     res = minimize(
@@ -238,6 +314,8 @@ def tune(
     if res.x is None or not np.isfinite(res.fun):
         raise ComputationError("tuning found no stable candidate within the gain bounds")
     best = candidate(res.x)
+    if "tuned_sample_time" in fields:
+        best = replace(best, tuned_sample_time=stage.sample_time)
     values = 10.0**res.x if log_scale else res.x
     return TuningResult(
         best,

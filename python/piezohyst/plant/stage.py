@@ -43,7 +43,17 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 FloatArray: TypeAlias = npt.NDArray[np.float64]
 ComplexArray: TypeAlias = npt.NDArray[np.complex128]
 
-__all__ = ["Amplifier", "Sensor", "Stage", "StageInfo", "StageParameters", "StageResponse", "virtual_stage"]
+__all__ = [
+    "PERTURBABLE",
+    "Amplifier",
+    "Sensor",
+    "Stage",
+    "StageInfo",
+    "StageParameters",
+    "StageResponse",
+    "perturbations",
+    "virtual_stage",
+]
 
 MAX_CREEP = 8
 #: Most modes :meth:`Stage.with_modes` can add.
@@ -1112,6 +1122,87 @@ def _inf(x: float | str | None) -> float:
 
 def _json_inf(x: float) -> float | str:
     return "inf" if math.isinf(x) else x
+
+
+#: The parameters :func:`perturbations` knows: the physics (:class:`StageParameters` fields;
+#: ``creep_weights`` scales every weight), and the amplifier's ``bandwidth`` and ``slew_rate``.
+PERTURBABLE = (
+    "mass",
+    "damping",
+    "stiffness",
+    "tem",
+    "capacitance",
+    "hyst_alpha",
+    "hyst_beta",
+    "hyst_gamma",
+    "electrostriction",
+    "creep_weights",
+    "bandwidth",
+    "slew_rate",
+)
+
+
+def perturbations(stage: Stage, parameters: Sequence[str] | None = None, fraction: float = 0.2) -> list[Stage]:
+    """The stage with each parameter in turn ``fraction`` lower and higher, the others as they
+    are: ``2 len(parameters)`` stages, named ``"<name> x0.8"``, ``"<name> x1.2"`` (for the
+    default 20 %). The set a robustness check runs on (one parameter at a time), and the set
+    :func:`piezohyst.tune` can tune for (``stages=``, worst case or a percentile).
+
+    Parameters
+    ----------
+    stage : Stage
+        The nominal stage (e.g. :func:`piezohyst.stage_from_model` of an identified model).
+    parameters : sequence of str, optional
+        Names from :data:`PERTURBABLE` (default: every one the stage has non-zero; an
+        unlimited amplifier bandwidth or slew rate is left out).
+    fraction : float
+        Relative change, in ``(0, 1)``.
+
+    Returns
+    -------
+    list of Stage
+
+    Examples
+    --------
+    >>> from piezohyst import virtual_stage
+    >>> from piezohyst.plant import perturbations
+    >>> stages = perturbations(virtual_stage(), ["stiffness", "tem"])
+    >>> [s.name for s in stages]
+    ['stiffness x0.8', 'stiffness x1.2', 'tem x0.8', 'tem x1.2']
+    >>> round(stages[1].params.stiffness / virtual_stage().params.stiffness, 12)
+    1.2
+    """
+    if not isinstance(stage, Stage):
+        raise ParameterTypeError(f"stage must be a Stage, got {type(stage).__name__}")
+    f = as_scalar(fraction, "fraction", positive=True)
+    if not f < 1:
+        raise ParameterError(f"fraction = {f} must be < 1")
+    p, a = stage.params, stage.amplifier
+    if parameters is None:
+        names = [
+            n
+            for n in PERTURBABLE
+            if (n in ("bandwidth", "slew_rate") and math.isfinite(getattr(a, n)))
+            or (n == "creep_weights" and any(p.creep_weights))
+            or (n not in ("bandwidth", "slew_rate", "creep_weights") and getattr(p, n) != 0)
+        ]
+    elif isinstance(parameters, str) or not isinstance(parameters, Sequence):
+        raise ParameterTypeError(f"parameters must be a list of names, got {parameters!r}")
+    else:
+        names = list(parameters)
+    out = []
+    for n in names:
+        if n not in PERTURBABLE:
+            raise ParameterError(f"parameters: {n!r} is not one of {', '.join(PERTURBABLE)}")
+        for k in (1 - f, 1 + f):
+            if n in ("bandwidth", "slew_rate"):
+                changed = stage.with_(amplifier=replace(a, **{n: getattr(a, n) * k}))
+            elif n == "creep_weights":
+                changed = stage.with_(params=replace(p, creep_weights=tuple(w * k for w in p.creep_weights)))
+            else:
+                changed = stage.with_(params=replace(p, **{n: getattr(p, n) * k}))
+            out.append(changed.with_(name=f"{n} x{k:g}"))
+    return out
 
 
 def virtual_stage() -> Stage:
