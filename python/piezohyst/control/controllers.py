@@ -31,6 +31,7 @@ from ..signals.lti import (
     siso_polynomials,
     state_space,
 )
+from .filters import IDENTITY, PPF, BiquadCoefficients, LagLead, LowPass, Notch
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..models.model import HysteresisModel
@@ -72,6 +73,7 @@ __all__ = [
     "SMC",
     "CemfFeedforward",
     "Compensated",
+    "FilteredPID",
     "InverseFeedforward",
     "OpenLoop",
     "SampleRateWarning",
@@ -543,6 +545,173 @@ def _rational_sum(terms: Sequence[tuple[Sequence[float], Sequence[float]]]) -> t
         den = np.asarray(np.polymul(den, d_arr), dtype=np.float64)
     lead = int(np.argmax(num != 0)) if np.any(num) else num.size - 1  # exact leading zeros only
     return num[lead:], den
+
+
+_FilterLike: TypeAlias = "Notch | LowPass | LagLead | PPF"
+
+
+@dataclass(frozen=True)
+class FilteredPID:
+    """The practitioner's loop: a PID with notch filters on its output, a feedforward that
+    inverts identified dynamics, and a damping loop (positive position feedback)::
+
+        u = offset + ff_gain F[x_d] + c1 x_d' + c2 x_d''     feedforward (F: ff_filters)
+            + N[PID(e)]                                     feedback through the notches N
+            + H[y]                                          damping loop (PPF)
+        e = x_d(t - error_delay) - y                        the reference as old as the reading
+
+    The PID is :class:`PID`'s law (filtered derivative on the measurement, conditional
+    integration while saturated). ``ff_filters`` (at most two) and ``notches`` (at most three;
+    any filter of :mod:`piezohyst.control.filters`: :class:`~piezohyst.control.filters.Notch`,
+    :class:`~piezohyst.control.filters.LowPass`, :class:`~piezohyst.control.filters.LagLead`)
+    are written in continuous time and discretized for the stage's sample time;
+    ``damping`` is a :class:`~piezohyst.control.filters.PPF`. ``ff_gain`` defaults to the stage's
+    ``1 / static_gain`` (1 behind an inverse, :class:`Compensated`). ``error_delay`` (samples;
+    default: the stage's sensor delay) compares the reading with the reference as it was when
+    the reading was taken (``x_d - d x_d' + d^2 x_d'' / 2``, ``d = error_delay Ts``), so the
+    feedback does not fight the sensor's delay at high frequency (0: the plain ``x_d - y``).
+    The step runs in the Rust core (``crates/core/src/control/filtered.rs``, kind
+    ``filtered_pid``).
+
+    :meth:`DynamicInversion.feedforward` gives ``ff_gain``, ``ff_filters``, ``c1``, ``c2`` that
+    invert a stage's identified dynamics; behind the hysteresis inverse
+    (``Compensated(FilteredPID(...), model)``) that is the dynamic-inversion feedforward.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import piezohyst as ph
+    >>> from piezohyst.control.filters import Notch
+    >>> stage = ph.virtual_stage()
+    >>> c = ph.FilteredPID(kp=4e4, ki=1.4e10, notches=(Notch(4500.0, width=0.3),))
+    >>> _, ref = ph.sine(10, 4e-6, 0.2, 1 / stage.sample_time, offset=8e-6)
+    >>> bool(ph.track(c, ref, stage=stage, rng=1, skip=0.1).metrics["rmse"] < 0.05e-6)
+    True
+    """
+
+    kp: float = 0.0
+    ki: float = 0.0
+    kd: float = 0.0
+    tau_d: float = 1e-4
+    ff_gain: float | None = None
+    c1: float = 0.0
+    c2: float = 0.0
+    ff_filters: tuple[_FilterLike, ...] = ()
+    notches: tuple[_FilterLike, ...] = ()
+    damping: PPF | None = None
+    offset: float = 0.0
+    error_delay: float | None = None
+    u_min: float | None = None
+    u_max: float | None = None
+    tuned_sample_time: float | None = field(default=None, repr=False, compare=False)
+
+    #: the step reads the reference's velocity and acceleration (feedforward lead, error delay)
+    uses_reference_derivatives = True
+
+    def _filters(
+        self, sample_time: float
+    ) -> tuple[list[BiquadCoefficients], list[BiquadCoefficients], BiquadCoefficients]:
+        ff, notches = tuple(self.ff_filters), tuple(self.notches)
+        if len(ff) > 2:
+            raise ParameterError(f"ff_filters has {len(ff)} filters, at most 2")
+        if len(notches) > 3:
+            raise ParameterError(f"notches has {len(notches)} filters, at most 3")
+        for name, group in (("ff_filters", ff), ("notches", notches)):
+            for j, f in enumerate(group):
+                if not isinstance(f, (Notch, LowPass, LagLead, PPF)):
+                    raise ParameterTypeError(
+                        f"{name}[{j}] must be a filter of piezohyst.control.filters (Notch, LowPass, LagLead), "
+                        f"got {type(f).__name__}"
+                    )
+        if self.damping is not None and not isinstance(self.damping, PPF):
+            raise ParameterTypeError(f"damping must be a PPF, got {type(self.damping).__name__}")
+        ffq = [f.biquad(sample_time) for f in ff] + [IDENTITY] * (2 - len(ff))
+        nq = [f.biquad(sample_time) for f in notches] + [IDENTITY] * (3 - len(notches))
+        dq = IDENTITY if self.damping is None else self.damping.biquad(sample_time)
+        if self.damping is not None and self.damping.gain == 0:
+            dq = IDENTITY
+        return ffq, nq, dq
+
+    def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
+        for name in ("kp", "ki", "kd"):
+            as_scalar(getattr(self, name), name, nonnegative=True)
+        as_scalar(self.tau_d, "tau_d", positive=True)
+        if self.ff_gain is None:
+            ff = 1.0 if limits is not None else 1.0 / stage.params.static_gain
+        else:
+            ff = as_scalar(self.ff_gain, "ff_gain")
+        lo, hi = _domain_limits(self.u_min, self.u_max, stage, limits)
+        ffq, nq, dq = self._filters(stage.sample_time)
+        if self.damping is not None and self.damping.gain != 0 and dq == IDENTITY:
+            dq = self.damping.biquad(stage.sample_time)
+        coefs = ("b0", "b1", "b2", "a1", "a2")
+        biquads: dict[str, float] = {}
+        for prefix, q in [("ff1", ffq[0]), ("ff2", ffq[1]), ("notch1", nq[0]), ("notch2", nq[1]), ("notch3", nq[2])]:
+            biquads.update({f"{prefix}_{c}": v for c, v in zip(coefs, q, strict=True)})
+        biquads.update({f"damping_{c}": v for c, v in zip(coefs, dq, strict=True)})
+        return (
+            "filtered_pid",
+            _pack(
+                "filtered_pid",
+                kp=self.kp,
+                ki=self.ki,
+                kd=self.kd,
+                tau_d=self.tau_d,
+                ts=stage.sample_time,
+                ff_gain=ff,
+                c1=as_scalar(self.c1, "c1"),
+                c2=as_scalar(self.c2, "c2"),
+                offset=as_scalar(self.offset, "offset"),
+                error_delay=stage.sample_time
+                * (
+                    stage.sensor.delay
+                    if self.error_delay is None
+                    else as_scalar(self.error_delay, "error_delay", nonnegative=True)
+                ),
+                **biquads,
+                u_min=lo,
+                u_max=hi,
+            ),
+            None,
+            None,
+        )
+
+    def to_control(self, sample_time: float) -> Any:
+        """The feedback as a discrete python-control ``TransferFunction`` at ``sample_time``:
+        ``u = -C(z) y`` for a fixed reference, ``C = N(z) PID(z) - H(z)`` (the notches times the
+        PID the core runs, less the damping loop), so the loop gain with a stage ``P`` is ``C P``
+        (:func:`piezohyst.loop_margins`). Limits, offset and feedforward are left out.
+
+        Parameters
+        ----------
+        sample_time : float
+            The loop's sample time, s.
+
+        Returns
+        -------
+        control.TransferFunction
+            Input ``measured`` (m), output ``command``, ``dt = sample_time``.
+
+        Examples
+        --------
+        >>> import piezohyst as ph
+        >>> from piezohyst.control.filters import Notch
+        >>> c = ph.FilteredPID(kp=1e4, ki=1e9, notches=(Notch(3000.0),)).to_control(1e-4)
+        >>> c.dt, len(c.den[0][0])                     # integrator, notch: order 3
+        (0.0001, 4)
+        """
+        ct = require_control()
+        ts = as_scalar(sample_time, "sample_time", positive=True)
+        _, nq, dq = self._filters(ts)
+        num, den, _, _ = PID(kp=self.kp, ki=self.ki, kd=self.kd, tau_d=self.tau_d)._polynomials(ts)
+        c = ct.tf(num, den, ts)
+        for q in nq:
+            if q != IDENTITY:
+                c = c * ct.tf([q[0], q[1], q[2]], [1.0, q[3], q[4]], ts)
+        if dq != IDENTITY:
+            c = c - ct.tf([dq[0], dq[1], dq[2]], [1.0, dq[3], dq[4]], ts)
+        num_c, den_c, _ = siso_polynomials(c, "feedback")
+        return polynomial_tf(num_c, den_c, ts, inputs=["measured"], outputs=["command"], name="filtered_pid")
 
 
 def _pid_gains(num: FloatArray, den: FloatArray, dt: float | None) -> tuple[float, float, float, float | None]:
