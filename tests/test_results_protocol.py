@@ -143,8 +143,15 @@ def _robustness():
     return robustness(problem, 12, Runner(plan("serial", env={})), chunk=6)
 
 
+def _frequency_response():
+    from piezohyst.control.frequency import measure_frf
+
+    return measure_frf(ph.virtual_stage(), band=(20.0, 2000.0), periods=2, rng=1)
+
+
 FACTORIES = {
     "piezohyst.signals.response.Response": _response,
+    "piezohyst.signals.frequency.FrequencyResponse": _frequency_response,
     "piezohyst.plant.stage.StageResponse": _stage_response,
     "piezohyst.control.simulation.ClosedLoopResult": _closed_loop,
     "piezohyst.identify.core.FitResult": _fit,

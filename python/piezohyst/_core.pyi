@@ -1,7 +1,7 @@
 """Type stub of the compiled core (``crates/python``). Checked against the module by
 ``tests/test_stub.py``: every public name here exists there and vice versa."""
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any, final
 
 import numpy as np
@@ -234,11 +234,34 @@ class Stage:
         sensor_quantization: float = 0.0,
         sensor_noise: float = 0.0,
         sensor_delay: int = 0,
+        *,
+        modes: Sequence[tuple[float, float, float]] | None = None,
+        hysteresis: tuple[str, Sequence[int], _Array1] | None = None,
+        dac_step: float = 0.0,
     ) -> Stage: ...
     @property
     def params(self) -> _Array1: ...
     @property
     def ts(self) -> float: ...
+    @property
+    def state_len(self) -> int:
+        """Slots of the state: ``STAGE_STATE_LEN``, then the structure's."""
+    @property
+    def structured(self) -> bool:
+        """Whether the stage has added modes, a voltage-driven law or a DAC."""
+    def rest_state(self) -> _Array1:
+        """The state at rest (the structure's modes still, its law relaxed)."""
+    def closed_loop_python(
+        self,
+        step: Callable[[float, float, float, float], float],
+        reference: _Array1,
+        velocity: _Array1,
+        acceleration: _Array1,
+        seed: int,
+        initial_state: _Array1,
+    ) -> dict[str, Any]:
+        """One closed loop with ``step(reference, velocity, acceleration, measured) ->
+        command`` called from the Rust loop once per sample (slow: the GIL per sample)."""
     def simulate(self, command: _Array1, state: _Array1) -> tuple[_Array1, _Array1, _Array1]:
         """As ``stage_simulate``."""
     def closed_loop(self, scenario: _ScenarioSpec, initial_state: _Array1) -> dict[str, Any]:

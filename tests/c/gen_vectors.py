@@ -70,7 +70,7 @@ def controllers(stage, mpi):
         "pid": ph.PID(kp=2e6, ki=2e9, kd=20.0),
         "smc": ph.SMC(p),
         "smc_super_twisting": ph.SMC(p, switching="super_twisting", k1=10.0, k2=1000.0),
-        "smc_cemf": ph.SMC(p, cemf=True, alpha=200.0),
+        "smc_cemf": ph.SMC(p, cemf=True, alpha=200.0, model_terms="measured"),
         "smc_cemf_desired_terms": ph.SMC(p, cemf=True, model_terms="desired"),
         "absmc": ph.ABSMC.for_stage(p),
         "absmc_mpi_inverse": ph.Compensated(

@@ -39,7 +39,8 @@ def test_demo_quick_writes_the_report_and_prints_json(tmp_path):
     assert readme_markdown(saved) in again.read_text()
     # the report's caption says which gains seed 1's main table compares
     md = (report / "report.md").read_text()
-    assert "tuned by CSS on the identified model for the RMSE of SMC + CEMF (Case 2) alone" in md
+    assert "SMC (Case 1) and SMC + CEMF (Case 2) each tuned for itself by the same call" in md
+    assert "Seed 1's protocol: one gain set for both cases" in md  # the seed's own protocol, labelled
 
 
 def test_demo_refuses_to_overwrite_without_force(tmp_path):

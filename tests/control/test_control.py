@@ -326,7 +326,17 @@ def test_cemf_observer_follows_the_true_cemf_on_a_clean_sensor():
 
 def test_smc_terms_follow_the_control_law():
     alpha, kp, kv, ks, phi = 300.0, 1e6, 2e3, 20.0, 0.03
-    c = SMC(P, kp=kp, kv=kv, alpha=alpha, ks=ks, phi=phi, cemf=True, observer=VelocityObserver(300.0))
+    c = SMC(
+        P,
+        kp=kp,
+        kv=kv,
+        alpha=alpha,
+        ks=ks,
+        phi=phi,
+        cemf=True,
+        observer=VelocityObserver(300.0),
+        model_terms="measured",
+    )
     t = times(0.2)
     w = 2 * np.pi * 20
     ref, vel, acc = 10e-6 - 6e-6 * np.cos(w * t), 6e-6 * w * np.sin(w * t), 6e-6 * w * w * np.cos(w * t)

@@ -1,6 +1,7 @@
 """Seed 1's SMC cancels the stage stiffness with K̂ x on the measured position; at the end of
 the stroke that positive feedback can ask for more than the amplifier gives and the loop latches
-at the limit. model_terms="desired" (K̂ x_d) cannot latch and tracks as well."""
+at the limit. model_terms="desired" (K̂ x_d, the default since issue 19) cannot latch and tracks
+as well."""
 
 import numpy as np
 import pytest
@@ -20,7 +21,9 @@ def steps():
 
 def test_measured_model_terms_latch_at_the_stroke_end_and_desired_ones_do_not():
     ref, zero = steps()
-    seed1 = ph.closed_loop(STAGE, SMC(STAGE.params, **GAINS), ref, velocity=zero, acceleration=zero, rng=1)
+    seed1 = ph.closed_loop(
+        STAGE, SMC(STAGE.params, model_terms="measured", **GAINS), ref, velocity=zero, acceleration=zero, rng=1
+    )
     fixed = ph.closed_loop(
         STAGE, SMC(STAGE.params, model_terms="desired", **GAINS), ref, velocity=zero, acceleration=zero, rng=1
     )
@@ -41,3 +44,11 @@ def test_desired_model_terms_track_like_the_seed_form():
     assert rmse["desired"] < 1.2 * rmse["measured"]  # measured 0.032 vs 0.034 um
     with pytest.raises(ValueError, match="model_terms = 'both' must be 'measured' or 'desired'"):
         ph.track(SMC(STAGE.params, model_terms="both"), ref, stage=STAGE)
+
+
+def test_the_default_does_not_feed_the_measured_position_back():
+    """Issue 19: no default feeds an estimate back positively."""
+    assert SMC(STAGE.params).model_terms == "desired"
+    ref, zero = steps()
+    r = ph.closed_loop(STAGE, SMC(STAGE.params, **GAINS), ref, velocity=zero, acceleration=zero, rng=1)
+    assert abs(ref[-1] - r.position[-1]) < 0.1e-6

@@ -154,7 +154,7 @@ def test_parameter_names_match_the_core_and_the_c_library(c_library):
     import ctypes
 
     lib = ctypes.CDLL(str(c_library.with_suffix(".so")))
-    codes = {"open_loop": 1, "pid": 2, "smc": 3, "absmc": 4, "cemf_feedforward": 5}
+    codes = {"open_loop": 1, "pid": 2, "smc": 3, "absmc": 4, "cemf_feedforward": 5, "filtered_pid": 6}
     for kind, names in CONTROLLER_PARAMS.items():
         with pytest.raises(ValueError, match=r"takes (\d+) parameters") as e:
             _core.controller_initial_state((kind, np.zeros(0), None, None), 0.0)

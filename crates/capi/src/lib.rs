@@ -152,6 +152,8 @@ pub enum PhsFamily {
 ///   desired_regressor: 0 or 1.
 /// * CEMF_FEEDFORWARD = 5 (10): M, B, K, tem, capacitance, hyst_alpha, hyst_beta, hyst_gamma, u_min, u_max.
 ///   exact inverse feedforward of the CEMF stage model.
+/// * FILTERED_PID = 6 (42): kp, ki, kd, tau_d, ts, ff_gain, c1, c2, offset, error_delay, ff1_b0, ff1_b1, ff1_b2, ff1_a1, ff1_a2, ff2_b0, ff2_b1, ff2_b2, ff2_a1, ff2_a2, notch1_b0, notch1_b1, notch1_b2, notch1_a1, notch1_a2, notch2_b0, notch2_b1, notch2_b2, notch2_a1, notch2_a2, notch3_b0, notch3_b1, notch3_b2, notch3_a1, notch3_a2, damping_b0, damping_b1, damping_b2, damping_a1, damping_a2, u_min, u_max.
+///   u = offset + ff_gain F2 F1[x_d] + c1 x_d' + c2 x_d'' + N3 N2 N1[PID(e)] + H[y], e = x_d - error_delay x_d' + error_delay^2 / 2 x_d'' - y; each filter a biquad (b0, b1, b2, a1, a2), 1 0 0 0 0 for none.
 /// <!-- /layout:controllers -->
 #[repr(u32)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -166,6 +168,8 @@ pub enum PhsControllerKind {
     PHS_CONTROLLER_ABSMC = 4,
     /// Exact inverse feedforward of the CEMF stage model.
     PHS_CONTROLLER_CEMF_FEEDFORWARD = 5,
+    /// PID with notch filters, feedforward filters (dynamic inversion) and a damping loop.
+    PHS_CONTROLLER_FILTERED_PID = 6,
 }
 
 /// Most dims a family takes (`PhsModelSpec.dims`).

@@ -13,6 +13,7 @@ use core::fmt;
 
 use crate::absmc::Absmc;
 use crate::cemf::{CemfFeedforward, CemfModel};
+use crate::control::filtered::{Biquad, FilteredPid, FilteredPidConfig, MAX_NOTCHES};
 use crate::control::{Controller, Limits, OpenLoop, Output, Pid, PidConfig, Reference, VelocityObserver};
 use crate::envelope::Envelope;
 use crate::error::ModelError;
@@ -382,6 +383,33 @@ fn decode_cemf_feedforward(p: &[f64]) -> Result<Law, ModelError> {
     Ok(Law::CemfFeedforward(CemfFeedforward { model: m, limits: limits(p)? }))
 }
 
+fn biquad(p: &[f64], at: usize) -> Biquad {
+    Biquad([p[at], p[at + 1], p[at + 2], p[at + 3], p[at + 4]])
+}
+fn decode_filtered_pid(p: &[f64]) -> Result<Law, ModelError> {
+    let limits = limits(p)?;
+    let mut notches = [Biquad::IDENTITY; MAX_NOTCHES];
+    for (j, n) in notches.iter_mut().enumerate() {
+        *n = biquad(p, 20 + 5 * j);
+    }
+    Ok(Law::FilteredPid(FilteredPid::new(FilteredPidConfig {
+        kp: p[0],
+        ki: p[1],
+        kd: p[2],
+        tau_d: p[3],
+        ts: p[4],
+        ff_gain: p[5],
+        c1: p[6],
+        c2: p[7],
+        offset: p[8],
+        error_delay: p[9],
+        ff_filters: [biquad(p, 10), biquad(p, 15)],
+        notches,
+        damping: biquad(p, 20 + 5 * MAX_NOTCHES),
+        limits,
+    })?))
+}
+
 /// Every controller kind, in `PhsControllerKind` code order.
 pub const CONTROLLERS: &[ControllerLayout] = &[
     ControllerLayout {
@@ -470,6 +498,59 @@ pub const CONTROLLERS: &[ControllerLayout] = &[
         notes: "exact inverse feedforward of the CEMF stage model.",
         decode: decode_cemf_feedforward,
     },
+    ControllerLayout {
+        name: "filtered_pid",
+        code: 6,
+        label: "FILTERED_PID",
+        slots: &[
+            "kp",
+            "ki",
+            "kd",
+            "tau_d",
+            "ts",
+            "ff_gain",
+            "c1",
+            "c2",
+            "offset",
+            "error_delay",
+            "ff1_b0",
+            "ff1_b1",
+            "ff1_b2",
+            "ff1_a1",
+            "ff1_a2",
+            "ff2_b0",
+            "ff2_b1",
+            "ff2_b2",
+            "ff2_a1",
+            "ff2_a2",
+            "notch1_b0",
+            "notch1_b1",
+            "notch1_b2",
+            "notch1_a1",
+            "notch1_a2",
+            "notch2_b0",
+            "notch2_b1",
+            "notch2_b2",
+            "notch2_a1",
+            "notch2_a2",
+            "notch3_b0",
+            "notch3_b1",
+            "notch3_b2",
+            "notch3_a1",
+            "notch3_a2",
+            "damping_b0",
+            "damping_b1",
+            "damping_b2",
+            "damping_a1",
+            "damping_a2",
+            "u_min",
+            "u_max",
+        ],
+        notes: "u = offset + ff_gain F2 F1[x_d] + c1 x_d' + c2 x_d'' + N3 N2 N1[PID(e)] + H[y], \
+                e = x_d - error_delay x_d' + error_delay^2 / 2 x_d'' - y; \
+                each filter a biquad (b0, b1, b2, a1, a2), 1 0 0 0 0 for none.",
+        decode: decode_filtered_pid,
+    },
 ];
 
 impl ControllerLayout {
@@ -510,6 +591,8 @@ pub enum Law {
     Absmc(Absmc),
     /// CEMF inverse feedforward.
     CemfFeedforward(CemfFeedforward),
+    /// PID with notch filters, feedforward filters and a damping loop.
+    FilteredPid(FilteredPid),
 }
 
 macro_rules! on_law {
@@ -520,6 +603,7 @@ macro_rules! on_law {
             Law::Smc($c) => $e,
             Law::Absmc($c) => $e,
             Law::CemfFeedforward($c) => $e,
+            Law::FilteredPid($c) => $e,
         }
     };
 }

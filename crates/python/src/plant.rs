@@ -8,11 +8,15 @@ use numpy::ndarray::Array2;
 use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadwriteArray1, PyUntypedArrayMethods,
 };
-use piezohyst_core::closed_loop::{run_recorder, run_tracking, Loop, Recorder, Sample, Trajectory};
+use piezohyst_core::closed_loop::{
+    run_recorder_with, run_tracking, run_tracking_with, Loop, Recorder, Sample, Trajectory,
+};
 use piezohyst_core::control::{Controller as CoreController, Pid, MAX_TERMS};
 use piezohyst_core::layout::Law;
 use piezohyst_core::sensor::Sensor;
-use piezohyst_core::stage::{Stage as CoreStage, StageParams, StageState};
+use piezohyst_core::spec::Family;
+use piezohyst_core::stage::{Extra, NoExtra, Stage as CoreStage, StageParams, StageState};
+use piezohyst_core::structure::{Mode, Structure, MAX_MODES};
 use pyo3::prelude::*;
 
 use crate::control::{with_controller, ControllerSpec};
@@ -31,25 +35,39 @@ type Positions<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>, Bou
 fn simulate_stage<'py>(
     py: Python<'py>,
     st: &CoreStage,
+    structure: Option<&StructureSpec>,
     command: &PyReadonlyArray1<'py, f64>,
     state: &mut PyReadwriteArray1<'py, f64>,
 ) -> PyResult<Positions<'py>> {
     let u = slice(command, "command")?;
     check_finite("command", u)?;
     let s = state.as_slice_mut().map_err(|_| ParameterError::new_err("state must be a contiguous float64 array"))?;
-    let mut ss = StageState::from_array(s).map_err(err)?;
     let n = u.len();
     check_alloc("stage simulate: the three output records", &[3, n])?;
     let (mut x, mut va, mut vh) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    py.detach(|| {
-        for k in 0..n {
-            x[k] = ss.x;
-            st.advance(&mut ss, u[k]);
+    fn run<E: Extra>(st: &CoreStage, ss: &mut StageState, u: &[f64], out: [&mut [f64]; 3], e: &mut E) {
+        let [x, va, vh] = out;
+        for k in 0..u.len() {
+            x[k] = e.position(ss.x);
+            st.advance_with(ss, u[k], e);
             va[k] = ss.va;
             vh[k] = ss.vh;
         }
-    });
-    s.copy_from_slice(&ss.to_array());
+    }
+    match structure {
+        None => {
+            let mut ss = StageState::from_array(s).map_err(err)?;
+            py.detach(|| run(st, &mut ss, u, [&mut x, &mut va, &mut vh], &mut NoExtra));
+            s.copy_from_slice(&ss.to_array());
+        }
+        Some(spec) => spec.with(st, |structure| -> PyResult<()> {
+            let (mut ss, mut extra) = structured_state(structure, s)?;
+            py.detach(|| run(st, &mut ss, u, [&mut x, &mut va, &mut vh], &mut structure.run(&mut extra)));
+            s[..StageState::LEN].copy_from_slice(&ss.to_array());
+            s[StageState::LEN..].copy_from_slice(&extra);
+            Ok(())
+        })??,
+    }
     if let Some(k) = x.iter().position(|v| !v.is_finite()) {
         return Err(ParameterError::new_err(format!("the stage simulation diverged at sample {k}")));
     }
@@ -71,7 +89,7 @@ fn stage_simulate<'py>(
 ) -> PyResult<Positions<'py>> {
     guarded(|| {
         let st = stage(slice(&params, "params")?, ts, substeps, tolerance)?;
-        simulate_stage(py, &st, &command, &mut state)
+        simulate_stage(py, &st, None, &command, &mut state)
     })
 }
 
@@ -274,8 +292,61 @@ fn runs<'a>(py: Python<'_>, scenarios: &'a [ScenarioArg<'_>]) -> PyResult<Vec<Ru
     Ok(list)
 }
 
+/// A stage's structure (`piezohyst_core::structure`) as the binding keeps it: added modes,
+/// a voltage-driven hysteresis law (family and row), a DAC step. Built into the core's
+/// [`Structure`] for each run (the law borrows its row there).
+#[derive(Debug, Clone)]
+pub(crate) struct StructureSpec {
+    modes: Vec<Mode>,
+    law: Option<(Family, Vec<f64>)>,
+    dac_step: f64,
+}
+
+impl StructureSpec {
+    /// Build the core structure for `stage` and hand it to `f`.
+    fn with<R>(
+        &self,
+        stage: &CoreStage,
+        f: impl FnOnce(&Structure<piezohyst_core::spec::Model<'_>>) -> R,
+    ) -> PyResult<R> {
+        let mut scratch = vec![0.0; self.law.as_ref().map_or(0, |(fam, _)| fam.scratch_len())];
+        let law = match &self.law {
+            None => None,
+            Some((fam, row)) => {
+                Some(fam.build(row, &mut scratch).map_err(|e| ParameterError::new_err(format!("hysteresis: {e}")))?)
+            }
+        };
+        let s = Structure::new(stage, &self.modes, law, self.dac_step).map_err(err)?;
+        Ok(f(&s))
+    }
+}
+
+/// Split a structured stage's state (`[va, x, v, vh, creep[8]]` then the structure's
+/// slots; the stage part alone starts the structure at rest) and check it.
+fn structured_state<H: piezohyst_core::Invertible>(s: &Structure<H>, a: &[f64]) -> PyResult<(StageState, Vec<f64>)> {
+    let n = StageState::LEN;
+    let want = n + s.state_len();
+    if a.len() != n && a.len() != want {
+        return Err(ParameterError::new_err(format!(
+            "state has {} values; this stage's state has {want} (the stage's {n}, then its structure's {})",
+            a.len(),
+            s.state_len()
+        )));
+    }
+    let ss = StageState::from_array(&a[..n]).map_err(err)?;
+    let mut extra = vec![0.0; s.state_len()];
+    if a.len() == n {
+        s.reset(&mut extra, ss.x);
+    } else {
+        extra.copy_from_slice(&a[n..]);
+        s.check_state(&extra).map_err(|e| ParameterError::new_err(format!("state (structure): {e}")))?;
+    }
+    Ok((ss, extra))
+}
+
 /// A stage with its sensor, built once: the stage parameters (`STAGE_PARAM_LEN` values),
-/// the control period `ts`, the integration settings and the sensor.
+/// the control period `ts`, the integration settings and the sensor; optionally a structure
+/// (added modes, a voltage-driven hysteresis law, a DAC).
 #[pyclass(frozen, module = "piezohyst._core")]
 #[derive(Debug)]
 pub struct Stage {
@@ -283,12 +354,17 @@ pub struct Stage {
     sensor: Sensor,
     params: Vec<f64>,
     ts: f64,
+    structure: Option<StructureSpec>,
 }
 
 #[pymethods]
 impl Stage {
     #[new]
-    #[pyo3(signature = (params, ts, substeps, tolerance, sensor_quantization=0.0, sensor_noise=0.0, sensor_delay=0))]
+    #[pyo3(signature = (
+        params, ts, substeps, tolerance, sensor_quantization=0.0, sensor_noise=0.0, sensor_delay=0, *,
+        modes=None, hysteresis=None, dac_step=0.0
+    ))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         params: PyReadonlyArray1<'_, f64>,
         ts: f64,
@@ -297,11 +373,64 @@ impl Stage {
         sensor_quantization: f64,
         sensor_noise: f64,
         sensor_delay: usize,
+        modes: Option<Vec<(f64, f64, f64)>>,
+        hysteresis: Option<(String, Vec<usize>, PyReadonlyArray1<'_, f64>)>,
+        dac_step: f64,
     ) -> PyResult<Self> {
         let params = slice(&params, "stage_params")?.to_vec();
         let stage = stage(&params, ts, substeps, tolerance)?;
         let sensor = sensor(sensor_quantization, sensor_noise, sensor_delay)?;
-        Ok(Stage { stage, sensor, params, ts })
+        let modes: Vec<Mode> = modes
+            .unwrap_or_default()
+            .into_iter()
+            .map(|(frequency, damping_ratio, gain)| Mode { frequency, damping_ratio, gain })
+            .collect();
+        if modes.len() > MAX_MODES {
+            return Err(ParameterError::new_err(format!("modes has {} modes, at most {MAX_MODES}", modes.len())));
+        }
+        let law = match hysteresis {
+            None => None,
+            Some((name, dims, row)) => {
+                let fam = crate::models::family(&name, dims)?;
+                let row = slice(&row, "hysteresis row")?.to_vec();
+                check_finite("hysteresis row", &row)?;
+                Some((fam, row))
+            }
+        };
+        let structure = if modes.is_empty() && law.is_none() && dac_step == 0.0 {
+            None
+        } else {
+            let spec = StructureSpec { modes, law, dac_step };
+            spec.with(&stage, |_| ())?; // validate once
+            Some(spec)
+        };
+        Ok(Stage { stage, sensor, params, ts, structure })
+    }
+    /// Slots of this stage's state: the stage's `STAGE_STATE_LEN`, then its structure's.
+    #[getter]
+    fn state_len(&self) -> PyResult<usize> {
+        match &self.structure {
+            None => Ok(StageState::LEN),
+            Some(spec) => spec.with(&self.stage, |s| StageState::LEN + s.state_len()),
+        }
+    }
+    /// The state at rest: zeros, then the structure at rest (modes still, the law relaxed).
+    fn rest_state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let mut st = StageState::ZERO.to_array().to_vec();
+        if let Some(spec) = &self.structure {
+            let extra = spec.with(&self.stage, |s| {
+                let mut e = vec![0.0; s.state_len()];
+                s.reset(&mut e, 0.0);
+                e
+            })?;
+            st.extend(extra);
+        }
+        Ok(st.into_pyarray(py))
+    }
+    /// Whether the stage has a structure (modes, a voltage-driven law, a DAC).
+    #[getter]
+    fn structured(&self) -> bool {
+        self.structure.is_some()
     }
     /// The stage parameters (a copy).
     #[getter]
@@ -320,7 +449,7 @@ impl Stage {
         command: PyReadonlyArray1<'py, f64>,
         mut state: PyReadwriteArray1<'py, f64>,
     ) -> PyResult<Positions<'py>> {
-        guarded(|| simulate_stage(py, &self.stage, &command, &mut state))
+        guarded(|| simulate_stage(py, &self.stage, self.structure.as_ref(), &command, &mut state))
     }
     /// One closed loop (as `closed_loop`).
     fn closed_loop<'py>(
@@ -330,10 +459,10 @@ impl Stage {
         initial_state: PyReadonlyArray1<'py, f64>,
     ) -> PyResult<Bound<'py, PyDict>> {
         guarded(|| {
-            let init = StageState::from_array(slice(&initial_state, "initial_state")?).map_err(err)?;
+            let init = self.initial(&initial_state)?;
             let scenarios = [scenario];
             let sc = runs(py, &scenarios).map_err(|e| ParameterError::new_err(strip_prefix(py, e)))?;
-            let sig = py.detach(|| run_scenario(&self.stage, &self.sensor, &sc[0], init));
+            let sig = self.with_plant(|plant| py.detach(|| plant.run(&sc[0], &init)))?;
             if let Some(k) = sig.diverged_at {
                 return Err(ParameterError::new_err(format!("the closed loop diverged at sample {k}")));
             }
@@ -347,7 +476,10 @@ impl Stage {
         scenarios: Vec<ScenarioArg<'py>>,
         initial_state: PyReadonlyArray1<'py, f64>,
     ) -> PyResult<Vec<Bound<'py, PyDict>>> {
-        guarded(|| batch(py, &self.stage, &self.sensor, &scenarios, &initial_state))
+        guarded(|| {
+            let init = self.initial(&initial_state)?;
+            self.with_plant(|plant| batch(py, plant, &scenarios, &init))?
+        })
     }
     /// Tracking figures of many closed loops (as `closed_loop_batch_tracking`).
     fn closed_loop_batch_tracking<'py>(
@@ -357,7 +489,10 @@ impl Stage {
         initial_state: PyReadonlyArray1<'py, f64>,
         skip: usize,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        guarded(|| tracking(py, &self.stage, &self.sensor, &scenarios, &initial_state, skip))
+        guarded(|| {
+            let init = self.initial(&initial_state)?;
+            self.with_plant(|plant| tracking(py, plant, &scenarios, &init, skip))?
+        })
     }
     /// Tracking figures of one scenario on many stages: row `j` of `params` (`(S,
     /// STAGE_PARAM_LEN)`, this stage's layout) replaces this stage's parameters (same control
@@ -375,6 +510,12 @@ impl Stage {
         skip: usize,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         guarded(|| {
+            if self.structure.is_some() {
+                return Err(ParameterError::new_err(
+                    "closed_loop_batch_stages runs the stage's own kernel on each row: a stage with added modes or \
+                     another hysteresis (Stage.with_modes / with_hysteresis) is not supported here",
+                ));
+            }
             let init = StageState::from_array(slice(&initial_state, "initial_state")?).map_err(err)?;
             let scenarios = [scenario];
             let sc = runs(py, &scenarios).map_err(|e| ParameterError::new_err(strip_prefix(py, e)))?;
@@ -389,6 +530,34 @@ impl Stage {
                 )));
             }
             stages_tracking(py, &rows, &self.sensor, &sc[0], seeds, init, skip)
+        })
+    }
+
+    /// One closed loop with a controller written in Python: `step(reference, velocity,
+    /// acceleration, measured) -> command` is called once per sample (the loop is Rust's; each
+    /// call holds the GIL, so this path is slow: ~1 us of Python per sample). Returns a dict
+    /// as `closed_loop` (no terms). An exception in `step` stops the run and is raised, with
+    /// the sample; a command that is not a finite number raises `ParameterError`.
+    #[pyo3(signature = (step, reference, velocity, acceleration, seed, initial_state))]
+    #[allow(clippy::too_many_arguments)]
+    fn closed_loop_python<'py>(
+        &self,
+        py: Python<'py>,
+        step: Bound<'py, PyAny>,
+        reference: PyReadonlyArray1<'py, f64>,
+        velocity: PyReadonlyArray1<'py, f64>,
+        acceleration: PyReadonlyArray1<'py, f64>,
+        seed: u64,
+        initial_state: PyReadonlyArray1<'py, f64>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        guarded(|| {
+            let init = self.initial(&initial_state)?;
+            let (r, v, a) = scenario_arrays(&reference, &velocity, &acceleration)?;
+            let sig = self.with_plant(|plant| plant.run_python(py, &step, r, v, a, seed, &init))??;
+            if let Some(k) = sig.diverged_at {
+                return Err(ParameterError::new_err(format!("the closed loop diverged at sample {k}")));
+            }
+            signals_dict(py, sig)
         })
     }
 }
@@ -472,6 +641,152 @@ fn stages_tracking<'py>(
     Ok(Array2::from_shape_vec((rows.len(), 3), flat).expect("shape").into_pyarray(py))
 }
 
+impl Stage {
+    /// A run's initial state: the stage's 12 values, optionally followed by the structure's.
+    fn initial(&self, a: &PyReadonlyArray1<'_, f64>) -> PyResult<Vec<f64>> {
+        let a = slice(a, "initial_state")?;
+        match &self.structure {
+            None => Ok(StageState::from_array(a).map_err(err)?.to_array().to_vec()),
+            Some(spec) => spec.with(&self.stage, |s| {
+                let (ss, extra) = structured_state(s, a)?;
+                let mut v = ss.to_array().to_vec();
+                v.extend(extra);
+                Ok(v)
+            })?,
+        }
+    }
+    /// The stage, its sensor and its structure (built) as one [`Plant`] for `f`.
+    fn with_plant<R>(&self, f: impl FnOnce(&Plant<'_>) -> R) -> PyResult<R> {
+        match &self.structure {
+            None => Ok(f(&Plant { stage: &self.stage, sensor: &self.sensor, structure: None })),
+            Some(spec) => {
+                spec.with(&self.stage, |s| f(&Plant { stage: &self.stage, sensor: &self.sensor, structure: Some(s) }))
+            }
+        }
+    }
+}
+
+/// What a run needs of a stage: the kernel, the sensor and the structure (if any).
+pub(crate) struct Plant<'a> {
+    stage: &'a CoreStage,
+    sensor: &'a Sensor,
+    structure: Option<&'a Structure<piezohyst_core::spec::Model<'a>>>,
+}
+
+impl Plant<'_> {
+    /// Split an initial state (already checked by `Stage::initial`) into the stage's and the
+    /// structure's.
+    fn split(init: &[f64]) -> (StageState, Vec<f64>) {
+        (StageState::from_array(&init[..StageState::LEN]).expect("checked"), init[StageState::LEN..].to_vec())
+    }
+
+    /// One recorded run of a scenario.
+    fn run(&self, sc: &Run<'_>, init: &[f64]) -> Signals {
+        let (ss, mut extra) = Self::split(init);
+        match self.structure {
+            None => run_scenario(self.stage, self.sensor, sc, ss, &mut NoExtra),
+            Some(s) => {
+                let mut sig = run_scenario(self.stage, self.sensor, sc, ss, &mut s.run(&mut extra));
+                sig.extra_state = extra;
+                sig
+            }
+        }
+    }
+
+    /// Tracking figures of one scenario.
+    fn tracking(&self, sc: &Run<'_>, init: &[f64], skip: usize) -> [f64; 3] {
+        let (ss, mut extra) = Self::split(init);
+        match self.structure {
+            None => tracking_run(self.stage, self.sensor, sc, ss, skip, &mut NoExtra),
+            Some(s) => tracking_run(self.stage, self.sensor, sc, ss, skip, &mut s.run(&mut extra)),
+        }
+    }
+
+    /// One recorded run with a Python controller (`step(r, v, a, y) -> u` per sample).
+    #[allow(clippy::too_many_arguments)]
+    fn run_python(
+        &self,
+        py: Python<'_>,
+        step: &Bound<'_, PyAny>,
+        r: &[f64],
+        v: &[f64],
+        a: &[f64],
+        seed: u64,
+        init: &[f64],
+    ) -> PyResult<Signals> {
+        let (ss, mut extra) = Self::split(init);
+        let mut sig = match self.structure {
+            None => python_run(py, self.stage, self.sensor, step, (r, v, a), seed, ss, &mut NoExtra)?,
+            Some(s) => python_run(py, self.stage, self.sensor, step, (r, v, a), seed, ss, &mut s.run(&mut extra))?,
+        };
+        if self.structure.is_some() {
+            sig.extra_state = extra;
+        }
+        Ok(sig)
+    }
+}
+
+/// The loop of `closed_loop_python`: sensor, the Python `step`, stage; per sample.
+#[allow(clippy::too_many_arguments)]
+fn python_run<E: Extra>(
+    py: Python<'_>,
+    stage: &CoreStage,
+    sensor: &Sensor,
+    step: &Bound<'_, PyAny>,
+    (r, v, a): (&[f64], &[f64], &[f64]),
+    seed: u64,
+    init: StageState,
+    e: &mut E,
+) -> PyResult<Signals> {
+    let n = r.len();
+    check_alloc("closed_loop_python: the recorded signals", &[n, 5])?;
+    let mut st = init;
+    let mut sst = sensor.state(e.position(st.x), seed);
+    let (mut command, mut voltage, mut position, mut measured) =
+        (Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n));
+    for k in 0..n {
+        let x = e.position(st.x);
+        let y = sensor.read(&mut sst, x);
+        let vk = if v.is_empty() { 0.0 } else { v[k] };
+        let ak = if a.is_empty() { 0.0 } else { a[k] };
+        let out = step.call1((r[k], vk, ak, y)).map_err(|err| {
+            let msg = format!("the controller's step raised at sample {k}");
+            let new = pyo3::exceptions::PyRuntimeError::new_err(msg);
+            new.set_cause(py, Some(err));
+            new
+        })?;
+        let u: f64 = out.extract().map_err(|_| {
+            ParameterError::new_err(format!(
+                "the controller's step returned {} at sample {k}; it must return a number (the command, V)",
+                out.repr().map(|s| s.to_string()).unwrap_or_else(|_| "an object".into())
+            ))
+        })?;
+        if !u.is_finite() {
+            return Err(ParameterError::new_err(format!(
+                "the controller's step returned {u} at sample {k}; the command must be finite"
+            )));
+        }
+        stage.advance_with(&mut st, u, e);
+        command.push(u);
+        voltage.push(st.va);
+        position.push(x);
+        measured.push(y);
+    }
+    let diverged_at = position.iter().position(|x: &f64| !x.is_finite());
+    Ok(Signals {
+        reference: r.to_vec(),
+        command,
+        voltage,
+        position,
+        measured,
+        terms: Vec::new(),
+        final_state: st,
+        term_names: &[],
+        diverged_at,
+        extra_state: Vec::new(),
+    })
+}
+
 /// The message of a `scenarios[0]: ...` error without its prefix (a single run).
 fn strip_prefix(py: Python<'_>, e: PyErr) -> String {
     let msg = e.value(py).to_string();
@@ -499,6 +814,8 @@ struct Signals {
     term_names: &'static [&'static str],
     /// First sample whose true position is not finite (the run diverged there).
     diverged_at: Option<usize>,
+    /// The structure's state at the end (empty for a plain stage).
+    extra_state: Vec<f64>,
 }
 
 /// Writes a run's samples straight into the result vectors' spare capacity: no zero-filled
@@ -541,12 +858,13 @@ impl Recorder for Out<'_> {
 }
 
 #[inline(always)]
-fn record_run<C: CoreController + ?Sized>(
+fn record_run<C: CoreController + ?Sized, E: Extra>(
     stage: &CoreStage,
     sensor: &Sensor,
     c: &C,
     sc: &Run<'_>,
     init: StageState,
+    extra: &mut E,
 ) -> Signals {
     let n = sc.reference.len();
     let width = c.term_names().len().min(MAX_TERMS);
@@ -557,9 +875,10 @@ fn record_run<C: CoreController + ?Sized>(
     let mut measured = Vec::with_capacity(n);
     let mut terms = Vec::with_capacity(n * width + MAX_TERMS);
     let mut st = init;
-    let mut sst = sensor.state(st.x, sc.seed);
+    let x0 = extra.position(st.x);
+    let mut sst = sensor.state(x0, sc.seed);
     let mut cst = vec![0.0; c.state_len()];
-    c.reset(&mut cst, st.x);
+    c.reset(&mut cst, x0);
     let mut out = Out {
         reference: &mut reference.spare_capacity_mut()[..n],
         command: &mut command.spare_capacity_mut()[..n],
@@ -569,10 +888,11 @@ fn record_run<C: CoreController + ?Sized>(
         terms: &mut terms.spare_capacity_mut()[..n * width + MAX_TERMS],
         width,
     };
-    let done = run_recorder(
+    let done = run_recorder_with(
         Loop { stage, stage_state: &mut st, sensor, sensor_state: &mut sst, controller: c, controller_state: &mut cst },
         Trajectory { position: sc.reference, velocity: sc.velocity, acceleration: sc.acceleration },
         &mut out,
+        extra,
     );
     // SAFETY: run_recorder handed samples 0..done to `out` in order, which wrote element k
     // of every signal and terms[k * width .. k * width + MAX_TERMS] for each: the first
@@ -601,6 +921,7 @@ fn record_run<C: CoreController + ?Sized>(
         final_state: st,
         term_names: c.term_names(),
         diverged_at,
+        extra_state: Vec::new(),
     }
 }
 
@@ -609,14 +930,15 @@ fn record_run<C: CoreController + ?Sized>(
 /// so the results are the same to the bit on either path.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn record_run_avx2<C: CoreController + ?Sized>(
+unsafe fn record_run_avx2<C: CoreController + ?Sized, E: Extra>(
     stage: &CoreStage,
     sensor: &Sensor,
     c: &C,
     sc: &Run<'_>,
     init: StageState,
+    extra: &mut E,
 ) -> Signals {
-    record_run(stage, sensor, c, sc, init)
+    record_run(stage, sensor, c, sc, init, extra)
 }
 
 /// Whether runs take the AVX2 path: the CPU has AVX2 and `PIEZOHYST_NO_AVX2` is not set
@@ -627,21 +949,22 @@ fn use_avx2() -> bool {
     *USE.get_or_init(|| std::is_x86_feature_detected!("avx2") && std::env::var_os("PIEZOHYST_NO_AVX2").is_none())
 }
 
-fn record_run_dispatch<C: CoreController + ?Sized>(
+fn record_run_dispatch<C: CoreController + ?Sized, E: Extra>(
     stage: &CoreStage,
     sensor: &Sensor,
     c: &C,
     sc: &Run<'_>,
     init: StageState,
+    extra: &mut E,
 ) -> Signals {
     #[cfg(target_arch = "x86_64")]
     {
         if use_avx2() {
             // SAFETY: the CPU has AVX2
-            return unsafe { record_run_avx2(stage, sensor, c, sc, init) };
+            return unsafe { record_run_avx2(stage, sensor, c, sc, init, extra) };
         }
     }
-    record_run(stage, sensor, c, sc, init)
+    record_run(stage, sensor, c, sc, init, extra)
 }
 
 /// A plain PID (no inverse, no learning) as its own type, so the loop inlines its step
@@ -656,11 +979,17 @@ fn plain_pid(spec: &ControllerSpec) -> Option<Pid> {
     }
 }
 
-fn run_scenario(stage: &CoreStage, sensor: &Sensor, sc: &Run<'_>, init: StageState) -> Signals {
+fn run_scenario<E: Extra>(
+    stage: &CoreStage,
+    sensor: &Sensor,
+    sc: &Run<'_>,
+    init: StageState,
+    extra: &mut E,
+) -> Signals {
     if let Some(pid) = plain_pid(&sc.controller) {
-        return record_run_dispatch(stage, sensor, &pid, sc, init);
+        return record_run_dispatch(stage, sensor, &pid, sc, init, extra);
     }
-    with_controller(&sc.controller, |c| record_run_dispatch(stage, sensor, c, sc, init))
+    with_controller(&sc.controller, |c| record_run_dispatch(stage, sensor, c, sc, init, extra))
         .expect("validated before the run")
 }
 
@@ -679,7 +1008,9 @@ fn signals_dict<'py>(py: Python<'py>, sig: Signals) -> PyResult<Bound<'py, PyDic
     let terms: Bound<'py, PyArray2<f64>> = terms.into_pyarray(py);
     d.set_item("terms", terms)?;
     d.set_item("term_names", names.to_vec())?;
-    d.set_item("final_state", sig.final_state.to_array().to_vec())?;
+    let mut final_state = sig.final_state.to_array().to_vec();
+    final_state.extend(sig.extra_state);
+    d.set_item("final_state", final_state)?;
     Ok(d)
 }
 
@@ -762,7 +1093,7 @@ fn stage_of(
 ) -> PyResult<Stage> {
     let params = slice(p, "stage_params")?.to_vec();
     let st = stage(&params, ts, m, tol)?;
-    Ok(Stage { stage: st, sensor: sensor(q, noise, delay)?, params, ts })
+    Ok(Stage { stage: st, sensor: sensor(q, noise, delay)?, params, ts, structure: None })
 }
 
 /// Run one closed loop. Returns a dict of signals. (`Stage.closed_loop` with the stage
@@ -780,9 +1111,9 @@ fn closed_loop<'py>(py: Python<'py>, args: &Bound<'py, PyTuple>) -> PyResult<Bou
             split_args("closed_loop", args, 6)?;
         let c = controller_spec(&controller)?;
         let (r, v, a) = scenario_arrays(&reference, &velocity, &acceleration)?;
-        let init = StageState::from_array(slice(&init, "initial_state")?).map_err(err)?;
+        let init = st.initial(&init)?;
         let sc = Run { reference: r, velocity: v, acceleration: a, seed, controller: c };
-        let sig = py.detach(|| run_scenario(&st.stage, &st.sensor, &sc, init));
+        let sig = st.with_plant(|plant| py.detach(|| plant.run(&sc, &init)))?;
         if let Some(k) = sig.diverged_at {
             return Err(ParameterError::new_err(format!("the closed loop diverged at sample {k}")));
         }
@@ -792,18 +1123,16 @@ fn closed_loop<'py>(py: Python<'py>, args: &Bound<'py, PyTuple>) -> PyResult<Bou
 
 fn batch<'py>(
     py: Python<'py>,
-    st: &CoreStage,
-    se: &Sensor,
+    plant: &Plant<'_>,
     scenarios: &[ScenarioArg<'py>],
-    initial_state: &PyReadonlyArray1<'py, f64>,
+    init: &[f64],
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
-    let init = StageState::from_array(slice(initial_state, "initial_state")?).map_err(err)?;
     let list = runs(py, scenarios)?;
     // every run records five signals and up to MAX_TERMS terms per sample
     let samples = list.iter().fold(0usize, |acc, sc| acc.saturating_add(sc.reference.len()));
     check_alloc("closed_loop_batch: the recorded signals", &[samples, 5 + MAX_TERMS])?;
     let results: Vec<Option<Signals>> = interruptible(py, |stop| {
-        list.par_iter().map(|sc| if stop.stopped() { None } else { Some(run_scenario(st, se, sc, init)) }).collect()
+        list.par_iter().map(|sc| if stop.stopped() { None } else { Some(plant.run(sc, init)) }).collect()
     })?;
     let mut out = Vec::with_capacity(results.len());
     for (j, sig) in results.into_iter().enumerate() {
@@ -829,19 +1158,18 @@ fn closed_loop_batch<'py>(py: Python<'py>, args: &Bound<'py, PyTuple>) -> PyResu
     guarded(|| {
         let (st, (scenarios, init)): (Stage, (Vec<ScenarioArg<'py>>, Arr<'py>)) =
             split_args("closed_loop_batch", args, 2)?;
-        batch(py, &st.stage, &st.sensor, &scenarios, &init)
+        let init = st.initial(&init)?;
+        st.with_plant(|plant| batch(py, plant, &scenarios, &init))?
     })
 }
 
 fn tracking<'py>(
     py: Python<'py>,
-    st: &CoreStage,
-    se: &Sensor,
+    plant: &Plant<'_>,
     scenarios: &[ScenarioArg<'py>],
-    initial_state: &PyReadonlyArray1<'py, f64>,
+    init: &[f64],
     skip: usize,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let init = StageState::from_array(slice(initial_state, "initial_state")?).map_err(err)?;
     let list = runs(py, scenarios)?;
     for (j, sc) in list.iter().enumerate() {
         if skip >= sc.reference.len() {
@@ -857,32 +1185,46 @@ fn tracking<'py>(
                 if stop.stopped() {
                     return [f64::NAN; 3];
                 }
-                with_controller(&sc.controller, |c| {
-                    let mut ss = init;
-                    let mut sst = se.state(ss.x, sc.seed);
-                    let mut cst = vec![0.0; c.state_len()];
-                    c.reset(&mut cst, ss.x);
-                    let t = run_tracking(
-                        Loop {
-                            stage: st,
-                            stage_state: &mut ss,
-                            sensor: se,
-                            sensor_state: &mut sst,
-                            controller: c,
-                            controller_state: &mut cst,
-                        },
-                        Trajectory { position: sc.reference, velocity: sc.velocity, acceleration: sc.acceleration },
-                        skip,
-                    );
-                    let n = t.samples.max(1) as f64;
-                    [(t.sse / n).sqrt(), t.max_error, t.saturated as f64 / sc.reference.len() as f64]
-                })
-                .expect("validated before the run")
+                plant.tracking(sc, init, skip)
             })
             .collect()
     })?;
     let flat: Vec<f64> = rows.iter().flatten().copied().collect();
     Ok(Array2::from_shape_vec((rows.len(), 3), flat).expect("shape").into_pyarray(py))
+}
+
+/// `[rmse, max_error, saturated_fraction]` of one scenario from `init`.
+fn tracking_run<E: Extra>(
+    stage: &CoreStage,
+    se: &Sensor,
+    sc: &Run<'_>,
+    init: StageState,
+    skip: usize,
+    extra: &mut E,
+) -> [f64; 3] {
+    with_controller(&sc.controller, |c| {
+        let mut ss = init;
+        let x0 = extra.position(ss.x);
+        let mut sst = se.state(x0, sc.seed);
+        let mut cst = vec![0.0; c.state_len()];
+        c.reset(&mut cst, x0);
+        let t = run_tracking_with(
+            Loop {
+                stage,
+                stage_state: &mut ss,
+                sensor: se,
+                sensor_state: &mut sst,
+                controller: c,
+                controller_state: &mut cst,
+            },
+            Trajectory { position: sc.reference, velocity: sc.velocity, acceleration: sc.acceleration },
+            skip,
+            extra,
+        );
+        let n = t.samples.max(1) as f64;
+        [(t.sse / n).sqrt(), t.max_error, t.saturated as f64 / sc.reference.len() as f64]
+    })
+    .expect("validated before the run")
 }
 
 /// Tracking figures of many closed-loop scenarios on one stage, recording no signals (GIL
@@ -899,7 +1241,8 @@ fn closed_loop_batch_tracking<'py>(py: Python<'py>, args: &Bound<'py, PyTuple>) 
     guarded(|| {
         type Rest<'py> = (Vec<ScenarioArg<'py>>, Arr<'py>, usize);
         let (st, (scenarios, init, skip)): (Stage, Rest<'py>) = split_args("closed_loop_batch_tracking", args, 3)?;
-        tracking(py, &st.stage, &st.sensor, &scenarios, &init, skip)
+        let init = st.initial(&init)?;
+        st.with_plant(|plant| tracking(py, plant, &scenarios, &init, skip))?
     })
 }
 

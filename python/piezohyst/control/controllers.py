@@ -31,6 +31,7 @@ from ..signals.lti import (
     siso_polynomials,
     state_space,
 )
+from .filters import IDENTITY, PPF, BiquadCoefficients, LagLead, LowPass, Notch
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..models.model import HysteresisModel
@@ -72,10 +73,13 @@ __all__ = [
     "SMC",
     "CemfFeedforward",
     "Compensated",
+    "FilteredPID",
     "InverseFeedforward",
     "OpenLoop",
+    "SampleRateWarning",
     "VelocityObserver",
     "cemf_model_parameters",
+    "check_sample_rate",
 ]
 
 
@@ -264,6 +268,9 @@ class OpenLoop:
         Velocity and acceleration feedforward, s and s².
     u_min, u_max : float, optional
         Output limits (default: the amplifier's).
+    tuned_sample_time : float, optional
+        The sample time the gains were tuned at (set by :func:`piezohyst.tune`); a run at
+        another rate warns (:class:`SampleRateWarning`). Not compared, not shown.
 
     Examples
     --------
@@ -279,6 +286,7 @@ class OpenLoop:
     c2: float = 0.0
     u_min: float | None = None
     u_max: float | None = None
+    tuned_sample_time: float | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         _check_optional(self.gain, "gain")
@@ -450,6 +458,9 @@ class PID:
         Added to the command, V.
     u_min, u_max : float, optional
         Output limits (default: the amplifier's).
+    tuned_sample_time : float, optional
+        The sample time the gains were tuned at (set by :func:`piezohyst.tune`); a run at
+        another rate warns (:class:`SampleRateWarning`). Not compared, not shown.
 
     Examples
     --------
@@ -469,6 +480,7 @@ class PID:
     offset: float = 0.0
     u_min: float | None = None
     u_max: float | None = None
+    tuned_sample_time: float | None = field(default=None, repr=False, compare=False)
 
     #: the step uses only the reference position
     uses_reference_derivatives = False
@@ -690,6 +702,221 @@ def _rational_sum(terms: Sequence[tuple[Sequence[float], Sequence[float]]]) -> t
     return num[lead:], den
 
 
+_FilterLike: TypeAlias = "Notch | LowPass | LagLead | PPF"
+
+
+@dataclass(frozen=True)
+class FilteredPID:
+    """The practitioner's loop: a PID with notch filters on its output, a feedforward that
+    inverts identified dynamics, and a damping loop (positive position feedback)::
+
+        u = offset + ff_gain F[x_d] + c1 x_d' + c2 x_d''     feedforward (F: ff_filters)
+            + N[PID(e)]                                     feedback through the notches N
+            + H[y]                                          damping loop (PPF)
+        e = x_d(t - error_delay) - y                        the reference as old as the reading
+
+    The PID is :class:`PID`'s law (filtered derivative on the measurement, conditional
+    integration while saturated). ``ff_filters`` (at most two) and ``notches`` (at most three;
+    any filter of :mod:`piezohyst.control.filters`: :class:`~piezohyst.control.filters.Notch`,
+    :class:`~piezohyst.control.filters.LowPass`, :class:`~piezohyst.control.filters.LagLead`)
+    are written in continuous time and discretized for the stage's sample time;
+    ``damping`` is a :class:`~piezohyst.control.filters.PPF`. ``ff_gain`` defaults to the stage's
+    ``1 / static_gain`` (1 behind an inverse, :class:`Compensated`). ``error_delay`` (samples;
+    default: the stage's sensor delay) compares the reading with the reference as it was when
+    the reading was taken (``x_d - d x_d' + d^2 x_d'' / 2``, ``d = error_delay Ts``), so the
+    feedback does not fight the sensor's delay at high frequency (0: the plain ``x_d - y``).
+    The step runs in the Rust core (``crates/core/src/control/filtered.rs``, kind
+    ``filtered_pid``).
+
+    :meth:`DynamicInversion.feedforward` gives ``ff_gain``, ``ff_filters``, ``c1``, ``c2`` that
+    invert a stage's identified dynamics; behind the hysteresis inverse
+    (``Compensated(FilteredPID(...), model)``) that is the dynamic-inversion feedforward.
+
+    Parameters
+    ----------
+    kp, ki, kd : float
+        Proportional, integral and derivative gains (>= 0), V/m, V/(m s), V s/m.
+    tau_d : float
+        Time constant of the derivative's filter, s.
+    ff_gain : float, optional
+        Static feedforward gain, V/m (default: ``1 / static_gain``; 1 behind an inverse).
+    c1, c2 : float
+        Velocity and acceleration lead of the feedforward, V s/m and V s^2/m.
+    ff_filters : tuple of filters
+        At most two filters applied to the reference in the feedforward.
+    notches : tuple of filters
+        At most three filters on the PID's output.
+    damping : PPF, optional
+        The damping loop on the reading.
+    offset : float
+        Added to the command, V.
+    error_delay : float, optional
+        Samples the reference is delayed by in the error (default: the stage's sensor delay).
+    u_min, u_max : float, optional
+        Output limits (default: the amplifier's).
+    tuned_sample_time : float, optional
+        The sample time the gains were tuned at (set by :func:`piezohyst.tune`); a run at
+        another rate warns (:class:`SampleRateWarning`). Not compared, not shown.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import piezohyst as ph
+    >>> from piezohyst.control.filters import Notch
+    >>> stage = ph.virtual_stage()
+    >>> c = ph.FilteredPID(kp=4e4, ki=1.4e10, notches=(Notch(4500.0, width=0.3),))
+    >>> _, ref = ph.sine(10, 4e-6, 0.2, 1 / stage.sample_time, offset=8e-6)
+    >>> bool(ph.track(c, ref, stage=stage, rng=1, skip=0.1).metrics["rmse"] < 0.05e-6)
+    True
+    """
+
+    kp: float = 0.0
+    ki: float = 0.0
+    kd: float = 0.0
+    tau_d: float = 1e-4
+    ff_gain: float | None = None
+    c1: float = 0.0
+    c2: float = 0.0
+    ff_filters: tuple[_FilterLike, ...] = ()
+    notches: tuple[_FilterLike, ...] = ()
+    damping: PPF | None = None
+    offset: float = 0.0
+    error_delay: float | None = None
+    u_min: float | None = None
+    u_max: float | None = None
+    tuned_sample_time: float | None = field(default=None, repr=False, compare=False)
+
+    #: the step reads the reference's velocity and acceleration (feedforward lead, error delay)
+    uses_reference_derivatives = True
+
+    def _filters(
+        self, sample_time: float
+    ) -> tuple[list[BiquadCoefficients], list[BiquadCoefficients], BiquadCoefficients]:
+        ff, notches = tuple(self.ff_filters), tuple(self.notches)
+        if len(ff) > 2:
+            raise ParameterError(f"ff_filters has {len(ff)} filters, at most 2")
+        if len(notches) > 3:
+            raise ParameterError(f"notches has {len(notches)} filters, at most 3")
+        for name, group in (("ff_filters", ff), ("notches", notches)):
+            for j, f in enumerate(group):
+                if not isinstance(f, (Notch, LowPass, LagLead, PPF)):
+                    raise ParameterTypeError(
+                        f"{name}[{j}] must be a filter of piezohyst.control.filters (Notch, LowPass, LagLead), "
+                        f"got {type(f).__name__}"
+                    )
+        if self.damping is not None and not isinstance(self.damping, PPF):
+            raise ParameterTypeError(f"damping must be a PPF, got {type(self.damping).__name__}")
+        ffq = [f.biquad(sample_time) for f in ff] + [IDENTITY] * (2 - len(ff))
+        nq = [f.biquad(sample_time) for f in notches] + [IDENTITY] * (3 - len(notches))
+        dq = IDENTITY if self.damping is None else self.damping.biquad(sample_time)
+        if self.damping is not None and self.damping.gain == 0:
+            dq = IDENTITY
+        return ffq, nq, dq
+
+    def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
+        """The controller as the Rust core runs it on ``stage`` (kind ``filtered_pid``): the
+        filters discretized for the stage's sample time, validated; as :meth:`PID.core`.
+
+        Parameters
+        ----------
+        stage : Stage
+            The plant: sample time, sensor delay, amplifier limits, static gain.
+        limits : (float, float), optional
+            Output limits when the controller acts behind an inverse model (metres).
+
+        Returns
+        -------
+        tuple
+            ``(kind, params, inverse, ilc)``.
+
+        Examples
+        --------
+        >>> from piezohyst import FilteredPID, virtual_stage
+        >>> kind, params, inverse, ilc = FilteredPID(kp=4e4, ki=1.4e10).core(virtual_stage())
+        >>> kind, params.size, inverse, ilc
+        ('filtered_pid', 42, None, None)
+        """
+        for name in ("kp", "ki", "kd"):
+            as_scalar(getattr(self, name), name, nonnegative=True)
+        as_scalar(self.tau_d, "tau_d", positive=True)
+        if self.ff_gain is None:
+            ff = 1.0 if limits is not None else 1.0 / stage.params.static_gain
+        else:
+            ff = as_scalar(self.ff_gain, "ff_gain")
+        lo, hi = _domain_limits(self.u_min, self.u_max, stage, limits)
+        ffq, nq, dq = self._filters(stage.sample_time)
+        if self.damping is not None and self.damping.gain != 0 and dq == IDENTITY:
+            dq = self.damping.biquad(stage.sample_time)
+        coefs = ("b0", "b1", "b2", "a1", "a2")
+        biquads: dict[str, float] = {}
+        for prefix, q in [("ff1", ffq[0]), ("ff2", ffq[1]), ("notch1", nq[0]), ("notch2", nq[1]), ("notch3", nq[2])]:
+            biquads.update({f"{prefix}_{c}": v for c, v in zip(coefs, q, strict=True)})
+        biquads.update({f"damping_{c}": v for c, v in zip(coefs, dq, strict=True)})
+        return (
+            "filtered_pid",
+            _pack(
+                "filtered_pid",
+                kp=self.kp,
+                ki=self.ki,
+                kd=self.kd,
+                tau_d=self.tau_d,
+                ts=stage.sample_time,
+                ff_gain=ff,
+                c1=as_scalar(self.c1, "c1"),
+                c2=as_scalar(self.c2, "c2"),
+                offset=as_scalar(self.offset, "offset"),
+                error_delay=stage.sample_time
+                * (
+                    stage.sensor.delay
+                    if self.error_delay is None
+                    else as_scalar(self.error_delay, "error_delay", nonnegative=True)
+                ),
+                **biquads,
+                u_min=lo,
+                u_max=hi,
+            ),
+            None,
+            None,
+        )
+
+    def to_control(self, sample_time: float) -> Any:
+        """The feedback as a discrete python-control ``TransferFunction`` at ``sample_time``:
+        ``u = -C(z) y`` for a fixed reference, ``C = N(z) PID(z) - H(z)`` (the notches times the
+        PID the core runs, less the damping loop), so the loop gain with a stage ``P`` is ``C P``
+        (:func:`piezohyst.loop_margins`). Limits, offset and feedforward are left out.
+
+        Parameters
+        ----------
+        sample_time : float
+            The loop's sample time, s.
+
+        Returns
+        -------
+        control.TransferFunction
+            Input ``measured`` (m), output ``command``, ``dt = sample_time``.
+
+        Examples
+        --------
+        >>> import piezohyst as ph
+        >>> from piezohyst.control.filters import Notch
+        >>> c = ph.FilteredPID(kp=1e4, ki=1e9, notches=(Notch(3000.0),)).to_control(1e-4)
+        >>> c.dt, len(c.den[0][0])                     # integrator, notch: order 3
+        (0.0001, 4)
+        """
+        ct = require_control()
+        ts = as_scalar(sample_time, "sample_time", positive=True)
+        _, nq, dq = self._filters(ts)
+        num, den, _, _ = PID(kp=self.kp, ki=self.ki, kd=self.kd, tau_d=self.tau_d)._polynomials(ts)
+        c = ct.tf(num, den, ts)
+        for q in nq:
+            if q != IDENTITY:
+                c = c * ct.tf([q[0], q[1], q[2]], [1.0, q[3], q[4]], ts)
+        if dq != IDENTITY:
+            c = c - ct.tf([dq[0], dq[1], dq[2]], [1.0, dq[3], dq[4]], ts)
+        num_c, den_c, _ = siso_polynomials(c, "feedback")
+        return polynomial_tf(num_c, den_c, ts, inputs=["measured"], outputs=["command"], name="filtered_pid")
+
+
 def _pid_gains(num: FloatArray, den: FloatArray, dt: float | None) -> tuple[float, float, float, float | None]:
     """``(kp, ki, kd, tau_d or None)`` of a feedback transfer function of PID form
     (``num``/``den`` highest power first, ``den`` monic; ``dt`` the sample time or ``None``)."""
@@ -877,9 +1104,11 @@ class SMC:
     (seed 1's Case 2), ``False`` omits it (Case 1). ``switching="super_twisting"`` replaces
     ``Ks sat(s/phi)`` by ``k1 |s|^(1/2) sign(s) + nu``, ``nu' = k2 sign(s)`` (chattering-free).
     Units: ``kp`` 1/s², ``kv`` and ``alpha`` 1/s, ``ks`` V, ``phi`` m/s.
-    ``model_terms="measured"`` is seed 1's ``B x' + K x`` on the measured motion (positive
-    position feedback that can latch at a voltage limit when the identified stiffness asks for
-    more than the amplifier gives); ``"desired"`` evaluates them on the reference.
+    ``model_terms="desired"`` (the default) evaluates ``B x' + K x`` on the reference
+    (desired compensation: the stage's own stiffness and damping act on the error, and the loop
+    recovers from a voltage limit); ``"measured"`` is seed 1's form on the measured motion, a
+    positive feedback of the position estimate that latches at a voltage limit when the
+    identified stiffness asks for more than the amplifier gives (kept for reproducing seed 1).
     The sliding dynamics ``e'' + (kv + alpha) e' + (alpha kv + kp) e = 0`` must be stable.
 
     Parameters
@@ -902,6 +1131,9 @@ class SMC:
         Position and velocity estimator.
     u_min, u_max : float, optional
         Output limits (default: the amplifier's).
+    tuned_sample_time : float, optional
+        The sample time the gains were tuned at (set by :func:`piezohyst.tune`); a run at
+        another rate warns (:class:`SampleRateWarning`). Not compared, not shown.
 
     Examples
     --------
@@ -928,10 +1160,11 @@ class SMC:
     switching: str = "boundary_layer"
     k1: float = 0.0
     k2: float = 0.0
-    model_terms: str = "measured"
+    model_terms: str = "desired"
     observer: VelocityObserver = field(default_factory=lambda: VelocityObserver(300.0))
     u_min: float | None = None
     u_max: float | None = None
+    tuned_sample_time: float | None = field(default=None, repr=False, compare=False)
 
     uses_reference_derivatives = True
 
@@ -1056,6 +1289,9 @@ class ABSMC:
         Position and velocity estimator.
     u_min, u_max : float, optional
         Output limits.
+    tuned_sample_time : float, optional
+        The sample time the gains were tuned at (set by :func:`piezohyst.tune`); a run at
+        another rate warns (:class:`SampleRateWarning`). Not compared, not shown.
 
     Examples
     --------
@@ -1081,6 +1317,7 @@ class ABSMC:
     observer: VelocityObserver = field(default_factory=VelocityObserver)
     u_min: float | None = None
     u_max: float | None = None
+    tuned_sample_time: float | None = field(default=None, repr=False, compare=False)
 
     uses_reference_derivatives = True
 
@@ -1253,6 +1490,9 @@ class CemfFeedforward:
         The identified CEMF stage model.
     u_min, u_max : float, optional
         Output limits (default: the amplifier's).
+    tuned_sample_time : float, optional
+        The sample time the gains were tuned at (set by :func:`piezohyst.tune`); a run at
+        another rate warns (:class:`SampleRateWarning`). Not compared, not shown.
 
     Examples
     --------
@@ -1268,6 +1508,7 @@ class CemfFeedforward:
     model: StageParameters
     u_min: float | None = None
     u_max: float | None = None
+    tuned_sample_time: float | None = field(default=None, repr=False, compare=False)
 
     uses_reference_derivatives = True
 
@@ -1341,6 +1582,9 @@ class Compensated:
         The controller acting in metres (``PID``, ``ABSMC.linearized(...)``, ``OpenLoop``, ...).
     model : HysteresisModel
         The identified hysteresis model (input V, output m).
+    tuned_sample_time : float, optional
+        The sample time the gains were tuned at (set by :func:`piezohyst.tune`); a run at
+        another rate warns (:class:`SampleRateWarning`). Not compared, not shown.
 
     Examples
     --------
@@ -1353,6 +1597,7 @@ class Compensated:
 
     inner: DomainController
     model: HysteresisModel
+    tuned_sample_time: float | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if not is_controller(self.inner):
@@ -1423,6 +1668,9 @@ class InverseFeedforward:
         The identified hysteresis model (input V, output m).
     c1, c2 : float
         Lead on the reference's velocity and acceleration, s and s².
+    tuned_sample_time : float, optional
+        The sample time the gains were tuned at (set by :func:`piezohyst.tune`); a run at
+        another rate warns (:class:`SampleRateWarning`). Not compared, not shown.
 
     Examples
     --------
@@ -1436,6 +1684,7 @@ class InverseFeedforward:
     model: HysteresisModel
     c1: float = 0.0
     c2: float = 0.0
+    tuned_sample_time: float | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         _hysteresis_model(self.model)
@@ -1498,6 +1747,9 @@ class ILC:
         ``q`` in (0, 1].
     lead : int
         Learning shift in samples (the plant's delay and lag), below ``period``.
+    tuned_sample_time : float, optional
+        The sample time the gains were tuned at (set by :func:`piezohyst.tune`); a run at
+        another rate warns (:class:`SampleRateWarning`). Not compared, not shown.
 
     Examples
     --------
@@ -1513,6 +1765,7 @@ class ILC:
     gain: float = 0.5
     forgetting: float = 1.0
     lead: int = 3
+    tuned_sample_time: float | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if not is_controller(self.inner):
@@ -1572,6 +1825,67 @@ class ILC:
             raise ParameterTypeError("inner must not itself be an ILC")
         kind, params, inverse, _ = self.inner.core(stage, limits=limits)
         return kind, params, inverse, (n, gain, q, lead, int(stage.sensor.delay))
+
+
+class SampleRateWarning(UserWarning):
+    """A controller runs at another sample rate than the one it was tuned at
+    (``tuned_sample_time``, set by :func:`piezohyst.tune`): its discrete-time behaviour (the
+    observer, the filters, the switching) changes with the rate, and gains tuned at 10 kHz need
+    not hold at 5 kHz. Tune again at the rate it runs at.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> import numpy as np
+    >>> import piezohyst as ph
+    >>> stage = ph.virtual_stage()
+    >>> pid = ph.PID(kp=1e5, ki=1e9, tuned_sample_time=2e-4)       # tuned at 5 kHz
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     _ = ph.closed_loop(stage, pid, np.full(100, 5e-6), rng=1)   # run at 10 kHz
+    >>> [w.category.__name__ for w in caught]
+    ['SampleRateWarning']
+    """
+
+
+def check_sample_rate(controller: object, sample_time: float) -> None:
+    """Warn (:class:`SampleRateWarning`) when ``controller`` (or the controller it wraps) was
+    tuned at another sample time than ``sample_time`` (s).
+
+    Parameters
+    ----------
+    controller : controller configuration
+        Any controller; one without ``tuned_sample_time`` (or with ``None``) is not checked.
+    sample_time : float
+        The sample time it is about to run at, s.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> from piezohyst import PID
+    >>> from piezohyst.control.controllers import SampleRateWarning, check_sample_rate
+    >>> pid = PID(kp=1e5, tuned_sample_time=1e-4)
+    >>> with warnings.catch_warnings(record=True) as w:
+    ...     warnings.simplefilter("always")
+    ...     check_sample_rate(pid, 2e-4)
+    >>> issubclass(w[0].category, SampleRateWarning), str(w[0].message)[:23]
+    (True, 'PID was tuned at 10 kHz')
+    """
+    import warnings
+
+    c: object | None = controller
+    while c is not None:
+        tuned = getattr(c, "tuned_sample_time", None)
+        if tuned is not None and not math.isclose(float(tuned), float(sample_time), rel_tol=1e-9):
+            warnings.warn(
+                f"{type(c).__name__} was tuned at {1e-3 / tuned:g} kHz (sample time {tuned:g} s) and runs at "
+                f"{1e-3 / sample_time:g} kHz ({sample_time:g} s): its discrete-time behaviour changes with the "
+                "rate; tune it again at the rate it runs at",
+                SampleRateWarning,
+                stacklevel=3,
+            )
+            return
+        c = getattr(c, "inner", None)
 
 
 def is_controller(c: object) -> bool:

@@ -19,7 +19,7 @@ from ..errors import ParameterError, ParameterTypeError
 from ..signals.metrics import tracking_metrics
 from ..signals.response import Response
 from ..signals.results import require_pandas
-from .controllers import is_controller
+from .controllers import check_sample_rate, is_controller
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import pandas as pd
@@ -41,8 +41,21 @@ class ControllerLike(Protocol):
     def core(self, stage: Stage) -> _core._ControllerSpec: ...
 
 
+class UserController(Protocol):
+    """A controller written in Python: any object with ``step(reference, measured) ->
+    command`` (m, m -> V), optionally ``reset(measured)`` (called once with the first reading
+    before the run) and ``uses_reference_derivatives = True`` (then ``step(reference,
+    measured, velocity, acceleration)``). :func:`closed_loop` runs it from the Rust loop, one
+    Python call per sample: the slow path (about a microsecond of Python per sample, against
+    tens of nanoseconds for a packaged controller), for prototyping a law before writing it in
+    Rust."""
+
+    def step(self, reference: float, measured: float, /) -> float: ...
+
+
 __all__ = [
     "ClosedLoopResult",
+    "UserController",
     "closed_loop",
     "closed_loop_batch",
     "closed_loop_batch_stages",
@@ -355,10 +368,8 @@ def _check_reference(stage: Stage, x: FloatArray) -> None:
     lowest, highest = x.min(), x.max()
     if not (np.isfinite(lowest) and np.isfinite(highest)):
         as_record(x, "reference")  # raises, naming the first NaN/inf
-    p, a = stage.params, stage.amplifier
-    creep = 1 + sum(p.creep_weights)
-    reach = [p.static_gain * (v * creep + p.electrostriction * v * v) for v in (a.v_min, a.v_max)]
-    lo, hi = min(reach), max(reach)
+    a = stage.amplifier
+    lo, hi = stage.stroke()
     if lowest < lo or highest > hi:
         k = int(np.flatnonzero((x < lo) | (x > hi))[0])
         raise ParameterError(
@@ -390,7 +401,7 @@ def _prepare(
     return x, v, a, controller.core(stage)
 
 
-def _result(stage: Stage, d: Mapping[str, Any], controller: ControllerLike) -> ClosedLoopResult:
+def _result(stage: Stage, d: Mapping[str, Any], controller: object) -> ClosedLoopResult:
     names = list(d["term_names"])
     terms = {n: d["terms"][:, i] for i, n in enumerate(names)}
     return ClosedLoopResult(
@@ -408,7 +419,7 @@ def _result(stage: Stage, d: Mapping[str, Any], controller: ControllerLike) -> C
 
 def closed_loop(
     stage: Stage,
-    controller: ControllerLike,
+    controller: ControllerLike | UserController,
     reference: npt.ArrayLike,
     *,
     velocity: npt.ArrayLike | None = None,
@@ -422,7 +433,10 @@ def closed_loop(
     ----------
     stage : Stage
         Plant, amplifier, sensor and loop rate (e.g. :func:`piezohyst.virtual_stage`).
-    controller : OpenLoop, PID, ...
+    controller : OpenLoop, PID, ... or UserController
+        A packaged controller (its step runs in Rust), or any object with
+        ``step(reference, measured) -> command`` (:class:`UserController`: called from the
+        Rust loop once per sample, the slow path).
     reference : array_like
         Desired position per controller sample, m. Must stay within the stage's stroke.
     velocity, acceleration : array_like, optional
@@ -443,9 +457,44 @@ def closed_loop(
     >>> bool(res.metrics["rmse"] < 0.2e-6)
     True
     """
-    x, v, a, spec = _prepare(stage, controller, reference, velocity, acceleration)
     init = stage.rest_state() if initial_state is None else as_record(initial_state, "initial_state")
+    if not is_controller(controller) and callable(getattr(controller, "step", None)):
+        return _closed_loop_python(stage, controller, reference, velocity, acceleration, rng, init)
+    x, v, a, spec = _prepare(stage, controller, reference, velocity, acceleration)  # type: ignore[arg-type]
+    check_sample_rate(controller, stage.sample_time)
     d = stage.compiled.closed_loop(_core.Scenario(spec, x, v, a, seed_from(rng)), init)
+    return _result(stage, d, controller)
+
+
+def _closed_loop_python(
+    stage: Stage,
+    controller: Any,
+    reference: npt.ArrayLike,
+    velocity: npt.ArrayLike | None,
+    acceleration: npt.ArrayLike | None,
+    rng: RngLike,
+    init: FloatArray,
+) -> ClosedLoopResult:
+    """The slow path of :func:`closed_loop`: a :class:`UserController` called per sample."""
+    x = as_record(reference, "reference", min_length=2)
+    _check_reference(stage, x)
+    derivatives = bool(getattr(controller, "uses_reference_derivatives", False))
+    v, a = _derivatives(x, stage.sample_time, velocity, acceleration, derivatives)
+    if v.size not in (0, x.size) or a.size not in (0, x.size):
+        raise ParameterError(f"velocity/acceleration must have the reference's length {x.size}")
+    user_step = controller.step
+    reset = getattr(controller, "reset", None)
+    first = [True]
+
+    def step(r: float, vel: float, acc: float, y: float) -> float:
+        if first[0]:
+            first[0] = False
+            if callable(reset):
+                reset(y)
+        out = user_step(r, y, vel, acc) if derivatives else user_step(r, y)
+        return float(out)
+
+    d = stage.compiled.closed_loop_python(step, x, v, a, seed_from(rng), init)
     return _result(stage, d, controller)
 
 
@@ -499,6 +548,7 @@ def closed_loop_batch(
             x, v, a, spec = _prepare(stage, controller, reference, None, None)
         except (ValueError, TypeError) as e:
             raise type(e)(f"scenarios[{j}]: {e}") from None
+        check_sample_rate(controller, stage.sample_time)
         prepared.append(controller)
         core.append((spec, x, v, a, int(seeds_rng.integers(0, 2**63 - 1))))
     out = stage.compiled.closed_loop_batch(core, init)

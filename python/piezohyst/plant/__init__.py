@@ -3,10 +3,21 @@
 
 from .experiment import excitation, measure
 from .flexure import A7075_YOUNGS_MODULUS, CemfCoefficients, FlexureStage, LeafSpring
-from .stage import Amplifier, Sensor, Stage, StageInfo, StageParameters, StageResponse, virtual_stage
+from .stage import (
+    PERTURBABLE,
+    Amplifier,
+    Sensor,
+    Stage,
+    StageInfo,
+    StageParameters,
+    StageResponse,
+    perturbations,
+    virtual_stage,
+)
 
 __all__ = [
     "A7075_YOUNGS_MODULUS",
+    "PERTURBABLE",
     "Amplifier",
     "CemfCoefficients",
     "FlexureStage",
@@ -18,5 +29,6 @@ __all__ = [
     "StageResponse",
     "excitation",
     "measure",
+    "perturbations",
     "virtual_stage",
 ]

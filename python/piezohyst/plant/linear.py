@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, TypeAlias
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
 import numpy.typing as npt
@@ -80,6 +80,12 @@ class LinearPart:
         The creep lags (empty when left out).
     amplifier_tau : float
         ``tau_a`` in s; 0 for an ideal amplifier (or when left out).
+    modes : tuple of (float, float, float)
+        Added modes ``(frequency Hz, damping ratio, relative gain)`` (:meth:`Stage.with_modes`):
+        each driven by the stack's force ``m x'' + b x' + k x`` (the stage's own ``m, b, k``),
+        the position being their normalized sum with the stack's displacement.
+    mode_mechanics : tuple of float
+        The stage's own ``(m, b, k)`` that drive the added modes.
     """
 
     mass: float
@@ -90,15 +96,22 @@ class LinearPart:
     creep_taus: tuple[float, ...]
     creep_weights: tuple[float, ...]
     amplifier_tau: float
+    modes: tuple[tuple[float, float, float], ...] = ()
+    mode_mechanics: tuple[float, float, float] = (1.0, 0.0, 1.0)
 
 
 def linear_part(
-    params: StageParameters, amplifier: Amplifier | None = None, *, creep: bool = True, cemf: bool = False
+    params: StageParameters,
+    amplifier: Amplifier | None = None,
+    *,
+    creep: bool = True,
+    cemf: bool = False,
+    modes: tuple[tuple[float, float, float], ...] = (),
 ) -> LinearPart:
     """The linear part of a stage with ``params`` behind ``amplifier`` (``None``: ideal).
 
     ``creep=False`` leaves the creep lags out; ``cemf=True`` adds the CEMF hysteresis's slope
-    at the demagnetized rest state."""
+    at the demagnetized rest state; ``modes`` are the stage's added modes."""
     p = params
     gain, stiffness = p.tem, p.stiffness
     if cemf:
@@ -115,7 +128,33 @@ def linear_part(
     bw = math.inf if amplifier is None else amplifier.bandwidth
     tau_a = 0.0 if math.isinf(bw) else 1.0 / (2.0 * math.pi * bw)
     taus, weights = (p.creep_taus, p.creep_weights) if creep else ((), ())
-    return LinearPart(p.mass, p.damping, stiffness, gain, p.tem, tuple(taus), tuple(weights), tau_a)
+    return LinearPart(
+        p.mass,
+        p.damping,
+        stiffness,
+        gain,
+        p.tem,
+        tuple(taus),
+        tuple(weights),
+        tau_a,
+        tuple(modes),
+        (p.mass, p.damping, p.stiffness),
+    )
+
+
+def _mode_factor(part: LinearPart, s: npt.NDArray[np.complexfloating[Any, Any]]) -> ComplexArray:
+    """``position / x``: ``(1 + sum_i g_i w_i^2 (m s^2 + b s + k) / (k (s^2 + 2 zeta_i w_i s + w_i^2))) /
+    (1 + sum g)`` (1 without added modes)."""
+    out = np.ones(s.shape, dtype=np.complex128)
+    if not part.modes:
+        return out
+    m, b, k = part.mode_mechanics
+    total = 1.0
+    for f, zeta, g in part.modes:
+        w = 2 * np.pi * f
+        out += g * w * w * (m * s * s + b * s + k) / (k * (s * s + 2 * zeta * w * s + w * w))
+        total += g
+    return out / total
 
 
 def frequency_response(part: LinearPart, f: npt.ArrayLike) -> ComplexArray:
@@ -129,7 +168,7 @@ def frequency_response(part: LinearPart, f: npt.ArrayLike) -> ComplexArray:
     drive = np.full(s.shape, part.input_gain, dtype=np.complex128)
     for tau, c in zip(part.creep_taus, part.creep_weights, strict=True):
         drive += part.tem * c / (tau * s + 1.0)
-    h: ComplexArray = drive / (part.mass * s * s + part.damping * s + part.stiffness)
+    h: ComplexArray = drive / (part.mass * s * s + part.damping * s + part.stiffness) * _mode_factor(part, s)
     if part.amplifier_tau > 0:
         h = h / (part.amplifier_tau * s + 1.0)
     return h
@@ -140,13 +179,15 @@ def state_space(part: LinearPart) -> tuple[FloatArray, FloatArray, FloatArray, F
     position (m), states ``["va", "x", "v", "w0", ...]`` (``va`` only with an amplifier lag)."""
     amp = part.amplifier_tau > 0
     nc = len(part.creep_taus)
-    n = (1 if amp else 0) + 2 + nc
+    nm = len(part.modes)
+    n = (1 if amp else 0) + 2 + nc + 2 * nm
     a = np.zeros((n, n))
     b = np.zeros((n, 1))
     c = np.zeros((1, n))
     i_x = 1 if amp else 0
     i_v = i_x + 1
     names = (["va"] if amp else []) + ["x", "v"] + [f"w{j}" for j in range(nc)]
+    names += [n for i in range(nm) for n in (f"q{i + 1}", f"dq{i + 1}")]
     # the voltage that drives the mechanics and the creep: Va (a state) or the command itself
     drive = np.zeros(n)
     drive_b = 0.0
@@ -169,6 +210,24 @@ def state_space(part: LinearPart) -> tuple[FloatArray, FloatArray, FloatArray, F
         a[i_w, i_w] -= 1.0 / tau
         b[i_w, 0] += drive_b / tau
     c[0, i_x] = 1.0
+    if nm:
+        # q'' = -w^2 q - 2 zeta w q' + (w^2 / k) (m x'' + b x' + k x), the stage's own m, b, k
+        mm, bm, km = part.mode_mechanics
+        row_f = mm * a[i_v].copy()
+        row_f[i_v] += bm
+        row_f[i_x] += km
+        b_f = mm * b[i_v, 0]
+        total = 1.0 + sum(g for _, _, g in part.modes)
+        c[0, i_x] = 1.0 / total
+        for i, (f, zeta, g) in enumerate(part.modes):
+            w = 2 * np.pi * f
+            i_q = i_v + 1 + nc + 2 * i
+            a[i_q, i_q + 1] = 1.0
+            a[i_q + 1] = (w * w / km) * row_f
+            a[i_q + 1, i_q] -= w * w
+            a[i_q + 1, i_q + 1] -= 2 * zeta * w
+            b[i_q + 1, 0] = (w * w / km) * b_f
+            c[0, i_q] = g / total
     return a, b, c, np.zeros((1, 1)), names
 
 

@@ -18,11 +18,12 @@ from __future__ import annotations
 import functools
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from importlib import resources
 from os import PathLike
 from pathlib import Path
-from typing import Any, Self, TypeAlias
+from typing import TYPE_CHECKING, Any, Self, TypeAlias
 
 import numpy as np
 import numpy.typing as npt
@@ -36,12 +37,27 @@ from ..signals.matfile import load_mat_file, write_mat
 from ..signals.response import Response
 from . import linear
 
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    from ..models.model import HysteresisModel
+
 FloatArray: TypeAlias = npt.NDArray[np.float64]
 ComplexArray: TypeAlias = npt.NDArray[np.complex128]
 
-__all__ = ["Amplifier", "Sensor", "Stage", "StageInfo", "StageParameters", "StageResponse", "virtual_stage"]
+__all__ = [
+    "PERTURBABLE",
+    "Amplifier",
+    "Sensor",
+    "Stage",
+    "StageInfo",
+    "StageParameters",
+    "StageResponse",
+    "perturbations",
+    "virtual_stage",
+]
 
 MAX_CREEP = 8
+#: Most modes :meth:`Stage.with_modes` can add.
+MAX_MODES = 4
 
 #: The SI unit of every number of a stage file (:meth:`Stage.to_dict`), by its name.
 STAGE_UNITS = {
@@ -63,6 +79,9 @@ STAGE_UNITS = {
     "sensor_quantization": "m",
     "sensor_noise_std": "m",
     "sensor_delay": "samples",
+    "amplifier_dac_step": "V",
+    "amplifier_current_limit": "A",
+    "modes": "[Hz, 1, 1] (frequency, damping ratio, relative gain)",
     "sample_time": "s",
     "substeps": "1",
     "tolerance": "1",
@@ -71,8 +90,14 @@ STAGE_UNITS = {
 
 @dataclass(frozen=True)
 class Amplifier:
-    """Drive amplifier: output limits (V), -3 dB bandwidth (Hz, ``inf`` = ideal) and slew
-    rate (V/s, ``inf`` = unlimited).
+    """Drive amplifier: output limits (V), -3 dB bandwidth (Hz, ``inf`` = ideal), slew
+    rate (V/s, ``inf`` = unlimited), the DAC in front of it and its current limit.
+
+    ``dac_step`` is the DAC's resolution (V per code, 0 = ideal): the command is rounded to the
+    nearest code ``v_min + j dac_step`` before the amplifier (:meth:`dac` gives the step of an
+    ``n``-bit DAC over the range). ``current_limit`` (A, ``inf`` = none) limits the charging
+    current of the stack: with capacitance ``Cz`` it is the slew limit ``current_limit / Cz``
+    (the smaller of the two applies; see :meth:`Stage.effective_slew_rate`).
 
     Parameters
     ----------
@@ -82,9 +107,17 @@ class Amplifier:
         -3 dB bandwidth, Hz (``inf``: ideal).
     slew_rate : float
         Largest output rate, V/s (``inf``: unlimited).
+    dac_step : float
+        DAC resolution, V per code (0: ideal).
+    current_limit : float
+        Largest charging current of the stack, A (``inf``: none).
 
     Examples
     --------
+    >>> from piezohyst import Amplifier
+    >>> a = Amplifier(dac_step=Amplifier.dac(16))
+    >>> round(a.dac_step * 1e3, 4)                      # mV per code of a 16-bit DAC over -20..150 V
+    2.594
     >>> from piezohyst.plant import Amplifier
     >>> Amplifier(v_min=-20.0, v_max=150.0, bandwidth=3e3).slew_rate
     inf
@@ -98,16 +131,46 @@ class Amplifier:
     v_max: float = 150.0
     bandwidth: float = math.inf
     slew_rate: float = math.inf
+    dac_step: float = 0.0
+    current_limit: float = math.inf
 
     def __post_init__(self) -> None:
         lo = as_scalar(self.v_min, "v_min")
         hi = as_scalar(self.v_max, "v_max")
         if not hi > lo:
             raise ParameterError(f"amplifier limits reversed: v_min = {lo} must be < v_max = {hi}")
-        for name in ("bandwidth", "slew_rate"):
+        for name in ("bandwidth", "slew_rate", "current_limit"):
             x = as_scalar(getattr(self, name), name, allow_infinite=True)
             if not x > 0:
                 raise ParameterError(f"{name} = {x} must be > 0 (inf for none)")
+        as_scalar(self.dac_step, "dac_step", nonnegative=True)
+
+    @staticmethod
+    def dac(bits: int, v_min: float = -20.0, v_max: float = 150.0) -> float:
+        """The step (V per code) of a ``bits``-bit DAC spanning ``v_min .. v_max``.
+
+        Parameters
+        ----------
+        bits : int
+            Resolution, 1..32 bits.
+        v_min, v_max : float
+            The range the codes span, V.
+
+        Returns
+        -------
+        float
+            ``(v_max - v_min) / (2**bits - 1)``.
+
+        Examples
+        --------
+        >>> from piezohyst import Amplifier
+        >>> Amplifier.dac(8, 0.0, 255.0)
+        1.0
+        """
+        n = as_int(bits, "bits", minimum=1)
+        if n > 32:
+            raise ParameterError(f"bits = {n} must be <= 32")
+        return float((as_scalar(v_max, "v_max") - as_scalar(v_min, "v_min")) / (2**n - 1))
 
 
 @dataclass(frozen=True)
@@ -473,6 +536,12 @@ class Stage:
         Refinement tolerance (CEMF exponent change per sub-step; ``inf``: never refine).
     name : str
         The stage's name.
+    modes : tuple of (float, float, float)
+        Added structural modes ``(frequency Hz, damping ratio, relative gain)``
+        (:meth:`Stage.with_modes`).
+    hysteresis : HysteresisModel, optional
+        A hysteresis model driven by the amplifier voltage in place of the CEMF law
+        (:meth:`Stage.with_hysteresis`).
 
     Examples
     --------
@@ -492,8 +561,19 @@ class Stage:
     substeps: int = 1
     tolerance: float = 0.05
     name: str = ""
+    modes: tuple[tuple[float, float, float], ...] = ()
+    hysteresis: HysteresisModel | None = None
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "modes", _checked_modes(self.modes))
+        if self.hysteresis is not None:
+            from ..models.model import HysteresisModel
+
+            if not isinstance(self.hysteresis, HysteresisModel):
+                raise ParameterTypeError(
+                    f"hysteresis must be a hysteresis model (e.g. identify(...).model), got "
+                    f"{type(self.hysteresis).__name__}"
+                )
         as_scalar(self.sample_time, "sample_time", positive=True)
         n = as_int(self.substeps, "substeps", minimum=1)
         if n > 10_000:
@@ -569,11 +649,24 @@ class Stage:
             )
             a = d.get("amplifier", {})
             amp = Amplifier(
-                a.get("min", -20.0), a.get("max", 150.0), _inf(a.get("bandwidth")), _inf(a.get("slew_rate"))
+                a.get("min", -20.0),
+                a.get("max", 150.0),
+                _inf(a.get("bandwidth")),
+                _inf(a.get("slew_rate")),
+                a.get("dac_step", 0.0),
+                _inf(a.get("current_limit")),
             )
             s = d.get("sensor", {})
             sensor = Sensor(s.get("quantization", 0.0), s.get("noise_std", 0.0), s.get("delay", 0))
             loop = d.get("loop", {})
+            hyst = d.get("hysteresis")
+            if hyst is not None:
+                from ..models.model import HysteresisModel, model_from_dict
+
+                law = model_from_dict(hyst)
+                if not isinstance(law, HysteresisModel):
+                    raise ParameterError(f"hysteresis: a {type(law).__name__} cannot drive a stage")
+                hyst = law
             return cls(
                 params,
                 amp,
@@ -582,6 +675,8 @@ class Stage:
                 loop.get("substeps", 1),
                 _inf(loop.get("tolerance", 0.05)),
                 d.get("name", ""),
+                tuple(tuple(m) for m in d.get("modes", ())),
+                hyst,
             )
 
     @classmethod
@@ -675,6 +770,12 @@ class Stage:
                 "max": self.amplifier.v_max,
                 "bandwidth": _json_inf(self.amplifier.bandwidth),
                 "slew_rate": _json_inf(self.amplifier.slew_rate),
+                **({"dac_step": self.amplifier.dac_step} if self.amplifier.dac_step else {}),
+                **(
+                    {"current_limit": self.amplifier.current_limit}
+                    if math.isfinite(self.amplifier.current_limit)
+                    else {}
+                ),
             },
             "sensor": {
                 "quantization": self.sensor.quantization,
@@ -686,6 +787,8 @@ class Stage:
                 "substeps": self.substeps,
                 "tolerance": _json_inf(self.tolerance),
             },
+            **({"modes": [list(m) for m in self.modes]} if self.modes else {}),
+            **({"hysteresis": self.hysteresis.to_dict()} if self.hysteresis is not None else {}),
         }
 
     def with_(self, **changes: Any) -> Stage:
@@ -709,6 +812,138 @@ class Stage:
         (0.0, True)
         """
         return replace(self, **changes)
+
+    # -- structure ------------------------------------------------------------------------
+    def with_modes(self, modes: object) -> Stage:
+        """A copy with more modes: each ``(freq_hz, damping_ratio, relative_gain)``.
+
+        The stack's own mode is the stage's ``m x'' + b x' + k x = F``. Each added mode ``i`` is
+        driven by the same force with the same static deflection,
+        ``q_i'' + 2 zeta_i w_i q_i' + w_i^2 q_i = w_i^2 F / k``, and the position the sensor
+        reads is the modal sum ``(x + sum_i g_i q_i) / (1 + sum_i g_i)``: the static gain stays
+        the stage's, ``relative_gain`` ``g_i`` is the mode's share of the deflection against the
+        stack's (negative: a mode in anti-phase at a non-collocated sensor; ``1 + sum g > 0``).
+        The CEMF's charge sees the stack's displacement ``x``. Integrated in the Rust kernel,
+        sub-step by sub-step, as exactly as the stack's mode (``crates/core/src/plant/structure.rs``);
+        :meth:`frequency_response` and :meth:`to_control` include the modes.
+
+        Parameters
+        ----------
+        modes : sequence of (float, float, float)
+            Frequency (Hz, > 0), damping ratio (>= 0), relative gain. At most
+            ``MAX_MODES`` (4) in all.
+
+        Returns
+        -------
+        Stage
+            The stage with ``modes`` appended to its own.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst import virtual_stage
+        >>> stage = virtual_stage().with_modes([(1800.0, 0.02, 0.3)])
+        >>> stage.modes
+        ((1800.0, 0.02, 0.3),)
+        >>> h = stage.frequency_response([1.0, 1800.0])
+        >>> bool(abs(h[1]) > 3 * abs(h[0]))                     # the new resonance
+        True
+        """
+        return replace(self, modes=self.modes + _checked_modes(modes))
+
+    def with_hysteresis(self, model: HysteresisModel | None) -> Stage:
+        """A copy whose hysteresis is ``model`` driven by the amplifier voltage, in place of the
+        CEMF law (a voltage-driven hysteresis): any hysteresis model of the package (PI, GPI/MPI,
+        Preisach, Bouc–Wen, ... or one identified from a record), input V, output m.
+
+        The stage's quasi-static position is ``model(Va)``: the hysteresis voltage is
+        ``Vh = Va - (k / Tem) model(Va)`` in the force ``Tem (Va - Vh + Vcr + e2 Va^2)``, so the
+        mechanics, modes, creep and electrostriction stay the stage's (give a stage without
+        creep and electrostriction for the model alone). The model is stepped once per control
+        period with the period's end voltage (its sample time is the loop's). ``None`` returns
+        to the CEMF law.
+
+        Parameters
+        ----------
+        model : HysteresisModel or None
+            The law (input V, output m).
+
+        Returns
+        -------
+        Stage
+
+        Examples
+        --------
+        >>> import dataclasses
+        >>> import numpy as np
+        >>> from piezohyst import PI, virtual_stage
+        >>> base = virtual_stage()
+        >>> bare = dataclasses.replace(base.params, electrostriction=0.0, creep_taus=(), creep_weights=())
+        >>> g = base.params.static_gain
+        >>> law = PI([20.0, 60.0], [0.3 * g, 0.2 * g], p0=0.6 * g)
+        >>> stage = base.with_(params=bare).with_hysteresis(law)
+        >>> u = 75 - 75 * np.cos(2 * np.pi * 2 * np.arange(0, 1.0, stage.sample_time))
+        >>> x = stage.simulate(u).position
+        >>> err = np.abs(x[1:] - law.simulate(u)[:-1]).max() / np.ptp(x)   # the law's loop, lagged
+        >>> bool(err < 0.01)
+        True
+        """
+        return replace(self, hysteresis=model)
+
+    @property
+    def structured(self) -> bool:
+        """Whether the stage has added modes, a voltage-driven hysteresis or a DAC (the Rust
+        kernel then runs its structure hooks; the state is longer than ``STAGE_STATE_LEN``)."""
+        return bool(self.modes) or self.hysteresis is not None or self.amplifier.dac_step > 0
+
+    def effective_slew_rate(self) -> float:
+        """The amplifier's slew limit (V/s): its slew rate or ``current_limit / Cz``, the
+        smaller.
+
+        Returns
+        -------
+        float
+            V/s (``inf``: none).
+
+        Examples
+        --------
+        >>> from piezohyst import Amplifier, virtual_stage
+        >>> s = virtual_stage()
+        >>> s.with_(amplifier=Amplifier(current_limit=0.09)).effective_slew_rate()   # 0.09 A / 1.8 uF
+        50000.0
+        """
+        a = self.amplifier
+        return min(a.slew_rate, a.current_limit / self.params.capacitance)
+
+    def stroke(self) -> tuple[float, float]:
+        """The positions (m) the stage reaches at the amplifier limits, quasi-statically: the
+        static gain with creep and electrostriction, or the voltage-driven hysteresis model's
+        outputs at the limits along its major loop.
+
+        Returns
+        -------
+        tuple of float
+            ``(lowest, highest)``, m.
+
+        Examples
+        --------
+        >>> from piezohyst import virtual_stage
+        >>> lo, hi = virtual_stage().stroke()
+        >>> round(hi * 1e6, 2)
+        24.15
+        """
+        p, a = self.params, self.amplifier
+        if self.hysteresis is not None:
+            ramp = np.concatenate(
+                [np.linspace(0.0, a.v_max, 200), np.linspace(a.v_max, a.v_min, 400), np.linspace(a.v_min, a.v_max, 400)]
+            )
+            y = self.hysteresis.simulate(ramp, initial_state=self.hysteresis.initial_state())
+            extra = p.static_gain * (sum(p.creep_weights) * np.array([a.v_min, a.v_max]))
+            ends = (float(y[599]) + float(extra[0]), float(y[-1]) + float(extra[1]))
+            return min(ends), max(ends)
+        creep = 1 + sum(p.creep_weights)
+        reach = [p.static_gain * (v * creep + p.electrostriction * v * v) for v in (a.v_min, a.v_max)]
+        return min(reach), max(reach)
 
     # -- core layout ----------------------------------------------------------------------
     def core_params(self) -> FloatArray:
@@ -742,7 +977,7 @@ class Stage:
             a.v_min,
             a.v_max,
             a.bandwidth,
-            a.slew_rate,
+            self.effective_slew_rate(),
             float(len(p.creep_taus)),
         ]
         return np.array(head + taus + weights, dtype=np.float64)
@@ -752,8 +987,18 @@ class Stage:
         """The Rust core's stage (parameters, control period, integration settings and
         sensor), built and validated once per stage and reused by every run on it."""
         s = self.sensor
+        law = self.hysteresis
         return _core.Stage(
-            self.core_params(), self.sample_time, self.substeps, self.tolerance, s.quantization, s.noise_std, s.delay
+            self.core_params(),
+            self.sample_time,
+            self.substeps,
+            self.tolerance,
+            s.quantization,
+            s.noise_std,
+            s.delay,
+            modes=list(self.modes) or None,
+            hysteresis=None if law is None else _law_row(law, self.amplifier),
+            dac_step=self.amplifier.dac_step,
         )
 
     # the compiled stage is not picklable: a pickle carries the fields; it is rebuilt on use
@@ -762,21 +1007,24 @@ class Stage:
         state.pop("compiled", None)
         return state
 
-    @staticmethod
-    def rest_state() -> FloatArray:
-        """The state at rest: ``[va, x, v, vh, creep[8]]`` all zero.
+    def rest_state(self) -> FloatArray:
+        """The state at rest: ``[va, x, v, vh, creep[8]]`` all zero, then, for a stage with
+        structure (:attr:`structured`), the added modes' ``[q, q']`` at rest and the
+        voltage-driven hysteresis model's relaxed state.
 
         Returns
         -------
-        ndarray, shape (12,)
+        ndarray, shape (12,) or longer (a stage with structure)
 
         Examples
         --------
-        >>> from piezohyst.plant import Stage
-        >>> Stage.rest_state().tolist() == [0.0] * 12
+        >>> from piezohyst import virtual_stage
+        >>> virtual_stage().rest_state().tolist() == [0.0] * 12
         True
         """
-        return np.zeros(_core.STAGE_STATE_LEN)
+        if not self.structured:
+            return np.zeros(_core.STAGE_STATE_LEN)
+        return self.compiled.rest_state()
 
     # -- simulation -----------------------------------------------------------------------
     def simulate(
@@ -835,7 +1083,7 @@ class Stage:
         if (ts, m, tol) == (self.sample_time, self.substeps, self.tolerance):
             core = self.compiled
         else:
-            core = _core.Stage(self.core_params(), ts, m, tol)
+            core = replace(self, sample_time=ts, substeps=m, tolerance=tol).compiled
         x, va, vh = core.simulate(u, st)
         return StageResponse(np.arange(u.size) * ts, u, va, x, vh, st, title=self.name)
 
@@ -906,7 +1154,9 @@ class Stage:
         return linear.frequency_response(self._linear_part(creep, amplifier, cemf), f)
 
     def _linear_part(self, creep: bool, amplifier: bool, cemf: bool) -> linear.LinearPart:
-        return linear.linear_part(self.params, self.amplifier if amplifier else None, creep=creep, cemf=cemf)
+        return linear.linear_part(
+            self.params, self.amplifier if amplifier else None, creep=creep, cemf=cemf, modes=self.modes
+        )
 
     def _linear_system(
         self, discrete: bool, measured: bool, creep: bool, amplifier: bool, cemf: bool
@@ -1135,6 +1385,32 @@ def _to_control(sys: linear.LinearSystem, name: str) -> Any:
     )
 
 
+def _checked_modes(modes: object) -> tuple[tuple[float, float, float], ...]:
+    """Modes as a tuple of ``(frequency, damping ratio, relative gain)``, validated."""
+    if isinstance(modes, (str, bytes)) or not isinstance(modes, Sequence):
+        raise ParameterTypeError(f"modes must be a sequence of (freq_hz, damping_ratio, relative_gain), got {modes!r}")
+    out = []
+    for i, m in enumerate(modes):
+        if isinstance(m, (str, bytes)) or not isinstance(m, Sequence) or len(m) != 3:
+            raise ParameterError(f"modes[{i}] = {m!r} must be (freq_hz, damping_ratio, relative_gain)")
+        f = as_scalar(m[0], f"modes[{i}] frequency", positive=True)
+        z = as_scalar(m[1], f"modes[{i}] damping_ratio", nonnegative=True)
+        g = as_scalar(m[2], f"modes[{i}] relative_gain")
+        out.append((f, z, g))
+    if len(out) > MAX_MODES:
+        raise ParameterError(f"modes has {len(out)} modes, at most {MAX_MODES}")
+    total = 1.0 + sum(g for _, _, g in out)
+    if not total > 0:
+        raise ParameterError(f"1 + sum of the relative gains = {total} must be > 0")
+    return tuple(out)
+
+
+def _law_row(law: HysteresisModel, amp: Amplifier) -> tuple[str, list[int], FloatArray]:
+    """``(family, dims, row)`` of a voltage-driven law for the core (its output map folded in)."""
+    m = law.mapped_row((amp.v_min, amp.v_max))
+    return m.family, list(m.dims), m.to_row()
+
+
 def _loop_width(u: FloatArray, x: FloatArray) -> tuple[float, float]:
     """Output range and max loop width / range for one closed loop of (input, output)."""
     rng = float(np.ptp(x))
@@ -1164,6 +1440,87 @@ def _inf(x: float | str | None) -> float:
 
 def _json_inf(x: float) -> float | str:
     return "inf" if math.isinf(x) else x
+
+
+#: The parameters :func:`perturbations` knows: the physics (:class:`StageParameters` fields;
+#: ``creep_weights`` scales every weight), and the amplifier's ``bandwidth`` and ``slew_rate``.
+PERTURBABLE = (
+    "mass",
+    "damping",
+    "stiffness",
+    "tem",
+    "capacitance",
+    "hyst_alpha",
+    "hyst_beta",
+    "hyst_gamma",
+    "electrostriction",
+    "creep_weights",
+    "bandwidth",
+    "slew_rate",
+)
+
+
+def perturbations(stage: Stage, parameters: Sequence[str] | None = None, fraction: float = 0.2) -> list[Stage]:
+    """The stage with each parameter in turn ``fraction`` lower and higher, the others as they
+    are: ``2 len(parameters)`` stages, named ``"<name> x0.8"``, ``"<name> x1.2"`` (for the
+    default 20 %). The set a robustness check runs on (one parameter at a time), and the set
+    :func:`piezohyst.tune` can tune for (``stages=``, worst case or a percentile).
+
+    Parameters
+    ----------
+    stage : Stage
+        The nominal stage (e.g. :func:`piezohyst.stage_from_model` of an identified model).
+    parameters : sequence of str, optional
+        Names from :data:`PERTURBABLE` (default: every one the stage has non-zero; an
+        unlimited amplifier bandwidth or slew rate is left out).
+    fraction : float
+        Relative change, in ``(0, 1)``.
+
+    Returns
+    -------
+    list of Stage
+
+    Examples
+    --------
+    >>> from piezohyst import virtual_stage
+    >>> from piezohyst.plant import perturbations
+    >>> stages = perturbations(virtual_stage(), ["stiffness", "tem"])
+    >>> [s.name for s in stages]
+    ['stiffness x0.8', 'stiffness x1.2', 'tem x0.8', 'tem x1.2']
+    >>> round(stages[1].params.stiffness / virtual_stage().params.stiffness, 12)
+    1.2
+    """
+    if not isinstance(stage, Stage):
+        raise ParameterTypeError(f"stage must be a Stage, got {type(stage).__name__}")
+    f = as_scalar(fraction, "fraction", positive=True)
+    if not f < 1:
+        raise ParameterError(f"fraction = {f} must be < 1")
+    p, a = stage.params, stage.amplifier
+    if parameters is None:
+        names = [
+            n
+            for n in PERTURBABLE
+            if (n in ("bandwidth", "slew_rate") and math.isfinite(getattr(a, n)))
+            or (n == "creep_weights" and any(p.creep_weights))
+            or (n not in ("bandwidth", "slew_rate", "creep_weights") and getattr(p, n) != 0)
+        ]
+    elif isinstance(parameters, str) or not isinstance(parameters, Sequence):
+        raise ParameterTypeError(f"parameters must be a list of names, got {parameters!r}")
+    else:
+        names = list(parameters)
+    out = []
+    for n in names:
+        if n not in PERTURBABLE:
+            raise ParameterError(f"parameters: {n!r} is not one of {', '.join(PERTURBABLE)}")
+        for k in (1 - f, 1 + f):
+            if n in ("bandwidth", "slew_rate"):
+                changed = stage.with_(amplifier=replace(a, **{n: getattr(a, n) * k}))
+            elif n == "creep_weights":
+                changed = stage.with_(params=replace(p, creep_weights=tuple(w * k for w in p.creep_weights)))
+            else:
+                changed = stage.with_(params=replace(p, **{n: getattr(p, n) * k}))
+            out.append(changed.with_(name=f"{n} x{k:g}"))
+    return out
 
 
 def virtual_stage() -> Stage:

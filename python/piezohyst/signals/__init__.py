@@ -1,8 +1,10 @@
 """Signals: measured records and their file readers (:mod:`.data`), their preprocessing
-(:mod:`.preprocess`), reference trajectories (:mod:`.references`) and tracking/hysteresis metrics
-(:mod:`.metrics`) and :class:`.Response`, the result of every time simulation."""
+(:mod:`.preprocess`), reference trajectories (:mod:`.references`; jerk-limited moves and input
+shaping: :mod:`.trajectory`), tracking/hysteresis metrics (:mod:`.metrics`), frequency responses
+(:mod:`.frequency`) and :class:`.Response`, the result of every time simulation."""
 
 from .data import Record, load_record, load_yan9a_model_record
+from .frequency import FrequencyResponse, frf_from_record
 from .metrics import hysteresis_percent, linearity_error, max_error, rmse, tracking_metrics
 from .preprocess import (
     apply_lag,
@@ -17,8 +19,10 @@ from .preprocess import (
 )
 from .references import chirp, multisine, sine, staircase, triangle, variable_amplitude_sine
 from .response import Response
+from .trajectory import input_shaper, jerk_limited
 
 __all__ = [
+    "FrequencyResponse",
     "Record",
     "Response",
     "apply_lag",
@@ -27,7 +31,10 @@ __all__ = [
     "estimate_lag",
     "find_excitation_start",
     "flag_outliers",
+    "frf_from_record",
     "hysteresis_percent",
+    "input_shaper",
+    "jerk_limited",
     "linearity_error",
     "load_record",
     "load_yan9a_model_record",

@@ -11,10 +11,12 @@
 //! The model-based laws and wrappers live in the submodules: [`smc`] (seed 1), [`absmc`]
 //! (seed 2), [`cemf`] (the identified CEMF model as observer and inverse feedforward, used by
 //! [`smc`]), [`compensated`] (any controller behind an exact inverse hysteresis model) and
-//! [`ilc`] (iterative learning on top of any controller).
+//! [`ilc`] (iterative learning on top of any controller) and [`filtered`] (the practitioner's
+//! loop: PID with notch filters, dynamic-inversion feedforward and a damping loop).
 pub mod absmc;
 pub mod cemf;
 pub mod compensated;
+pub mod filtered;
 pub mod ilc;
 pub mod smc;
 

@@ -7,7 +7,7 @@
 //! amplifier output at the end of the period, `x_k`, the reading, and the controller terms.
 use crate::control::{Controller, Reference, MAX_TERMS};
 use crate::plant::sensor::{Sensor, SensorState};
-use crate::plant::stage::{Stage, StageState, MAX_CREEP};
+use crate::plant::stage::{Extra, NoExtra, Stage, StageState, MAX_CREEP};
 
 /// The parts of a closed loop, each configuration with its state (the caller resets them):
 /// the stage with its amplifier, the sensor and the controller.
@@ -126,6 +126,20 @@ pub fn run_recorder<C: Controller + ?Sized, R: Recorder>(
     trajectory: Trajectory<'_>,
     recorder: &mut R,
 ) -> usize {
+    run_recorder_with(parts, trajectory, recorder, &mut NoExtra)
+}
+
+/// [`run_recorder`] on a stage with structure `extra` (more modes, a voltage-driven
+/// hysteresis, a DAC: [`crate::plant::structure`]); the recorded position is the one the
+/// sensor sees (`extra.position` of the stack's displacement). With [`NoExtra`] it is
+/// [`run_recorder`], to the bit.
+#[inline(always)]
+pub fn run_recorder_with<C: Controller + ?Sized, R: Recorder, E: Extra>(
+    parts: Loop<'_, C>,
+    trajectory: Trajectory<'_>,
+    recorder: &mut R,
+    extra: &mut E,
+) -> usize {
     let Trajectory { position: reference, velocity, acceleration } = trajectory;
     let len_or_any = |s: &[f64]| if s.is_empty() { usize::MAX } else { s.len() };
     let n = reference.len().min(len_or_any(velocity)).min(len_or_any(acceleration)).min(recorder.capacity());
@@ -145,15 +159,15 @@ pub fn run_recorder<C: Controller + ?Sized, R: Recorder>(
     macro_rules! dispatch {
         ($t:literal) => {
             match stage.params.creep_terms {
-                0 => run_n::<C, R, 0, $t>(parts, cut_trajectory, recorder),
-                1 => run_n::<C, R, 1, $t>(parts, cut_trajectory, recorder),
-                2 => run_n::<C, R, 2, $t>(parts, cut_trajectory, recorder),
-                3 => run_n::<C, R, 3, $t>(parts, cut_trajectory, recorder),
-                4 => run_n::<C, R, 4, $t>(parts, cut_trajectory, recorder),
-                5 => run_n::<C, R, 5, $t>(parts, cut_trajectory, recorder),
-                6 => run_n::<C, R, 6, $t>(parts, cut_trajectory, recorder),
-                7 => run_n::<C, R, 7, $t>(parts, cut_trajectory, recorder),
-                _ => run_n::<C, R, MAX_CREEP, $t>(parts, cut_trajectory, recorder),
+                0 => run_n::<C, R, E, 0, $t>(parts, cut_trajectory, recorder, extra),
+                1 => run_n::<C, R, E, 1, $t>(parts, cut_trajectory, recorder, extra),
+                2 => run_n::<C, R, E, 2, $t>(parts, cut_trajectory, recorder, extra),
+                3 => run_n::<C, R, E, 3, $t>(parts, cut_trajectory, recorder, extra),
+                4 => run_n::<C, R, E, 4, $t>(parts, cut_trajectory, recorder, extra),
+                5 => run_n::<C, R, E, 5, $t>(parts, cut_trajectory, recorder, extra),
+                6 => run_n::<C, R, E, 6, $t>(parts, cut_trajectory, recorder, extra),
+                7 => run_n::<C, R, E, 7, $t>(parts, cut_trajectory, recorder, extra),
+                _ => run_n::<C, R, E, MAX_CREEP, $t>(parts, cut_trajectory, recorder, extra),
             }
         };
     }
@@ -166,16 +180,17 @@ pub fn run_recorder<C: Controller + ?Sized, R: Recorder>(
 }
 
 #[inline(always)]
-fn run_n<C: Controller + ?Sized, R: Recorder, const NC: usize, const T: bool>(
+fn run_n<C: Controller + ?Sized, R: Recorder, E: Extra, const NC: usize, const T: bool>(
     Loop { stage, stage_state, sensor, sensor_state, controller, controller_state }: Loop<'_, C>,
     Trajectory { position: reference, velocity, acceleration }: Trajectory<'_>,
     recorder: &mut R,
+    extra: &mut E,
 ) {
     // the creep voltage is carried from period to period (the same sum each period starts
     // with; see Stage::advance_from)
     let mut vcr = stage.creep_voltage::<NC>(stage_state);
     for (k, &xr) in reference.iter().enumerate() {
-        let x = stage_state.x;
+        let x = if E::ACTIVE { extra.position(stage_state.x) } else { stage_state.x };
         let y = sensor.read_t::<T>(sensor_state, x);
         let r = Reference {
             x: xr,
@@ -183,7 +198,7 @@ fn run_n<C: Controller + ?Sized, R: Recorder, const NC: usize, const T: bool>(
             a: if acceleration.is_empty() { 0.0 } else { acceleration[k] },
         };
         let out = controller.step(controller_state, &r, y);
-        vcr = stage.advance_from::<NC, T>(stage_state, out.u, vcr);
+        vcr = stage.advance_from::<NC, T, E>(stage_state, out.u, vcr, extra);
         recorder.record(
             k,
             &Sample {
@@ -214,12 +229,22 @@ pub struct Tracking {
 /// Run a whole trajectory like [`run`], recording nothing; errors count from sample `skip`
 /// on (to leave out the start-up transient). A diverging plant gives infinite figures.
 pub fn run_tracking<C: Controller + ?Sized>(parts: Loop<'_, C>, trajectory: Trajectory<'_>, skip: usize) -> Tracking {
+    run_tracking_with(parts, trajectory, skip, &mut NoExtra)
+}
+
+/// [`run_tracking`] on a stage with structure `extra` (see [`run_recorder_with`]).
+pub fn run_tracking_with<C: Controller + ?Sized, E: Extra>(
+    parts: Loop<'_, C>,
+    trajectory: Trajectory<'_>,
+    skip: usize,
+    extra: &mut E,
+) -> Tracking {
     let Loop { stage, stage_state, sensor, sensor_state, controller, controller_state } = parts;
     let Trajectory { position: reference, velocity, acceleration } = trajectory;
     let limits = controller.limits();
     let mut t = Tracking::default();
     for (k, &xr) in reference.iter().enumerate() {
-        let x = stage_state.x;
+        let x = if E::ACTIVE { extra.position(stage_state.x) } else { stage_state.x };
         if k >= skip {
             let e = xr - x;
             t.sse += e * e;
@@ -240,7 +265,7 @@ pub fn run_tracking<C: Controller + ?Sized>(parts: Loop<'_, C>, trajectory: Traj
         if out.u <= limits.min || out.u >= limits.max {
             t.saturated += 1;
         }
-        stage.advance(stage_state, out.u);
+        stage.advance_with(stage_state, out.u, extra);
     }
     if !t.sse.is_finite() || !stage_state.x.is_finite() {
         t.sse = f64::INFINITY;

@@ -2,6 +2,7 @@
 //!
 //! - [`stage`]: the piezo-driven flexure stage with CEMF hysteresis, creep and amplifier;
 //! - [`sensor`]: the position sensor (noise, quantization, delay);
+//! - [`structure`]: what a stage can add (more modes, a voltage-driven hysteresis law, a DAC);
 //! - [`closed_loop`]: the engine running controller, amplifier, stage and sensor per sample;
 //! - [`boucwen_benchmark`]: the Bouc–Wen hysteretic benchmark system (Noël & Schoukens), its
 //!   integrator, decimation and record error.
@@ -9,3 +10,4 @@ pub mod boucwen_benchmark;
 pub mod closed_loop;
 pub mod sensor;
 pub mod stage;
+pub mod structure;

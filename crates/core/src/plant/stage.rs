@@ -31,6 +31,65 @@ use crate::num::math::{abs, exp, F2};
 /// Most creep lags a stage can have.
 pub const MAX_CREEP: usize = 8;
 
+/// What a stage with structure adds to the stage's periods and sub-steps
+/// ([`crate::plant::structure`]: more modes, a voltage-driven hysteresis law, a DAC). The
+/// plain stage runs with [`NoExtra`], whose `ACTIVE = false` folds every hook away: the same
+/// code, the same bits.
+pub trait Extra {
+    /// Whether the hooks do anything.
+    const ACTIVE: bool;
+    /// The command the amplifier receives for the controller's `u` (a DAC's resolution).
+    fn command(&mut self, u: f64) -> f64 {
+        u
+    }
+    /// A voltage-driven hysteresis in place of the CEMF law: the hysteresis voltage `Vh` at
+    /// the amplifier voltage `va` if `va` were the period's end voltage (the law's state is
+    /// not changed: see [`Extra::end_period`]), or `None` for the CEMF law.
+    fn input_vh(&mut self, va: f64) -> Option<f64> {
+        let _ = va;
+        None
+    }
+    /// The period ended at amplifier voltage `va`: commit the hysteresis law's step.
+    fn end_period(&mut self, va: f64) {
+        let _ = va;
+    }
+    /// One sub-step of everything else the stage's force drives (see [`SubStep`]).
+    fn substep(&mut self, step: &SubStep) {
+        let _ = step;
+    }
+    /// The position the sensor sees, from the stack's displacement `x`.
+    fn position(&self, x: f64) -> f64 {
+        x
+    }
+}
+
+/// What a sub-step hands [`Extra::substep`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SubStep {
+    /// Refinement level (the sub-step length is the stage's level `h`).
+    pub level: usize,
+    /// Amplifier voltage at the start, V.
+    pub va0: f64,
+    /// Command (held), V.
+    pub u: f64,
+    /// Forcing of the stack's mode (acceleration, m/s^2) at the start and the end,
+    /// first-order held between them.
+    pub d0: f64,
+    /// See `d0`.
+    pub d1: f64,
+    /// Whether the forcing includes the amplifier voltage's linear force (the amplifier is
+    /// slew-limited or ideal, so the voltage is not integrated exactly beside the mechanics).
+    pub with_va: bool,
+}
+
+/// The plain stage: no structure.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct NoExtra;
+
+impl Extra for NoExtra {
+    const ACTIVE: bool = false;
+}
+
 /// What drives the CEMF hysteresis.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum HysteresisDrive {
@@ -127,16 +186,16 @@ impl StageState {
 /// Exact discretization over `h` of `z' = A z + B u + E d(t)` with `u` held and `d` linear
 /// from `d0` to `d1`: `z1 = phi z0 + gu u + g0 d0 + g1 d1`.
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct Discrete<const N: usize> {
-    phi: Mat<N>,
-    gu: [f64; N],
-    g0: [f64; N],
-    g1: [f64; N],
+pub(crate) struct Discrete<const N: usize> {
+    pub(crate) phi: Mat<N>,
+    pub(crate) gu: [f64; N],
+    pub(crate) g0: [f64; N],
+    pub(crate) g1: [f64; N],
 }
 
 impl<const N: usize> Discrete<N> {
     /// Van Loan: exponential of `[[A, B, E, 0], [0, 0, 0, 0], [0, 0, 0, 1], [0, 0, 0, 0]]`.
-    fn new<const M: usize>(a: &Mat<N>, b: &[f64; N], e: &[f64; N], h: f64) -> Self {
+    pub(crate) fn new<const M: usize>(a: &Mat<N>, b: &[f64; N], e: &[f64; N], h: f64) -> Self {
         debug_assert!(M == N + 3);
         let mut m = [[0.0; M]; M];
         for i in 0..N {
@@ -166,7 +225,7 @@ impl<const N: usize> Discrete<N> {
     }
 
     #[inline(always)]
-    fn apply(&self, z: &[f64; N], u: f64, d0: f64, d1: f64) -> [f64; N] {
+    pub(crate) fn apply(&self, z: &[f64; N], u: f64, d0: f64, d1: f64) -> [f64; N] {
         let mut out = [0.0; N];
         for (i, out_i) in out.iter_mut().enumerate() {
             let mut acc = self.gu[i] * u + self.g0[i] * d0 + self.g1[i] * d1;
@@ -462,6 +521,20 @@ impl Stage {
         crate::num::math::clamp(u, self.params.amp_min, self.params.amp_max)
     }
 
+    /// Sub-step length of refinement level `j`, s.
+    pub(crate) fn level_h(&self, j: usize) -> f64 {
+        self.levels[j].h
+    }
+
+    /// The amplifier's time constant (`None`: ideal, no lag).
+    pub(crate) fn amplifier_tau(&self) -> Option<f64> {
+        if self.amp_ideal {
+            None
+        } else {
+            Some(self.amp_tau)
+        }
+    }
+
     /// Forcing (acceleration) that is not in the exact linear part.
     #[inline(always)]
     fn extra_accel(&self, va: f64, vh: f64, vcr: f64, with_va: bool) -> f64 {
@@ -703,25 +776,31 @@ impl Stage {
     /// Advance one controller period with command `u` (saturated to the amplifier range).
     /// Returns the position at the end of the period.
     pub fn advance(&self, st: &mut StageState, u: f64) -> f64 {
+        self.advance_with(st, u, &mut NoExtra)
+    }
+
+    /// [`Stage::advance`] with the structure `extra` (see [`Extra`]); returns the stack's
+    /// displacement at the end of the period (`extra.position` of it is what a sensor sees).
+    pub fn advance_with<E: Extra>(&self, st: &mut StageState, u: f64, extra: &mut E) -> f64 {
         if self.typical {
-            self.advance_t::<true>(st, u)
+            self.advance_t::<true, E>(st, u, extra)
         } else {
-            self.advance_t::<false>(st, u)
+            self.advance_t::<false, E>(st, u, extra)
         }
     }
 
     #[inline(always)]
-    fn advance_t<const T: bool>(&self, st: &mut StageState, u: f64) -> f64 {
+    fn advance_t<const T: bool, E: Extra>(&self, st: &mut StageState, u: f64, e: &mut E) -> f64 {
         match self.params.creep_terms {
-            0 => self.advance_n::<0, T>(st, u),
-            1 => self.advance_n::<1, T>(st, u),
-            2 => self.advance_n::<2, T>(st, u),
-            3 => self.advance_n::<3, T>(st, u),
-            4 => self.advance_n::<4, T>(st, u),
-            5 => self.advance_n::<5, T>(st, u),
-            6 => self.advance_n::<6, T>(st, u),
-            7 => self.advance_n::<7, T>(st, u),
-            _ => self.advance_n::<MAX_CREEP, T>(st, u),
+            0 => self.advance_n::<0, T, E>(st, u, e),
+            1 => self.advance_n::<1, T, E>(st, u, e),
+            2 => self.advance_n::<2, T, E>(st, u, e),
+            3 => self.advance_n::<3, T, E>(st, u, e),
+            4 => self.advance_n::<4, T, E>(st, u, e),
+            5 => self.advance_n::<5, T, E>(st, u, e),
+            6 => self.advance_n::<6, T, E>(st, u, e),
+            7 => self.advance_n::<7, T, E>(st, u, e),
+            _ => self.advance_n::<MAX_CREEP, T, E>(st, u, e),
         }
     }
 
@@ -729,9 +808,14 @@ impl Stage {
     /// params.creep_terms`, and `T` true only for a typical stage ([`Stage::is_typical`]):
     /// loops over a whole run pick both once (see [`crate::plant::closed_loop`]).
     #[inline(always)]
-    pub(crate) fn advance_n<const NC: usize, const T: bool>(&self, st: &mut StageState, u: f64) -> f64 {
+    pub(crate) fn advance_n<const NC: usize, const T: bool, E: Extra>(
+        &self,
+        st: &mut StageState,
+        u: f64,
+        e: &mut E,
+    ) -> f64 {
         let vcr = self.creep_voltage::<NC>(st);
-        self.advance_from::<NC, T>(st, u, vcr);
+        self.advance_from::<NC, T, E>(st, u, vcr, e);
         st.x
     }
 
@@ -750,13 +834,22 @@ impl Stage {
     /// new state (the same sum, carried rather than computed again: a loop over periods
     /// passes it on).
     #[inline(always)]
-    pub(crate) fn advance_from<const NC: usize, const T: bool>(&self, st: &mut StageState, u: f64, vcr: f64) -> f64 {
+    pub(crate) fn advance_from<const NC: usize, const T: bool, E: Extra>(
+        &self,
+        st: &mut StageState,
+        u: f64,
+        vcr: f64,
+        e: &mut E,
+    ) -> f64 {
         debug_assert_eq!(NC, self.params.creep_terms);
         debug_assert!(!T || self.typical);
-        let u = self.saturate(u);
+        let u = self.saturate(if E::ACTIVE { e.command(u) } else { u });
         if !T && self.amp_steps && u != st.va {
             // the voltage steps at the start of the period: charge jumps, position does not
-            st.vh = self.cemf::<T>(&self.cemf_start::<T>(st.vh), 0.0, st.va, u);
+            st.vh = match if E::ACTIVE { e.input_vh(u) } else { None } {
+                Some(vh) => vh,
+                None => self.cemf::<T>(&self.cemf_start::<T>(st.vh), 0.0, st.va, u),
+            };
             st.va = u;
         }
         let level = self.refinement::<T>(st, u, vcr);
@@ -764,11 +857,18 @@ impl Stage {
         let count = self.substeps << level;
         if count == 1 {
             // the common case on its own: nothing to hoist out of a loop
-            return self.substep::<NC, T>(lv, st, u, vcr);
+            let vcr = self.substep::<NC, T, E>(lv, level, st, u, vcr, e);
+            if E::ACTIVE {
+                e.end_period(st.va);
+            }
+            return vcr;
         }
         let mut vcr = vcr;
         for _ in 0..count {
-            vcr = self.substep::<NC, T>(lv, st, u, vcr);
+            vcr = self.substep::<NC, T, E>(lv, level, st, u, vcr, e);
+        }
+        if E::ACTIVE {
+            e.end_period(st.va);
         }
         vcr
     }
@@ -806,7 +906,15 @@ impl Stage {
     /// One sub-step; `vcr0` is the creep voltage `sum_j c_j w_j` of the state (summed in
     /// that order from 0), and the same sum at the end is returned.
     #[inline(always)]
-    fn substep<const NC: usize, const T: bool>(&self, lv: &Level, st: &mut StageState, u: f64, vcr0: f64) -> f64 {
+    fn substep<const NC: usize, const T: bool, E: Extra>(
+        &self,
+        lv: &Level,
+        level: usize,
+        st: &mut StageState,
+        u: f64,
+        vcr0: f64,
+        e: &mut E,
+    ) -> f64 {
         let (va1, exponential) = self.amplifier::<T>(lv, st.va, u);
         let use3 = exponential && !self.ideal_amp::<T>();
         let (va0, x0, v0, vh0) = (st.va, st.x, st.v, st.vh);
@@ -827,12 +935,27 @@ impl Stage {
             let z = lv.mech.apply(&[x0, v0], 0.0, d0, 0.0);
             (z[0], z[1], lv.mech.g1[0], lv.mech.g1[1])
         };
+        if E::ACTIVE {
+            if let Some(vh1) = e.input_vh(va1) {
+                // a voltage-driven law: the end voltage is known before the motion
+                let d1 = self.extra_accel(va1, vh1, vcr1, !use3);
+                e.substep(&SubStep { level, va0, u, d0, d1, with_va: !use3 });
+                st.x = base_x + g1x * d1;
+                st.v = base_v + g1v * d1;
+                st.vh = vh1;
+                st.va = va1;
+                return vcr1;
+            }
+        }
         // predictor: CEMF held; corrector: CEMF first-order held to its linearized
         // predicted end; then the exact CEMF from the corrected motion
         let at = self.cemf_start::<T>(vh0);
         let xp = base_x + g1x * self.extra_accel(va1, vh0, vcr1, !use3);
         let vh_p = self.cemf_linear::<T>(&at, xp - x0, va0, va1);
         let d1 = self.extra_accel(va1, vh_p, vcr1, !use3);
+        if E::ACTIVE {
+            e.substep(&SubStep { level, va0, u, d0, d1, with_va: !use3 });
+        }
         let (x1, v1) = (base_x + g1x * d1, base_v + g1v * d1);
         st.vh = self.cemf::<T>(&at, x1 - x0, va0, va1);
         st.va = va1;

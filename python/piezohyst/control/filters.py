@@ -1,0 +1,360 @@
+"""Loop-shaping filters of the practitioner's loop (:class:`~piezohyst.FilteredPID`): notch,
+low-pass, lag-lead and positive position feedback (PPF), each written in continuous time and
+discretized for the loop's sample time by the bilinear transform with its characteristic
+frequency prewarped (the discrete filter has exactly the continuous one's response there). The
+Rust core runs each as a biquad ``(b0 + b1 z^-1 + b2 z^-2) / (1 + a1 z^-1 + a2 z^-2)``
+(``crates/core/src/control/filtered.rs``).
+
+Examples
+--------
+>>> import numpy as np
+>>> from piezohyst.control.filters import Notch
+>>> n = Notch(1000.0, width=0.3)
+>>> h = n.frequency_response([100.0, 1000.0], sample_time=1e-4)
+>>> np.abs(h).round(3).tolist()                         # passes 100 Hz, removes 1 kHz
+[0.998, 0.0]
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, TypeAlias
+
+import numpy as np
+import numpy.typing as npt
+
+from .._validate import as_scalar
+from ..errors import ParameterError
+from ..signals.lti import polynomial_tf
+
+FloatArray: TypeAlias = npt.NDArray[np.float64]
+ComplexArray: TypeAlias = npt.NDArray[np.complex128]
+#: ``(b0, b1, b2, a1, a2)`` of a discrete biquad (``a0 = 1``).
+BiquadCoefficients: TypeAlias = tuple[float, float, float, float, float]
+
+__all__ = ["IDENTITY", "PPF", "BiquadCoefficients", "LagLead", "LowPass", "Notch", "bilinear"]
+
+#: The biquad that is no filter.
+IDENTITY: BiquadCoefficients = (1.0, 0.0, 0.0, 0.0, 0.0)
+
+
+def bilinear(num: npt.ArrayLike, den: npt.ArrayLike, sample_time: float, warp_hz: float) -> BiquadCoefficients:
+    """A continuous filter ``num(s) / den(s)`` of order <= 2 (coefficients highest power first)
+    as a discrete biquad at ``sample_time``, by the bilinear transform
+    ``s = K (z - 1) / (z + 1)`` with ``K = w / tan(w Ts / 2)``, ``w = 2 pi warp_hz`` (the
+    response is exact at ``warp_hz``).
+
+    Parameters
+    ----------
+    num, den : array_like
+        Polynomial coefficients in ``s``, at most three each (``den`` not all zero).
+    sample_time : float
+        Ts, s.
+    warp_hz : float
+        The frequency kept exact, Hz (below Nyquist).
+
+    Returns
+    -------
+    tuple of float
+        ``(b0, b1, b2, a1, a2)``.
+
+    Examples
+    --------
+    >>> from piezohyst.control.filters import bilinear
+    >>> [round(c, 6) for c in bilinear([1.0], [1.0], 1e-4, 100.0)]     # a unit gain stays one
+    [1.0, 0.0, 0.0, 0.0, 0.0]
+    """
+    ts = as_scalar(sample_time, "sample_time", positive=True)
+    f = as_scalar(warp_hz, "warp_hz", positive=True)
+    if not f < 0.5 / ts:
+        raise ParameterError(f"warp_hz = {f} Hz must be below the Nyquist frequency {0.5 / ts:g} Hz")
+    n = np.zeros(3)
+    d = np.zeros(3)
+    nn, dd = np.atleast_1d(np.asarray(num, float)), np.atleast_1d(np.asarray(den, float))
+    if nn.size > 3 or dd.size > 3:
+        raise ParameterError("num and den must have at most three coefficients (order <= 2)")
+    n[3 - nn.size :] = nn
+    d[3 - dd.size :] = dd
+    w = 2 * math.pi * f
+    k = w / math.tan(w * ts / 2)
+    if n[0] == n[1] == d[0] == d[1] == 0:
+        if d[2] == 0:
+            raise ParameterError("the filter's denominator vanishes")
+        return float(n[2] / d[2]), 0.0, 0.0, 0.0, 0.0
+    if n[0] == 0 and d[0] == 0:
+        # first order: (c1 s + c0) times (z + 1), in powers z, 1 (no common factor z + 1, so
+        # no pole on the unit circle)
+        b1st = np.array([n[1] * k + n[2], n[2] - n[1] * k])
+        a1st = np.array([d[1] * k + d[2], d[2] - d[1] * k])
+        if a1st[0] == 0:
+            raise ParameterError("the filter is improper or its denominator vanishes")
+        b1st, a1st = b1st / a1st[0], a1st / a1st[0]
+        return float(b1st[0]), float(b1st[1]), 0.0, float(a1st[1]), 0.0
+
+    # (c2 s^2 + c1 s + c0) with s = k (z - 1)/(z + 1), times (z + 1)^2, in powers z^2, z, 1
+    def poly(c: FloatArray) -> FloatArray:
+        c2, c1, c0 = c
+        return np.array(
+            [c2 * k * k + c1 * k + c0, -2 * c2 * k * k + 2 * c0, c2 * k * k - c1 * k + c0], dtype=np.float64
+        )
+
+    b, a = poly(n), poly(d)
+    if a[0] == 0:
+        raise ParameterError("the filter is improper or its denominator vanishes")
+    b, a = b / a[0], a / a[0]
+    return float(b[0]), float(b[1]), float(b[2]), float(a[1]), float(a[2])
+
+
+def _biquad_response(c: BiquadCoefficients, f: npt.ArrayLike, sample_time: float) -> ComplexArray:
+    """Frequency response of a discrete biquad at ``f`` (Hz)."""
+    z = np.exp(-2j * np.pi * np.asarray(f, float) * sample_time)
+    b0, b1, b2, a1, a2 = c
+    return np.asarray((b0 + b1 * z + b2 * z * z) / (1 + a1 * z + a2 * z * z), dtype=np.complex128)
+
+
+class _Filter:
+    """What every filter gives: its continuous polynomials, its biquad at a sample time, its
+    discrete frequency response, its python-control transfer function."""
+
+    def polynomials(self) -> tuple[list[float], list[float]]:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def warp_hz(self) -> float:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def biquad(self, sample_time: float) -> BiquadCoefficients:
+        """The discrete biquad at ``sample_time`` (bilinear, prewarped at the filter's
+        frequency).
+
+        Parameters
+        ----------
+        sample_time : float
+            Ts, s.
+
+        Returns
+        -------
+        tuple of float
+            ``(b0, b1, b2, a1, a2)``.
+        """
+        num, den = self.polynomials()
+        return bilinear(num, den, sample_time, self.warp_hz())
+
+    def frequency_response(self, f: npt.ArrayLike, sample_time: float | None = None) -> ComplexArray:
+        """The response at ``f`` (Hz): continuous (``sample_time=None``) or of the biquad.
+
+        Parameters
+        ----------
+        f : array_like
+            Frequencies, Hz.
+        sample_time : float, optional
+            Ts, s, for the discrete filter.
+
+        Returns
+        -------
+        ndarray of complex
+        """
+        if sample_time is not None:
+            return _biquad_response(self.biquad(sample_time), f, sample_time)
+        num, den = self.polynomials()
+        s = 2j * np.pi * np.asarray(f, float)
+        return np.asarray(np.polyval(num, s) / np.polyval(den, s), dtype=np.complex128)
+
+    def to_control(self) -> Any:
+        """The continuous filter as a python-control ``TransferFunction``.
+
+        Returns
+        -------
+        control.TransferFunction
+        """
+        num, den = self.polynomials()
+        return polynomial_tf(num, den, inputs=["input"], outputs=["output"], name=type(self).__name__.lower())
+
+
+@dataclass(frozen=True)
+class Notch(_Filter):
+    """A notch ``(s^2 + 2 depth width w s + w^2) / (s^2 + 2 width w s + w^2)`` at ``frequency``
+    (Hz): ``width`` is the poles' damping ratio (the notch's breadth), ``depth`` the gain at the
+    notch frequency (0: zeros on the axis, full removal; 0.1: -20 dB).
+
+    Examples
+    --------
+    >>> from piezohyst.control.filters import Notch
+    >>> round(float(abs(Notch(5000.0, width=0.2, depth=0.1).frequency_response([5000.0])[0])), 6)
+    0.1
+    """
+
+    frequency: float
+    width: float = 0.3
+    depth: float = 0.0
+
+    def __post_init__(self) -> None:
+        as_scalar(self.frequency, "notch frequency", positive=True)
+        as_scalar(self.width, "notch width", positive=True)
+        d = as_scalar(self.depth, "notch depth", nonnegative=True)
+        if d >= 1:
+            raise ParameterError(f"notch depth = {d} must be < 1 (the gain at the notch)")
+
+    def polynomials(self) -> tuple[list[float], list[float]]:
+        """Numerator and denominator in ``s``.
+
+        Returns
+        -------
+        tuple of list of float
+
+        Examples
+        --------
+        >>> from piezohyst.control.filters import Notch
+        >>> Notch(1.0 / (2 * 3.141592653589793), width=0.5).polynomials()
+        ([1.0, 0.0, 1.0], [1.0, 1.0, 1.0])
+        """
+        w = 2 * math.pi * self.frequency
+        return [1.0, 2 * self.depth * self.width * w, w * w], [1.0, 2 * self.width * w, w * w]
+
+    def warp_hz(self) -> float:
+        """The frequency kept exact: the notch's.
+
+        Returns
+        -------
+        float
+        """
+        return float(self.frequency)
+
+
+@dataclass(frozen=True)
+class LowPass(_Filter):
+    """A second-order low-pass ``w^2 / (s^2 + 2 damping w s + w^2)`` at ``frequency`` (Hz).
+
+    Examples
+    --------
+    >>> from piezohyst.control.filters import LowPass
+    >>> round(float(abs(LowPass(1000.0).frequency_response([1000.0])[0])), 4)     # -3 dB
+    0.7071
+    """
+
+    frequency: float
+    damping: float = 1 / math.sqrt(2)
+
+    def __post_init__(self) -> None:
+        as_scalar(self.frequency, "low-pass frequency", positive=True)
+        as_scalar(self.damping, "low-pass damping", positive=True)
+
+    def polynomials(self) -> tuple[list[float], list[float]]:
+        """Numerator and denominator in ``s``.
+
+        Returns
+        -------
+        tuple of list of float
+
+        Examples
+        --------
+        >>> from piezohyst.control.filters import LowPass
+        >>> LowPass(1.0 / (2 * 3.141592653589793), damping=0.5).polynomials()
+        ([1.0], [1.0, 1.0, 1.0])
+        """
+        w = 2 * math.pi * self.frequency
+        return [w * w], [1.0, 2 * self.damping * w, w * w]
+
+    def warp_hz(self) -> float:
+        """The frequency kept exact: the corner.
+
+        Returns
+        -------
+        float
+        """
+        return float(self.frequency)
+
+
+@dataclass(frozen=True)
+class LagLead(_Filter):
+    """A first-order lag-lead ``(1 + s / (2 pi zero)) / (1 + s / (2 pi pole))`` (unit static
+    gain; ``zero < pole`` is a lead, ``zero > pole`` a lag): the shape of a gain that changes
+    by ``pole / zero`` between two corners, as a stage's creep makes it.
+
+    Examples
+    --------
+    >>> from piezohyst.control.filters import LagLead
+    >>> h = LagLead(zero=10.0, pole=20.0).frequency_response([0.0, 1e6])
+    >>> np.abs(h).round(3).tolist()
+    [1.0, 2.0]
+    """
+
+    zero: float
+    pole: float
+
+    def __post_init__(self) -> None:
+        as_scalar(self.zero, "lag-lead zero", positive=True)
+        as_scalar(self.pole, "lag-lead pole", positive=True)
+
+    def polynomials(self) -> tuple[list[float], list[float]]:
+        """Numerator and denominator in ``s``.
+
+        Returns
+        -------
+        tuple of list of float
+
+        Examples
+        --------
+        >>> from piezohyst.control.filters import LagLead
+        >>> LagLead(1.0 / (2 * 3.141592653589793), 1.0 / 3.141592653589793).polynomials()
+        ([1.0, 1.0], [0.5, 1.0])
+        """
+        return [1.0 / (2 * math.pi * self.zero), 1.0], [1.0 / (2 * math.pi * self.pole), 1.0]
+
+    def warp_hz(self) -> float:
+        """The frequency kept exact: the corners' geometric mean.
+
+        Returns
+        -------
+        float
+        """
+        return math.sqrt(self.zero * self.pole)
+
+
+@dataclass(frozen=True)
+class PPF(_Filter):
+    """Positive position feedback, a damping loop on the position reading:
+    ``gain w^2 / (s^2 + 2 damping w s + w^2)`` tuned to a resonance at ``frequency`` (Hz), added
+    to the command (V per m of reading: for a stage with static gain ``g`` m/V, ``gain`` of about
+    ``0.5 / g`` adds damping; the loop is stable while ``gain g < 1``).
+
+    Examples
+    --------
+    >>> from piezohyst.control.filters import PPF
+    >>> round(float(abs(PPF(5000.0, damping=0.3, gain=2.0).frequency_response([0.0])[0])), 6)
+    2.0
+    """
+
+    frequency: float
+    damping: float = 0.3
+    gain: float = 0.0
+
+    def __post_init__(self) -> None:
+        as_scalar(self.frequency, "PPF frequency", positive=True)
+        as_scalar(self.damping, "PPF damping", positive=True)
+        as_scalar(self.gain, "PPF gain")
+
+    def polynomials(self) -> tuple[list[float], list[float]]:
+        """Numerator and denominator in ``s``.
+
+        Returns
+        -------
+        tuple of list of float
+
+        Examples
+        --------
+        >>> from piezohyst.control.filters import PPF
+        >>> PPF(1.0 / (2 * 3.141592653589793), damping=0.5, gain=3.0).polynomials()
+        ([3.0], [1.0, 1.0, 1.0])
+        """
+        w = 2 * math.pi * self.frequency
+        return [self.gain * w * w], [1.0, 2 * self.damping * w, w * w]
+
+    def warp_hz(self) -> float:
+        """The frequency kept exact: the resonance's.
+
+        Returns
+        -------
+        float
+        """
+        return float(self.frequency)
