@@ -853,6 +853,20 @@ class SMC:
     positive feedback of the position estimate that latches at a voltage limit when the
     identified stiffness asks for more than the amplifier gives (kept for reproducing seed 1).
     The sliding dynamics ``e'' + (kv + alpha) e' + (alpha kv + kp) e = 0`` must be stable.
+
+    Every gain is in continuous time (the observer's bandwidth in Hz, ``xi`` integrated
+    exactly), so the law itself is the same at any rate; what does change with the rate is the
+    loop's delay, counted in samples (the sensor's delay and the zero-order hold): at 5 kHz it
+    is twice what it is at 10 kHz. ``rate_aware=True`` (the default) keeps the switching loop's
+    delay margin when the controller runs slower than it was tuned at
+    (``tuned_sample_time``, set by :func:`~piezohyst.tune`): the boundary layer ``phi`` is
+    widened by ``Ts / tuned_sample_time`` (the switching loop's crossover ``~ ks / phi`` moves
+    down with the delay, so ``crossover x delay`` stays), super-twisting's ``k1`` and ``k2``
+    lowered by that ratio and its square (their homogeneity degrees). Faster than tuned, or
+    never tuned, the gains are used as given. Measured (tests/control/test_rate_aware.py):
+    tuned at 10 kHz, SMC loses the loop at 5 kHz without it (2.1 µm RMSE on a 5 µm triangle)
+    and holds 0.019 µm with it (0.019 at 10 kHz); SMC + CEMF holds 0.029 µm at 5 kHz (0.016 at
+    10 kHz); at 20 and 50 kHz both do better than at 10 kHz.
     """
 
     model: StageParameters
@@ -870,11 +884,30 @@ class SMC:
     u_min: float | None = None
     u_max: float | None = None
     tuned_sample_time: float | None = field(default=None, repr=False, compare=False)
+    rate_aware: bool = True
 
     uses_reference_derivatives = True
 
+    def rate_scale(self, sample_time: float) -> float:
+        """The factor the loop's delay grows by at ``sample_time`` (s) against the rate the
+        controller was tuned at: ``max(1, sample_time / tuned_sample_time)``, 1 when it was
+        never tuned or ``rate_aware`` is off.
+
+        Examples
+        --------
+        >>> import piezohyst as ph
+        >>> smc = ph.SMC(ph.virtual_stage().params, tuned_sample_time=1e-4)
+        >>> smc.rate_scale(2e-4), smc.rate_scale(5e-5)
+        (2.0, 1.0)
+        """
+        ts = as_scalar(sample_time, "sample_time", positive=True)
+        if not self.rate_aware or self.tuned_sample_time is None:
+            return 1.0
+        return max(1.0, ts / as_scalar(self.tuned_sample_time, "tuned_sample_time", positive=True))
+
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
         cemf = _cemf_slots(self.model)
+        scale = self.rate_scale(stage.sample_time)
         kp, kv, alpha = (as_scalar(getattr(self, n), n) for n in ("kp", "kv", "alpha"))
         if alpha < 0:
             raise ParameterError(f"alpha = {alpha} must be >= 0")
@@ -885,9 +918,10 @@ class SMC:
                 f"alpha * kv + kp = {alpha * kv + kp} must be > 0: the sliding dynamics would be unstable"
             )
         if self.switching == "boundary_layer":
-            sw = [0.0, as_scalar(self.ks, "ks", nonnegative=True), as_scalar(self.phi, "phi", positive=True)]
+            sw = [0.0, as_scalar(self.ks, "ks", nonnegative=True), as_scalar(self.phi, "phi", positive=True) * scale]
         elif self.switching == "super_twisting":
-            sw = [1.0, as_scalar(self.k1, "k1", nonnegative=True), as_scalar(self.k2, "k2", nonnegative=True)]
+            k1 = as_scalar(self.k1, "k1", nonnegative=True) / scale
+            sw = [1.0, k1, as_scalar(self.k2, "k2", nonnegative=True) / scale**2]
         else:
             raise ParameterError(f"switching = {self.switching!r} must be 'boundary_layer' or 'super_twisting'")
         if self.model_terms not in ("measured", "desired"):
