@@ -31,7 +31,7 @@ from ..signals.lti import (
     siso_polynomials,
     state_space,
 )
-from .filters import IDENTITY, PPF, BiquadCoefficients, LagLead, LowPass, Notch
+from .filters import IDENTITY, IRC, PPF, BiquadCoefficients, LagLead, LowPass, Notch, Section
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..models.model import HysteresisModel
@@ -547,7 +547,7 @@ def _rational_sum(terms: Sequence[tuple[Sequence[float], Sequence[float]]]) -> t
     return num[lead:], den
 
 
-_FilterLike: TypeAlias = "Notch | LowPass | LagLead | PPF"
+_FilterLike: TypeAlias = "Notch | LowPass | LagLead | PPF | Section"
 
 
 @dataclass(frozen=True)
@@ -598,7 +598,7 @@ class FilteredPID:
     c2: float = 0.0
     ff_filters: tuple[_FilterLike, ...] = ()
     notches: tuple[_FilterLike, ...] = ()
-    damping: PPF | None = None
+    damping: PPF | IRC | None = None
     offset: float = 0.0
     error_delay: float | None = None
     u_min: float | None = None
@@ -618,17 +618,17 @@ class FilteredPID:
             raise ParameterError(f"notches has {len(notches)} filters, at most 3")
         for name, group in (("ff_filters", ff), ("notches", notches)):
             for j, f in enumerate(group):
-                if not isinstance(f, (Notch, LowPass, LagLead, PPF)):
+                if not isinstance(f, (Notch, LowPass, LagLead, PPF, Section)):
                     raise ParameterTypeError(
-                        f"{name}[{j}] must be a filter of piezohyst.control.filters (Notch, LowPass, LagLead), "
-                        f"got {type(f).__name__}"
+                        f"{name}[{j}] must be a filter of piezohyst.control.filters (Notch, LowPass, LagLead, "
+                        f"Section), got {type(f).__name__}"
                     )
-        if self.damping is not None and not isinstance(self.damping, PPF):
-            raise ParameterTypeError(f"damping must be a PPF, got {type(self.damping).__name__}")
+        if self.damping is not None and not isinstance(self.damping, (PPF, IRC)):
+            raise ParameterTypeError(f"damping must be a PPF or an IRC, got {type(self.damping).__name__}")
         ffq = [f.biquad(sample_time) for f in ff] + [IDENTITY] * (2 - len(ff))
         nq = [f.biquad(sample_time) for f in notches] + [IDENTITY] * (3 - len(notches))
         dq = IDENTITY if self.damping is None else self.damping.biquad(sample_time)
-        if self.damping is not None and self.damping.gain == 0:
+        if isinstance(self.damping, PPF) and self.damping.gain == 0:
             dq = IDENTITY
         return ffq, nq, dq
 
@@ -642,7 +642,7 @@ class FilteredPID:
             ff = as_scalar(self.ff_gain, "ff_gain")
         lo, hi = _domain_limits(self.u_min, self.u_max, stage, limits)
         ffq, nq, dq = self._filters(stage.sample_time)
-        if self.damping is not None and self.damping.gain != 0 and dq == IDENTITY:
+        if isinstance(self.damping, PPF) and self.damping.gain != 0 and dq == IDENTITY:
             dq = self.damping.biquad(stage.sample_time)
         coefs = ("b0", "b1", "b2", "a1", "a2")
         biquads: dict[str, float] = {}
@@ -1142,7 +1142,15 @@ class ILC:
     samples: ``u = inner + L[k mod N]``, ``L[i] <- q smooth(L)[i] + gain e``, updated
     ``lead`` samples back (the plant's delay and lag). ``gain`` is in output units per metre
     (dimensionless behind an inverse); ``forgetting`` ``q`` in (0, 1]. Learning acts in the
-    linearized domain when ``inner`` is :class:`Compensated`."""
+    linearized domain when ``inner`` is :class:`Compensated`.
+
+    The update runs every sample (``crates/core/src/control/ilc.rs``), so this is also the
+    plug-in *repetitive controller* of a periodic reference: the internal model ``z^-N``
+    (the memory ``L``) with the robustness low-pass ``Q = q (1, 2, 1) / 4`` (zero phase) and
+    the phase lead ``z^lead``, added to any feedback (:meth:`repetitive` builds it from the
+    reference's frequency). It is a controller like the others: :func:`~piezohyst.track`,
+    :func:`~piezohyst.closed_loop_batch` and :func:`~piezohyst.tune` (``"gain"``,
+    ``"inner.kp"``) take it."""
 
     inner: DomainController
     period: int
@@ -1154,6 +1162,43 @@ class ILC:
     @property
     def uses_reference_derivatives(self) -> bool:
         return bool(getattr(self.inner, "uses_reference_derivatives", True))
+
+    @classmethod
+    def repetitive(cls, inner: DomainController, frequency: float, sample_time: float, **kw: Any) -> ILC:
+        """The plug-in repetitive controller for a reference of ``frequency`` (Hz) sampled at
+        ``sample_time`` (s): the period ``N = 1 / (frequency Ts)`` samples, which must be a
+        whole number (a reference whose period is not a whole number of samples has no
+        ``z^-N`` internal model).
+
+        Parameters
+        ----------
+        inner : controller
+            The feedback it plugs into (a :class:`PID`, :class:`FilteredPID`, ...).
+        frequency : float
+            The reference's fundamental, Hz.
+        sample_time : float
+            The loop's sample time, s.
+        **kw
+            ``gain``, ``forgetting``, ``lead``.
+
+        Returns
+        -------
+        ILC
+
+        Examples
+        --------
+        >>> import piezohyst as ph
+        >>> ph.ILC.repetitive(ph.PID(kp=1e6, ki=1e9), 50.0, 1e-4, gain=1e6).period
+        200
+        """
+        f = as_scalar(frequency, "frequency", positive=True)
+        ts = as_scalar(sample_time, "sample_time", positive=True)
+        n = 1.0 / (f * ts)
+        if abs(n - round(n)) > 1e-6 * n:
+            raise ParameterError(
+                f"frequency = {f} Hz at sample_time = {ts} s gives a period of {n:g} samples; it must be a whole number"
+            )
+        return cls(inner, period=round(n), **kw)
 
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
         n = as_int(self.period, "period", minimum=2)
