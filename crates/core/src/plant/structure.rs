@@ -34,6 +34,7 @@
 //! amplifier (round half to even).
 use crate::error::{check_scalar, ModelError};
 use crate::hysteresis::Invertible;
+use crate::num::math::exp;
 use crate::plant::stage::{Discrete, Extra, Stage, SubStep, LEVELS};
 
 /// Most modes a stage can add.
@@ -194,6 +195,44 @@ pub struct Structure<H> {
     dac_step: f64,
     /// DAC code 0, V (the amplifier's lower limit).
     dac_origin: f64,
+    /// Thermal drift (none: `None`).
+    drift: Option<Drift>,
+    /// Control period, s (the drift's clock).
+    ts: f64,
+}
+
+/// Thermal drift of the stage's structure after a temperature step at the run's start:
+/// `y = (1 + gain s(t)) x + offset s(t)`, `s(t) = 1 - exp(-t / tau)`, on the position the
+/// sensor sees (and the stage has): a slow displacement and a slow change of the stroke.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Drift {
+    /// Final additive displacement, m.
+    pub offset: f64,
+    /// Final relative gain change.
+    pub gain: f64,
+    /// Time constant, s (> 0).
+    pub tau: f64,
+}
+
+impl Drift {
+    /// Validate.
+    pub fn new(offset: f64, gain: f64, tau: f64) -> Result<Self, ModelError> {
+        check_scalar("drift_offset", offset)?;
+        check_scalar("drift_gain", gain)?;
+        check_scalar("drift_tau", tau)?;
+        if tau <= 0.0 {
+            return Err(ModelError::NotPositive("drift_tau", usize::MAX, tau));
+        }
+        if gain <= -1.0 {
+            return Err(ModelError::OutOfRange("drift_gain", usize::MAX, gain, -1.0, f64::INFINITY));
+        }
+        Ok(Drift { offset, gain, tau })
+    }
+    #[inline(always)]
+    fn apply(&self, t: f64, y: f64) -> f64 {
+        let s = 1.0 - exp(-t / self.tau);
+        (1.0 + self.gain * s) * y + self.offset * s
+    }
 }
 
 impl<H: Invertible> Structure<H> {
@@ -210,22 +249,36 @@ impl<H: Invertible> Structure<H> {
             volts_per_metre: p.stiffness / p.tem,
             dac_step,
             dac_origin: p.amp_min,
+            drift: None,
+            ts: stage.ts,
         })
+    }
+
+    /// With thermal drift (one more state slot: the time since the run's start, s).
+    pub fn with_drift(mut self, drift: Option<Drift>) -> Self {
+        self.drift = drift;
+        self
+    }
+
+    fn law_len(&self) -> usize {
+        self.hysteresis.as_ref().map_or(0, |h| h.state_len())
     }
 
     /// Slots of the state.
     pub fn state_len(&self) -> usize {
-        self.modes.state_len() + self.hysteresis.as_ref().map_or(0, |h| h.state_len())
+        self.modes.state_len() + self.law_len() + usize::from(self.drift.is_some())
     }
 
     /// The state at rest with the stack at `x`: modes at their static deflection, the law
     /// relaxed.
     pub fn reset(&self, state: &mut [f64], x: f64) {
-        let (m, h) = state.split_at_mut(self.modes.state_len());
+        let (m, rest) = state.split_at_mut(self.modes.state_len());
+        let (h, clock) = rest.split_at_mut(self.law_len());
         self.modes.reset(m, x);
         if let Some(law) = &self.hysteresis {
             law.reset(h);
         }
+        clock.fill(0.0);
     }
 
     /// Check a state from outside (length, finite, the law's own rules).
@@ -233,21 +286,31 @@ impl<H: Invertible> Structure<H> {
         crate::hysteresis::check_state_len(state, self.state_len())?;
         crate::error::check_finite("state", state)?;
         let n = self.modes.state_len();
+        let l = self.law_len();
+        if self.drift.is_some() && state[n + l] < 0.0 {
+            return Err(ModelError::Negative("state (drift clock)", n + l, state[n + l]));
+        }
         match &self.hysteresis {
-            Some(law) => law.check_state(&state[n..]).map_err(|e| crate::compensated::offset_slot(e, n)),
+            Some(law) => law.check_state(&state[n..n + l]).map_err(|e| crate::compensated::offset_slot(e, n)),
             None => Ok(()),
         }
     }
 
     /// The position the sensor sees for the stack at `x` and this structure state.
     pub fn position(&self, state: &[f64], x: f64) -> f64 {
-        self.modes.position(&state[..self.modes.state_len()], x)
+        let y = self.modes.position(&state[..self.modes.state_len()], x);
+        match &self.drift {
+            Some(d) => d.apply(state[self.modes.state_len() + self.law_len()], y),
+            None => y,
+        }
     }
 
     /// The hooks for one run on `state` (see [`Extra`]).
     pub fn run<'s>(&'s self, state: &'s mut [f64]) -> StructureRun<'s, H> {
-        let (modes, hyst) = state.split_at_mut(self.modes.state_len());
-        StructureRun { s: self, modes, hyst }
+        let law_len = self.law_len();
+        let (modes, rest) = state.split_at_mut(self.modes.state_len());
+        let (hyst, clock) = rest.split_at_mut(law_len);
+        StructureRun { s: self, modes, hyst, clock }
     }
 
     #[inline(always)]
@@ -269,6 +332,7 @@ pub struct StructureRun<'s, H> {
     s: &'s Structure<H>,
     modes: &'s mut [f64],
     hyst: &'s mut [f64],
+    clock: &'s mut [f64],
 }
 
 impl<H: Invertible> Extra for StructureRun<'_, H> {
@@ -286,6 +350,9 @@ impl<H: Invertible> Extra for StructureRun<'_, H> {
         if let Some(law) = &self.s.hysteresis {
             law.step(self.hyst, va);
         }
+        if let Some(t) = self.clock.first_mut() {
+            *t += self.s.ts;
+        }
     }
     #[inline(always)]
     fn substep(&mut self, step: &SubStep) {
@@ -293,7 +360,11 @@ impl<H: Invertible> Extra for StructureRun<'_, H> {
     }
     #[inline(always)]
     fn position(&self, x: f64) -> f64 {
-        self.s.modes.position(self.modes, x)
+        let y = self.s.modes.position(self.modes, x);
+        match (&self.s.drift, self.clock.first()) {
+            (Some(d), Some(&t)) => d.apply(t, y),
+            _ => y,
+        }
     }
 }
 
