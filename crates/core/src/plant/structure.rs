@@ -413,6 +413,34 @@ mod tests {
         }
     }
 
+    /// Thermal drift: the stack's motion unchanged (same bits), the position seen
+    /// `(1 + gain s) x + offset s`, `s = 1 - exp(-t / tau)` with the clock at `k Ts` after `k`
+    /// periods; bad drift parameters are refused.
+    #[test]
+    fn drift_moves_the_position_by_its_law() {
+        let stage = Stage::new(StageParams::virtual_stage(), 1e-4, 1, 0.05).unwrap();
+        let drift = Drift::new(0.3e-6, 0.02, 0.05).unwrap();
+        let s: Structure<crate::pi::Pi<'_>> = Structure::new(&stage, &[], None, 0.0).unwrap().with_drift(Some(drift));
+        assert_eq!(s.state_len(), 1);
+        let mut state = [0.0; 1];
+        s.reset(&mut state, 0.0);
+        let (mut a, mut b) = (StageState::ZERO, StageState::ZERO);
+        for k in 1..=2000 {
+            stage.advance(&mut a, 60.0);
+            stage.advance_with(&mut b, 60.0, &mut s.run(&mut state));
+            assert_eq!(a.x.to_bits(), b.x.to_bits(), "{k}");
+            let t = k as f64 * 1e-4;
+            assert!((state[0] - t).abs() < 1e-12, "{k}");
+            let sd = 1.0 - libm::exp(-t / 0.05);
+            let want = (1.0 + 0.02 * sd) * a.x + 0.3e-6 * sd;
+            assert!((s.position(&state, b.x) - want).abs() < 1e-18, "{k}");
+        }
+        assert!(Drift::new(0.0, 0.0, 0.0).is_err());
+        assert!(Drift::new(0.0, -1.0, 1.0).is_err());
+        assert!(Drift::new(f64::NAN, 0.0, 1.0).is_err());
+        assert!(s.check_state(&[-1.0]).is_err());
+    }
+
     /// A mode's steady sine response is its second-order frequency response (measured by
     /// simulation, against the analytic modal sum), and its static deflection the stack's.
     #[test]
