@@ -3,8 +3,9 @@ SMC, SMC + CEMF and PID + feedforward, each tuned for itself, on ±20 % perturba
 stage parameter and on structurally different stages; the dynamic-inversion feedforward at
 10/50/100 Hz; compensated tracking at 80 Hz against a PID + static feedforward tuned the same way.
 
-Run: ``.venv/bin/python bench/control_acceptance.py [--quick] [--seed N]``; JSON in
-``bench/results/control_acceptance.json``.
+Run: ``.venv/bin/python bench/control_acceptance.py [--quick] [--seed N] [--seeds N ...]``; JSON in
+``bench/results/control_acceptance.json`` (the first seed's full result at the top, every seed's
+acceptance figures under ``"seeds"``).
 """
 
 from __future__ import annotations
@@ -25,23 +26,63 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import machine_info, write_json_atomic
 
 OUT = Path(__file__).with_name("results") / "control_acceptance.json"
+#: Noise realizations each 80 Hz tuning candidate runs with (both loops alike): a maximum error
+#: is one sample's, and with one realization the search chases its noise (seed 1, max_error:
+#: ratio 5.1 / 4.7 with one, 6.3 / 6.0 with five).
+TUNING_NOISE_SEEDS = 5
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="smaller tuning budgets")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seeds", type=int, nargs="+", help="several seeds (the first one's full result on top)")
     ap.add_argument("--out", type=Path, default=OUT)
     args = ap.parse_args(argv)
-    budget = {"tuning_iterations": 12 if args.quick else 30, "population_size": 12 if args.quick else 16}
+    seeds = args.seeds or [args.seed]
+    results = [run_seed(s, args.quick) for s in seeds]
+    result = dict(results[0])
+    result["seeds"] = {str(s): _summary(r) for s, r in zip(seeds, results, strict=True)}
+    result.update(timestamp_utc=_dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"), machine=machine_info())
+    write_json_atomic(args.out, result)
+    print(json.dumps(result["seeds"], indent=1, default=float))
+
+
+def _summary(r):
+    """The acceptance figures of one seed."""
+    comp = r["compensation"]
+    return {
+        "worst_ratio": r["robustness"]["worst_ratio"],
+        "worst_ratio_nominal_tuning": r["robustness_nominal_tuning"]["worst_ratio"],
+        "nominal_rmse_um": r["robustness"]["nominal_rmse_um"],
+        "feedforward_max_error_percent": comp["rmse"]["feedforward_max_error_percent"],
+        "table4_80hz": {
+            obj: {
+                amp: {
+                    "compensated": row["compensated"]["normalized_max_error"],
+                    "PID+FF": row["PID+FF"]["normalized_max_error"],
+                    "ratio": row["ratio"],
+                }
+                for amp, row in c["table4_80hz"].items()
+            }
+            for obj, c in comp.items()
+        },
+    }
+
+
+def run_seed(seed, quick):
+    """Both studies at one seed."""
+    budget = {"tuning_iterations": 12 if quick else 30, "population_size": 12 if quick else 16}
     stage = ph.virtual_stage()
     t0 = time.perf_counter()
-    robust = robustness_study(stage, np.random.default_rng(args.seed), **budget)
+    robust = robustness_study(stage, np.random.default_rng(seed), **budget)
     t1 = time.perf_counter()
-    nominal_tuned = robustness_study(stage, np.random.default_rng(args.seed), robust=False, **budget)
+    nominal_tuned = robustness_study(stage, np.random.default_rng(seed), robust=False, **budget)
     t2 = time.perf_counter()
     comp = {
-        obj: compensation_study(stage, np.random.default_rng(args.seed), objective=obj, **budget)
+        obj: compensation_study(
+            stage, np.random.default_rng(seed), objective=obj, tuning_noise_seeds=TUNING_NOISE_SEEDS, **budget
+        )
         for obj in ("rmse", "max_error")
     }
     t3 = time.perf_counter()
@@ -65,16 +106,11 @@ def main(argv=None):
             "limit": ROBUSTNESS_LIMIT,
         },
         "wall_s": {"robustness": t1 - t0, "robustness_nominal_tuning": t2 - t1, "compensation": t3 - t2},
-        "quick": args.quick,
-        "seed": args.seed,
+        "quick": quick,
+        "seed": seed,
     }
-    result.update(timestamp_utc=_dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"), machine=machine_info())
-    write_json_atomic(args.out, result)
-    print(json.dumps(result["acceptance"], indent=1, default=float))
-    print(json.dumps({"worst_ratio": robust["worst_ratio"], "nominal_rmse_um": robust["nominal_rmse_um"]}, indent=1))
-    for obj, c in comp.items():
-        print(obj, json.dumps(c["table4_80hz"], indent=1, default=float))
-        print(json.dumps(c["feedforward_max_error_percent"], indent=1, default=float))
+    print(f"seed {seed}:", json.dumps(result["acceptance"], default=float), flush=True)
+    return result
 
 
 if __name__ == "__main__":

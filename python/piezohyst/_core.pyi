@@ -238,6 +238,7 @@ class Stage:
         modes: Sequence[tuple[float, float, float]] | None = None,
         hysteresis: tuple[str, Sequence[int], _Array1] | None = None,
         dac_step: float = 0.0,
+        drift: tuple[float, float, float] | None = None,
     ) -> Stage: ...
     @property
     def params(self) -> _Array1: ...

@@ -16,7 +16,7 @@ use piezohyst_core::layout::Law;
 use piezohyst_core::sensor::Sensor;
 use piezohyst_core::spec::Family;
 use piezohyst_core::stage::{Extra, NoExtra, Stage as CoreStage, StageParams, StageState};
-use piezohyst_core::structure::{Mode, Structure, MAX_MODES};
+use piezohyst_core::structure::{Drift, Mode, Structure, MAX_MODES};
 use pyo3::prelude::*;
 
 use crate::control::{with_controller, ControllerSpec};
@@ -300,6 +300,7 @@ pub(crate) struct StructureSpec {
     modes: Vec<Mode>,
     law: Option<(Family, Vec<f64>)>,
     dac_step: f64,
+    drift: Option<Drift>,
 }
 
 impl StructureSpec {
@@ -316,7 +317,7 @@ impl StructureSpec {
                 Some(fam.build(row, &mut scratch).map_err(|e| ParameterError::new_err(format!("hysteresis: {e}")))?)
             }
         };
-        let s = Structure::new(stage, &self.modes, law, self.dac_step).map_err(err)?;
+        let s = Structure::new(stage, &self.modes, law, self.dac_step).map_err(err)?.with_drift(self.drift);
         Ok(f(&s))
     }
 }
@@ -362,7 +363,7 @@ impl Stage {
     #[new]
     #[pyo3(signature = (
         params, ts, substeps, tolerance, sensor_quantization=0.0, sensor_noise=0.0, sensor_delay=0, *,
-        modes=None, hysteresis=None, dac_step=0.0
+        modes=None, hysteresis=None, dac_step=0.0, drift=None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -376,6 +377,7 @@ impl Stage {
         modes: Option<Vec<(f64, f64, f64)>>,
         hysteresis: Option<(String, Vec<usize>, PyReadonlyArray1<'_, f64>)>,
         dac_step: f64,
+        drift: Option<(f64, f64, f64)>,
     ) -> PyResult<Self> {
         let params = slice(&params, "stage_params")?.to_vec();
         let stage = stage(&params, ts, substeps, tolerance)?;
@@ -397,10 +399,14 @@ impl Stage {
                 Some((fam, row))
             }
         };
-        let structure = if modes.is_empty() && law.is_none() && dac_step == 0.0 {
+        let drift = match drift {
+            None => None,
+            Some((offset, gain, tau)) => Some(Drift::new(offset, gain, tau).map_err(err)?),
+        };
+        let structure = if modes.is_empty() && law.is_none() && dac_step == 0.0 && drift.is_none() {
             None
         } else {
-            let spec = StructureSpec { modes, law, dac_step };
+            let spec = StructureSpec { modes, law, dac_step, drift };
             spec.with(&stage, |_| ())?; // validate once
             Some(spec)
         };

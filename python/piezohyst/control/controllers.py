@@ -31,7 +31,7 @@ from ..signals.lti import (
     siso_polynomials,
     state_space,
 )
-from .filters import IDENTITY, PPF, BiquadCoefficients, LagLead, LowPass, Notch
+from .filters import IDENTITY, IRC, PPF, BiquadCoefficients, LagLead, LowPass, Notch, Section
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..models.model import HysteresisModel
@@ -702,7 +702,7 @@ def _rational_sum(terms: Sequence[tuple[Sequence[float], Sequence[float]]]) -> t
     return num[lead:], den
 
 
-_FilterLike: TypeAlias = "Notch | LowPass | LagLead | PPF"
+_FilterLike: TypeAlias = "Notch | LowPass | LagLead | PPF | Section"
 
 
 @dataclass(frozen=True)
@@ -779,7 +779,7 @@ class FilteredPID:
     c2: float = 0.0
     ff_filters: tuple[_FilterLike, ...] = ()
     notches: tuple[_FilterLike, ...] = ()
-    damping: PPF | None = None
+    damping: PPF | IRC | None = None
     offset: float = 0.0
     error_delay: float | None = None
     u_min: float | None = None
@@ -799,17 +799,17 @@ class FilteredPID:
             raise ParameterError(f"notches has {len(notches)} filters, at most 3")
         for name, group in (("ff_filters", ff), ("notches", notches)):
             for j, f in enumerate(group):
-                if not isinstance(f, (Notch, LowPass, LagLead, PPF)):
+                if not isinstance(f, (Notch, LowPass, LagLead, PPF, Section)):
                     raise ParameterTypeError(
-                        f"{name}[{j}] must be a filter of piezohyst.control.filters (Notch, LowPass, LagLead), "
-                        f"got {type(f).__name__}"
+                        f"{name}[{j}] must be a filter of piezohyst.control.filters (Notch, LowPass, LagLead, "
+                        f"Section), got {type(f).__name__}"
                     )
-        if self.damping is not None and not isinstance(self.damping, PPF):
-            raise ParameterTypeError(f"damping must be a PPF, got {type(self.damping).__name__}")
+        if self.damping is not None and not isinstance(self.damping, (PPF, IRC)):
+            raise ParameterTypeError(f"damping must be a PPF or an IRC, got {type(self.damping).__name__}")
         ffq = [f.biquad(sample_time) for f in ff] + [IDENTITY] * (2 - len(ff))
         nq = [f.biquad(sample_time) for f in notches] + [IDENTITY] * (3 - len(notches))
         dq = IDENTITY if self.damping is None else self.damping.biquad(sample_time)
-        if self.damping is not None and self.damping.gain == 0:
+        if isinstance(self.damping, PPF) and self.damping.gain == 0:
             dq = IDENTITY
         return ffq, nq, dq
 
@@ -845,7 +845,7 @@ class FilteredPID:
             ff = as_scalar(self.ff_gain, "ff_gain")
         lo, hi = _domain_limits(self.u_min, self.u_max, stage, limits)
         ffq, nq, dq = self._filters(stage.sample_time)
-        if self.damping is not None and self.damping.gain != 0 and dq == IDENTITY:
+        if isinstance(self.damping, PPF) and self.damping.gain != 0 and dq == IDENTITY:
             dq = self.damping.biquad(stage.sample_time)
         coefs = ("b0", "b1", "b2", "a1", "a2")
         biquads: dict[str, float] = {}
@@ -1111,6 +1111,20 @@ class SMC:
     identified stiffness asks for more than the amplifier gives (kept for reproducing seed 1).
     The sliding dynamics ``e'' + (kv + alpha) e' + (alpha kv + kp) e = 0`` must be stable.
 
+    Every gain is in continuous time (the observer's bandwidth in Hz, ``xi`` integrated
+    exactly), so the law itself is the same at any rate; what does change with the rate is the
+    loop's delay, counted in samples (the sensor's delay and the zero-order hold): at 5 kHz it
+    is twice what it is at 10 kHz. ``rate_aware=True`` (the default) keeps the switching loop's
+    delay margin when the controller runs slower than it was tuned at
+    (``tuned_sample_time``, set by :func:`~piezohyst.tune`): the boundary layer ``phi`` is
+    widened by ``Ts / tuned_sample_time`` (the switching loop's crossover ``~ ks / phi`` moves
+    down with the delay, so ``crossover x delay`` stays), super-twisting's ``k1`` and ``k2``
+    lowered by that ratio and its square (their homogeneity degrees). Faster than tuned, or
+    never tuned, the gains are used as given. Measured (tests/control/test_rate_aware.py):
+    tuned at 10 kHz, SMC loses the loop at 5 kHz without it (2.1 µm RMSE on a 5 µm triangle)
+    and holds 0.019 µm with it (0.019 at 10 kHz); SMC + CEMF holds 0.029 µm at 5 kHz (0.016 at
+    10 kHz); at 20 and 50 kHz both do better than at 10 kHz.
+
     Parameters
     ----------
     model : StageParameters
@@ -1131,6 +1145,9 @@ class SMC:
         Position and velocity estimator.
     u_min, u_max : float, optional
         Output limits (default: the amplifier's).
+    rate_aware : bool
+        Widen the boundary layer (super-twisting: lower ``k1``, ``k2``) when run slower than
+        tuned (:meth:`rate_scale`).
     tuned_sample_time : float, optional
         The sample time the gains were tuned at (set by :func:`piezohyst.tune`); a run at
         another rate warns (:class:`SampleRateWarning`). Not compared, not shown.
@@ -1165,6 +1182,7 @@ class SMC:
     u_min: float | None = None
     u_max: float | None = None
     tuned_sample_time: float | None = field(default=None, repr=False, compare=False)
+    rate_aware: bool = True
 
     uses_reference_derivatives = True
 
@@ -1184,6 +1202,32 @@ class SMC:
             raise ParameterError(f"model_terms = {self.model_terms!r} must be 'measured' or 'desired'")
         _check_observer(self.observer)
         _check_limits(self.u_min, self.u_max)
+
+    def rate_scale(self, sample_time: float) -> float:
+        """The factor the loop's delay grows by at ``sample_time`` (s) against the rate the
+        controller was tuned at: ``max(1, sample_time / tuned_sample_time)``, 1 when it was
+        never tuned or ``rate_aware`` is off.
+
+        Parameters
+        ----------
+        sample_time : float
+            The sample time the controller runs at, s.
+
+        Returns
+        -------
+        float
+
+        Examples
+        --------
+        >>> import piezohyst as ph
+        >>> smc = ph.SMC(ph.virtual_stage().params, tuned_sample_time=1e-4)
+        >>> smc.rate_scale(2e-4), smc.rate_scale(5e-5)
+        (2.0, 1.0)
+        """
+        ts = as_scalar(sample_time, "sample_time", positive=True)
+        if not self.rate_aware or self.tuned_sample_time is None:
+            return 1.0
+        return max(1.0, ts / as_scalar(self.tuned_sample_time, "tuned_sample_time", positive=True))
 
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
         """The controller as the Rust core runs it on ``stage``: ``(kind, params, inverse,
@@ -1215,12 +1259,14 @@ class SMC:
         ('smc', 21)
         """
         cemf = _cemf_slots(self.model)
+        scale = self.rate_scale(stage.sample_time)
         kp, kv, alpha = (as_scalar(getattr(self, n), n) for n in ("kp", "kv", "alpha"))
         _check_sliding(kp, kv, alpha)
         if self.switching == "boundary_layer":
-            sw = [0.0, as_scalar(self.ks, "ks", nonnegative=True), as_scalar(self.phi, "phi", positive=True)]
+            sw = [0.0, as_scalar(self.ks, "ks", nonnegative=True), as_scalar(self.phi, "phi", positive=True) * scale]
         elif self.switching == "super_twisting":
-            sw = [1.0, as_scalar(self.k1, "k1", nonnegative=True), as_scalar(self.k2, "k2", nonnegative=True)]
+            k1 = as_scalar(self.k1, "k1", nonnegative=True) / scale
+            sw = [1.0, k1, as_scalar(self.k2, "k2", nonnegative=True) / scale**2]
         else:
             raise ParameterError(f"switching = {self.switching!r} must be 'boundary_layer' or 'super_twisting'")
         if self.model_terms not in ("measured", "desired"):
@@ -1735,6 +1781,14 @@ class ILC:
     (dimensionless behind an inverse); ``forgetting`` ``q`` in (0, 1]. Learning acts in the
     linearized domain when ``inner`` is :class:`Compensated`.
 
+    The update runs every sample (``crates/core/src/control/ilc.rs``), so this is also the
+    plug-in *repetitive controller* of a periodic reference: the internal model ``z^-N``
+    (the memory ``L``) with the robustness low-pass ``Q = q (1, 2, 1) / 4`` (zero phase) and
+    the phase lead ``z^lead``, added to any feedback (:meth:`repetitive` builds it from the
+    reference's frequency). It is a controller like the others: :func:`~piezohyst.track`,
+    :func:`~piezohyst.closed_loop_batch` and :func:`~piezohyst.tune` (``"gain"``,
+    ``"inner.kp"``) take it.
+
     Parameters
     ----------
     inner : controller configuration
@@ -1785,6 +1839,43 @@ class ILC:
     def uses_reference_derivatives(self) -> bool:
         """Whether the inner controller reads the reference's derivatives."""
         return bool(getattr(self.inner, "uses_reference_derivatives", True))
+
+    @classmethod
+    def repetitive(cls, inner: DomainController, frequency: float, sample_time: float, **kw: Any) -> ILC:
+        """The plug-in repetitive controller for a reference of ``frequency`` (Hz) sampled at
+        ``sample_time`` (s): the period ``N = 1 / (frequency Ts)`` samples, which must be a
+        whole number (a reference whose period is not a whole number of samples has no
+        ``z^-N`` internal model).
+
+        Parameters
+        ----------
+        inner : controller
+            The feedback it plugs into (a :class:`PID`, :class:`FilteredPID`, ...).
+        frequency : float
+            The reference's fundamental, Hz.
+        sample_time : float
+            The loop's sample time, s.
+        **kw
+            ``gain``, ``forgetting``, ``lead``.
+
+        Returns
+        -------
+        ILC
+
+        Examples
+        --------
+        >>> import piezohyst as ph
+        >>> ph.ILC.repetitive(ph.PID(kp=1e6, ki=1e9), 50.0, 1e-4, gain=1e6).period
+        200
+        """
+        f = as_scalar(frequency, "frequency", positive=True)
+        ts = as_scalar(sample_time, "sample_time", positive=True)
+        n = 1.0 / (f * ts)
+        if abs(n - round(n)) > 1e-6 * n:
+            raise ParameterError(
+                f"frequency = {f} Hz at sample_time = {ts} s gives a period of {n:g} samples; it must be a whole number"
+            )
+        return cls(inner, period=round(n), **kw)
 
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
         """The controller as the Rust core runs it on ``stage``: ``(kind, params, inverse,

@@ -33,7 +33,7 @@ ComplexArray: TypeAlias = npt.NDArray[np.complex128]
 #: ``(b0, b1, b2, a1, a2)`` of a discrete biquad (``a0 = 1``).
 BiquadCoefficients: TypeAlias = tuple[float, float, float, float, float]
 
-__all__ = ["IDENTITY", "PPF", "BiquadCoefficients", "LagLead", "LowPass", "Notch", "bilinear"]
+__all__ = ["IDENTITY", "IRC", "PPF", "BiquadCoefficients", "LagLead", "LowPass", "Notch", "Section", "bilinear"]
 
 #: The biquad that is no filter.
 IDENTITY: BiquadCoefficients = (1.0, 0.0, 0.0, 0.0, 0.0)
@@ -358,3 +358,177 @@ class PPF(_Filter):
         float
         """
         return float(self.frequency)
+
+
+@dataclass(frozen=True)
+class IRC(_Filter):
+    """Integral resonant control (Aphale, Fleming and Moheimani 2007), a damping loop on the
+    position reading beside :class:`PPF`: the reading plus a feedthrough ``D = -feedthrough g``
+    (``g`` the loop's static gain, m per command unit) fed back through the integrator
+    ``k / s``, ``u = k / s (y + D u)``, which is the first-order positive feedback::
+
+        H(s) = k / (s + k feedthrough g),   k = 2 pi frequency / (feedthrough g)
+
+    added to the command (the ``damping`` slot of :class:`~piezohyst.FilteredPID`). Its pole is
+    at ``frequency`` (Hz; about the resonance to damp, or below it); ``feedthrough > 1`` puts the
+    modified plant's zeros below its first resonance, so the loop is stable for every ``k`` on
+    a collocated stage and damps every mode above ``frequency``, the ones it was not designed
+    on included. It raises the damped stage's static gain by ``1 / (1 - 1 / feedthrough)``
+    (:meth:`static_factor`: 2 for the usual ``feedthrough = 2``), which the outer loop's
+    integral removes and a feedforward divides by.
+
+    Examples
+    --------
+    >>> from piezohyst.control.filters import IRC
+    >>> irc = IRC(1000.0, static_gain=1.0)
+    >>> round(float(abs(irc.frequency_response([0.0])[0])), 6), irc.static_factor()
+    (0.5, 2.0)
+    """
+
+    frequency: float
+    static_gain: float
+    feedthrough: float = 2.0
+
+    def __post_init__(self) -> None:
+        as_scalar(self.frequency, "IRC frequency", positive=True)
+        as_scalar(self.static_gain, "IRC static_gain", positive=True)
+        d = as_scalar(self.feedthrough, "IRC feedthrough", positive=True)
+        if not d > 1:
+            raise ParameterError(f"IRC feedthrough = {d} must be > 1 (zeros below the first resonance)")
+
+    def polynomials(self) -> tuple[list[float], list[float]]:
+        """Numerator and denominator in ``s``.
+
+        Returns
+        -------
+        tuple of list of float
+
+        Examples
+        --------
+        >>> from piezohyst.control.filters import IRC
+        >>> IRC(1.0 / (2 * 3.141592653589793), static_gain=0.5, feedthrough=2.0).polynomials()
+        ([1.0], [1.0, 1.0])
+        """
+        w = 2 * math.pi * self.frequency
+        k = w / (self.feedthrough * self.static_gain)
+        return [k], [1.0, w]
+
+    def static_factor(self) -> float:
+        """The damped loop's static gain over the stage's: ``1 / (1 - 1 / feedthrough)``.
+
+        Returns
+        -------
+        float
+        """
+        return 1.0 / (1.0 - 1.0 / self.feedthrough)
+
+    def warp_hz(self) -> float:
+        """The frequency kept exact: the pole's.
+
+        Returns
+        -------
+        float
+        """
+        return float(self.frequency)
+
+
+@dataclass(frozen=True)
+class Section(_Filter):
+    """A general continuous section ``num(s) / den(s)`` of order at most two (coefficients
+    highest power first; proper), discretized by the bilinear transform prewarped at
+    ``warp`` (Hz): how a controller designed elsewhere (e.g.
+    :func:`piezohyst.control.design.mixed_sensitivity`'s H-infinity controller) is cut into the
+    biquads a :class:`~piezohyst.FilteredPID` runs.
+
+    Examples
+    --------
+    >>> from piezohyst.control.filters import Section
+    >>> s = Section((1.0, 10.0), (1.0, 20.0), warp=100.0)     # (s + 10) / (s + 20)
+    >>> round(float(abs(s.frequency_response([0.0])[0])), 6)
+    0.5
+    """
+
+    num: tuple[float, ...]
+    den: tuple[float, ...]
+    warp: float
+    discretization: str = "bilinear"
+
+    def biquad(self, sample_time: float) -> BiquadCoefficients:
+        """The discrete biquad at ``sample_time``: ``discretization="bilinear"`` (prewarped at
+        ``warp``) or ``"matched"`` (each pole and zero ``s`` to ``exp(s Ts)``, the zeros at
+        infinity to ``z = 0``, the gain matched at ``warp``: a pole far above Nyquist goes to
+        ``z ~ 0`` instead of the bilinear transform's ``z = -1``).
+
+        Parameters
+        ----------
+        sample_time : float
+            Ts, s.
+
+        Returns
+        -------
+        tuple of float
+            ``(b0, b1, b2, a1, a2)``.
+
+        Examples
+        --------
+        >>> from piezohyst.control.filters import Section
+        >>> q = Section((1.0, 10.0), (1.0, 1e9), warp=100.0, discretization="matched").biquad(1e-4)
+        >>> abs(q[3]) < 1e-9                                    # the fast pole at z ~ 0
+        True
+        """
+        if self.discretization == "bilinear":
+            return super().biquad(sample_time)
+        ts = as_scalar(sample_time, "sample_time", positive=True)
+        if not self.warp < 0.5 / ts:
+            raise ParameterError(f"Section warp = {self.warp} Hz must be below the Nyquist frequency {0.5 / ts:g} Hz")
+        n = np.trim_zeros(np.asarray(self.num, float), "f")
+        d = np.trim_zeros(np.asarray(self.den, float), "f")
+        zp = np.exp(np.roots(n) * ts) if n.size > 1 else np.array([])
+        pp = np.exp(np.roots(d) * ts) if d.size > 1 else np.array([])
+        bz = np.real(np.poly(zp)) if zp.size else np.array([1.0])
+        az = np.real(np.poly(pp)) if pp.size else np.array([1.0])
+        b = np.zeros(3)
+        a = np.zeros(3)
+        # powers z^deg(d), ..., 1 (then z^-k form): the missing zeros (at infinity) land at z = 0
+        b[: bz.size] = bz
+        a[: az.size] = az
+        w = 2 * math.pi * float(self.warp)
+        zw = np.exp(1j * w * ts)
+        hc = np.polyval(n, 1j * w) / np.polyval(d, 1j * w)
+        deg = az.size - 1
+        hd = np.polyval(b[: deg + 1], zw) / np.polyval(a[: deg + 1], zw)
+        b = b * abs(hc) / abs(hd)
+        return float(b[0]), float(b[1]), float(b[2]), float(a[1]), float(a[2])
+
+    def __post_init__(self) -> None:
+        n = np.trim_zeros(np.atleast_1d(np.asarray(self.num, float)), "f")
+        d = np.trim_zeros(np.atleast_1d(np.asarray(self.den, float)), "f")
+        if d.size == 0 or d.size > 3 or n.size > 3:
+            raise ParameterError(
+                f"Section num = {self.num}, den = {self.den}: order at most 2 and a non-zero denominator"
+            )
+        if n.size > d.size:
+            raise ParameterError(f"Section num = {self.num}, den = {self.den} is improper")
+        if not (np.all(np.isfinite(n)) and np.all(np.isfinite(d))):
+            raise ParameterError(f"Section num = {self.num}, den = {self.den} must be finite")
+        as_scalar(self.warp, "Section warp", positive=True)
+        if self.discretization not in ("bilinear", "matched"):
+            raise ParameterError(f"Section discretization = {self.discretization!r} must be 'bilinear' or 'matched'")
+
+    def polynomials(self) -> tuple[list[float], list[float]]:
+        """Numerator and denominator in ``s``.
+
+        Returns
+        -------
+        tuple of list of float
+        """
+        return [float(c) for c in self.num], [float(c) for c in self.den]
+
+    def warp_hz(self) -> float:
+        """The frequency kept exact.
+
+        Returns
+        -------
+        float
+        """
+        return float(self.warp)

@@ -335,6 +335,9 @@ def tune(
         raise ParameterError("gains must be a non-empty dict of name -> (low, high)")
     names = list(gains)
     fields = getattr(controller, "__dataclass_fields__", {})
+    if "tuned_sample_time" in fields and getattr(controller, "tuned_sample_time", None) is not None:
+        # tuned anew at this stage's rate: the candidates run as they will run (no rate scaling)
+        controller = replace(controller, tuned_sample_time=None)
 
     def has_field(name: str) -> bool:
         obj: object = controller

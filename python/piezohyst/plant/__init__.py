@@ -6,6 +6,7 @@ from .flexure import A7075_YOUNGS_MODULUS, CemfCoefficients, FlexureStage, LeafS
 from .stage import (
     PERTURBABLE,
     Amplifier,
+    Drift,
     Sensor,
     Stage,
     StageInfo,
@@ -20,6 +21,7 @@ __all__ = [
     "PERTURBABLE",
     "Amplifier",
     "CemfCoefficients",
+    "Drift",
     "FlexureStage",
     "LeafSpring",
     "Sensor",

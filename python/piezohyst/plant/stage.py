@@ -19,7 +19,7 @@ import functools
 import json
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from importlib import resources
 from os import PathLike
 from pathlib import Path
@@ -204,6 +204,44 @@ class Sensor:
         d = as_int(self.delay, "delay")
         if d > 16:
             raise ParameterError(f"delay = {d} must be <= 16 samples")
+
+
+@dataclass(frozen=True)
+class Drift:
+    """Thermal drift of the stage after a temperature step at the start of a run: the position
+    (the stage's and so the sensor's) becomes ``(1 + gain s(t)) x + offset s(t)`` with
+    ``s(t) = 1 - exp(-t / time_constant)``: a slow displacement of ``offset`` (m) and a slow
+    change of the stroke by the fraction ``gain``, ``t`` counted from the run's start (from
+    :meth:`Stage.rest_state`; a state carried from one run to the next carries the clock). It
+    is not linear time-invariant: :meth:`Stage.to_control` and the frequency responses leave it
+    out.
+
+    Parameters
+    ----------
+    offset : float
+        The settled displacement, m.
+    gain : float
+        The settled relative change of the stroke (> -1).
+    time_constant : float
+        Settling time constant, s (> 0).
+
+    Examples
+    --------
+    >>> from piezohyst.plant.stage import Drift
+    >>> Drift(offset=50e-9, gain=0.01, time_constant=2.0)
+    Drift(offset=5e-08, gain=0.01, time_constant=2.0)
+    """
+
+    offset: float = 0.0
+    gain: float = 0.0
+    time_constant: float = 1.0
+
+    def __post_init__(self) -> None:
+        as_scalar(self.offset, "drift offset")
+        g = as_scalar(self.gain, "drift gain")
+        if not g > -1:
+            raise ParameterError(f"drift gain = {g} must be > -1 (the stroke would vanish)")
+        as_scalar(self.time_constant, "drift time_constant", positive=True)
 
 
 @dataclass(frozen=True)
@@ -542,6 +580,8 @@ class Stage:
     hysteresis : HysteresisModel, optional
         A hysteresis model driven by the amplifier voltage in place of the CEMF law
         (:meth:`Stage.with_hysteresis`).
+    drift : Drift, optional
+        Thermal drift after a temperature step at the run's start (:meth:`Stage.with_drift`).
 
     Examples
     --------
@@ -563,9 +603,12 @@ class Stage:
     name: str = ""
     modes: tuple[tuple[float, float, float], ...] = ()
     hysteresis: HysteresisModel | None = None
+    drift: Drift | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "modes", _checked_modes(self.modes))
+        if self.drift is not None and not isinstance(self.drift, Drift):
+            raise ParameterTypeError(f"drift must be a Drift, got {type(self.drift).__name__}")
         if self.hysteresis is not None:
             from ..models.model import HysteresisModel
 
@@ -677,6 +720,7 @@ class Stage:
                 d.get("name", ""),
                 tuple(tuple(m) for m in d.get("modes", ())),
                 hyst,
+                None if d.get("drift") is None else Drift(**d["drift"]),
             )
 
     @classmethod
@@ -789,6 +833,7 @@ class Stage:
             },
             **({"modes": [list(m) for m in self.modes]} if self.modes else {}),
             **({"hysteresis": self.hysteresis.to_dict()} if self.hysteresis is not None else {}),
+            **({"drift": asdict(self.drift)} if self.drift is not None else {}),
         }
 
     def with_(self, **changes: Any) -> Stage:
@@ -851,6 +896,31 @@ class Stage:
         """
         return replace(self, modes=self.modes + _checked_modes(modes))
 
+    def with_drift(self, offset: float = 0.0, gain: float = 0.0, time_constant: float = 1.0) -> Stage:
+        """A copy with thermal drift (:class:`Drift`): the position drifts by ``offset`` (m)
+        and its stroke by the fraction ``gain`` with the time constant ``time_constant`` (s)
+        from the start of a run.
+
+        Parameters
+        ----------
+        offset, gain, time_constant : float
+
+        Returns
+        -------
+        Stage
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst import virtual_stage
+        >>> s = virtual_stage().with_drift(offset=0.2e-6, time_constant=0.05)
+        >>> x = s.simulate(np.full(3000, 60.0)).position
+        >>> x0 = virtual_stage().simulate(np.full(3000, 60.0)).position
+        >>> round(float(x[-1] - x0[-1]) * 1e9)              # 0.2 um (1 - e^-6) after 0.3 s
+        200
+        """
+        return replace(self, drift=Drift(offset, gain, time_constant))
+
     def with_hysteresis(self, model: HysteresisModel | None) -> Stage:
         """A copy whose hysteresis is ``model`` driven by the amplifier voltage, in place of the
         CEMF law (a voltage-driven hysteresis): any hysteresis model of the package (PI, GPI/MPI,
@@ -894,7 +964,7 @@ class Stage:
     def structured(self) -> bool:
         """Whether the stage has added modes, a voltage-driven hysteresis or a DAC (the Rust
         kernel then runs its structure hooks; the state is longer than ``STAGE_STATE_LEN``)."""
-        return bool(self.modes) or self.hysteresis is not None or self.amplifier.dac_step > 0
+        return bool(self.modes) or self.hysteresis is not None or self.amplifier.dac_step > 0 or self.drift is not None
 
     def effective_slew_rate(self) -> float:
         """The amplifier's slew limit (V/s): its slew rate or ``current_limit / Cz``, the
@@ -999,6 +1069,7 @@ class Stage:
             modes=list(self.modes) or None,
             hysteresis=None if law is None else _law_row(law, self.amplifier),
             dac_step=self.amplifier.dac_step,
+            drift=None if self.drift is None else (self.drift.offset, self.drift.gain, self.drift.time_constant),
         )
 
     # the compiled stage is not picklable: a pickle carries the fields; it is rebuilt on use

@@ -192,6 +192,15 @@ def siso_polynomials(sys: object, name: str) -> tuple[FloatArray, FloatArray, fl
     return num / lead, den / lead, dt
 
 
+def _snap_origin(roots: npt.NDArray[Any]) -> npt.NDArray[np.complex128]:
+    """Roots that are rounding residues of zero (below 1e-12 of the largest, e.g. an integrator
+    from slycot's realization at -9e-16) put at zero."""
+    if roots.size == 0:
+        return roots
+    big = float(np.max(np.abs(roots)))
+    return np.where(np.abs(roots) < 1e-12 * big, 0.0, roots).astype(np.complex128)
+
+
 def _state_space_polynomials(
     a: FloatArray, b: FloatArray, c: FloatArray, d: FloatArray
 ) -> tuple[FloatArray, FloatArray] | None:
@@ -205,14 +214,14 @@ def _state_space_polynomials(
     n = a.shape[0]
     if n == 0:
         return d[0].copy(), np.ones(1)
-    poles = np.linalg.eigvals(a)
+    poles = _snap_origin(np.linalg.eigvals(a))
     den = np.real(np.poly(poles))
     pencil = np.block([[a, b], [c, d]])
     mass = np.zeros((n + 1, n + 1))
     mass[:n, :n] = np.eye(n)
     with np.errstate(divide="ignore", invalid="ignore"):
         zeros = eigvals(pencil, mass)
-    zeros = zeros[np.isfinite(zeros)]
+    zeros = _snap_origin(zeros[np.isfinite(zeros)])
     r = n - zeros.size
     if r < 0:
         return None

@@ -34,6 +34,7 @@
 //! amplifier (round half to even).
 use crate::error::{check_scalar, ModelError};
 use crate::hysteresis::Invertible;
+use crate::num::math::exp;
 use crate::plant::stage::{Discrete, Extra, Stage, SubStep, LEVELS};
 
 /// Most modes a stage can add.
@@ -194,6 +195,44 @@ pub struct Structure<H> {
     dac_step: f64,
     /// DAC code 0, V (the amplifier's lower limit).
     dac_origin: f64,
+    /// Thermal drift (none: `None`).
+    drift: Option<Drift>,
+    /// Control period, s (the drift's clock).
+    ts: f64,
+}
+
+/// Thermal drift of the stage's structure after a temperature step at the run's start:
+/// `y = (1 + gain s(t)) x + offset s(t)`, `s(t) = 1 - exp(-t / tau)`, on the position the
+/// sensor sees (and the stage has): a slow displacement and a slow change of the stroke.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Drift {
+    /// Final additive displacement, m.
+    pub offset: f64,
+    /// Final relative gain change.
+    pub gain: f64,
+    /// Time constant, s (> 0).
+    pub tau: f64,
+}
+
+impl Drift {
+    /// Validate.
+    pub fn new(offset: f64, gain: f64, tau: f64) -> Result<Self, ModelError> {
+        check_scalar("drift_offset", offset)?;
+        check_scalar("drift_gain", gain)?;
+        check_scalar("drift_tau", tau)?;
+        if tau <= 0.0 {
+            return Err(ModelError::NotPositive("drift_tau", usize::MAX, tau));
+        }
+        if gain <= -1.0 {
+            return Err(ModelError::OutOfRange("drift_gain", usize::MAX, gain, -1.0, f64::INFINITY));
+        }
+        Ok(Drift { offset, gain, tau })
+    }
+    #[inline(always)]
+    fn apply(&self, t: f64, y: f64) -> f64 {
+        let s = 1.0 - exp(-t / self.tau);
+        (1.0 + self.gain * s) * y + self.offset * s
+    }
 }
 
 impl<H: Invertible> Structure<H> {
@@ -210,22 +249,36 @@ impl<H: Invertible> Structure<H> {
             volts_per_metre: p.stiffness / p.tem,
             dac_step,
             dac_origin: p.amp_min,
+            drift: None,
+            ts: stage.ts,
         })
+    }
+
+    /// With thermal drift (one more state slot: the time since the run's start, s).
+    pub fn with_drift(mut self, drift: Option<Drift>) -> Self {
+        self.drift = drift;
+        self
+    }
+
+    fn law_len(&self) -> usize {
+        self.hysteresis.as_ref().map_or(0, |h| h.state_len())
     }
 
     /// Slots of the state.
     pub fn state_len(&self) -> usize {
-        self.modes.state_len() + self.hysteresis.as_ref().map_or(0, |h| h.state_len())
+        self.modes.state_len() + self.law_len() + usize::from(self.drift.is_some())
     }
 
     /// The state at rest with the stack at `x`: modes at their static deflection, the law
     /// relaxed.
     pub fn reset(&self, state: &mut [f64], x: f64) {
-        let (m, h) = state.split_at_mut(self.modes.state_len());
+        let (m, rest) = state.split_at_mut(self.modes.state_len());
+        let (h, clock) = rest.split_at_mut(self.law_len());
         self.modes.reset(m, x);
         if let Some(law) = &self.hysteresis {
             law.reset(h);
         }
+        clock.fill(0.0);
     }
 
     /// Check a state from outside (length, finite, the law's own rules).
@@ -233,21 +286,31 @@ impl<H: Invertible> Structure<H> {
         crate::hysteresis::check_state_len(state, self.state_len())?;
         crate::error::check_finite("state", state)?;
         let n = self.modes.state_len();
+        let l = self.law_len();
+        if self.drift.is_some() && state[n + l] < 0.0 {
+            return Err(ModelError::Negative("state (drift clock)", n + l, state[n + l]));
+        }
         match &self.hysteresis {
-            Some(law) => law.check_state(&state[n..]).map_err(|e| crate::compensated::offset_slot(e, n)),
+            Some(law) => law.check_state(&state[n..n + l]).map_err(|e| crate::compensated::offset_slot(e, n)),
             None => Ok(()),
         }
     }
 
     /// The position the sensor sees for the stack at `x` and this structure state.
     pub fn position(&self, state: &[f64], x: f64) -> f64 {
-        self.modes.position(&state[..self.modes.state_len()], x)
+        let y = self.modes.position(&state[..self.modes.state_len()], x);
+        match &self.drift {
+            Some(d) => d.apply(state[self.modes.state_len() + self.law_len()], y),
+            None => y,
+        }
     }
 
     /// The hooks for one run on `state` (see [`Extra`]).
     pub fn run<'s>(&'s self, state: &'s mut [f64]) -> StructureRun<'s, H> {
-        let (modes, hyst) = state.split_at_mut(self.modes.state_len());
-        StructureRun { s: self, modes, hyst }
+        let law_len = self.law_len();
+        let (modes, rest) = state.split_at_mut(self.modes.state_len());
+        let (hyst, clock) = rest.split_at_mut(law_len);
+        StructureRun { s: self, modes, hyst, clock }
     }
 
     #[inline(always)]
@@ -269,6 +332,7 @@ pub struct StructureRun<'s, H> {
     s: &'s Structure<H>,
     modes: &'s mut [f64],
     hyst: &'s mut [f64],
+    clock: &'s mut [f64],
 }
 
 impl<H: Invertible> Extra for StructureRun<'_, H> {
@@ -286,6 +350,9 @@ impl<H: Invertible> Extra for StructureRun<'_, H> {
         if let Some(law) = &self.s.hysteresis {
             law.step(self.hyst, va);
         }
+        if let Some(t) = self.clock.first_mut() {
+            *t += self.s.ts;
+        }
     }
     #[inline(always)]
     fn substep(&mut self, step: &SubStep) {
@@ -293,7 +360,11 @@ impl<H: Invertible> Extra for StructureRun<'_, H> {
     }
     #[inline(always)]
     fn position(&self, x: f64) -> f64 {
-        self.s.modes.position(self.modes, x)
+        let y = self.s.modes.position(self.modes, x);
+        match (&self.s.drift, self.clock.first()) {
+            (Some(d), Some(&t)) => d.apply(t, y),
+            _ => y,
+        }
     }
 }
 
@@ -340,6 +411,34 @@ mod tests {
             stage.advance_with(&mut b, u, &mut s.run(&mut state));
             assert_eq!(a.to_array().map(f64::to_bits), b.to_array().map(f64::to_bits), "{k}");
         }
+    }
+
+    /// Thermal drift: the stack's motion unchanged (same bits), the position seen
+    /// `(1 + gain s) x + offset s`, `s = 1 - exp(-t / tau)` with the clock at `k Ts` after `k`
+    /// periods; bad drift parameters are refused.
+    #[test]
+    fn drift_moves_the_position_by_its_law() {
+        let stage = Stage::new(StageParams::virtual_stage(), 1e-4, 1, 0.05).unwrap();
+        let drift = Drift::new(0.3e-6, 0.02, 0.05).unwrap();
+        let s: Structure<crate::pi::Pi<'_>> = Structure::new(&stage, &[], None, 0.0).unwrap().with_drift(Some(drift));
+        assert_eq!(s.state_len(), 1);
+        let mut state = [0.0; 1];
+        s.reset(&mut state, 0.0);
+        let (mut a, mut b) = (StageState::ZERO, StageState::ZERO);
+        for k in 1..=2000 {
+            stage.advance(&mut a, 60.0);
+            stage.advance_with(&mut b, 60.0, &mut s.run(&mut state));
+            assert_eq!(a.x.to_bits(), b.x.to_bits(), "{k}");
+            let t = k as f64 * 1e-4;
+            assert!((state[0] - t).abs() < 1e-12, "{k}");
+            let sd = 1.0 - libm::exp(-t / 0.05);
+            let want = (1.0 + 0.02 * sd) * a.x + 0.3e-6 * sd;
+            assert!((s.position(&state, b.x) - want).abs() < 1e-18, "{k}");
+        }
+        assert!(Drift::new(0.0, 0.0, 0.0).is_err());
+        assert!(Drift::new(0.0, -1.0, 1.0).is_err());
+        assert!(Drift::new(f64::NAN, 0.0, 1.0).is_err());
+        assert!(s.check_state(&[-1.0]).is_err());
     }
 
     /// A mode's steady sine response is its second-order frequency response (measured by

@@ -1,0 +1,142 @@
+"""A controller written in C, run in the loop: a function of a shared library called through
+ctypes from the Rust loop's slow path (the path of a Python :class:`~piezohyst.control.simulation.UserController`:
+one call per sample, about a microsecond, for trying a law from a DAQ's firmware in the
+simulated loop before it meets the stage).
+
+The C side::
+
+    double step(void *state, double reference, double measured, double velocity, double acceleration);
+    void reset(void *state, double measured);            /* optional */
+
+``state`` is a zeroed buffer of ``state_size`` bytes the controller owns for the run (reset to
+zero, then ``reset`` called with the first reading, before every run).
+
+Examples
+--------
+>>> from piezohyst.control.user import CController
+>>> CController.from_library("/nonexistent/libpi.so", "pi_step")      # doctest: +ELLIPSIS
+Traceback (most recent call last):
+...
+piezohyst.errors.ParameterError: library = '/nonexistent/libpi.so' cannot be loaded: ...
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import os
+from dataclasses import dataclass, field
+from typing import Any
+
+from .._validate import as_int
+from ..errors import ComputationError, ParameterError
+
+__all__ = ["RESET_SIGNATURE", "STEP_SIGNATURE", "CController"]
+
+#: ``double step(void *state, double reference, double measured, double velocity, double acceleration)``
+STEP_SIGNATURE = ctypes.CFUNCTYPE(
+    ctypes.c_double, ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_double, ctypes.c_double
+)
+#: ``void reset(void *state, double measured)``
+RESET_SIGNATURE = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_double)
+
+
+@dataclass
+class CController:
+    """A C function as a controller (the slow path of :func:`~piezohyst.closed_loop`,
+    :func:`~piezohyst.track`); see the module's documentation for the C signatures.
+
+    Parameters
+    ----------
+    step : ctypes function
+        The step (``STEP_SIGNATURE``, or a ``ctypes.CDLL`` function: its types are set here).
+    reset : ctypes function, optional
+        Called with the first reading before each run.
+    state_size : int
+        Bytes of the state buffer handed to both.
+    """
+
+    step_function: Any
+    reset_function: Any = None
+    state_size: int = 256
+    _state: Any = field(init=False, repr=False)
+    _library: Any = field(default=None, repr=False)
+
+    #: the step gets the reference's velocity and acceleration
+    uses_reference_derivatives = True
+
+    def __post_init__(self) -> None:
+        n = as_int(self.state_size, "state_size", minimum=0)
+        self._state = ctypes.create_string_buffer(max(n, 1))
+        for name, fn, restype, argtypes in (
+            ("step", self.step_function, ctypes.c_double, [ctypes.c_void_p] + [ctypes.c_double] * 4),
+            ("reset", self.reset_function, None, [ctypes.c_void_p, ctypes.c_double]),
+        ):
+            if fn is None:
+                if name == "step":
+                    raise ParameterError("step_function is required")
+                continue
+            if not callable(fn):
+                raise ParameterError(f"{name}_function = {fn!r} is not a C function")
+            try:  # a function of a ctypes.CDLL: set its types (a CFUNCTYPE instance has them)
+                fn.restype = restype
+                fn.argtypes = argtypes
+            except (AttributeError, TypeError):
+                pass
+
+    @classmethod
+    def from_library(
+        cls, library: str | os.PathLike[str], step: str, reset: str | None = None, state_size: int = 256
+    ) -> CController:
+        """Load ``step`` (and ``reset``) from the shared library at ``library``.
+
+        Parameters
+        ----------
+        library : path
+            A shared library (``.so``, ``.dylib``, ``.dll``).
+        step, reset : str
+            The functions' names.
+        state_size : int
+            Bytes of the state buffer.
+
+        Returns
+        -------
+        CController
+        """
+        try:
+            lib = ctypes.CDLL(os.fspath(library))
+        except OSError as exc:
+            raise ParameterError(f"library = {os.fspath(library)!r} cannot be loaded: {exc}") from None
+        fns: list[Any] = []
+        for label, name in (("step", step), ("reset", reset)):
+            if name is None:
+                fns.append(None)
+                continue
+            try:
+                fns.append(getattr(lib, name))
+            except AttributeError:
+                raise ParameterError(f"{label} = {name!r}: no such function in {os.fspath(library)!r}") from None
+        c = cls(fns[0], fns[1], state_size)
+        c._library = lib
+        return c
+
+    def reset(self, measured: float) -> None:
+        """Zero the state and call the C ``reset`` (if any) with the first reading."""
+        ctypes.memset(self._state, 0, len(self._state))
+        if self.reset_function is not None:
+            self.reset_function(ctypes.cast(self._state, ctypes.c_void_p), float(measured))
+
+    def step(self, reference: float, measured: float, velocity: float = 0.0, acceleration: float = 0.0) -> float:
+        """One call of the C step: the command (V)."""
+        u = float(
+            self.step_function(
+                ctypes.cast(self._state, ctypes.c_void_p),
+                float(reference),
+                float(measured),
+                float(velocity),
+                float(acceleration),
+            )
+        )
+        if not math.isfinite(u):
+            raise ComputationError(f"the C controller returned {u} for reference {reference}, measured {measured}")
+        return u
