@@ -47,7 +47,9 @@ def boom(x):
 
 
 def worker_env(_):
-    return os.environ.get("RAYON_NUM_THREADS"), os.getpid()
+    import dask
+
+    return os.environ.get("RAYON_NUM_THREADS"), os.getpid(), dask.config.get("distributed.worker.profile.enabled")
 
 
 def test_the_serial_runner_reports_a_failing_task_and_runs_the_rest(capsys):
@@ -88,6 +90,7 @@ def test_a_local_cluster_of_processes_gives_the_serial_result_to_the_bit(workers
         envs = {v for o in run.run(worker_env, [(f"e{i}", (i,)) for i in range(6)]) for v in [o.value]}
         assert {e[0] for e in envs} == {str(2 // workers)}  # RAYON_NUM_THREADS = cores // workers
         assert all(e[1] != os.getpid() for e in envs)  # worker processes, not this one
+        assert {e[2] for e in envs} == {False}  # no statistical profiler sampling the tasks
         res = robustness(p, 90, run, chunk=20)
         outs = {o.key: o for o in run.run(boom, [(f"t{i}", (i,)) for i in range(4)])}
     assert np.array_equal(res.metrics, serial.metrics) and np.array_equal(res.factors, serial.factors)

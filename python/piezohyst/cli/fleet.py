@@ -396,7 +396,9 @@ def _fleet_identify(args: argparse.Namespace) -> int:
                     f"{cluster.describe()}",
                     file=sys.stderr,
                 )
-            tasks = [(f"identify-{j.name}", (j,)) for j in todo]
+            # the longest records first (file size as the proxy), so the last tasks to finish are
+            # short ones and the workers end together (Dask runs the submissions in order)
+            tasks = [(f"identify-{j.name}", (j,)) for j in _longest_first(todo)]
             for o in run.run(_identify_task, tasks, progress):
                 j = by_name[o.key.removeprefix("identify-")]
                 if o.error is not None:  # the task itself raised (a bug, or its worker died too often)
@@ -431,6 +433,19 @@ def _fleet_identify(args: argparse.Namespace) -> int:
     if failed:
         return 1
     return 3 if any(r["status"] == "untrusted" for r in ordered) else 0
+
+
+def _longest_first(jobs: list[_Job]) -> list[_Job]:
+    """``jobs`` by record size on disk, largest first (stable; an unreadable record counts 0 and
+    its task reports why)."""
+
+    def size(job: _Job) -> int:
+        try:
+            return os.path.getsize(job.path)
+        except OSError:
+            return 0
+
+    return sorted(jobs, key=size, reverse=True)
 
 
 def _import_report_libraries() -> None:
