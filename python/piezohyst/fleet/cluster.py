@@ -21,13 +21,12 @@ import itertools
 import logging
 import os
 import secrets
-import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from ..errors import ParameterError
-from .progress import Progress
+from ..progress import Progress
 
 __all__ = ["ClusterPlan", "Outcome", "Runner", "plan", "runner", "usable_cores"]
 
@@ -149,7 +148,8 @@ class Runner:
     def run(
         self, fn: Callable[..., Any], tasks: Sequence[tuple[str, tuple[Any, ...]]], progress: Progress | None = None
     ) -> Iterator[Outcome]:
-        start = time.perf_counter()
+        if progress is not None:
+            progress.reset(len(tasks))
         done = 0
         for key, args in tasks:
             try:
@@ -158,10 +158,10 @@ class Runner:
                 out = Outcome(key, error=_one_line(e))
             done += 1
             if progress is not None:
-                progress.update(done, len(tasks), time.perf_counter() - start)
+                progress.update(done)
             yield out
         if progress is not None:
-            progress.close(done, len(tasks), time.perf_counter() - start)
+            progress.close()
 
 
 def _one_line(e: BaseException) -> str:
@@ -203,9 +203,10 @@ class _DaskRunner(Runner):
             self.client.submit(fn, *args, key=f"{key}-{self._run_id}-{batch}-{i}", pure=False): key
             for i, (key, args) in enumerate(tasks)
         }
-        start = time.perf_counter()
+        hold = False  # release each future once its result is here, unless Dask's bar follows them
         if progress is not None:
-            progress.attach(self.client, list(futures))
+            progress.reset(len(tasks))
+            hold = progress.follow_dask(self.client, list(futures))
         done = 0
         try:
             for f in as_completed(list(futures)):  # type: ignore[no-untyped-call]
@@ -217,17 +218,18 @@ class _DaskRunner(Runner):
                     out = Outcome(key, error="cancelled")
                 else:
                     out = Outcome(key, f.result())
-                f.release()
+                if not hold:
+                    f.release()
                 done += 1
                 if progress is not None:
-                    progress.update(done, len(tasks), time.perf_counter() - start)
+                    progress.update(done)
                 yield out
         finally:
             pending = [f for f in futures if not f.done()]
             if pending:
                 self.client.cancel(pending)
             if progress is not None:
-                progress.close(done, len(tasks), time.perf_counter() - start)
+                progress.close()
 
 
 #: Modules every local worker starts with (imported once by the fork server, see :func:`runner`):

@@ -29,9 +29,9 @@ import numpy.typing as npt
 from ..control.simulation import ControllerLike, closed_loop_batch_stages, closed_loop_perturbed
 from ..errors import ParameterError
 from ..plant.stage import Stage, StageParameters
+from ..progress import Progress
 from ..signals.results import DataclassMatFile, html_table, require_pandas
 from .cluster import Runner
-from .progress import Progress
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
