@@ -3,7 +3,7 @@ parameter (issue 17: "every public name has a docstring with an example, a test 
 
 Public means: each name of ``piezohyst.__all__`` and of each wing's ``__all__`` (``models``,
 ``signals``, ``identify``, ``optimize``, ``plant``, ``control``, ``export``, ``papers``,
-``errors``) that is a class or a function, and every public method (functions, class and
+``errors``, ``fleet``, ``capi``) that is a class or a function, and every public method (functions, class and
 static methods) of those classes, inherited from a base inside piezohyst included. Properties
 must have a docstring. The docstrings are parsed by numpydoc, as the documentation site parses
 them; the examples themselves run as doctests (``--doctest-modules`` in ``pyproject.toml``), so
@@ -27,7 +27,7 @@ if os.environ.get("CI"):
 else:
     npv = pytest.importorskip("numpydoc.validate", reason="numpydoc (the 'test' extra) checks the docstrings")
 
-WINGS = ("models", "signals", "identify", "optimize", "plant", "control", "export", "papers", "errors")
+WINGS = ("models", "signals", "identify", "optimize", "plant", "control", "export", "papers", "errors", "fleet", "capi")
 
 #: numpydoc's codes this test holds: no docstring, no Examples section, a parameter of the
 #: signature not documented, a documented parameter the signature does not have.
@@ -107,7 +107,14 @@ def test_the_public_surface_is_what_we_check():
     # the package's main names and the methods of its classes are all covered
     assert len(CALLABLES) > 200 and len(PROPERTIES) > 20
     checked = {id(_resolve(path)) for path in CALLABLES}
-    for name in ("piezohyst.models.PI", "piezohyst.models.HysteresisModel.simulate", "piezohyst.signals.load_record"):
+    for name in (
+        "piezohyst.models.PI",
+        "piezohyst.models.HysteresisModel.simulate",
+        "piezohyst.signals.load_record",
+        "piezohyst.fleet.Runner.run",
+        "piezohyst.fleet.RobustnessResult.worst",
+        "piezohyst.capi.cflags",
+    ):
         assert id(_resolve(name)) in checked, name
 
 

@@ -15,6 +15,10 @@ fit and tuning with ``progress=True``; the demo's steps; the CLI's ``--quiet``):
 A stream that fails while a step runs (a terminal hung up: SIGHUP, then EIO) ends the display,
 never the step: the best result so far must still reach the caller.
 
+A run of tasks on a Dask cluster (``piezohyst.fleet``: fleet identify, robustness) uses the same
+class: :meth:`Progress.follow_dask` draws Dask's own progress bar (fed by the scheduler) on a
+terminal instead of the tqdm bar, and the plain lines and silencing are the ones above.
+
 Examples
 --------
 >>> import io
@@ -35,15 +39,16 @@ import contextlib
 import math
 import os
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from types import TracebackType
-from typing import IO, TYPE_CHECKING, Literal, Never
+from typing import IO, TYPE_CHECKING, Any, Literal, Never
 
 if TYPE_CHECKING:
     from tqdm import tqdm
 
-__all__ = ["Progress", "is_silenced", "progress_mode", "silenced"]
+__all__ = ["Mode", "Progress", "is_silenced", "progress_mode", "silenced"]
 
 #: How progress is shown: a tqdm bar, plain lines, or not at all.
 Mode = Literal["bar", "lines", "off"]
@@ -127,6 +132,8 @@ class Progress:
         Where to write (default ``sys.stderr``).
     mode : {"bar", "lines", "off"}, optional
         Default: :func:`progress_mode` of the stream (silenced wins over any mode).
+    unit : str, optional
+        What is counted, named in the lines (``"records"``: ``fleet: 3/8 records done (38 %)``).
 
     Examples
     --------
@@ -147,8 +154,16 @@ class Progress:
     #: A terminal bar appears once the step has run this long.
     BAR_DELAY = 0.5
 
-    def __init__(self, total: int, desc: str, *, stream: IO[str] | None = None, mode: Mode | None = None) -> None:
-        self.total, self.desc = max(int(total), 1), desc
+    def __init__(
+        self,
+        total: int,
+        desc: str,
+        *,
+        stream: IO[str] | None = None,
+        mode: Mode | None = None,
+        unit: str | None = None,
+    ) -> None:
+        self.total, self.desc, self.unit = max(int(total), 1), desc, unit
         self.stream: IO[str] | None = sys.stderr if stream is None else stream
         self.mode: Mode = "off" if is_silenced() else (mode or progress_mode(self.stream))
         self.n = 0
@@ -159,6 +174,7 @@ class Progress:
         self._lines = 0
         self._closed = False
         self._bar: tqdm[Never] | None = None
+        self._dask: threading.Thread | None = None
         if self.mode == "bar":
             self._bar = self._make_bar()
 
@@ -169,6 +185,7 @@ class Progress:
             return tqdm(
                 total=self.total,
                 desc=self.desc,
+                unit=" " + self.unit if self.unit else "it",
                 file=self.stream,
                 delay=self.BAR_DELAY,
                 mininterval=0.1,
@@ -195,8 +212,99 @@ class Progress:
         when = f"in {elapsed:.1f} s" if done else f"{elapsed:.1f} s elapsed"
         if not done and 0 < self.n < self.total:
             when += f", about {elapsed * (self.total - self.n) / self.n:.0f} s left"
-        self._write(f"{self.desc}: {self.n}/{self.total} ({pct:.0f} %){post} {when}\n")
+        count = f"{self.n}/{self.total}" if self.unit is None else f"{self.n}/{self.total} {self.unit} done"
+        self._write(f"{self.desc}: {count} ({pct:.0f} %){post} {when}\n")
         self._lines += 1
+
+    def reset(self, total: int) -> None:
+        """Start over for ``total`` units (a runner sets the count of its tasks), the clock too.
+
+        Parameters
+        ----------
+        total : int
+            Units of the step from now on.
+
+        Examples
+        --------
+        >>> import io
+        >>> from piezohyst.progress import Progress
+        >>> log = io.StringIO()
+        >>> p = Progress(1, "run", stream=log, mode="lines", unit="tasks")
+        >>> p.reset(3)
+        >>> p.update(3)
+        >>> p.close()
+        >>> log.getvalue().startswith("run: 3/3 tasks done (100 %) in ")
+        True
+        """
+        self.total, self.n = max(int(total), 1), 0
+        self._t0 = time.perf_counter()
+        self._last_line, self._last_fraction = -math.inf, 0.0
+        if self._bar is not None:  # a new bar for the new total (tqdm's reset would draw it at once)
+            with contextlib.suppress(OSError, ValueError):
+                self._bar.close()
+            self._bar = self._make_bar()
+
+    def follow_dask(self, client: Any, futures: list[Any]) -> bool:
+        """On a terminal, show Dask's own progress bar of ``futures`` (drawn from a thread of its
+        own, fed by the scheduler of ``client``) instead of the tqdm bar; elsewhere nothing
+        changes (plain lines from :meth:`update`, or silence). True when Dask's bar follows them:
+        the caller must then hold every future until the run ends (Dask's bar waits for the
+        scheduler to know all of its keys, and a released future's key is forgotten).
+
+        Parameters
+        ----------
+        client : distributed.Client
+            The client of the cluster running the futures.
+        futures : list of distributed.Future
+            The tasks to follow.
+
+        Examples
+        --------
+        >>> import io
+        >>> from piezohyst.progress import Progress
+        >>> p = Progress(2, "run", stream=io.StringIO(), mode="lines")
+        >>> p.follow_dask(None, [])  # not a terminal: the plain lines stay
+        False
+        """
+        if self.mode != "bar" or not futures or self.stream is None:
+            return False
+        from distributed.diagnostics.progressbar import TextProgressBar
+
+        if self._bar is not None:  # not drawn yet (its delay): Dask's bar replaces it
+            with contextlib.suppress(OSError, ValueError):
+                self._bar.close()
+            self._bar = None
+        stream = self.stream
+        desc = self.desc
+
+        class _StreamBar(TextProgressBar):
+            # Dask's bar, on our stream (stderr) instead of stdout, with the step's name
+            def _draw_bar(self, remaining: int, all: int, **kwargs: Any) -> None:
+                frac = (1 - remaining / all) if all else 1.0
+                width = 40
+                with contextlib.suppress(OSError, ValueError):
+                    stream.write(
+                        f"\r{desc}: [{'#' * int(width * frac):<{width}}] | {int(100 * frac):3d}% Completed | "
+                        f"{self.elapsed:.1f} s"
+                    )
+                    stream.flush()
+
+            def _draw_stop(self, **kwargs: Any) -> None:
+                with contextlib.suppress(OSError, ValueError):
+                    stream.write("\n")
+                    stream.flush()
+
+        address = client.scheduler.address
+
+        def draw() -> None:
+            try:
+                _StreamBar(futures, scheduler=address, interval="200ms")  # type: ignore[no-untyped-call]
+            except Exception:  # a progress bar never stops the run
+                pass
+
+        self._dask = threading.Thread(target=draw, name="piezohyst-progress", daemon=True)
+        self._dask.start()
+        return True
 
     def update(self, n: int, **postfix: float) -> None:
         """Record that ``n`` units are done (absolute, not an increment), with named numbers
@@ -234,7 +342,10 @@ class Progress:
         if self._closed:
             return
         self._closed = True
-        if self.mode == "bar" and self._bar is not None:
+        if self._dask is not None:  # Dask's bar ends with its futures
+            self._dask.join(timeout=2.0)
+            self._dask = None
+        elif self.mode == "bar" and self._bar is not None:
             try:
                 self._bar.close()
             except (OSError, ValueError):

@@ -322,3 +322,17 @@ def test_bad_robustness_input_is_one_line_and_exit_2(extra, match):
     args = ["--controller", "pid", "--perturb", "mass=±10%", "--samples", "10", "--scheduler", "serial", *extra]
     p = run("robustness", *args)
     assert p.returncode == 2 and match in p.stderr and len(p.stderr.strip().splitlines()) == 1, p.stderr
+
+
+def test_the_longest_records_are_submitted_first(tmp_path):
+    """Tail imbalance: the largest record files go to the workers first (stable among equals),
+    so the run ends on short tasks; a missing file counts 0 (its task reports it)."""
+    from piezohyst.cli.fleet import _Job, _longest_first
+
+    sizes = {"a": 100, "b": 5000, "c": 100, "d": 2500}
+    jobs = []
+    for name, size in sizes.items():
+        (tmp_path / f"{name}.csv").write_bytes(b"1,2\n" * (size // 4))
+        jobs.append(_Job(name, str(tmp_path / f"{name}.csv"), {}))
+    jobs.append(_Job("gone", str(tmp_path / "gone.csv"), {}))
+    assert [j.name for j in _longest_first(jobs)] == ["b", "d", "a", "c", "gone"]

@@ -2,6 +2,7 @@
 serial runner, and an embedded LocalCluster of processes whose results equal the serial ones to
 the bit, with a failing task reported as its own outcome."""
 
+import io
 import os
 
 import numpy as np
@@ -9,7 +10,8 @@ import pytest
 
 from piezohyst import PID, virtual_stage
 from piezohyst.errors import ParameterError
-from piezohyst.fleet import Progress, RobustnessProblem, Runner, parse_perturbations, plan, robustness, runner
+from piezohyst.fleet import RobustnessProblem, Runner, parse_perturbations, plan, robustness, runner
+from piezohyst.progress import Progress
 
 
 def test_the_plan_never_oversubscribes_the_cores():
@@ -47,16 +49,17 @@ def boom(x):
 
 
 def worker_env(_):
-    return os.environ.get("RAYON_NUM_THREADS"), os.getpid()
+    import dask
+
+    return os.environ.get("RAYON_NUM_THREADS"), os.getpid(), dask.config.get("distributed.worker.profile.enabled")
 
 
 def test_the_serial_runner_reports_a_failing_task_and_runs_the_rest(capsys):
-    import io
 
     stream = io.StringIO()
     outs = list(
         Runner(plan("serial", env={})).run(
-            boom, [(f"t{i}", (i,)) for i in range(4)], Progress("p", "tasks", stream=stream)
+            boom, [(f"t{i}", (i,)) for i in range(4)], Progress(1, "p", stream=stream, mode="lines", unit="tasks")
         )
     )
     assert [(o.key, o.value, o.error) for o in outs] == [
@@ -85,11 +88,15 @@ def test_a_local_cluster_of_processes_gives_the_serial_result_to_the_bit(workers
     cluster = plan("local", workers, cores=2, env={})
     with runner(cluster) as run:
         assert run.workers == workers
-        envs = {v for o in run.run(worker_env, [(f"e{i}", (i,)) for i in range(6)]) for v in [o.value]}
+        bar = io.StringIO()  # Dask's own progress bar when the display is a bar
+        tasks = [(f"e{i}", (i,)) for i in range(6)]
+        envs = {o.value for o in run.run(worker_env, tasks, Progress(1, "t", stream=bar, mode="bar"))}
         assert {e[0] for e in envs} == {str(2 // workers)}  # RAYON_NUM_THREADS = cores // workers
         assert all(e[1] != os.getpid() for e in envs)  # worker processes, not this one
+        assert {e[2] for e in envs} == {False}  # no statistical profiler sampling the tasks
         res = robustness(p, 90, run, chunk=20)
         outs = {o.key: o for o in run.run(boom, [(f"t{i}", (i,)) for i in range(4)])}
     assert np.array_equal(res.metrics, serial.metrics) and np.array_equal(res.factors, serial.factors)
     assert res.to_dict()["percentiles"] == serial.to_dict()["percentiles"]
     assert outs["t2"].error == "ValueError: record 2 is bad" and outs["t3"].value == 30
+    assert "\rt: [########################################] | 100% Completed |" in bar.getvalue()

@@ -28,6 +28,7 @@ from typing import Any
 
 from .._io import write_atomic
 from ..errors import PiezohystError
+from ..progress import Mode, Progress
 from .common import _Fail, _Parser
 from .identify import _identify, _identify_options
 
@@ -62,6 +63,12 @@ def _cluster_options(p: argparse.ArgumentParser) -> None:
         help="progress on stderr: auto (default) Dask's progress bar on a terminal, plain lines otherwise "
         "(no carriage returns); bar, lines or none",
     )
+
+
+def _progress(args: argparse.Namespace, prog: str, total: int, unit: str) -> Progress:
+    """The run's progress display for ``--progress`` (``auto``: by the stream; ``--quiet`` silences it)."""
+    modes: dict[str, Mode | None] = {"auto": None, "bar": "bar", "lines": "lines", "none": "off"}
+    return Progress(total, prog, mode=modes[args.progress], unit=unit)
 
 
 def _fleet_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
@@ -363,7 +370,7 @@ def _fleet(args: argparse.Namespace) -> int:
 
 
 def _fleet_identify(args: argparse.Namespace) -> int:
-    from ..fleet import Progress, plan, runner
+    from ..fleet import plan, runner
 
     t0 = time.perf_counter()
     cluster = plan(args.scheduler, args.workers)
@@ -384,19 +391,21 @@ def _fleet_identify(args: argparse.Namespace) -> int:
     prog = "piezohyst fleet identify"
     by_name = {j.name: j for j in todo}
     if todo:
-        progress = Progress(prog, "records", mode=args.progress)
+        progress = _progress(args, prog, len(todo), "records")
         with runner(cluster, _PRELOAD) as run:  # a local cluster starts in the background meanwhile
             for opts in {tuple(sorted((k, repr(v)) for k, v in j.options.items())): j.options for j in todo}.values():
                 _preflight(opts)
             # the report's libraries load while the records are identified
             threading.Thread(target=_import_report_libraries, daemon=True).start()
-            if args.progress != "none":
+            if progress.mode != "off":
                 print(
                     f"{prog}: {len(todo)} record(s) to identify, {len(jobs) - len(todo)} done before; on "
                     f"{cluster.describe()}",
                     file=sys.stderr,
                 )
-            tasks = [(f"identify-{j.name}", (j,)) for j in todo]
+            # the longest records first (file size as the proxy), so the last tasks to finish are
+            # short ones and the workers end together (Dask runs the submissions in order)
+            tasks = [(f"identify-{j.name}", (j,)) for j in _longest_first(todo)]
             for o in run.run(_identify_task, tasks, progress):
                 j = by_name[o.key.removeprefix("identify-")]
                 if o.error is not None:  # the task itself raised (a bug, or its worker died too often)
@@ -431,6 +440,19 @@ def _fleet_identify(args: argparse.Namespace) -> int:
     if failed:
         return 1
     return 3 if any(r["status"] == "untrusted" for r in ordered) else 0
+
+
+def _longest_first(jobs: list[_Job]) -> list[_Job]:
+    """``jobs`` by record size on disk, largest first (stable; an unreadable record counts 0 and
+    its task reports why)."""
+
+    def size(job: _Job) -> int:
+        try:
+            return os.path.getsize(job.path)
+        except OSError:
+            return 0
+
+    return sorted(jobs, key=size, reverse=True)
 
 
 def _import_report_libraries() -> None:

@@ -35,7 +35,7 @@ from .stage import _stage_info, _stage_parser
 from .stops import Interrupted, describe, exit_code, handled, received
 from .track import _track, _track_parser
 
-__all__ = ["main", "run", "version_text"]
+__all__ = ["main", "run", "tune_malloc", "version_text"]
 
 
 def version_text() -> str:
@@ -162,6 +162,38 @@ def _say(line: str) -> None:
         pass
 
 
+#: glibc's ``mallopt`` parameters (malloc.h): ``M_TRIM_THRESHOLD``, ``M_MMAP_THRESHOLD``.
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+
+
+def tune_malloc() -> bool:
+    """Keep freed memory of this process's main heap for reuse (glibc only); True when set.
+
+    Why: NumPy's temporaries of a fit (hundreds of kB each, allocated and freed on every
+    iteration) come from glibc's main arena when the work runs on the main thread, as the
+    ``piezohyst`` commands do. With glibc's defaults those blocks are mmapped or trimmed back to
+    the system when freed, and the next allocation takes its pages again as fresh zeroed pages:
+    ~190,000 minor page faults and ~0.3 s of CPU per identification of a 10,000-sample record
+    (0.80 s instead of 0.57 s; the same work in a thread, whose arena is not trimmed so eagerly,
+    does not pay it). Raising the mmap threshold to glibc's maximum (32 MiB) and the trim
+    threshold to 128 MiB keeps those pages in the heap: the same fit takes ~230 page faults.
+    The process keeps at most 128 MiB of freed memory beyond what it uses (a command's
+    lifetime is one run). Called once by :func:`run`, the process entry; the library itself
+    never changes the allocator of a program that imports it.
+    """
+    if not sys.platform.startswith("linux"):
+        return False
+    import ctypes
+
+    try:
+        libc = ctypes.CDLL("libc.so.6")
+        mallopt = libc.mallopt
+    except (OSError, AttributeError):  # not glibc (musl has no mallopt)
+        return False
+    mallopt.argtypes, mallopt.restype = [ctypes.c_int, ctypes.c_int], ctypes.c_int
+    return bool(mallopt(_M_MMAP_THRESHOLD, 32 << 20)) and bool(mallopt(_M_TRIM_THRESHOLD, 128 << 20))
+
+
 def run(argv: Sequence[str] | None = None) -> NoReturn:
     """The process entry point (the ``piezohyst`` script, ``python -m piezohyst``): :func:`main`,
     then the exit with its code, skipping the interpreter's native teardown.
@@ -170,7 +202,10 @@ def run(argv: Sequence[str] | None = None) -> NoReturn:
     the finished process (SIGABRT, "terminate called without an active exception"; apache/arrow
     issue 34314), turning a clean exit code into -6. The command's files are closed by then;
     Python's own exit handlers still run and the standard streams are flushed.
+
+    First, :func:`tune_malloc` (the main thread's NumPy work keeps its freed pages).
     """
+    tune_malloc()
     try:
         code: int = main(argv)
     except SystemExit as e:  # argparse's usage errors and --help

@@ -10,7 +10,7 @@ from typing import Any
 
 from .._io import write_atomic
 from .common import _atomic_savefig, _Fail, _Parser
-from .fleet import _cluster_options
+from .fleet import _cluster_options, _progress
 from .track import _CONTROLLERS, _REFERENCES, _TRACK_MAX_SAMPLES, _build_controller
 
 #: Most Monte-Carlo samples of one command (their factors and metrics are held in memory).
@@ -81,7 +81,7 @@ def _robustness_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
 
 
 def _robustness(args: argparse.Namespace) -> int:
-    from ..fleet import Progress, RobustnessProblem, parse_perturbations, plan, robustness, runner
+    from ..fleet import RobustnessProblem, parse_perturbations, plan, robustness, runner
     from ..plant.stage import Stage, virtual_stage
     from ..signals import references as refs
 
@@ -121,7 +121,7 @@ def _robustness(args: argparse.Namespace) -> int:
         if t.exists() and not args.force:
             raise _Fail(f"'{t}' exists; pass --force to overwrite it")
     prog = "piezohyst robustness"
-    progress = Progress(prog, "chunks", mode=args.progress)
+    progress = _progress(args, prog, 1, "chunks")  # the runner sets the count of chunks
     with runner(cluster) as run:  # a local cluster starts in the background meanwhile
         controller = _build_controller(args.controller, stage, args.model)
         problem = RobustnessProblem(stage, controller, ref, skip, perturbations, args.seed)

@@ -12,8 +12,9 @@ the quantized reading).
 
 from __future__ import annotations
 
+import inspect
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, Protocol, TypeAlias, TypeVar, cast
 
@@ -50,6 +51,39 @@ IlcSpec: TypeAlias = tuple[int, float, float, int, int]
 CoreSpec: TypeAlias = tuple[str, FloatArray, InverseSpec | None, IlcSpec | None]
 
 _C = TypeVar("_C", bound="ControllerLike")
+
+
+#: The description every controller's ``core`` shares (:func:`_core_doc` puts it ahead of
+#: each one's own examples): the contract of :class:`DomainController` written once.
+_CORE_DOC = """The controller as the Rust core runs it on ``stage``: ``(kind, params, inverse,
+ilc)``, the flat parameters in the order of the core's layout table
+(``piezohyst.export.CONTROLLER_PARAMS``), validated.
+
+Parameters
+----------
+stage : Stage
+    The plant: sample time, sensor delay, amplifier limits (and the static gain where
+    a default depends on it).
+limits : (float, float), optional
+    Output limits when the controller acts behind an inverse model (metres); by
+    default the amplifier's, in volts.
+
+Returns
+-------
+tuple
+    ``(kind, params, inverse, ilc)``: the kind's name, the parameter array, the
+    inverse model's ``(family, dims, row, u_min, u_max)`` or ``None``, the ILC settings
+    or ``None``.
+"""
+
+_M = TypeVar("_M", bound=Callable[..., Any])
+
+
+def _core_doc(method: _M) -> _M:
+    """A controller's ``core`` with the shared description (:data:`_CORE_DOC`) ahead of its own
+    docstring, which holds its examples only."""
+    method.__doc__ = _CORE_DOC + "\n" + inspect.cleandoc(method.__doc__ or "")
+    return method
 
 
 class PackedController(Protocol):
@@ -299,28 +333,9 @@ class OpenLoop:
         """Whether the step reads the reference's velocity and acceleration (``c1`` or ``c2`` set)."""
         return self.c1 != 0 or self.c2 != 0
 
+    @_core_doc
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
-        """The controller as the Rust core runs it on ``stage``: ``(kind, params, inverse,
-        ilc)``, the flat parameters in the order of the core's layout table
-        (``piezohyst.export.CONTROLLER_PARAMS``), validated.
-
-        Parameters
-        ----------
-        stage : Stage
-            The plant: sample time, sensor delay, amplifier limits (and the static gain where
-            a default depends on it).
-        limits : (float, float), optional
-            Output limits when the controller acts behind an inverse model (metres); by
-            default the amplifier's, in volts.
-
-        Returns
-        -------
-        tuple
-            ``(kind, params, inverse, ilc)``: the kind's name, the parameter array, the
-            inverse model's ``(family, dims, row, u_min, u_max)`` or ``None``, the ILC settings
-            or ``None``.
-
-        Examples
+        """Examples
         --------
         >>> from piezohyst import OpenLoop, virtual_stage
         >>> OpenLoop(gain=7e6, c1=1e-4).core(virtual_stage())[1].tolist()
@@ -493,28 +508,9 @@ class PID:
         as_scalar(self.offset, "offset")
         _check_limits(self.u_min, self.u_max)
 
+    @_core_doc
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
-        """The controller as the Rust core runs it on ``stage``: ``(kind, params, inverse,
-        ilc)``, the flat parameters in the order of the core's layout table
-        (``piezohyst.export.CONTROLLER_PARAMS``), validated.
-
-        Parameters
-        ----------
-        stage : Stage
-            The plant: sample time, sensor delay, amplifier limits (and the static gain where
-            a default depends on it).
-        limits : (float, float), optional
-            Output limits when the controller acts behind an inverse model (metres); by
-            default the amplifier's, in volts.
-
-        Returns
-        -------
-        tuple
-            ``(kind, params, inverse, ilc)``: the kind's name, the parameter array, the
-            inverse model's ``(family, dims, row, u_min, u_max)`` or ``None``, the ILC settings
-            or ``None``.
-
-        Examples
+        """Examples
         --------
         >>> from piezohyst import PID, virtual_stage
         >>> kind, params, inverse, ilc = PID(kp=1e6, ki=5e9).core(virtual_stage())
@@ -813,23 +809,9 @@ class FilteredPID:
             dq = IDENTITY
         return ffq, nq, dq
 
+    @_core_doc
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
-        """The controller as the Rust core runs it on ``stage`` (kind ``filtered_pid``): the
-        filters discretized for the stage's sample time, validated; as :meth:`PID.core`.
-
-        Parameters
-        ----------
-        stage : Stage
-            The plant: sample time, sensor delay, amplifier limits, static gain.
-        limits : (float, float), optional
-            Output limits when the controller acts behind an inverse model (metres).
-
-        Returns
-        -------
-        tuple
-            ``(kind, params, inverse, ilc)``.
-
-        Examples
+        """Examples
         --------
         >>> from piezohyst import FilteredPID, virtual_stage
         >>> kind, params, inverse, ilc = FilteredPID(kp=4e4, ki=1.4e10).core(virtual_stage())
@@ -1229,28 +1211,9 @@ class SMC:
             return 1.0
         return max(1.0, ts / as_scalar(self.tuned_sample_time, "tuned_sample_time", positive=True))
 
+    @_core_doc
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
-        """The controller as the Rust core runs it on ``stage``: ``(kind, params, inverse,
-        ilc)``, the flat parameters in the order of the core's layout table
-        (``piezohyst.export.CONTROLLER_PARAMS``), validated.
-
-        Parameters
-        ----------
-        stage : Stage
-            The plant: sample time, sensor delay, amplifier limits (and the static gain where
-            a default depends on it).
-        limits : (float, float), optional
-            Output limits when the controller acts behind an inverse model (metres); by
-            default the amplifier's, in volts.
-
-        Returns
-        -------
-        tuple
-            ``(kind, params, inverse, ilc)``: the kind's name, the parameter array, the
-            inverse model's ``(family, dims, row, u_min, u_max)`` or ``None``, the ILC settings
-            or ``None``.
-
-        Examples
+        """Examples
         --------
         >>> from piezohyst import SMC, virtual_stage
         >>> stage = virtual_stage()
@@ -1448,28 +1411,9 @@ class ABSMC:
         z = as_scalar(damping_ratio, "damping_ratio", nonnegative=True)
         return cls(b=w * w, theta=(w * w, 2 * z * w), **kw)
 
+    @_core_doc
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
-        """The controller as the Rust core runs it on ``stage``: ``(kind, params, inverse,
-        ilc)``, the flat parameters in the order of the core's layout table
-        (``piezohyst.export.CONTROLLER_PARAMS``), validated.
-
-        Parameters
-        ----------
-        stage : Stage
-            The plant: sample time, sensor delay, amplifier limits (and the static gain where
-            a default depends on it).
-        limits : (float, float), optional
-            Output limits when the controller acts behind an inverse model (metres); by
-            default the amplifier's, in volts.
-
-        Returns
-        -------
-        tuple
-            ``(kind, params, inverse, ilc)``: the kind's name, the parameter array, the
-            inverse model's ``(family, dims, row, u_min, u_max)`` or ``None``, the ILC settings
-            or ``None``.
-
-        Examples
+        """Examples
         --------
         >>> from piezohyst import ABSMC, virtual_stage
         >>> stage = virtual_stage()
@@ -1562,28 +1506,9 @@ class CemfFeedforward:
         _stage_parameters(self.model)
         _check_limits(self.u_min, self.u_max)
 
+    @_core_doc
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
-        """The controller as the Rust core runs it on ``stage``: ``(kind, params, inverse,
-        ilc)``, the flat parameters in the order of the core's layout table
-        (``piezohyst.export.CONTROLLER_PARAMS``), validated.
-
-        Parameters
-        ----------
-        stage : Stage
-            The plant: sample time, sensor delay, amplifier limits (and the static gain where
-            a default depends on it).
-        limits : (float, float), optional
-            Output limits when the controller acts behind an inverse model (metres); by
-            default the amplifier's, in volts.
-
-        Returns
-        -------
-        tuple
-            ``(kind, params, inverse, ilc)``: the kind's name, the parameter array, the
-            inverse model's ``(family, dims, row, u_min, u_max)`` or ``None``, the ILC settings
-            or ``None``.
-
-        Examples
+        """Examples
         --------
         >>> from piezohyst import CemfFeedforward, virtual_stage
         >>> stage = virtual_stage()
@@ -1659,28 +1584,9 @@ class Compensated:
         """Whether the inner controller reads the reference's derivatives."""
         return bool(getattr(self.inner, "uses_reference_derivatives", True))
 
+    @_core_doc
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
-        """The controller as the Rust core runs it on ``stage``: ``(kind, params, inverse,
-        ilc)``, the flat parameters in the order of the core's layout table
-        (``piezohyst.export.CONTROLLER_PARAMS``), validated.
-
-        Parameters
-        ----------
-        stage : Stage
-            The plant: sample time, sensor delay, amplifier limits (and the static gain where
-            a default depends on it).
-        limits : (float, float), optional
-            Output limits when the controller acts behind an inverse model (metres); by
-            default the amplifier's, in volts.
-
-        Returns
-        -------
-        tuple
-            ``(kind, params, inverse, ilc)``: the kind's name, the parameter array, the
-            inverse model's ``(family, dims, row, u_min, u_max)`` or ``None``, the ILC settings
-            or ``None``.
-
-        Examples
+        """Examples
         --------
         >>> import piezohyst as ph
         >>> model = ph.PI([20.0, 50.0], [2e-8, 1e-8], p0=1e-7)
@@ -1742,28 +1648,9 @@ class InverseFeedforward:
         """Whether the step reads the reference's derivatives (``c1`` or ``c2`` set)."""
         return self.c1 != 0 or self.c2 != 0
 
+    @_core_doc
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
-        """The controller as the Rust core runs it on ``stage``: ``(kind, params, inverse,
-        ilc)``, the flat parameters in the order of the core's layout table
-        (``piezohyst.export.CONTROLLER_PARAMS``), validated.
-
-        Parameters
-        ----------
-        stage : Stage
-            The plant: sample time, sensor delay, amplifier limits (and the static gain where
-            a default depends on it).
-        limits : (float, float), optional
-            Output limits when the controller acts behind an inverse model (metres); by
-            default the amplifier's, in volts.
-
-        Returns
-        -------
-        tuple
-            ``(kind, params, inverse, ilc)``: the kind's name, the parameter array, the
-            inverse model's ``(family, dims, row, u_min, u_max)`` or ``None``, the ILC settings
-            or ``None``.
-
-        Examples
+        """Examples
         --------
         >>> import piezohyst as ph
         >>> model = ph.PI([20.0, 50.0], [2e-8, 1e-8], p0=1e-7)
@@ -1877,28 +1764,9 @@ class ILC:
             )
         return cls(inner, period=round(n), **kw)
 
+    @_core_doc
     def core(self, stage: Stage, *, limits: Limits | None = None) -> CoreSpec:
-        """The controller as the Rust core runs it on ``stage``: ``(kind, params, inverse,
-        ilc)``, the flat parameters in the order of the core's layout table
-        (``piezohyst.export.CONTROLLER_PARAMS``), validated.
-
-        Parameters
-        ----------
-        stage : Stage
-            The plant: sample time, sensor delay, amplifier limits (and the static gain where
-            a default depends on it).
-        limits : (float, float), optional
-            Output limits when the controller acts behind an inverse model (metres); by
-            default the amplifier's, in volts.
-
-        Returns
-        -------
-        tuple
-            ``(kind, params, inverse, ilc)``: the kind's name, the parameter array, the
-            inverse model's ``(family, dims, row, u_min, u_max)`` or ``None``, the ILC settings
-            or ``None``.
-
-        Examples
+        """Examples
         --------
         >>> import piezohyst as ph
         >>> ph.ILC(ph.PID(kp=1e6), period=100).core(ph.virtual_stage())[0]

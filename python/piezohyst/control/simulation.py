@@ -17,7 +17,7 @@ from .. import _core
 from .._validate import as_record
 from ..errors import ParameterError, ParameterTypeError
 from ..signals.metrics import tracking_metrics
-from ..signals.response import Response
+from ..signals.response import MatSignals, Response
 from ..signals.results import require_pandas
 from .controllers import check_sample_rate, is_controller
 
@@ -196,17 +196,8 @@ class ClosedLoopResult(Response):
         }
 
     @classmethod
-    def _from_mat_fields(
-        cls,
-        time: FloatArray,
-        signals: dict[str, FloatArray],
-        inputs: list[str],
-        units: dict[str, str],
-        final_state: FloatArray | None,
-        title: str,
-        extra: dict[str, Any],
-    ) -> Self:
-        s = signals
+    def _from_mat_fields(cls, f: MatSignals) -> Self:
+        s, final_state, extra = f.signals, f.final_state, f.extra
         terms = {str(k): s[f"term_{k}"] for k in extra["terms"]}
         state = np.zeros(0) if final_state is None else final_state
         return cls(

@@ -5,18 +5,19 @@ robustness, on an embedded ``LocalCluster`` (the default), an existing cluster
 - :mod:`~piezohyst.fleet.cluster`: the thread plan (workers × Rust threads = the cores) and the
   :class:`Runner` that yields each task's :class:`Outcome` as it completes (a failing task is its
   outcome, not the run's end; a task on a worker that dies is run again by Dask);
-- :mod:`~piezohyst.fleet.progress`: progress on stderr (Dask's bar on a terminal, plain lines elsewhere);
 - :mod:`~piezohyst.fleet.summary`: robust z-scores and outlier flags, the summary table (CSV and
   Parquet), the parameter-distribution figure;
 - :mod:`~piezohyst.fleet.robustness`: perturbations of the stage, per-sample seeds, chunks batched
   in the Rust core, percentiles, worst cases and figures.
+
+Progress of a run is :class:`piezohyst.progress.Progress` (Dask's bar on a terminal, plain lines
+elsewhere, silent with ``--quiet``), the package's one home for progress.
 
 The command line's ``piezohyst fleet identify`` and ``piezohyst robustness`` drive them
 (``docs/scale_out.md`` gives the scaling model and measured numbers).
 """
 
 from .cluster import ClusterPlan, Outcome, Runner, plan, runner, usable_cores
-from .progress import Progress
 from .robustness import (
     PARAMETERS,
     Perturbation,
@@ -35,7 +36,6 @@ __all__ = [
     "ClusterPlan",
     "Outcome",
     "Perturbation",
-    "Progress",
     "RobustnessProblem",
     "RobustnessResult",
     "Runner",

@@ -21,19 +21,30 @@ import itertools
 import logging
 import os
 import secrets
-import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from ..errors import ParameterError
-from .progress import Progress
+from ..progress import Progress
 
 __all__ = ["ClusterPlan", "Outcome", "Runner", "plan", "runner", "usable_cores"]
 
 
 def usable_cores() -> int:
-    """The cores this process may run on (its CPU affinity), at least 1."""
+    """The cores this process may run on (its CPU affinity), at least 1.
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> import os
+    >>> from piezohyst.fleet import usable_cores
+    >>> 1 <= usable_cores() <= (os.cpu_count() or 1)
+    True
+    """
     try:
         return max(1, len(os.sched_getaffinity(0)))
     except (AttributeError, OSError):  # pragma: no cover - not Linux
@@ -61,6 +72,21 @@ class ClusterPlan:
     ``LocalCluster``) or a ``tcp://`` / ``tls://`` address of a running ``dask scheduler``.
     ``workers``: local worker processes (1 for serial, ``None`` for an existing cluster: its own).
     ``rust_threads``: ``RAYON_NUM_THREADS`` given to each local worker (``None``: the workers' own).
+
+    Parameters
+    ----------
+    scheduler : str
+        ``"serial"``, ``"local"`` or a scheduler's address.
+    workers : int or None
+        Worker processes of a local cluster (1 for serial, None for an existing cluster).
+    rust_threads : int or None
+        Rust threads per worker (None: the existing cluster's own setting).
+
+    Examples
+    --------
+    >>> from piezohyst.fleet import plan
+    >>> plan("local", 2, cores=2, env={})
+    ClusterPlan(scheduler='local', workers=2, rust_threads=1)
     """
 
     scheduler: str
@@ -68,6 +94,20 @@ class ClusterPlan:
     rust_threads: int | None
 
     def describe(self) -> str:
+        """Where the tasks run, in words (the CLI's summary line and ``cluster`` JSON field).
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> from piezohyst.fleet import plan
+        >>> plan("local", 2, cores=2, env={}).describe()
+        'local cluster of 2 worker process(es) x 1 Rust thread(s)'
+        >>> plan("tcp://10.0.0.5:8786").describe()
+        'cluster at tcp://10.0.0.5:8786'
+        """
         if self.scheduler == "serial":
             return f"serial (this process, {self.rust_threads} Rust thread(s))"
         if self.scheduler == "local":
@@ -83,6 +123,28 @@ def plan(
     env: dict[str, str] | None = None,
 ) -> ClusterPlan:
     """The cluster to use and its thread plan (see the module's docstring).
+
+    Parameters
+    ----------
+    scheduler : str, optional
+        ``"local"`` (default: an embedded ``LocalCluster``), ``"serial"`` (this process) or the
+        ``tcp://HOST:PORT`` address of a running ``dask scheduler``.
+    workers : int, optional
+        Local worker processes (default: the cores); not for ``serial`` (1) nor an address.
+    cores : int, optional
+        The cores to plan for (default: :func:`usable_cores`).
+    env : dict, optional
+        The environment to read ``RAYON_NUM_THREADS`` from (default ``os.environ``): when set,
+        it is each worker's Rust threads.
+
+    Returns
+    -------
+    ClusterPlan
+
+    Raises
+    ------
+    ParameterError
+        A bad scheduler, worker count or ``RAYON_NUM_THREADS``.
 
     Examples
     --------
@@ -119,7 +181,23 @@ def plan(
 
 @dataclass(frozen=True)
 class Outcome:
-    """One task's end: its key and either its ``value`` or the ``error`` (one line) that ended it."""
+    """One task's end: its key and either its ``value`` or the ``error`` (one line) that ended it.
+
+    Parameters
+    ----------
+    key : str
+        The task's key, as given to :meth:`Runner.run`.
+    value : object, optional
+        What the task returned.
+    error : str, optional
+        ``"ExceptionType: message"`` when the task raised.
+
+    Examples
+    --------
+    >>> from piezohyst.fleet import Outcome
+    >>> Outcome("t1", 42).error is None, Outcome("t2", error="ValueError: bad").value
+    (True, None)
+    """
 
     key: str
     value: Any = None
@@ -131,6 +209,21 @@ class Runner:
 
     ``broadcast(obj)`` gives a handle to pass in the tasks' arguments instead of ``obj`` (sent to
     each worker once). A task that raises ends as an ``Outcome`` with ``error``; the others run on.
+
+    This class runs the tasks in this process, one after the other (``--scheduler serial``);
+    :func:`runner` gives the one of a plan (a Dask cluster's for ``local`` and addresses).
+
+    Parameters
+    ----------
+    plan : ClusterPlan
+        The plan it runs (``serial`` for this class itself).
+
+    Examples
+    --------
+    >>> from piezohyst.fleet import Runner, plan
+    >>> run = Runner(plan("serial", env={}))
+    >>> [(o.key, o.value) for o in run.run(divmod, [("a", (7, 2)), ("b", (9, 3))])]
+    [('a', (3, 1)), ('b', (3, 0))]
     """
 
     plan: ClusterPlan
@@ -144,12 +237,59 @@ class Runner:
         return 1
 
     def broadcast(self, obj: Any) -> Any:
+        """A handle for ``obj`` to pass in the tasks' arguments: on a cluster it is sent to each
+        worker once (not with every task); in this process it is ``obj`` itself.
+
+        Parameters
+        ----------
+        obj : object
+            A (picklable) object many tasks take, such as a robustness problem.
+
+        Returns
+        -------
+        object
+            What to pass to the tasks instead of ``obj``.
+
+        Examples
+        --------
+        >>> from piezohyst.fleet import Runner, plan
+        >>> run = Runner(plan("serial", env={}))
+        >>> table = {"a": 1}
+        >>> run.broadcast(table) is table
+        True
+        """
         return obj
 
     def run(
         self, fn: Callable[..., Any], tasks: Sequence[tuple[str, tuple[Any, ...]]], progress: Progress | None = None
     ) -> Iterator[Outcome]:
-        start = time.perf_counter()
+        """Run ``fn(*args)`` for each ``(key, args)`` of ``tasks``; yield each :class:`Outcome`
+        as it completes (any order on a cluster, in order here).
+
+        Parameters
+        ----------
+        fn : callable
+            The task (a module-level function: a cluster pickles it by name).
+        tasks : sequence of (str, tuple)
+            Each task's key and arguments.
+        progress : piezohyst.progress.Progress, optional
+            The display to update (its total is set to the number of tasks).
+
+        Yields
+        ------
+        Outcome
+            Each task's value, or its error (the other tasks run on).
+
+        Examples
+        --------
+        >>> import math
+        >>> from piezohyst.fleet import Runner, plan
+        >>> outs = Runner(plan("serial", env={})).run(math.sqrt, [("ok", (4.0,)), ("bad", (-1.0,))])
+        >>> [(o.key, o.value, o.error) for o in outs]
+        [('ok', 2.0, None), ('bad', None, 'ValueError: math domain error')]
+        """
+        if progress is not None:
+            progress.reset(len(tasks))
         done = 0
         for key, args in tasks:
             try:
@@ -158,10 +298,10 @@ class Runner:
                 out = Outcome(key, error=_one_line(e))
             done += 1
             if progress is not None:
-                progress.update(done, len(tasks), time.perf_counter() - start)
+                progress.update(done)
             yield out
         if progress is not None:
-            progress.close(done, len(tasks), time.perf_counter() - start)
+            progress.close()
 
 
 def _one_line(e: BaseException) -> str:
@@ -203,9 +343,10 @@ class _DaskRunner(Runner):
             self.client.submit(fn, *args, key=f"{key}-{self._run_id}-{batch}-{i}", pure=False): key
             for i, (key, args) in enumerate(tasks)
         }
-        start = time.perf_counter()
+        hold = False  # release each future once its result is here, unless Dask's bar follows them
         if progress is not None:
-            progress.attach(self.client, list(futures))
+            progress.reset(len(tasks))
+            hold = progress.follow_dask(self.client, list(futures))
         done = 0
         try:
             for f in as_completed(list(futures)):  # type: ignore[no-untyped-call]
@@ -217,17 +358,18 @@ class _DaskRunner(Runner):
                     out = Outcome(key, error="cancelled")
                 else:
                     out = Outcome(key, f.result())
-                f.release()
+                if not hold:
+                    f.release()
                 done += 1
                 if progress is not None:
-                    progress.update(done, len(tasks), time.perf_counter() - start)
+                    progress.update(done)
                 yield out
         finally:
             pending = [f for f in futures if not f.done()]
             if pending:
                 self.client.cancel(pending)
             if progress is not None:
-                progress.close(done, len(tasks), time.perf_counter() - start)
+                progress.close()
 
 
 #: Modules every local worker starts with (imported once by the fork server, see :func:`runner`):
@@ -259,7 +401,32 @@ def runner(cluster: ClusterPlan, preload: Sequence[str] = ()) -> Iterator[Runner
     workers and all) or a client of an existing scheduler (the cluster is left running).
 
     A local cluster's workers start from a fork server that has imported :data:`PRELOAD` and
-    ``preload`` (the modules of the tasks to come)."""
+    ``preload`` (the modules of the tasks to come).
+
+    Parameters
+    ----------
+    cluster : ClusterPlan
+        Where the tasks run (:func:`plan`).
+    preload : sequence of str, optional
+        Modules a local cluster's workers import before their first task.
+
+    Yields
+    ------
+    Runner
+        The runner; a local cluster starts in the background and its first use waits for it.
+
+    Raises
+    ------
+    ParameterError
+        No scheduler answers at the address, or no worker joins it within 60 s.
+
+    Examples
+    --------
+    >>> from piezohyst.fleet import plan, runner
+    >>> with runner(plan("serial", env={})) as run:
+    ...     [o.value for o in run.run(pow, [("a", (2, 10))])]
+    [1024]
+    """
     if cluster.scheduler == "serial":
         yield Runner(cluster)
         return
@@ -272,7 +439,14 @@ def runner(cluster: ClusterPlan, preload: Sequence[str] = ()) -> Iterator[Runner
             import dask
             from distributed import Client, LocalCluster
 
-            with dask.config.set({"distributed.worker.multiprocessing-method": method}):
+            config = {
+                "distributed.worker.multiprocessing-method": method,
+                # the workers' statistical profiler samples every task's stack 100 times a second:
+                # ~2 % of a fleet task's CPU (median task CPU 0.53 s -> 0.52 s), for a dashboard
+                # the embedded cluster does not show
+                "distributed.worker.profile.enabled": False,
+            }
+            with dask.config.set(config):
                 lc = LocalCluster(  # type: ignore[no-untyped-call]
                     n_workers=cluster.workers,
                     threads_per_worker=1,

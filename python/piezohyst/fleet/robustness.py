@@ -12,6 +12,18 @@ Reproducibility: sample ``i``'s factors and noise seed come from its own generat
 ``SeedSequence(seed).spawn``), and its run depends on nothing else; the chunks are fixed by
 ``chunk``, not by the workers. So the same ``seed`` gives the same result, to the bit, whatever
 the number of workers, threads or the order the chunks finish in.
+
+Examples
+--------
+>>> import numpy as np
+>>> from piezohyst import PID, virtual_stage
+>>> from piezohyst.fleet import RobustnessProblem, Runner, parse_perturbations, plan, robustness
+>>> stage = virtual_stage()
+>>> ref = 8e-6 + 5e-6 * np.sin(2 * np.pi * 25 * np.arange(400) * stage.sample_time)
+>>> problem = RobustnessProblem(stage, PID(kp=2e6, ki=2e9), ref, 100, tuple(parse_perturbations("mass=±10%")), 0)
+>>> res = robustness(problem, 12, Runner(plan("serial", env={})), chunk=5)
+>>> res.samples, bool(res.percentiles()["rmse"]["p99"] < 1e-6)  # 99 % of the parts track within 1 µm RMSE
+(12, True)
 """
 
 from __future__ import annotations
@@ -29,9 +41,9 @@ import numpy.typing as npt
 from ..control.simulation import ControllerLike, closed_loop_batch_stages, closed_loop_perturbed
 from ..errors import ParameterError
 from ..plant.stage import Stage, StageParameters
+from ..progress import Progress
 from ..signals.results import DataclassMatFile, html_table, require_pandas
 from .cluster import Runner
-from .progress import Progress
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -79,7 +91,29 @@ _PHI_M3 = 0.5 * math.erfc(3 / math.sqrt(2))
 
 @dataclass(frozen=True)
 class Perturbation:
-    """``name`` scaled by a random factor around 1 of relative spread ``percent`` / 100."""
+    """``name`` scaled by a random factor around 1 of relative spread ``percent`` / 100.
+
+    Parameters
+    ----------
+    name : str
+        A stage parameter of :data:`PARAMETERS` (``"mass"``, ``"stiffness"``, ...).
+    percent : float
+        The spread in percent: ``uniform`` factors lie in ``[1 - p, 1 + p]`` (``p`` < 100 %),
+        ``normal`` ones have standard deviation ``p`` (< 33.3 %, truncated at ±3 sigma).
+    distribution : {"uniform", "normal"}, optional
+        The factor's distribution (default uniform).
+
+    Examples
+    --------
+    >>> from piezohyst.fleet import Perturbation
+    >>> str(Perturbation("mass", 10.0)), str(Perturbation("tem", 3.0, "normal"))
+    ('mass=±10%', 'tem=±3%:normal')
+    >>> try:
+    ...     Perturbation("mass", 150.0)
+    ... except ValueError as e:  # a ParameterError
+    ...     print(str(e).split(":")[1].strip())
+    the spread must be > 0 and < 100 % for a uniform factor (the parameter must keep its sign)
+    """
 
     name: str
     percent: float
@@ -112,6 +146,17 @@ _ITEM = re.compile(r"^\s*([A-Za-z_]+)\s*=\s*(?:±|\+-|\+/-)?\s*([0-9.eE+-]+)\s*%
 def parse_perturbations(text: str) -> list[Perturbation]:
     """``"mass=±10%,stiffness=+-5%,tem=±3%:normal"`` as perturbations (``±``, ``+-`` or
     nothing before the percentage; ``:uniform`` (default) or ``:normal`` after it).
+
+    Parameters
+    ----------
+    text : str
+        Comma-separated ``NAME=±P%`` items (the CLI's ``--perturb``); ``alpha``, ``beta``,
+        ``gamma`` and ``creep`` name ``hyst_alpha``, ``hyst_beta``, ``hyst_gamma`` and
+        ``creep_weights``.
+
+    Returns
+    -------
+    list of Perturbation
 
     Examples
     --------
@@ -146,7 +191,34 @@ def parse_perturbations(text: str) -> list[Perturbation]:
 def draw(perturbations: Sequence[Perturbation], seed: int, start: int, stop: int) -> tuple[FloatArray, np.ndarray]:
     """Samples ``start..stop``: their factors ``(n, P)`` and their sensor-noise seeds ``(n,)``
     (uint64). Sample ``i`` draws from ``SeedSequence(seed, spawn_key=(i,))`` only: ``P`` uniform
-    numbers (mapped to each perturbation's distribution), then its noise seed."""
+    numbers (mapped to each perturbation's distribution), then its noise seed.
+
+    Parameters
+    ----------
+    perturbations : sequence of Perturbation
+        The ``P`` perturbed parameters (the factors' columns).
+    seed : int
+        The run's seed.
+    start, stop : int
+        The samples ``start..stop`` (``stop`` excluded).
+
+    Returns
+    -------
+    factors : numpy.ndarray
+        ``(stop - start, P)`` factors around 1.
+    seeds : numpy.ndarray
+        ``(stop - start,)`` uint64 sensor-noise seeds.
+
+    Examples
+    --------
+    >>> from piezohyst.fleet import draw, parse_perturbations
+    >>> kinds = parse_perturbations("mass=±10%,stiffness=±10%")
+    >>> factors, seeds = draw(kinds, 0, 0, 3)
+    >>> factors.round(4).tolist(), seeds.dtype.name
+    ([[1.0886, 0.9633], [1.0354, 0.9486], [1.0677, 0.9167]], 'uint64')
+    >>> bool((draw(kinds, 0, 2, 3)[0] == factors[2]).all())  # a sample draws the same alone
+    True
+    """
     n, k = stop - start, len(perturbations)
     u = np.empty((n, k))
     seeds = np.empty(n, dtype=np.uint64)
@@ -169,7 +241,35 @@ def draw(perturbations: Sequence[Perturbation], seed: int, start: int, stop: int
 @dataclass(frozen=True)
 class RobustnessProblem:
     """Everything a chunk needs (pickled once per worker): the nominal stage, the controller
-    packed for it, the reference, the samples left out of the metrics, the perturbations and the seed."""
+    packed for it, the reference, the samples left out of the metrics, the perturbations and the seed.
+
+    Parameters
+    ----------
+    stage : Stage
+        The nominal stage (each part scales some of its parameters).
+    controller : controller
+        The controller, designed for the nominal stage (PID, SMC, ...).
+    reference : numpy.ndarray
+        The position reference, m, one value per sample at the stage's rate.
+    skip : int
+        Leading samples left out of the metrics (the transient).
+    perturbations : tuple of Perturbation
+        The perturbed parameters.
+    seed : int
+        The seed of every sample's factors and sensor noise.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst import PID, virtual_stage
+    >>> from piezohyst.fleet import RobustnessProblem, Runner, parse_perturbations, plan, robustness
+    >>> stage = virtual_stage()
+    >>> ref = 8e-6 + 5e-6 * np.sin(2 * np.pi * 25 * np.arange(400) * stage.sample_time)
+    >>> kinds = tuple(parse_perturbations("mass=±10%,stiffness=±10%"))
+    >>> problem = RobustnessProblem(stage, PID(kp=2e6, ki=2e9), ref, 100, kinds, 0)
+    >>> problem.reference.size, [p.name for p in problem.perturbations]
+    (400, ['mass', 'stiffness'])
+    """
 
     stage: Stage
     controller: ControllerLike
@@ -179,7 +279,31 @@ class RobustnessProblem:
     seed: int
 
     def rows(self, factors: FloatArray) -> FloatArray:
-        """The stage parameter rows of parts with these factors."""
+        """The stage parameter rows of parts with these factors.
+
+        Parameters
+        ----------
+        factors : numpy.ndarray
+            ``(n, P)`` factors, one column per perturbation.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n, len(stage.core_params()))``: the Rust core's parameter row of each part.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst import PID, virtual_stage
+        >>> from piezohyst.fleet import RobustnessProblem, Runner, parse_perturbations, plan, robustness
+        >>> stage = virtual_stage()
+        >>> ref = 8e-6 + 5e-6 * np.sin(2 * np.pi * 25 * np.arange(400) * stage.sample_time)
+        >>> kinds = tuple(parse_perturbations("mass=±10%,stiffness=±10%"))
+        >>> problem = RobustnessProblem(stage, PID(kp=2e6, ki=2e9), ref, 100, kinds, 0)
+        >>> rows = problem.rows(np.array([[1.1, 1.0], [1.0, 0.9]]))
+        >>> rows.shape, float(rows[0, 0] / stage.core_params()[0]), float(rows[1, 2] / stage.core_params()[2])
+        ((2, 31), 1.1, 0.9)
+        """
         base = self.stage.core_params()
         rows = np.tile(base, (factors.shape[0], 1))
         for c, p in enumerate(self.perturbations):
@@ -188,7 +312,30 @@ class RobustnessProblem:
         return rows
 
     def part(self, factors: Sequence[float]) -> StageParameters:
-        """The stage parameters of one part."""
+        """The stage parameters of one part.
+
+        Parameters
+        ----------
+        factors : sequence of float
+            One factor per perturbation.
+
+        Returns
+        -------
+        StageParameters
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst import PID, virtual_stage
+        >>> from piezohyst.fleet import RobustnessProblem, Runner, parse_perturbations, plan, robustness
+        >>> stage = virtual_stage()
+        >>> ref = 8e-6 + 5e-6 * np.sin(2 * np.pi * 25 * np.arange(400) * stage.sample_time)
+        >>> kinds = tuple(parse_perturbations("mass=±10%,stiffness=±10%"))
+        >>> problem = RobustnessProblem(stage, PID(kp=2e6, ki=2e9), ref, 100, kinds, 0)
+        >>> part = problem.part([1.1, 1.0])
+        >>> round(part.mass / stage.params.mass, 12), part.stiffness == stage.params.stiffness
+        (1.1, True)
+        """
         changes: dict[str, Any] = {}
         sp = self.stage.params
         for p, f in zip(self.perturbations, factors, strict=True):
@@ -209,7 +356,34 @@ class Chunk:
 
 
 def run_chunk(problem: RobustnessProblem, start: int, stop: int) -> Chunk:
-    """Samples ``start..stop`` of ``problem``: drawn, then run in one batched call of the Rust core."""
+    """Samples ``start..stop`` of ``problem``: drawn, then run in one batched call of the Rust core.
+
+    Parameters
+    ----------
+    problem : RobustnessProblem
+        What to run.
+    start, stop : int
+        The samples ``start..stop`` (``stop`` excluded).
+
+    Returns
+    -------
+    Chunk
+        ``start``, the factors, noise seeds and ``[rmse, max_error, saturated_fraction]`` rows.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst import PID, virtual_stage
+    >>> from piezohyst.fleet import RobustnessProblem, Runner, parse_perturbations, plan, robustness
+    >>> stage = virtual_stage()
+    >>> ref = 8e-6 + 5e-6 * np.sin(2 * np.pi * 25 * np.arange(400) * stage.sample_time)
+    >>> kinds = tuple(parse_perturbations("mass=±10%,stiffness=±10%"))
+    >>> problem = RobustnessProblem(stage, PID(kp=2e6, ki=2e9), ref, 100, kinds, 0)
+    >>> from piezohyst.fleet import run_chunk
+    >>> chunk = run_chunk(problem, 4, 8)
+    >>> chunk.start, chunk.metrics.shape, bool(chunk.metrics[:, 0].max() < 1e-6)  # RMSE < 1 µm
+    (4, (4, 3), True)
+    """
     factors, seeds = draw(problem.perturbations, problem.seed, start, stop)
     m = closed_loop_batch_stages(
         problem.stage, problem.controller, problem.reference, problem.rows(factors), seeds, skip=problem.skip
@@ -228,6 +402,36 @@ class RobustnessResult(DataclassMatFile):
 
     As every result (:mod:`piezohyst.signals.results`): ``to_pandas()`` (one row per part),
     ``plot()``, the notebook display and ``.mat`` files (``to_mat``, ``from_mat``).
+
+    Parameters
+    ----------
+    problem : RobustnessProblem
+        What was run.
+    factors : numpy.ndarray
+        ``(samples, P)`` factors of each part.
+    seeds : numpy.ndarray
+        ``(samples,)`` sensor-noise seeds.
+    metrics : numpy.ndarray
+        ``(samples, 3)``: tracking RMSE and maximum error (m), saturated fraction of the run.
+    nominal : numpy.ndarray
+        The nominal stage's ``[rmse, max_error, saturated_fraction]``.
+    wall_time : float
+        Seconds the run took.
+    errors : tuple of str, optional
+        The chunks that failed, with their error (their samples are NaN).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst import PID, virtual_stage
+    >>> from piezohyst.fleet import RobustnessProblem, Runner, parse_perturbations, plan, robustness
+    >>> stage = virtual_stage()
+    >>> ref = 8e-6 + 5e-6 * np.sin(2 * np.pi * 25 * np.arange(400) * stage.sample_time)
+    >>> kinds = tuple(parse_perturbations("mass=±10%,stiffness=±10%"))
+    >>> problem = RobustnessProblem(stage, PID(kp=2e6, ki=2e9), ref, 100, kinds, 0)
+    >>> res = robustness(problem, 16, Runner(plan("serial", env={})), chunk=8)
+    >>> res.samples, res.names, res.errors
+    (16, ['mass', 'stiffness'], ())
     """
 
     problem: RobustnessProblem
@@ -240,15 +444,35 @@ class RobustnessResult(DataclassMatFile):
 
     @property
     def samples(self) -> int:
+        """The number of Monte-Carlo samples (parts)."""
         return int(self.metrics.shape[0])
 
     @property
     def names(self) -> list[str]:
+        """The perturbed parameters' names, in the factors' column order."""
         return [p.name for p in self.problem.perturbations]
 
     def percentiles(self) -> dict[str, dict[str, float]]:
         """``{"rmse": {"p50": …, "p90": …, "p95": …, "p99": …, "p99.9": …, "max": …, "mean": …},
-        "max_error": {…}}`` in m, over the samples that did not diverge."""
+        "max_error": {…}}`` in m, over the samples that did not diverge.
+
+        Returns
+        -------
+        dict
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst import PID, virtual_stage
+        >>> from piezohyst.fleet import RobustnessProblem, Runner, parse_perturbations, plan, robustness
+        >>> stage = virtual_stage()
+        >>> ref = 8e-6 + 5e-6 * np.sin(2 * np.pi * 25 * np.arange(400) * stage.sample_time)
+        >>> kinds = tuple(parse_perturbations("mass=±10%,stiffness=±10%"))
+        >>> problem = RobustnessProblem(stage, PID(kp=2e6, ki=2e9), ref, 100, kinds, 0)
+        >>> res = robustness(problem, 16, Runner(plan("serial", env={})), chunk=8)
+        >>> {k: round(v * 1e6, 3) for k, v in res.percentiles()["rmse"].items()}  # µm
+        {'p50': 0.341, 'p90': 0.443, 'p95': 0.452, 'p99': 0.456, 'p99.9': 0.457, 'max': 0.457, 'mean': 0.358}
+        """
         out: dict[str, dict[str, float]] = {}
         for j, name in enumerate(("rmse", "max_error")):
             col = self.metrics[:, j]
@@ -262,7 +486,31 @@ class RobustnessResult(DataclassMatFile):
 
     def worst(self, k: int = 5) -> list[dict[str, Any]]:
         """The ``k`` samples of largest RMSE (diverged first): index, noise seed, metrics, each
-        perturbed parameter's factor and value."""
+        perturbed parameter's factor and value.
+
+        Parameters
+        ----------
+        k : int, optional
+            How many samples (default 5).
+
+        Returns
+        -------
+        list of dict
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst import PID, virtual_stage
+        >>> from piezohyst.fleet import RobustnessProblem, Runner, parse_perturbations, plan, robustness
+        >>> stage = virtual_stage()
+        >>> ref = 8e-6 + 5e-6 * np.sin(2 * np.pi * 25 * np.arange(400) * stage.sample_time)
+        >>> kinds = tuple(parse_perturbations("mass=±10%,stiffness=±10%"))
+        >>> problem = RobustnessProblem(stage, PID(kp=2e6, ki=2e9), ref, 100, kinds, 0)
+        >>> res = robustness(problem, 16, Runner(plan("serial", env={})), chunk=8)
+        >>> w = res.worst(1)[0]
+        >>> w["sample"], round(w["rmse"] * 1e6, 3), round(w["parameters"]["stiffness"]["factor"], 3)
+        (9, 0.457, 1.077)
+        """
         order = np.lexsort((np.arange(self.samples), -np.nan_to_num(self.metrics[:, 0], posinf=np.inf)))[:k]
         sp = self.problem.stage.params
         out = []
@@ -288,7 +536,31 @@ class RobustnessResult(DataclassMatFile):
         """Spearman rank correlation of each factor with the RMSE: which parameter drives the
         error, and which way (a feedback loop: a stiffer part lags more). ``deviation=True``: of
         ``|factor - 1|`` instead, for an error that grows both ways off nominal (a feedforward
-        inverse: any gain mismatch), where the plain correlation is near 0."""
+        inverse: any gain mismatch), where the plain correlation is near 0.
+
+        Parameters
+        ----------
+        deviation : bool, optional
+            Correlate ``|factor - 1|`` instead of the factor (default False).
+
+        Returns
+        -------
+        dict of str to float
+            Each perturbed parameter's rank correlation (NaN with fewer than 3 finite runs).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst import PID, virtual_stage
+        >>> from piezohyst.fleet import RobustnessProblem, Runner, parse_perturbations, plan, robustness
+        >>> stage = virtual_stage()
+        >>> ref = 8e-6 + 5e-6 * np.sin(2 * np.pi * 25 * np.arange(400) * stage.sample_time)
+        >>> kinds = tuple(parse_perturbations("mass=±10%,stiffness=±10%"))
+        >>> problem = RobustnessProblem(stage, PID(kp=2e6, ki=2e9), ref, 100, kinds, 0)
+        >>> res = robustness(problem, 16, Runner(plan("serial", env={})), chunk=8)
+        >>> {k: round(v, 2) for k, v in res.sensitivity().items()}  # the stiffness drives the error
+        {'mass': -0.08, 'stiffness': 0.99}
+        """
         from scipy.stats import spearmanr
 
         rmse = self.metrics[:, 0]
@@ -304,6 +576,28 @@ class RobustnessResult(DataclassMatFile):
         return out
 
     def to_dict(self) -> dict[str, Any]:
+        """The result as plain JSON-ready data (``piezohyst robustness --json``): the samples,
+        seed, perturbations, nominal run, percentiles, diverged and saturated runs, sensitivities,
+        worst cases, wall time and failed chunks.
+
+        Returns
+        -------
+        dict
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst import PID, virtual_stage
+        >>> from piezohyst.fleet import RobustnessProblem, Runner, parse_perturbations, plan, robustness
+        >>> stage = virtual_stage()
+        >>> ref = 8e-6 + 5e-6 * np.sin(2 * np.pi * 25 * np.arange(400) * stage.sample_time)
+        >>> kinds = tuple(parse_perturbations("mass=±10%,stiffness=±10%"))
+        >>> problem = RobustnessProblem(stage, PID(kp=2e6, ki=2e9), ref, 100, kinds, 0)
+        >>> res = robustness(problem, 16, Runner(plan("serial", env={})), chunk=8)
+        >>> d = res.to_dict()
+        >>> d["samples"], d["diverged"], d["perturbations"]
+        (16, 0, ['mass=±10%', 'stiffness=±10%'])
+        """
         m = self.metrics
         return {
             "samples": self.samples,
@@ -331,6 +625,25 @@ class RobustnessResult(DataclassMatFile):
         -------
         pandas.DataFrame
             Indexed by ``sample``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst import PID, virtual_stage
+        >>> from piezohyst.fleet import RobustnessProblem, Runner, parse_perturbations, plan, robustness
+        >>> stage = virtual_stage()
+        >>> ref = 8e-6 + 5e-6 * np.sin(2 * np.pi * 25 * np.arange(400) * stage.sample_time)
+        >>> kinds = tuple(parse_perturbations("mass=±10%,stiffness=±10%"))
+        >>> problem = RobustnessProblem(stage, PID(kp=2e6, ki=2e9), ref, 100, kinds, 0)
+        >>> res = robustness(problem, 16, Runner(plan("serial", env={})), chunk=8)
+        >>> try:
+        ...     df = res.to_pandas()
+        ... except ImportError:  # pandas is optional
+        ...     df = None
+        >>> df is None or list(df.columns) == [
+        ...     "factor_mass", "factor_stiffness", "noise_seed", "rmse", "max_error", "saturated_fraction"
+        ... ]
+        True
         """
         pd = require_pandas(type(self).__name__)
         columns: dict[str, Any] = {f"factor_{n}": self.factors[:, j] for j, n in enumerate(self.names)}
@@ -355,14 +668,60 @@ class RobustnessResult(DataclassMatFile):
         return html_table("RobustnessResult", rows)
 
     def replay(self, sample: int) -> ClosedLoopResult:
-        """Sample ``sample`` run again with its signals (for a figure)."""
+        """Sample ``sample`` run again with its signals (for a figure).
+
+        Parameters
+        ----------
+        sample : int
+            The sample's index.
+
+        Returns
+        -------
+        ClosedLoopResult
+            Its reference, command, voltage, position and error over time.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst import PID, virtual_stage
+        >>> from piezohyst.fleet import RobustnessProblem, Runner, parse_perturbations, plan, robustness
+        >>> stage = virtual_stage()
+        >>> ref = 8e-6 + 5e-6 * np.sin(2 * np.pi * 25 * np.arange(400) * stage.sample_time)
+        >>> kinds = tuple(parse_perturbations("mass=±10%,stiffness=±10%"))
+        >>> problem = RobustnessProblem(stage, PID(kp=2e6, ki=2e9), ref, 100, kinds, 0)
+        >>> res = robustness(problem, 16, Runner(plan("serial", env={})), chunk=8)
+        >>> run = res.replay(9)  # the same run: its RMSE after the skipped samples is the metric's
+        >>> bool(np.isclose(np.sqrt(np.mean(run.error[100:] ** 2)), res.metrics[9, 0], rtol=1e-9))
+        True
+        """
         p = self.problem
         row = p.rows(self.factors[sample : sample + 1])[0]
         return closed_loop_perturbed(p.stage, p.controller, p.reference, row, int(self.seeds[sample]), skip=p.skip)
 
     def plot(self) -> Figure:
         """RMSE distribution with its percentiles, RMSE against each perturbed parameter, and the
-        worst part's tracking error beside the nominal stage's."""
+        worst part's tracking error beside the nominal stage's.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst import PID, virtual_stage
+        >>> from piezohyst.fleet import RobustnessProblem, Runner, parse_perturbations, plan, robustness
+        >>> stage = virtual_stage()
+        >>> ref = 8e-6 + 5e-6 * np.sin(2 * np.pi * 25 * np.arange(400) * stage.sample_time)
+        >>> kinds = tuple(parse_perturbations("mass=±10%,stiffness=±10%"))
+        >>> problem = RobustnessProblem(stage, PID(kp=2e6, ki=2e9), ref, 100, kinds, 0)
+        >>> res = robustness(problem, 16, Runner(plan("serial", env={})), chunk=8)
+        >>> import matplotlib
+        >>> matplotlib.use("Agg")
+        >>> fig = res.plot()
+        >>> len(fig.axes)  # the distribution, the worst run, one panel per parameter
+        4
+        """
         import matplotlib.pyplot as plt
 
         k = len(self.names)
@@ -424,7 +783,39 @@ def robustness(
 ) -> RobustnessResult:
     """Run ``samples`` parts of ``problem`` in chunks of ``chunk`` (each a task of ``runner``) and
     collect them in sample order. A chunk that fails is listed in ``errors`` and its samples are
-    NaN; the others are kept."""
+    NaN; the others are kept.
+
+    Parameters
+    ----------
+    problem : RobustnessProblem
+        What to run.
+    samples : int
+        Monte-Carlo samples (parts).
+    runner : Runner
+        Where the chunks run (:func:`piezohyst.fleet.runner`).
+    chunk : int, optional
+        Samples per task (default 500): the result does not depend on it.
+    progress : piezohyst.progress.Progress, optional
+        The run's progress display.
+
+    Returns
+    -------
+    RobustnessResult
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst import PID, virtual_stage
+    >>> from piezohyst.fleet import RobustnessProblem, Runner, parse_perturbations, plan, robustness
+    >>> stage = virtual_stage()
+    >>> ref = 8e-6 + 5e-6 * np.sin(2 * np.pi * 25 * np.arange(400) * stage.sample_time)
+    >>> kinds = tuple(parse_perturbations("mass=±10%,stiffness=±10%"))
+    >>> problem = RobustnessProblem(stage, PID(kp=2e6, ki=2e9), ref, 100, kinds, 0)
+    >>> res = robustness(problem, 16, Runner(plan("serial", env={})), chunk=8)
+    >>> again = robustness(problem, 16, Runner(plan("serial", env={})), chunk=5)  # other chunks
+    >>> bool(np.array_equal(res.metrics, again.metrics))
+    True
+    """
     import time
 
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:

@@ -30,6 +30,16 @@ def robust_z(x: npt.ArrayLike) -> npt.NDArray[np.float64]:
     The median absolute deviation (MAD) is 0 when more than half the values are equal; then a
     value off the median scores ``±inf`` and one on it 0.
 
+    Parameters
+    ----------
+    x : array_like
+        The values (NaN and infinities are left out of the median and the MAD).
+
+    Returns
+    -------
+    numpy.ndarray
+        The score of each value, NaN where the value is not finite.
+
     Examples
     --------
     >>> z = robust_z([1.0, 1.1, 0.9, 1.05, 0.95, 5.0])
@@ -53,7 +63,29 @@ def robust_z(x: npt.ArrayLike) -> npt.NDArray[np.float64]:
 
 def outliers(rows: Sequence[Mapping[str, Any]], columns: Sequence[str], cutoff: float = OUTLIER_Z) -> list[list[str]]:
     """For each row, the columns whose value is an outlier among the rows that have it
-    (``|robust_z| > cutoff``), as ``"name (z = …)"`` strings. Needs 5 values of a column to judge it."""
+    (``|robust_z| > cutoff``), as ``"name (z = …)"`` strings. Needs 5 values of a column to judge it.
+
+    Parameters
+    ----------
+    rows : sequence of mapping
+        The records (a summary row each).
+    columns : sequence of str
+        The columns to judge (a row without a finite number there is not judged on it).
+    cutoff : float, optional
+        The ``|robust z|`` above which a value is an outlier (default :data:`OUTLIER_Z`, 3.5).
+
+    Returns
+    -------
+    list of list of str
+        Each row's flags, in the rows' order.
+
+    Examples
+    --------
+    >>> from piezohyst.fleet import outliers
+    >>> rows = [{"p.a": v} for v in (1.0, 1.1, 0.9, 1.05, 0.95, 5.0)]
+    >>> outliers(rows, ["p.a"])
+    [[], [], [], [], [], ['p.a (z = +35.7)']]
+    """
     flags: list[list[str]] = [[] for _ in rows]
     for col in columns:
         idx = [i for i, r in enumerate(rows) if _finite(r.get(col))]
@@ -72,7 +104,24 @@ def _finite(v: Any) -> bool:
 
 def flatten_parameters(doc: Mapping[str, Any]) -> dict[str, float]:
     """A model file's numbers as flat columns ``p.<name>`` (``p.<name>[i]`` for lists): its
-    ``parameters``, ``output_map``, and a stage file's ``mechanics`` and ``cemf``."""
+    ``parameters``, ``output_map``, and a stage file's ``mechanics`` and ``cemf``.
+
+    Parameters
+    ----------
+    doc : mapping
+        A model (or stage) file's JSON document.
+
+    Returns
+    -------
+    dict of str to float
+        Every number of those sections by its column name (booleans and strings are left out).
+
+    Examples
+    --------
+    >>> from piezohyst.fleet import flatten_parameters
+    >>> flatten_parameters({"kind": "boucwen", "parameters": {"a": 0.8, "n": 1, "weights": [0.5, 0.25]}})
+    {'p.a': 0.8, 'p.n': 1.0, 'p.weights[0]': 0.5, 'p.weights[1]': 0.25}
+    """
     out: dict[str, float] = {}
 
     def add(prefix: str, value: Any) -> None:
@@ -95,7 +144,35 @@ def flatten_parameters(doc: Mapping[str, Any]) -> dict[str, float]:
 
 def write_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[str], csv_path: Path, parquet_path: Path) -> None:
     """The rows as CSV and as Parquet (pyarrow), both written atomically. Columns of numbers stay
-    float64 (missing: empty in CSV, null in Parquet); the others are strings."""
+    float64 (missing: empty in CSV, null in Parquet); the others are strings.
+
+    Parameters
+    ----------
+    rows : sequence of mapping
+        The rows (a missing key or None is a missing value).
+    columns : sequence of str
+        The columns, in order.
+    csv_path : pathlib.Path
+        Where the CSV goes.
+    parquet_path : pathlib.Path
+        Where the Parquet file goes.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import pyarrow.parquet as pq
+    >>> from piezohyst.fleet import write_table
+    >>> rows = [{"record": "part00", "p.a": 0.8}, {"record": "part01", "p.a": None}]
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     write_table(rows, ["record", "p.a"], Path(tmp, "s.csv"), Path(tmp, "s.parquet"))
+    ...     print(Path(tmp, "s.csv").read_text(), end="")
+    ...     pq.read_table(Path(tmp, "s.parquet")).to_pydict()
+    record,p.a
+    part00,0.8
+    part01,
+    {'record': ['part00', 'part01'], 'p.a': [0.8, None]}
+    """
     import pyarrow as pa
     import pyarrow.parquet as pq
 

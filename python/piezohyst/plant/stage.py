@@ -34,7 +34,7 @@ from .._validate import as_int, as_record, as_scalar, as_vector
 from ..errors import ParameterError, ParameterTypeError
 from ..signals.lti import scipy_state_space, state_space
 from ..signals.matfile import load_mat_file, write_mat
-from ..signals.response import Response
+from ..signals.response import MatSignals, Response
 from . import linear
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -457,19 +457,10 @@ class StageResponse(Response):
         )
 
     @classmethod
-    def _from_mat_fields(
-        cls,
-        time: FloatArray,
-        signals: dict[str, FloatArray],
-        inputs: list[str],
-        units: dict[str, str],
-        final_state: FloatArray | None,
-        title: str,
-        extra: dict[str, Any],
-    ) -> Self:
-        s = signals
-        state = np.zeros(0) if final_state is None else final_state
-        return cls(time, s["command"], s["voltage"], s["position"], s["cemf"], state, title=title)
+    def _from_mat_fields(cls, f: MatSignals) -> Self:
+        s = f.signals
+        state = np.zeros(0) if f.final_state is None else f.final_state
+        return cls(f.time, s["command"], s["voltage"], s["position"], s["cemf"], state, title=f.title)
 
     @property
     def command(self) -> FloatArray:

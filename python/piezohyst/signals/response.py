@@ -25,15 +25,13 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Self
+from typing import TYPE_CHECKING, Any, NamedTuple, Self
 
 import numpy as np
 import numpy.typing as npt
 
-from .._io import PathLike
 from ..errors import DataError, ParameterError
-from .matfile import read_mat, write_mat
-from .results import html_table, require_pandas
+from .results import MatFile, html_table, require_pandas
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     import pandas as pd
@@ -42,10 +40,48 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
 
 FloatArray = npt.NDArray[np.float64]
 
-__all__ = ["Response"]
+__all__ = ["MatSignals", "Response"]
 
 
-class Response:
+class MatSignals(NamedTuple):
+    """A response as :meth:`Response.to_mat` stores it, read back: what a subclass's
+    ``_from_mat_fields`` builds itself from.
+
+    Parameters
+    ----------
+    time : ndarray
+        The time base, s.
+    signals : dict of str to ndarray
+        The signals by name.
+    inputs : list of str
+        The input signals' names.
+    units : dict of str to str
+        Each signal's unit.
+    final_state : ndarray or None
+        The state the run ended in.
+    title : str
+        What ran.
+    extra : dict
+        What the class stored besides (a closed loop's sample time, controller, ...).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst.signals.response import MatSignals
+    >>> MatSignals(np.zeros(2), {"x": np.ones(2)}, [], {"x": "m"}, None, "run", {}).title
+    'run'
+    """
+
+    time: FloatArray
+    signals: dict[str, FloatArray]
+    inputs: list[str]
+    units: dict[str, str]
+    final_state: FloatArray | None
+    title: str
+    extra: dict[str, Any]
+
+
+class Response(MatFile):
     """Named signals of one time simulation, one value per sample.
 
     Parameters
@@ -203,64 +239,24 @@ class Response:
         pd = require_pandas(type(self).__name__)
         return pd.DataFrame(dict(self.signals), index=pd.Index(self.time, name="time"))
 
-    # -- .mat files --------------------------------------------------------------------
+    # -- .mat files (to_mat / from_mat: MatFile) ------------------------------------------
     def _mat_fields(self) -> dict[str, Any]:
-        """What :meth:`to_mat` stores besides the signals (subclasses add theirs)."""
+        """What :meth:`to_mat` stores in ``extra`` besides the signals (subclasses add theirs)."""
         return {}
 
     @classmethod
-    def _from_mat_fields(
-        cls,
-        time: FloatArray,
-        signals: dict[str, FloatArray],
-        inputs: list[str],
-        units: dict[str, str],
-        final_state: FloatArray | None,
-        title: str,
-        extra: dict[str, Any],
-    ) -> Self:
+    def _from_mat_fields(cls, f: MatSignals) -> Self:
         """The response :meth:`to_mat` wrote, built through the constructor (subclasses whose
         constructor differs override this)."""
-        return cls(time, signals, inputs=inputs, units=units, final_state=final_state, title=title)
+        return cls(f.time, f.signals, inputs=f.inputs, units=f.units, final_state=f.final_state, title=f.title)
 
-    def to_mat(self, path: PathLike, *, overwrite: bool = True) -> Path:
-        """Write the response to the MATLAB file ``path``: the struct ``result`` with
-
-        - ``python_class``: the response's class (``piezohyst.signals.response.Response``, ...);
-        - ``time``: N x 1 double, s;
-        - ``signals``: a struct of N x 1 doubles, one field per signal (signal names that are
-          not MATLAB names: a struct of cells ``keys`` and ``values``);
-        - ``inputs``: cell of the input signals' names; ``units``: struct signal -> unit;
-        - ``final_state``: the state the run ended in (``[]`` when none); ``title``;
-        - ``extra``: what the class adds (a closed loop's ``sample_time``, ``controller``,
-          ``skip_samples``, ``terms``).
-
-        :meth:`from_mat` reads it back exactly (see :mod:`piezohyst.signals.matfile`).
-
-        Parameters
-        ----------
-        path : str or os.PathLike
-            The file to write (``.mat``), atomically.
-        overwrite : bool
-            Replace an existing file (default ``True``).
-
-        Returns
-        -------
-        pathlib.Path
-            The file written.
-
-        Examples
-        --------
-        >>> import tempfile, pathlib, numpy as np
-        >>> from piezohyst.signals import Response
-        >>> r = Response([0.0, 1e-3], {"voltage": [0.0, 1.0]}, units={"voltage": "V"}, title="demo")
-        >>> path = r.to_mat(pathlib.Path(tempfile.mkdtemp()) / "run.mat")
-        >>> back = Response.from_mat(path)
-        >>> back.title, back.units, np.array_equal(back.voltage, r.voltage)
-        ('demo', {'voltage': 'V'}, True)
-        """
-        value = {
-            "python_class": f"{type(self).__module__}.{type(self).__qualname__}",
+    def _mat_value(self) -> dict[str, Any]:
+        """``time`` (N x 1 double, s); ``signals``, a struct of N x 1 doubles (signal names that
+        are not MATLAB names: a struct of cells ``keys`` and ``values``); ``inputs``, the input
+        signals' names; ``units``, signal -> unit; ``final_state`` (``[]`` when none);
+        ``title``; ``extra``, what the class adds (a closed loop's ``sample_time``,
+        ``controller``, ``skip_samples``, ``terms``)."""
+        return {
             "time": self.time.reshape(-1, 1),
             "signals": {k: v.reshape(-1, 1) for k, v in self.signals.items()},
             "inputs": list(self.input_names),
@@ -269,47 +265,20 @@ class Response:
             "title": self.title,
             "extra": self._mat_fields(),
         }
-        return write_mat(path, "result", value, overwrite=overwrite)
 
     @classmethod
-    def from_mat(cls, path: PathLike) -> Self:
-        """Read a response :meth:`to_mat` wrote, as its own class (``DataError`` when the file
-        holds something else).
-
-        Parameters
-        ----------
-        path : str or os.PathLike
-            The ``.mat`` file.
-
-        Returns
-        -------
-        Response
-            Of the class written (``StageResponse``, ``ClosedLoopResult``, ...).
-
-        Examples
-        --------
-        >>> import tempfile, pathlib
-        >>> from piezohyst.signals import Response
-        >>> path = Response([0.0, 1.0], {"x": [1.0, 2.0]}).to_mat(pathlib.Path(tempfile.mkdtemp()) / "r.mat")
-        >>> Response.from_mat(path).x.tolist()
-        [1.0, 2.0]
-        """
-        d = read_mat(path, "result")
-        name = d.get("python_class")
-        found = _response_class(name)
-        if found is None or not issubclass(found, cls):
-            raise DataError(f"{path} holds a {name!r}, not a {cls.__name__}")
+    def _from_mat_value(cls, d: dict[str, Any], path: Path) -> Self:
         try:
-            signals = {str(k): np.asarray(v, dtype=np.float64).ravel() for k, v in d["signals"].items()}
-            return found._from_mat_fields(
+            fields = MatSignals(
                 np.asarray(d["time"], dtype=np.float64).ravel(),
-                signals,
+                {str(k): np.asarray(v, dtype=np.float64).ravel() for k, v in d["signals"].items()},
                 [str(n) for n in d["inputs"]],
                 {str(k): str(v) for k, v in d["units"].items()},
                 None if d["final_state"] is None else np.asarray(d["final_state"], dtype=np.float64),
                 str(d["title"]),
                 dict(d.get("extra") or {}),
             )
+            return cls._from_mat_fields(fields)
         except (KeyError, TypeError, AttributeError) as e:
             raise DataError(f"{path}: the response is malformed ({type(e).__name__}: {e})") from None
 
@@ -388,14 +357,3 @@ class Response:
 
     def _repr_html_(self) -> str:
         return html_table(repr(self), self._summary_rows(), header=("signal", "role", "unit", "min", "max", "rms"))
-
-
-def _response_class(name: object) -> type[Response] | None:
-    """The subclass of :class:`Response` (or itself) whose qualified name is ``name``."""
-    stack: list[type[Response]] = [Response]
-    while stack:
-        c = stack.pop()
-        if f"{c.__module__}.{c.__qualname__}" == name:
-            return c
-        stack.extend(c.__subclasses__())
-    return None

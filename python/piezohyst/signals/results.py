@@ -15,7 +15,8 @@ A result — of a simulation (:class:`~piezohyst.signals.Response`, ``StageRespo
 
 :class:`Result` states it; ``tests/test_results_protocol.py`` finds every public class named
 ``...Result``, ``...Response`` or ``...Report`` in the package and fails on one that does not
-follow it. :class:`DataclassMatFile` gives a frozen dataclass its ``to_mat``/``from_mat``: each
+follow it. :class:`MatFile` is the one ``to_mat``/``from_mat`` of them all (the struct
+``result`` naming its class); :class:`DataclassMatFile` fills it for a frozen dataclass: each
 field stored by value, piezohyst objects inside (models, stage parameters, controllers) by
 their class and their own description.
 
@@ -48,6 +49,7 @@ from .matfile import read_mat, write_mat
 __all__ = [
     "PANDAS_HINT",
     "DataclassMatFile",
+    "MatFile",
     "Result",
     "decode_object",
     "encode_object",
@@ -174,20 +176,31 @@ def _is_function(value: object) -> bool:
     )
 
 
-class DataclassMatFile:
-    """``to_mat``/``from_mat`` for a result that is a frozen dataclass: a struct ``result`` with
-    ``python_class`` (the result's class) and one field per dataclass field. Fields that hold
-    functions (an identification's ``simulator``) are left out and take their default when
-    read back; the others come back exactly (:func:`encode_object`)."""
+class MatFile:
+    """``to_mat``/``from_mat`` of a result: the one home of the results' ``.mat`` layout. The
+    struct ``result`` names the result's class (``python_class``) beside what the class writes
+    (``_mat_value``: a response's time base and signals, a dataclass result's fields);
+    ``from_mat`` resolves that class (only classes of piezohyst are built) and has it build
+    itself again from the struct (``_from_mat_value``)."""
 
-    #: Fields not written (callables); they take their default on reading.
-    _mat_skip: ClassVar[tuple[str, ...]] = ()
+    def _mat_value(self) -> dict[str, Any]:
+        """The fields of the struct ``result`` besides ``python_class``."""
+        raise NotImplementedError
+
+    @classmethod
+    def _from_mat_value(cls, d: dict[str, Any], path: Path) -> Self:
+        """The result the struct ``d`` (read from ``path``) describes; ``DataError`` when it
+        does not make one."""
+        raise NotImplementedError
 
     def to_mat(self, path: PathLike, *, overwrite: bool = True) -> Path:
         """Write this result to the MATLAB file ``path`` (see :mod:`piezohyst.signals.matfile`):
-        the struct ``result`` with ``python_class`` and a struct ``fields``, one field per
-        attribute of the result (metrics as structs, histories as arrays, a model as its class
-        and its description).
+        the struct ``result`` with ``python_class`` (the result's class) and what the class
+        stores: a response (:class:`~piezohyst.signals.Response` and its subclasses) its
+        ``time``, ``signals``, ``inputs``, ``units``, ``final_state``, ``title`` and ``extra``;
+        a dataclass result (:class:`DataclassMatFile`) the struct ``fields``, one field per
+        attribute (metrics as structs, histories as arrays, a model as its class and its
+        description). :meth:`from_mat` reads it back exactly.
 
         Parameters
         ----------
@@ -211,20 +224,14 @@ class DataclassMatFile:
         >>> type(res).from_mat(path).fun == res.fun
         True
         """
-        me: Any = self
-        if not dataclasses.is_dataclass(me):
-            raise ParameterTypeError(f"{type(self).__name__} is not a dataclass")
-        fields = {
-            f.name: encode_object(getattr(self, f.name))
-            for f in dataclasses.fields(me)
-            if f.init and f.name not in self._mat_skip and not _is_function(getattr(self, f.name))
-        }
-        return write_mat(path, "result", {CLASS_FIELD: _class_path(self), "fields": fields}, overwrite=overwrite)
+        value = {CLASS_FIELD: _class_path(self), **self._mat_value()}
+        return write_mat(path, "result", value, overwrite=overwrite)
 
     @classmethod
     def from_mat(cls, path: PathLike) -> Self:
-        """Read a result :meth:`to_mat` wrote, exactly (``DataError`` when the file holds
-        another class). Function fields (an identification's ``simulator``) take their default.
+        """Read a result :meth:`to_mat` wrote, exactly, as the class written (``DataError``
+        when the file holds another class, or a malformed result). Function fields (an
+        identification's ``simulator``) take their default.
 
         Parameters
         ----------
@@ -239,24 +246,47 @@ class DataclassMatFile:
         Examples
         --------
         >>> import tempfile, pathlib
-        >>> import numpy as np
-        >>> from piezohyst.optimize import OptimizeResult, minimize
-        >>> res = minimize(lambda X: np.sum(X**2, axis=1), [(-1.0, 1.0)] * 2, max_iterations=3, rng=0)
-        >>> back = OptimizeResult.from_mat(res.to_mat(pathlib.Path(tempfile.mkdtemp()) / "opt.mat"))
-        >>> np.array_equal(back.history["best_cost"], res.history["best_cost"])
-        True
+        >>> from piezohyst.signals import Response
+        >>> path = Response([0.0, 1.0], {"x": [1.0, 2.0]}).to_mat(pathlib.Path(tempfile.mkdtemp()) / "r.mat")
+        >>> Response.from_mat(path).x.tolist()
+        [1.0, 2.0]
         """
         d = read_mat(path, "result")
         p = Path(path)
         found = _resolve(d.get(CLASS_FIELD))
         if not issubclass(found, cls):
             raise DataError(f"{p} holds a {found.__name__}, not a {cls.__name__}")
-        fields = d.get("fields", {})
-        if not isinstance(fields, dict):
-            raise DataError(f"{p}: result.fields is not a struct")
-        try:
-            out = found(**{k: decode_object(v) for k, v in fields.items()})
-        except TypeError as e:
-            raise DataError(f"{p}: the fields do not make a {found.__name__}: {e}") from None
+        out = found._from_mat_value(d, p)
         assert isinstance(out, cls)
         return out
+
+
+class DataclassMatFile(MatFile):
+    """``to_mat``/``from_mat`` for a result that is a frozen dataclass: a struct ``result`` with
+    ``python_class`` (the result's class) and one field per dataclass field. Fields that hold
+    functions (an identification's ``simulator``) are left out and take their default when
+    read back; the others come back exactly (:func:`encode_object`)."""
+
+    #: Fields not written (callables); they take their default on reading.
+    _mat_skip: ClassVar[tuple[str, ...]] = ()
+
+    def _mat_value(self) -> dict[str, Any]:
+        me: Any = self
+        if not dataclasses.is_dataclass(me):
+            raise ParameterTypeError(f"{type(self).__name__} is not a dataclass")
+        fields = {
+            f.name: encode_object(getattr(self, f.name))
+            for f in dataclasses.fields(me)
+            if f.init and f.name not in self._mat_skip and not _is_function(getattr(self, f.name))
+        }
+        return {"fields": fields}
+
+    @classmethod
+    def _from_mat_value(cls, d: dict[str, Any], path: Path) -> Self:
+        fields = d.get("fields", {})
+        if not isinstance(fields, dict):
+            raise DataError(f"{path}: result.fields is not a struct")
+        try:
+            return cls(**{k: decode_object(v) for k, v in fields.items()})
+        except TypeError as e:
+            raise DataError(f"{path}: the fields do not make a {cls.__name__}: {e}") from None
