@@ -1,9 +1,11 @@
-"""Signals: measured records and their file readers (:mod:`.data`), their preprocessing
-(:mod:`.preprocess`), reference trajectories (:mod:`.references`) and tracking/hysteresis metrics
-(:mod:`.metrics`) and :class:`.Response`, the result of every time simulation."""
+"""Signals: measured records and their file readers (:mod:`.data`), multi-channel records
+(:mod:`.multichannel`), their preprocessing (:mod:`.preprocess`), reference trajectories
+(:mod:`.references`) and tracking/hysteresis metrics (:mod:`.metrics`) and
+:class:`.Response`, the result of every time simulation."""
 
 from .data import Record, load_record, load_yan9a_model_record
 from .metrics import hysteresis_percent, linearity_error, max_error, rmse, tracking_metrics
+from .multichannel import MultiRecord, is_multichannel, load_multichannel
 from .preprocess import (
     apply_lag,
     decimate,
@@ -19,6 +21,7 @@ from .references import chirp, multisine, sine, staircase, triangle, variable_am
 from .response import Response
 
 __all__ = [
+    "MultiRecord",
     "Record",
     "Response",
     "apply_lag",
@@ -28,7 +31,9 @@ __all__ = [
     "find_excitation_start",
     "flag_outliers",
     "hysteresis_percent",
+    "is_multichannel",
     "linearity_error",
+    "load_multichannel",
     "load_record",
     "load_yan9a_model_record",
     "max_error",
