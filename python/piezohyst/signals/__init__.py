@@ -5,7 +5,7 @@
 
 from .data import Record, load_record, load_yan9a_model_record
 from .metrics import hysteresis_percent, linearity_error, max_error, rmse, tracking_metrics
-from .multichannel import MultiRecord, is_multichannel, load_multichannel
+from .multichannel import MultiRecord, is_multichannel, load_multichannel, read_channels
 from .preprocess import (
     apply_lag,
     decimate,
@@ -40,6 +40,7 @@ __all__ = [
     "multisine",
     "preprocess",
     "processed_index",
+    "read_channels",
     "remove_drift",
     "replace_outliers",
     "rmse",

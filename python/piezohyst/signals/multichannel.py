@@ -56,7 +56,7 @@ from .units import parse_unit
 
 FloatArray = npt.NDArray[np.float64]
 
-__all__ = ["MultiRecord", "is_multichannel", "load_multichannel"]
+__all__ = ["MultiRecord", "is_multichannel", "load_multichannel", "read_channels"]
 
 #: The units a multi-channel record holds its signals in.
 SI_UNITS = {"input": "V", "output": "m"}
@@ -554,3 +554,120 @@ def is_multichannel(path: str | os.PathLike[str]) -> bool:
         return len(shape) >= 2
     except Exception:  # unreadable: not ours to judge here; the reader that takes it says why
         return False
+
+
+def read_channels(
+    path: str | os.PathLike[str],
+    name: str = "array",
+    *,
+    key: str | None = None,
+    channels: int | None = None,
+    max_bytes: int | None = None,
+) -> FloatArray:
+    """A matrix of signals, shape ``(samples, channels)``, from a ``.npy`` file, an NPZ archive
+    (the array ``key``, by default its only array) or delimited text (one column per channel,
+    header optional). A 1-D array is one channel.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file (``.npy``, ``.npz``, ``.csv .tsv .txt .dat .asc``).
+    name : str
+        What the matrix is, for messages (``"U"``, ``"Y0"``).
+    key : str, optional
+        NPZ: the array to read; default the archive's only array.
+    channels : int, optional
+        The number of columns required (e.g. the model's inputs); a 1-D array is one channel.
+    max_bytes : int, optional
+        The bound on the array's size, checked before reading (default as :func:`load_multichannel`).
+
+    Returns
+    -------
+    ndarray, shape (samples, channels)
+        Finite float64.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> import numpy as np
+    >>> from piezohyst.signals import read_channels
+    >>> f = pathlib.Path(tempfile.mkdtemp()) / "u.csv"
+    >>> _ = f.write_text("u0,u1,u2\\n0.1,0.2,0.3\\n0.4,0.5,0.6\\n")
+    >>> read_channels(f, "U", channels=3).tolist()
+    [[0.1, 0.2, 0.3], [0.4, 0.5, 0.6]]
+    >>> read_channels(f, "U", channels=4)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    piezohyst.errors.DataError: ...u.csv: U has shape (2, 3): 3 channels, expected 4
+    """
+    if isinstance(path, bytes) or not isinstance(path, (str, os.PathLike)):
+        raise ParameterTypeError(f"{name} must be a path (str or os.PathLike), got {type(path).__name__}")
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"{name} = '{p}': no such file")
+    limit = _max_bytes(max_bytes)
+    suffix = p.suffix.lower()
+    a: Any
+    if suffix == ".npy":
+        a = _read_npy(p, limit)
+    elif suffix == ".npz":
+        a = _read_npz_member(p, key, name, limit)
+    elif suffix in (".csv", ".tsv", ".txt", ".dat", ".asc"):
+        from .textio import TextTable
+
+        table = TextTable(p, None, "auto")
+        try:
+            cols = table.columns()
+            a = np.column_stack([table.read(name, k, label) for k, label in cols])
+        finally:
+            table.close()
+    else:
+        raise DataError(f"{p}: {name} must be a .npy, .npz or delimited text file, not {p.suffix or 'extension-less'}")
+    a = np.asarray(a)
+    if a.dtype.kind not in "fiu":
+        raise ParameterTypeError(f"{p}: {name} must hold real numbers, got dtype {a.dtype}")
+    if a.ndim == 1:
+        a = a.reshape(-1, 1)
+    if a.ndim != 2:
+        raise DataError(f"{p}: {name} has shape {a.shape}: expected (samples, channels)")
+    if a.shape[0] < 1 or a.shape[1] < 1:
+        raise DataError(f"{p}: {name} has shape {a.shape}: no data")
+    if channels is not None and a.shape[1] != channels:
+        hint = " (transposed? rows are samples, columns channels)" if a.shape[0] == channels else ""
+        raise DataError(f"{p}: {name} has shape {a.shape}: {a.shape[1]} channels, expected {channels}{hint}")
+    out = np.ascontiguousarray(a, dtype=np.float64)
+    bad = np.argwhere(~np.isfinite(out))
+    if bad.size:
+        i, j = (int(k) for k in bad[0])
+        raise DataError(f"{p}: {name}[{i}, {j}] = {out[i, j]} is not finite (sample {i}, channel {j})")
+    return out
+
+
+def _read_npz_member(path: Path, key: str | None, name: str, limit: int) -> Any:
+    try:
+        fh = open(path, "rb")
+    except OSError as e:
+        raise DataError(f"{path}: cannot be opened ({e})") from None
+    try:
+        z = np.load(fh, allow_pickle=False)
+        if isinstance(z, np.ndarray):
+            raise DataError(f"{path}: a single array in .npy format with an .npz name; rename it .npy")
+        files = list(z.files)
+        if key is None:
+            if len(files) != 1:
+                raise DataError(f"{path}: {name}: the archive holds {sorted(files)}; name the array to read")
+            key = files[0]
+        if key not in files:
+            raise DataError(f"{path}: {name}: no array {key!r}; the archive holds {sorted(files)}")
+        with z.zip.open(f"{key}.npy") as fp:
+            shape, dtype = _npy_header(fp)
+        _check_size(str(path), f"NPZ member {key!r} of shape {shape} ({dtype})", math.prod(shape) * 8, limit)
+        out = np.asarray(z[key])
+        z.close()
+        return out
+    except (DataError, ParameterTypeError):
+        raise
+    except Exception as e:
+        raise DataError(f"{path}: not a readable NPZ archive ({type(e).__name__}: {e})") from None
+    finally:
+        fh.close()
