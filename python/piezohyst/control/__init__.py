@@ -16,6 +16,7 @@ from .controllers import (
     is_controller,
     with_gains,
 )
+from .mimo import MimoFeedforward, mirror_matrix
 from .simulation import ClosedLoopResult, closed_loop, closed_loop_batch
 from .tuning import TuningResult, stage_from_model, track, tune
 
@@ -28,6 +29,7 @@ __all__ = [
     "ClosedLoopResult",
     "Compensated",
     "InverseFeedforward",
+    "MimoFeedforward",
     "OpenLoop",
     "TuningResult",
     "VelocityObserver",
@@ -35,6 +37,7 @@ __all__ = [
     "closed_loop",
     "closed_loop_batch",
     "is_controller",
+    "mirror_matrix",
     "stage_from_model",
     "track",
     "tune",
