@@ -34,17 +34,21 @@ class LtiDouble:
         self.calls: list[str] = []
 
     @property
-    def n_inputs(self) -> int:
+    def nu(self) -> int:
         return self.B.shape[1]
 
     @property
-    def n_outputs(self) -> int:
+    def ny(self) -> int:
         return self.C.shape[0]
 
-    def simulate(self, u, x0=None):
-        self.calls.append("simulate")
+    def simulate(self, u, *, init_output=None):
+        x0 = None if init_output is None else self.estimate_initial_state(u[: init_output.shape[0]], init_output)
+        return self.run(u, x0)
+
+    def run(self, u, x0=None):
+        self.calls.append("run")
         x = np.zeros(self.A.shape[0]) if x0 is None else np.asarray(x0, dtype=float)
-        y = np.empty((u.shape[0], self.n_outputs))
+        y = np.empty((u.shape[0], self.ny))
         for k in range(u.shape[0]):  # a test double: tiny records only
             y[k] = self.C @ x + self.D @ u[k]
             x = self.A @ x + self.B @ u[k]
@@ -52,12 +56,12 @@ class LtiDouble:
 
     def estimate_initial_state(self, u, y):
         self.calls.append(f"estimate:{u.shape}:{y.shape}")
-        free = self.simulate(u)  # the response from rest
+        free = self.run(u)  # the response from rest
         nx = self.A.shape[0]
-        obs = np.zeros((y.shape[0] * self.n_outputs, nx))
+        obs = np.zeros((y.shape[0] * self.ny, nx))
         ak = np.eye(nx)
         for k in range(y.shape[0]):
-            obs[k * self.n_outputs : (k + 1) * self.n_outputs] = self.C @ ak
+            obs[k * self.ny : (k + 1) * self.ny] = self.C @ ak
             ak = self.A @ ak
         x0, *_ = np.linalg.lstsq(obs, (y - free).ravel(), rcond=None)
         return x0
@@ -73,9 +77,9 @@ def model(monkeypatch, tmp_path):
 
 def _record(m: LtiDouble, n: int = 200, seed: int = 1):
     rng = np.random.default_rng(seed)
-    u = 0.1 * rng.standard_normal((n, m.n_inputs))
+    u = 0.1 * rng.standard_normal((n, m.nu))
     x0 = rng.standard_normal(m.A.shape[0])
-    return u, x0, m.simulate(u, x0)
+    return u, x0, m.run(u, x0)
 
 
 def test_u_and_y0_give_the_measured_output_back(model, tmp_path, capsys):
@@ -97,7 +101,7 @@ def test_u_and_y0_give_the_measured_output_back(model, tmp_path, capsys):
     # without Y0 the model starts at rest: a different output over the transient
     assert main(["simulate", str(tmp_path / "m.json"), str(tmp_path / "U.npy"), "--out", str(tmp_path / "r.npy")]) == 0
     rest = np.load(tmp_path / "r.npy")
-    np.testing.assert_allclose(rest, model.simulate(u), atol=1e-15)
+    np.testing.assert_allclose(rest, model.run(u), atol=1e-15)
     assert np.max(np.abs(rest[:5] - y[:5])) > 1e-7
 
 

@@ -3,8 +3,9 @@ initial state set from a stretch of measured output (``--init-output Y0``) throu
 own estimator.
 
 The model is duck-typed (:class:`MimoSimulator`): the MIMO model class of ``piezohyst.models``
-and anything else with the same four members simulate here. Imports stay lazy: the whole call —
-interpreter start included — stays well under a second for 8192 samples.
+and anything else with ``nu``, ``ny`` and ``simulate(u, init_output=y0)`` simulate here.
+Imports stay lazy: the whole call — interpreter start included — stays well under a second
+for 8192 samples.
 """
 
 from __future__ import annotations
@@ -29,35 +30,31 @@ OUT_SUFFIXES = (".npy", ".npz", ".csv")
 
 @runtime_checkable
 class MimoSimulator(Protocol):
-    """What ``simulate`` needs of a multi-channel model."""
+    """What ``simulate`` needs of a multi-channel model (:class:`piezohyst.models.mimo.MimoModel`)."""
 
     @property
-    def n_inputs(self) -> int: ...  # pragma: no cover - protocol
+    def nu(self) -> int: ...  # pragma: no cover - protocol
 
     @property
-    def n_outputs(self) -> int: ...  # pragma: no cover - protocol
+    def ny(self) -> int: ...  # pragma: no cover - protocol
 
-    def estimate_initial_state(self, u: FloatArray, y: FloatArray) -> FloatArray: ...  # pragma: no cover
-
-    def simulate(self, u: FloatArray, x0: FloatArray | None = None) -> FloatArray: ...  # pragma: no cover
+    def simulate(self, u: Any, *, init_output: Any = None) -> Any: ...  # pragma: no cover - protocol
 
 
 def is_mimo(model: object) -> bool:
-    """Whether ``model`` is a multi-channel model (it has ``n_outputs``)."""
-    return hasattr(model, "n_outputs") and hasattr(model, "n_inputs")
+    """Whether ``model`` is a multi-channel model (it has ``nu`` and ``ny``)."""
+    return hasattr(model, "nu") and hasattr(model, "ny") and callable(getattr(model, "simulate", None))
 
 
 def run_mimo(model: MimoSimulator, u: FloatArray, y0: FloatArray | None) -> FloatArray:
-    """The model's output ``(N, ny)`` for ``u`` ``(N, nu)``, from the state its estimator sets from
-    the first ``M`` outputs ``y0`` ``(M, ny)`` (with ``u[:M]``), else from rest."""
+    """The model's output ``(N, ny)`` for ``u`` ``(N, nu)``, its initial state set by its own
+    estimator from the first ``M`` measured outputs ``y0`` ``(M, ny)`` (with ``u``), else by
+    its default (rest, or the periodic steady state the model file asks for)."""
     import numpy as np
 
-    x0 = None
-    if y0 is not None:
-        x0 = model.estimate_initial_state(u[: y0.shape[0]], y0)
-    y = np.asarray(model.simulate(u, x0=x0), dtype=np.float64)
-    if y.shape != (u.shape[0], model.n_outputs):
-        raise _Fail(f"the model returned shape {y.shape}, expected ({u.shape[0]}, {model.n_outputs})")
+    y = np.asarray(model.simulate(u, init_output=y0), dtype=np.float64)
+    if y.shape != (u.shape[0], model.ny):
+        raise _Fail(f"the model returned shape {y.shape}, expected ({u.shape[0]}, {model.ny})")
     return y
 
 
@@ -91,7 +88,7 @@ def simulate_mimo(args: argparse.Namespace, model: Any, model_path: Path, input_
             raise _Fail(f"{flag} = {value!r} applies to single-channel models; MODEL = '{model_path}' is multi-channel")
     if args.lag or args.score_from:
         raise _Fail("--lag / --score-from apply to single-channel models with --output; MODEL is multi-channel")
-    nu, ny = int(model.n_inputs), int(model.n_outputs)
+    nu, ny = int(model.nu), int(model.ny)
     key = args.input if isinstance(args.input, str) and args.input else None
     try:
         u = read_channels(input_path, "U", key=key)
