@@ -7,5 +7,6 @@
 //!   integrator, decimation and record error.
 pub mod boucwen_benchmark;
 pub mod closed_loop;
+pub mod lfr;
 pub mod sensor;
 pub mod stage;
