@@ -178,6 +178,13 @@ def _read_simulated(path: Path) -> AnyModel | Stage:
             return Stage.from_dict(d)
         except (ValueError, TypeError) as e:
             raise _Fail(f"MODEL = '{path}': {e}") from None
+    from ..models.mimo import is_mimo_description, mimo_from_dict
+
+    if is_mimo_description(d):  # a multi-channel model: cli/simulate_mimo.py runs it
+        try:
+            return mimo_from_dict(d)  # type: ignore[return-value]
+        except (ValueError, TypeError) as e:
+            raise _Fail(f"MODEL = '{path}': {e}") from None
     return _read_model(path, d)
 
 
