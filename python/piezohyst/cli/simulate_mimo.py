@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 from ..outputs import write_atomic
-from .common import _Fail
+from .common import _existing_file, _Fail
 
 if TYPE_CHECKING:
     from .common import FloatArray
@@ -56,6 +56,14 @@ def run_mimo(model: MimoSimulator, u: FloatArray, y0: FloatArray | None) -> Floa
     if y.shape != (u.shape[0], model.ny):
         raise _Fail(f"the model returned shape {y.shape}, expected ({u.shape[0]}, {model.ny})")
     return y
+
+
+def _label(model: Any) -> str:
+    """``mimo (lfr)`` for the library's class, else the model's ``kind`` or class name."""
+    structure = getattr(model, "structure", None)
+    if isinstance(structure, str):
+        return f"mimo ({structure})"
+    return str(getattr(model, "kind", type(model).__name__))
 
 
 def _array_bytes(write: Any) -> bytes:
@@ -101,7 +109,7 @@ def simulate_mimo(args: argparse.Namespace, model: Any, model_path: Path, input_
     y0 = None
     init_path = None
     if args.init_output is not None:
-        init_path = Path(args.init_output)
+        init_path = _existing_file(args.init_output, "--init-output")
         try:
             y0 = read_channels(init_path, "Y0")
         except (PiezohystError, FileNotFoundError) as e:
@@ -149,7 +157,7 @@ def simulate_mimo(args: argparse.Namespace, model: Any, model_path: Path, input_
     units = {k: v for k, v in units.items() if isinstance(v, str)} if isinstance(units, dict) else {}
     summary = {
         "out": str(out),
-        "model": str(getattr(model, "kind", type(model).__name__)),
+        "model": _label(model),
         "model_file": str(model_path),
         "input_file": str(input_path),
         "init_output_file": None if init_path is None else str(init_path),
