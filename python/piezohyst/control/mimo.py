@@ -285,6 +285,94 @@ class MimoFeedforward:
                 raise ParameterTypeError(f"hysteresis[{i}] must be an invertible hysteresis model, got {h!r}")
         object.__setattr__(self, "hysteresis", hyst)
 
+    @classmethod
+    def from_model(
+        cls,
+        model: Any,
+        *,
+        bandwidth: float | None = None,
+        regularization: float = 1e-4,
+        amplitude: npt.ArrayLike | None = None,
+    ) -> MimoFeedforward:
+        """The feedforward of a MIMO model with play operators in a feedback path
+        (:class:`piezohyst.models.mimo.MimoModel`: ``z = G x + H u``, ``w = plays(z)``,
+        ``y = C x + D u + F w``, ``x+ = A x + B u + E w``): its linear part with each feedback
+        channel's plays replaced by their equivalent gain ``k_i = sum_j weights_ij (1 -
+        r_ij / a_i)_+`` at the amplitude ``a_i`` of ``z_i`` (the large-signal slope ``sum_j
+        weights_ij`` when ``amplitude`` is not given) — the loop closed through ``K``:
+        ``A + E K G``, ``B + E K H``, ``C + F K G``, ``D + F K H``. :meth:`iterate` with the
+        model's own simulation then inverts the hysteresis the gains leave out.
+
+        A Hammerstein cascade — ``G = 0``, ``H = I``, ``[E; F] = [B; D] diag(c)`` (the plays of
+        actuator ``i`` add ``c_i w_i`` to its input) — is split exactly instead: the linear
+        part ``A, B, C, D`` and per actuator the PI model ``v -> v + c_i sum_j weights_ij
+        play_{r_ij}(v)``, whose exact inverse :meth:`command` applies.
+
+        Parameters
+        ----------
+        model : MimoModel
+            The identified model (or any object with the matrices ``A..H``, ``thresholds``,
+            ``weights`` and ``fs``).
+        bandwidth : float, optional
+            As the constructor.
+        regularization : float
+            As the constructor.
+        amplitude : array_like, optional
+            Amplitude of each feedback signal ``z_i`` (``nw`` values, the model's scale), for
+            the equivalent gains.
+
+        Returns
+        -------
+        MimoFeedforward
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.models.mimo import MimoModel
+        >>> from piezohyst.control.mimo import MimoFeedforward
+        >>> kw = dict(A=[[0.5]], B=[[1.0]], C=[[1.0]], D=[[0.0]], F=[[0.0]], thresholds=[[0.0, 0.1]],
+        ...           weights=[[0.2, 0.3]], fs=100.0)
+        >>> lfr = MimoModel(E=[[-0.1]], G=[[1.0]], H=[[0.0]], structure="lfr", **kw)
+        >>> MimoFeedforward.from_model(lfr).A.tolist()      # A + E (0.2 + 0.3) G
+        [[0.45]]
+        >>> cascade = MimoModel(E=[[1.0]], G=[[0.0]], H=[[1.0]], structure="hammerstein", **kw)
+        >>> ff = MimoFeedforward.from_model(cascade)
+        >>> ff.B.tolist(), ff.hysteresis[0]                 # the plays inverted per actuator
+        ([[1.0]], PI(thresholds=[0.0, 0.1], weights=[0.2, 0.3], p0=1))
+        """
+        try:
+            mats = {k: np.asarray(getattr(model, k), dtype=np.float64) for k in "ABCDEFGH"}
+            th = np.asarray(model.thresholds, dtype=np.float64)
+            wt = np.asarray(model.weights, dtype=np.float64)
+            fs = float(model.fs)
+        except (AttributeError, TypeError, ValueError) as e:
+            raise ParameterTypeError(
+                f"model must be a MIMO model with matrices A..H, thresholds, weights, fs: {e}"
+            ) from None
+        nw = mats["G"].shape[0]
+        if amplitude is None:
+            k = wt.sum(axis=1) if wt.size else np.zeros(nw)
+        else:
+            a = np.asarray(amplitude, dtype=np.float64).reshape(-1)
+            if a.shape != (nw,) or not np.all(np.isfinite(a)) or np.any(a <= 0):
+                raise ParameterError(
+                    f"amplitude must be {nw} finite values > 0 (one per feedback channel), got {a.tolist()}"
+                )
+            k = (wt * np.clip(1.0 - th / a[:, None], 0.0, None)).sum(axis=1) if wt.size else np.zeros(nw)
+        pis = _cascade(mats, th, wt)
+        if pis is not None:  # plays per actuator ahead of the dynamics: invert them exactly
+            return cls(mats["A"], mats["B"], mats["C"], mats["D"], fs, pis, bandwidth, regularization)
+        ek, fk = mats["E"] * k[None, :], mats["F"] * k[None, :]
+        return cls(
+            mats["A"] + ek @ mats["G"],
+            mats["B"] + ek @ mats["H"],
+            mats["C"] + fk @ mats["G"],
+            mats["D"] + fk @ mats["H"],
+            fs,
+            bandwidth=bandwidth,
+            regularization=regularization,
+        )
+
     @property
     def n_inputs(self) -> int:
         """Actuators, ``nu``."""
@@ -435,3 +523,31 @@ class MimoFeedforward:
             if it < k:
                 u = u + g * self.linear_command(e)
         return u, np.asarray(errors)
+
+
+def _cascade(mats: dict[str, FloatArray], th: FloatArray, wt: FloatArray) -> tuple[HysteresisModel, ...] | None:
+    """The per-actuator PI models when the model is a Hammerstein cascade (see :meth:`MimoFeedforward.from_model`)."""
+    from ..models.pi import PI
+
+    g, h = mats["G"], mats["H"]
+    nu = mats["B"].shape[1]
+    if g.shape[0] != nu or np.any(g != 0) or not np.array_equal(h, np.eye(nu)) or wt.size == 0:
+        return None
+    bd = np.vstack([mats["B"], mats["D"]])
+    ef = np.vstack([mats["E"], mats["F"]])
+    c = np.empty(nu)
+    for i in range(nu):  # one least-squares scalar per actuator
+        col = bd[:, i]
+        den = float(col @ col)
+        c[i] = float(col @ ef[:, i]) / den if den > 0 else 0.0
+    scale = max(float(np.max(np.abs(ef))), 1e-300)
+    if np.max(np.abs(ef - bd * c[None, :])) > 1e-9 * scale:
+        return None
+    pis = []
+    for i in range(nu):
+        order = np.argsort(th[i], kind="stable")
+        r, w = th[i][order], c[i] * wt[i][order]
+        if np.any(np.diff(r) <= 0):
+            return None  # repeated thresholds: not a PI model of its own
+        pis.append(PI(r, w, p0=1.0))
+    return tuple(pis)
