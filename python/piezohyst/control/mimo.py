@@ -58,6 +58,9 @@ def _matrices(A: object, B: object, C: object, D: object) -> tuple[FloatArray, F
     out = []
     for name, m in (("A", A), ("B", B), ("C", C), ("D", D)):
         try:
+            kind = "U" if isinstance(m, (str, bytes)) else np.asarray(m).dtype.kind
+            if kind in "cUS":
+                raise TypeError(f"got dtype {np.asarray(m).dtype}")
             a = np.array(m, dtype=np.float64, copy=True)
         except (TypeError, ValueError) as e:
             raise ParameterTypeError(f"{name} must be a matrix of numbers: {e}") from None
@@ -162,6 +165,9 @@ def periodic_response(
 
 def _signal(x: object, name: str, channels: int) -> FloatArray:
     try:
+        kind = "U" if isinstance(x, (str, bytes)) else np.asarray(x).dtype.kind
+        if kind in "cUS":
+            raise TypeError(f"got dtype {np.asarray(x).dtype}")
         a = np.array(x, dtype=np.float64, copy=True)
     except (TypeError, ValueError) as e:
         raise ParameterTypeError(f"{name} must be an array of numbers: {e}") from None
@@ -204,6 +210,8 @@ def mirror_matrix(radius: float = 1.0, angles_deg: Sequence[float] = (90.0, 210.
     True
     """
     r = as_scalar(radius, "radius", positive=True)
+    if not 1e-9 <= r <= 1e3:
+        raise ParameterError(f"radius = {r:g} m is not a mirror's sensor radius (1e-9 .. 1e3 m)")
     ang = np.asarray(angles_deg, dtype=np.float64)
     if ang.shape != (3,) or not np.all(np.isfinite(ang)):
         raise ParameterError(f"angles_deg = {list(np.ravel(angles_deg))!r} must be 3 finite angles in degrees")
