@@ -10,6 +10,9 @@ use rayon::prelude::*;
 use crate::util::{bad_arg, check_alloc, check_finite, err, guarded, interruptible};
 
 /// `(y, z, state)`: outputs, feedback signals and final states of the records.
+/// `(outputs, final state)` of a play bank.
+type BankOut<'py> = (Bound<'py, PyArray3<f64>>, Bound<'py, PyArray2<f64>>);
+
 type SimOut<'py> = (Bound<'py, PyArray3<f64>>, Bound<'py, PyArray3<f64>>, Bound<'py, PyArray2<f64>>);
 
 fn mat<'a>(a: &'a PyReadonlyArray2<'_, f64>, name: &str, rows: usize, cols: usize) -> PyResult<&'a [f64]> {
@@ -122,7 +125,7 @@ fn play_bank<'py>(
     x: PyReadonlyArray3<'py, f64>,
     thresholds: PyReadonlyArray2<'py, f64>,
     state: PyReadonlyArray2<'py, f64>,
-) -> PyResult<(Bound<'py, PyArray3<f64>>, Bound<'py, PyArray2<f64>>)> {
+) -> PyResult<BankOut<'py>> {
     guarded(|| {
         let xs = x.shape();
         let (r, n, m) = (xs[0], xs[1], xs[2]);

@@ -136,7 +136,7 @@ impl<'a> Lfr<'a> {
         stop: &dyn Fn() -> bool,
     ) -> bool {
         let (nu, ny, nw) = (self.nu, self.ny, self.nw);
-        let n = if nu == 0 { 0 } else { u.len() / nu };
+        let n = u.len().checked_div(nu).unwrap_or(0);
         for t in 0..n {
             if t % 1024 == 0 && (stop() || !state.iter().all(|s| s.is_finite())) {
                 return false;
@@ -156,8 +156,8 @@ impl<'a> Lfr<'a> {
 /// Run a bank of play operators: `x` (`n * m`, sample-major, `m` channels), `thresholds`
 /// (`m * nr`), `state` (`m * nr`, advanced in place), `out` (`n * m * nr`).
 pub fn play_bank(x: &[f64], m: usize, thresholds: &[f64], state: &mut [f64], out: &mut [f64]) {
-    let nr = if m == 0 { 0 } else { thresholds.len() / m };
-    let n = if m == 0 { 0 } else { x.len() / m };
+    let nr = thresholds.len().checked_div(m).unwrap_or(0);
+    let n = x.len().checked_div(m).unwrap_or(0);
     for t in 0..n {
         for i in 0..m {
             let xi = x[t * m + i];
