@@ -122,7 +122,7 @@ def frequency_response(
     if np.linalg.cond(v) < 1e8:
         cb = c @ v
         vb = np.linalg.solve(v, b)
-        g = np.einsum("ik,fk,kj->fij", cb, 1.0 / (z[:, None] - lam[None, :]), vb)
+        g = (cb[None, :, :] * (1.0 / (z[:, None] - lam[None, :]))[:, None, :]) @ vb
     else:
         m = z[:, None, None] * np.eye(nx)[None] - a[None]
         g = c[None] @ np.linalg.solve(m, np.broadcast_to(b, (freqs.size, *b.shape)))
@@ -417,11 +417,7 @@ class MimoFeedforward:
         f = np.fft.rfftfreq(n, 1.0 / self.fs)
         bw = float(self.bandwidth)  # type: ignore[arg-type]
         keep = f <= bw
-        g = frequency_response(self.A, self.B, self.C, self.D, f[keep], self.fs)
-        g0 = frequency_response(self.A, self.B, self.C, self.D, [0.0], self.fs)[0]
-        s2 = float(np.linalg.svd(g0, compute_uv=False)[-1]) ** 2
-        gh = np.conj(np.swapaxes(g, 1, 2))
-        lhs = gh @ g + self.regularization * s2 * np.eye(self.n_inputs)[None]
+        gh, lhs = self._normal_equations(n, np.asarray(f[keep], dtype=np.float64))
         rhs = gh @ np.fft.rfft(r, axis=0)[keep][:, :, None]
         w_spec = np.zeros((f.size, self.n_inputs), dtype=np.complex128)
         w_spec[keep] = np.linalg.solve(lhs, rhs)[:, :, 0]
@@ -429,6 +425,18 @@ class MimoFeedforward:
         taper = np.where(f <= edge, 1.0, 0.5 * (1 + np.cos(np.pi * np.clip((f - edge) / (bw - edge), 0, 1))))
         w_spec *= taper[:, None]
         return np.asarray(np.fft.irfft(w_spec, n=n, axis=0), dtype=np.float64)
+
+    def _normal_equations(self, n: int, f: FloatArray) -> tuple[ComplexArray, ComplexArray]:
+        """``G^H`` and ``G^H G + lambda s^2 I`` at the bins ``f`` of an ``n``-sample period,
+        computed once per ``n`` (:meth:`iterate` calls :meth:`linear_command` repeatedly)."""
+        cache: dict[int, tuple[ComplexArray, ComplexArray]] = self.__dict__.setdefault("_cache", {})
+        if n not in cache:
+            g = frequency_response(self.A, self.B, self.C, self.D, f, self.fs)
+            g0 = frequency_response(self.A, self.B, self.C, self.D, [0.0], self.fs)[0]
+            s2 = float(np.linalg.svd(g0, compute_uv=False)[-1]) ** 2
+            gh = np.conj(np.swapaxes(g, 1, 2))
+            cache[n] = (gh, gh @ g + self.regularization * s2 * np.eye(self.n_inputs)[None])
+        return cache[n]
 
     def command(self, reference: npt.ArrayLike, periods: int = 2) -> FloatArray:
         """The actuator voltages ``(periods * N, nu)`` for ``periods`` repetitions of the periodic
@@ -495,7 +503,8 @@ class MimoFeedforward:
         Returns
         -------
         command : ndarray, shape (N, nu)
-            One period of the command (apply it periodically).
+            One period of the command (apply it periodically): the iterate with the smallest
+            model error (an iteration that overshoots is not kept).
         errors : ndarray, shape (iterations + 1,)
             The RMS model error of the last period after each step, m.
 
@@ -521,16 +530,19 @@ class MimoFeedforward:
             raise ParameterTypeError(f"simulate must be callable u -> y, got {simulate!r}")
         n = r.shape[0]
         u = self.command(r, periods=p)[-n:]
-        errors = []
+        errors: list[float] = []
+        best = u
         for it in range(k + 1):  # a few whole-record model simulations, not a loop over samples
             y = np.asarray(simulate(np.tile(u, (p, 1))), dtype=np.float64)
             if y.shape != (p * n, self.n_outputs):
                 raise ParameterError(f"simulate returned shape {y.shape}, expected ({p * n}, {self.n_outputs})")
             e = r - y[-n:]
             errors.append(float(np.sqrt(np.mean(e**2))))
+            if errors[-1] <= min(errors):
+                best = u
             if it < k:
                 u = u + g * self.linear_command(e)
-        return u, np.asarray(errors)
+        return best, np.asarray(errors)
 
 
 def _cascade(mats: dict[str, FloatArray], th: FloatArray, wt: FloatArray) -> tuple[HysteresisModel, ...] | None:
