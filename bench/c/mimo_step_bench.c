@@ -3,6 +3,9 @@
  * 3-actuator / 3-sensor mirror pays per sample. Single thread; each case is fed a
  * pseudo-random input of 0.3 V per channel (xorshift64*, fixed seed).
  *
+ * The last case has the dims of the LFR identify_mimo fits to the CubeSpec mirror's records
+ * (examples/data/fsm_lfr_123.json: 120 states, 12 feedback channels of 1 play).
+ *
  * Per case (dims nx nu ny nw nr): mean ns per step over STEPS steps (best of RUNS runs, one
  * clock read around the loop) and every step timed on its own (median, 99.9th percentile,
  * worst; these include one clock read). Prints JSON on stdout.
@@ -131,6 +134,7 @@ int main(void) {
     bench("hammerstein-size nx=12 nw=3 nr=8", 12, 3, 8, 0);
     bench("lfr nx=28 nw=3 nr=10", 28, 3, 10, 0);
     bench("lfr nx=28 nw=3 nr=20", 28, 3, 20, 0);
+    bench("fsm-size lfr nx=120 nw=12 nr=1", 120, 12, 1, 0);
     printf("\n  }\n}\n");
     return 0;
 }
