@@ -65,6 +65,7 @@ fn lfr_simulate<'py>(
             h: mat(&h, "H", nw, nu)?,
             thresholds: mat(&thresholds, "thresholds", nw, nr)?,
             weights: mat(&weights, "weights", nw, nr)?,
+            modal: false,
         }
         .validated()
         .map_err(err)?;

@@ -47,6 +47,9 @@ pub struct Lfr<'a> {
     pub thresholds: &'a [f64],
     /// `nw * nr` play weights.
     pub weights: &'a [f64],
+    /// Set by [`Lfr::validated`]: `A` is block diagonal with blocks of 1 or 2 states (a
+    /// modal form), so a step reads only the blocks.
+    pub modal: bool,
 }
 
 impl<'a> Lfr<'a> {
@@ -75,7 +78,9 @@ impl<'a> Lfr<'a> {
         if let Some(k) = self.thresholds.iter().position(|&r| r < 0.0) {
             return Err(ModelError::Negative("thresholds", k, self.thresholds[k]));
         }
-        Ok(self)
+        let mut out = self;
+        out.modal = is_modal(self.a, nx);
+        Ok(out)
     }
 
     /// Length of the state: `nx + nw * nr`.
@@ -116,9 +121,15 @@ impl<'a> Lfr<'a> {
                 + dot(&self.f[o * nw..(o + 1) * nw], w);
         }
         for (s, xs) in xn.iter_mut().enumerate() {
-            *xs = dot(&self.a[s * nx..(s + 1) * nx], x)
-                + dot(&self.b[s * nu..(s + 1) * nu], u)
-                + dot(&self.e[s * nw..(s + 1) * nw], w);
+            let ax = if self.modal {
+                let row = &self.a[s * nx..(s + 1) * nx];
+                let lo = s.saturating_sub(1);
+                let hi = (s + 2).min(nx);
+                dot(&row[lo..hi], &x[lo..hi])
+            } else {
+                dot(&self.a[s * nx..(s + 1) * nx], x)
+            };
+            *xs = ax + dot(&self.b[s * nu..(s + 1) * nu], u) + dot(&self.e[s * nw..(s + 1) * nw], w);
         }
         x.copy_from_slice(xn);
     }
@@ -172,6 +183,25 @@ pub fn play_bank(x: &[f64], m: usize, thresholds: &[f64], state: &mut [f64], out
     }
 }
 
+/// Whether `a` (`n x n`) has nonzeros only in diagonal blocks of 1 or 2 states.
+fn is_modal(a: &[f64], n: usize) -> bool {
+    let mut s = 0;
+    while s < n {
+        // a block of 2 when the entry right of the diagonal or below it is nonzero
+        let two = s + 1 < n && (a[s * n + s + 1] != 0.0 || a[(s + 1) * n + s] != 0.0);
+        let size = if two { 2 } else { 1 };
+        for r in s..s + size {
+            for c in 0..n {
+                if (c < s || c >= s + size) && a[r * n + c] != 0.0 {
+                    return false;
+                }
+            }
+        }
+        s += size;
+    }
+    true
+}
+
 #[inline]
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(p, q)| p * q).sum()
@@ -201,6 +231,7 @@ mod tests {
             h: &[],
             thresholds: &[],
             weights: &[],
+            modal: false,
         }
         .validated()
         .unwrap();
@@ -224,6 +255,7 @@ mod tests {
             h: &[0.0],
             thresholds: &[0.0],
             weights: &[1.0],
+            modal: false,
         }
         .validated()
         .unwrap();
@@ -232,6 +264,50 @@ mod tests {
         // the loop is x+ = 0.25 x + u
         assert_eq!(y, [0.0, 1.0, 0.25]);
         assert_eq!(z, y);
+    }
+
+    #[test]
+    fn modal_fast_path_equals_dense() {
+        // two 2x2 blocks and a 1x1: the block path and the dense path agree
+        #[rustfmt::skip]
+        let a = [
+            0.9, -0.2, 0.0, 0.0, 0.0,
+            0.2, 0.9, 0.0, 0.0, 0.0,
+            0.0, 0.0, 0.5, 0.1, 0.0,
+            0.0, 0.0, -0.1, 0.5, 0.0,
+            0.0, 0.0, 0.0, 0.0, 0.7,
+        ];
+        let (b, c, d) = ([1.0, 0.5, -1.0, 0.2, 1.0], [1.0, 0.0, 1.0, 0.0, 1.0], [0.0]);
+        let m = Lfr {
+            nx: 5,
+            nu: 1,
+            ny: 1,
+            nw: 0,
+            nr: 0,
+            a: &a,
+            b: &b,
+            c: &c,
+            d: &d,
+            e: &[],
+            f: &[],
+            g: &[],
+            h: &[],
+            thresholds: &[],
+            weights: &[],
+            modal: false,
+        };
+        let fast = m.validated().unwrap();
+        assert!(fast.modal);
+        let u = [1.0, -0.5, 0.25, 0.0, 2.0, 0.0];
+        let run = |m: &Lfr<'_>| {
+            let (mut st, mut sc, mut y, mut z) = ([0.0; 5], [0.0; 5], [0.0; 6], [0.0; 0]);
+            m.simulate(&u, &mut st, &mut sc, &mut y, &mut z, &|| false);
+            y
+        };
+        assert_eq!(run(&fast), run(&m));
+        let mut full = a;
+        full[4] = 0.1; // a coupling outside the blocks
+        assert!(!is_modal(&full, 5));
     }
 
     #[test]
@@ -252,6 +328,7 @@ mod tests {
             h: &[],
             thresholds: &[],
             weights: &[],
+            modal: false,
         }
         .validated()
         .unwrap_err();
