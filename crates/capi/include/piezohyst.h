@@ -48,6 +48,9 @@
 // `PHS_MIMO_MAGIC` marks an initialized `PhsMimo`.
 #define PHS_MIMO_MAGIC 5714304098661584968
 
+// `PhsMimo.flags`: `A` is in modal (block-diagonal) form.
+#define PHS_MIMO_FLAG_MODAL 1
+
 // What every `phs_*` function returns. `PHS_OK` is 0; every error is positive. The
 // reason of the last failure on the calling thread, naming the argument and the value, is
 // `phs_last_error_message()`; a fixed description of a code is `phs_status_message(code)`.
@@ -299,6 +302,9 @@ typedef struct PhsMimo {
   uint64_t magic;
   // The dimensions `nx, nu, ny, nw, nr`.
   size_t dims[5];
+  // `PHS_MIMO_FLAG_MODAL` when `A` is block diagonal with blocks of 1 or 2 states (found by
+  // `phs_mimo_init`): a step then reads only the blocks, as the core does.
+  uint64_t flags;
   // The borrowed parameter row.
   const double *params;
   // Parameter count.

@@ -1264,6 +1264,9 @@ pub struct PhsMimo {
     pub magic: u64,
     /// The dimensions `nx, nu, ny, nw, nr`.
     pub dims: [usize; 5],
+    /// `PHS_MIMO_FLAG_MODAL` when `A` is block diagonal with blocks of 1 or 2 states (found by
+    /// `phs_mimo_init`): a step then reads only the blocks, as the core does.
+    pub flags: u64,
     /// The borrowed parameter row.
     pub params: *const f64,
     /// Parameter count.
@@ -1273,6 +1276,9 @@ pub struct PhsMimo {
     /// Slots of the work buffer a step needs: `nx + 2 * nw`.
     pub work_len: usize,
 }
+
+/// `PhsMimo.flags`: `A` is in modal (block-diagonal) form.
+pub const PHS_MIMO_FLAG_MODAL: u64 = 1;
 
 const MIMO_DIM_MAX: usize = 1 << 20;
 
@@ -1290,8 +1296,9 @@ fn mimo_param_len(d: &[usize; 5]) -> Result<usize, Why> {
     Ok(nx * nx + nx * nu + ny * nx + ny * nu + nx * nw + ny * nw + nw * nx + nw * nu + 2 * nw * nr)
 }
 
-/// The core model over a row of the right length (checked by the caller).
-fn mimo_view<'a>(d: &[usize; 5], row: &'a [f64]) -> piezohyst_core::lfr::Lfr<'a> {
+/// The core model over a row of the right length (checked by the caller); `modal` as
+/// `Lfr::validated` found it.
+fn mimo_view<'a>(d: &[usize; 5], row: &'a [f64], modal: bool) -> piezohyst_core::lfr::Lfr<'a> {
     let [nx, nu, ny, nw, nr] = *d;
     let mut rest = row;
     let mut take = |n: usize| {
@@ -1315,6 +1322,7 @@ fn mimo_view<'a>(d: &[usize; 5], row: &'a [f64]) -> piezohyst_core::lfr::Lfr<'a>
         h: take(nw * nu),
         thresholds: take(nw * nr),
         weights: take(nw * nr),
+        modal,
     }
 }
 
@@ -1370,7 +1378,8 @@ pub unsafe extern "C" fn phs_mimo_init(model: *mut PhsMimo, spec: *const PhsMimo
         if row.len() != len {
             return Err(Why::Length("spec->n_params", row.len(), len));
         }
-        mimo_view(&d, row).validated()?;
+        let checked = mimo_view(&d, row, false).validated()?;
+        dst.flags = if checked.modal { PHS_MIMO_FLAG_MODAL } else { 0 };
         dst.dims = d;
         dst.params = spec.params;
         dst.n_params = len;
@@ -1393,7 +1402,7 @@ unsafe fn mimo_ref<'a>(p: *const PhsMimo) -> Result<(&'a PhsMimo, piezohyst_core
     }
     // SAFETY: init checked the row (params, n_params), which the caller keeps valid
     let row = unsafe { array(m.params, m.n_params, "model->params")? };
-    Ok((m, mimo_view(&m.dims, row)))
+    Ok((m, mimo_view(&m.dims, row, m.flags & PHS_MIMO_FLAG_MODAL != 0)))
 }
 
 /// Slots of a state buffer and of a work buffer of an initialized model (either output may

@@ -66,7 +66,7 @@ fn message() -> String {
 }
 
 fn empty() -> PhsMimo {
-    PhsMimo { magic: 0, dims: [0; 5], params: ptr::null(), n_params: 0, state_len: 0, work_len: 0 }
+    PhsMimo { magic: 0, dims: [0; 5], flags: 0, params: ptr::null(), n_params: 0, state_len: 0, work_len: 0 }
 }
 
 #[test]
@@ -78,6 +78,7 @@ fn c_steps_are_bit_identical_to_the_core_simulation() {
     assert_eq!((n_params, n_state, n_work), (row.len(), 12 + 24, 12 + 6));
     let mut m = empty();
     assert_eq!(unsafe { phs_mimo_init(&mut m, &s) }, PHS_OK, "{}", message());
+    assert_eq!(m.flags, PHS_MIMO_FLAG_MODAL); // rotation blocks: the core's modal step
     let n = 50_000;
     let mut rng = Rng(99);
     let u: Vec<f64> = (0..n * 3).map(|_| 0.3 * rng.next()).collect();
@@ -105,6 +106,7 @@ fn c_steps_are_bit_identical_to_the_core_simulation() {
         h: take(nw * nu),
         thresholds: take(nw * nr),
         weights: take(nw * nr),
+        modal: false,
     }
     .validated()
     .unwrap();
