@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 from pathlib import Path
 from typing import Any
@@ -14,20 +15,30 @@ from typing import Any
 import numpy as np
 
 from ..errors import PiezohystError
-from ..identify.mimo import MIMO_KINDS, MimoRecords, identify_mimo, protocol_rmse, read_multisine_folder
+from ..identify.mimo import MIMO_KINDS, MimoRecords, identify_mimo, protocol_rmse
 from ..outputs import write_atomic
 from .common import _check_fs, _Fail, _writable
 
 
 def _is_multichannel(data: str) -> bool:
-    """Whether DATA is multi-channel records: a folder holding ``u_*.npy`` files."""
-    p = Path(data)
-    return p.is_dir() and any(p.glob("u_*.npy"))
+    """Whether DATA is multi-channel records: a folder holding ``u_*.npy`` / ``y_*.npy`` files,
+    one such file, or an NPZ whose ``u`` has a channel axis (:func:`piezohyst.signals.is_multichannel`)."""
+    from ..signals.multichannel import is_multichannel
+
+    return is_multichannel(data)
 
 
 def _records(data: str, fs: float) -> MimoRecords:
-    """The records of DATA (the loader of the data layer replaces this)."""
-    return read_multisine_folder(data, fs)
+    """The records of DATA, read and checked by :func:`piezohyst.signals.load_multichannel` (a u
+    without its y, shapes, NaN, mixed lengths: one line naming the file), one set per record
+    (``100mV_train`` -> ``100mV``)."""
+    from ..signals.multichannel import load_multichannel
+
+    try:
+        recs = load_multichannel(data, fs=fs)
+        return MimoRecords.from_sets([(re.sub(r"_?train$", "", r.name) or r.name, r.u, r.y) for r in recs], fs)
+    except (PiezohystError, FileNotFoundError) as e:
+        raise _Fail(f"DATA = {e}") from None
 
 
 def _identify_mimo(args: argparse.Namespace) -> int:
