@@ -54,6 +54,7 @@ __all__ = [
     "MIMO_KINDS",
     "MimoIdentification",
     "MimoRecords",
+    "MimoSettings",
     "fit_residues",
     "identify_mimo",
     "protocol_rmse",
@@ -286,6 +287,73 @@ def fit_residues(
     return _ResidueFit(real, cplx, theta, nu, nw)
 
 
+def relocate_poles(
+    u: FloatArray,
+    y: FloatArray,
+    real: FloatArray,
+    cplx: ComplexArray,
+    w: FloatArray | None = None,
+    *,
+    iterations: int = 3,
+    radius: float = 0.9999,
+    ridge: float = 1e-10,
+) -> tuple[FloatArray, ComplexArray]:
+    """Better poles by vector fitting's relocation (Gustavsen & Semlyen 1999) on the records'
+    spectra (the data of :func:`fit_residues`): ``sigma(z) = 1 + sum c_b basis_b(z)`` and the
+    residues solved together from ``sum R X = sigma Y`` (``sigma`` common to the outputs, the
+    residues eliminated per output), the new poles the zeros of ``sigma``; poles outside
+    ``radius`` reflected inside it."""
+    n, nu, r = u.shape
+    nw = 0 if w is None else w.shape[1]
+    uf = np.fft.rfft(u, axis=0)
+    yf = np.fft.rfft(y, axis=0)
+    wf = None if w is None else np.fft.rfft(w, axis=0)
+    for _ in range(iterations):
+        bz = _basis(n, real, cplx)
+        nb = bz.shape[1]
+        bu = np.concatenate([bz, np.ones((bz.shape[0], 1))], axis=1)
+        ncols = nu * (nb + 1) + nw * nb
+        ny = y.shape[1]
+        pp = np.zeros((ncols, ncols))
+        ppsi = np.zeros((ny, ncols, nb))
+        psipsi = np.zeros((ny, nb, nb))
+        py = np.zeros((ny, ncols))
+        psiy = np.zeros((ny, nb))
+        for i in range(r):  # records (a handful), each a vectorized block
+            phi = (uf[:, :, i, None] * bu[:, None, :]).reshape(bz.shape[0], nu * (nb + 1))
+            if wf is not None:
+                phi = np.concatenate([phi, (wf[:, :, i, None] * bz[:, None, :]).reshape(bz.shape[0], nw * nb)], axis=1)
+            ph = phi.conj().T
+            pp += (ph @ phi).real
+            for o in range(ny):
+                psi = yf[:, o, i, None] * bz
+                ppsi[o] += (ph @ psi).real
+                psipsi[o] += (psi.conj().T @ psi).real
+                py[o] += (ph @ yf[:, o, i]).real
+                psiy[o] += (psi.conj().T @ yf[:, o, i]).real
+        sc = np.sqrt(np.maximum(np.diag(pp), 1e-300))
+        pps = pp / sc[:, None] / sc[None, :]
+        pps[np.diag_indices_from(pps)] += ridge
+        lhs = np.zeros((nb, nb))
+        rhs = np.zeros(nb)
+        for o in range(ny):
+            q = ppsi[o] / sc[:, None]
+            lhs += psipsi[o] - q.T @ np.linalg.solve(pps, q)
+            rhs += -psiy[o] + q.T @ np.linalg.solve(pps, py[o] / sc)
+        c = np.linalg.solve(lhs + ridge * np.trace(lhs) / nb * np.eye(nb), rhs)
+        nr_, nc = real.size, cplx.size
+        poles = np.concatenate([real.astype(complex), cplx, np.conj(cplx)])
+        ca, cb = c[nr_ : nr_ + nc], c[nr_ + nc :]
+        res = np.concatenate([c[:nr_], ca + 1j * cb, ca - 1j * cb])
+        zeros = np.linalg.eigvals(np.diag(poles) - np.outer(np.ones(poles.size), res))
+        big = np.abs(zeros) > radius
+        zeros[big] = zeros[big] / np.abs(zeros[big]) ** 2 * radius
+        real = np.sort(zeros[np.abs(zeros.imag) <= 1e-9].real).astype(np.float64)
+        cplx = zeros[zeros.imag > 1e-9]
+        cplx = cplx[np.argsort(np.angle(cplx))].astype(np.complex128)
+    return real, cplx
+
+
 def realize(
     fit: _ResidueFit, *, tol: float = 1e-9
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
@@ -370,6 +438,8 @@ class MimoSettings:
     order: int = 40
     thresholds: tuple[float, ...] = (0.15, 0.45, 0.9, 1.5)
     iterations: int = 2
+    relocations: int = 0
+    input_plays: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -409,6 +479,8 @@ def _fit_kind(
     real, cplx = _split_poles(a)
     structure: Structure = {"mimo-linear": "linear", "mimo-hammerstein": "hammerstein", "mimo-lfr": "lfr"}[kind]  # type: ignore[assignment]
     if structure == "linear":
+        if settings.relocations:
+            real, cplx = relocate_poles(u, ys, real, cplx, iterations=settings.relocations)
         f = fit_residues(u, ys, real, cplx)
         aa, b, _, c, d = realize(f)
         return MimoModel.linear(aa, b, c / yscale, d / yscale, rec.fs, fit={})
@@ -419,27 +491,41 @@ def _fit_kind(
     m, nr = th.shape
     z = src
     model: MimoModel | None = None
+    both = structure == "lfr" and settings.input_plays  # plays of the inputs too (a Hammerstein part)
+    th_u = np.sqrt((u**2).mean(axis=(0, 2)))[:, None] * rel[None, :]
+    w_u = play_features(u, th_u) if both else None
     for it in range(settings.iterations + 1 if structure == "lfr" else 1):
         w = play_features(z, th)
+        if w_u is not None:
+            w = np.concatenate([w, w_u], axis=1)
+        if it == 0 and settings.relocations:
+            real, cplx = relocate_poles(u, ys, real, cplx, w, iterations=settings.relocations)
         f = fit_residues(u, ys, real, cplx, w)
         aa, b, e, c, d = realize(f)
         nw = m * nr
+        thr = th.reshape(nw, 1)
         if structure == "lfr":
             g = np.repeat(c, nr, axis=0)
             h = np.repeat(d, nr, axis=0)
         else:
             g = np.zeros((nw, aa.shape[0]))
             h = np.repeat(np.eye(m), nr, axis=0)
+        if both:
+            nwu = rec.nu * nr
+            g = np.vstack([g, np.zeros((nwu, aa.shape[0]))])
+            h = np.vstack([h, np.repeat(np.eye(rec.nu), nr, axis=0)])
+            thr = np.vstack([thr, th_u.reshape(nwu, 1)])
+            nw += nwu
         model = MimoModel(
             aa, b, c / yscale, d / yscale, e, np.zeros((c.shape[0], nw)), g, h,
-            th.reshape(nw, 1), np.ones((nw, 1)), rec.fs, structure,
+            thr, np.ones((nw, 1)), rec.fs, structure,
         )  # fmt: skip
         if log is not None:
             log(f"{kind}: iteration {it}, {aa.shape[0]} states")
         if structure == "lfr" and it < settings.iterations:
             st = model.periodic_state(np.moveaxis(u, 2, 0))
             _, zs, _ = model.run(np.ascontiguousarray(np.moveaxis(u, 2, 0)), st)
-            z = np.ascontiguousarray(np.moveaxis(zs[:, :, ::nr], 0, 2))
+            z = np.ascontiguousarray(np.moveaxis(zs[:, :, : m * nr : nr], 0, 2))
     assert model is not None
     return model
 

@@ -7,7 +7,6 @@ from .batch import batch_rmse, batch_simulate
 from .boucwen_benchmark import BoucWenBenchmark
 from .creep import Creep
 from .differential import BoucWen, Dahl, Duhem
-from .mimo import MimoModel, load_mimo_model
 from .model import SCHEMA_VERSION, HysteresisModel, Inverse, OutputMap, load_model, model_from_dict
 from .pi import (
     PI,
@@ -35,7 +34,6 @@ __all__ = [
     "GeneralizedPlay",
     "HysteresisModel",
     "Inverse",
-    "MimoModel",
     "ModifiedPI",
     "OutputMap",
     "PlayOperator",
@@ -43,7 +41,6 @@ __all__ = [
     "RateDependentPI",
     "batch_rmse",
     "batch_simulate",
-    "load_mimo_model",
     "load_model",
     "model_from_dict",
 ]

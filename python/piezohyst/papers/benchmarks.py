@@ -13,7 +13,7 @@ Examples
 --------
 >>> from piezohyst.benchmarks import BENCHMARKS
 >>> [b.name for b in BENCHMARKS]
-['pi_batch', 'closed_loop', 'identify_mpi', 'c_step', 'control', 'demo', 'load_csv', 'identify_speed', 'fleet']
+['pi_batch', 'closed_loop', 'identify_mpi', 'c_step', 'control', 'demo', 'load_csv', 'identify_speed', 'fleet', 'fsm']
 """
 
 from __future__ import annotations
@@ -432,6 +432,51 @@ def _fleet_rows(d: Json) -> list[Row]:
     ]
 
 
+def _fsm_rows(d: Json) -> list[Row]:
+    lfr, lin = d["mean_rmse_um"]["mimo-lfr"], d["mean_rmse_um"]["mimo-linear (order 28)"]
+    target = d["published"]["LFR + neural net (test, target)"]
+    split = " and ".join(f"{x['fit']}→{x['score']}" for x in d["directions"])
+    rows = [
+        _row(
+            f"FSM {lev}: held-out RMSE of mimo-lfr (fit {split}, init from 100 outputs)",
+            lfr[lev],
+            "µm",
+            "mimo-linear order 28, same split",
+            lin[lev],
+            ratio=lin[lev] / lfr[lev],
+            ratio_label="lower",
+            target=f"≤ {target[lev]}",
+            passed=lfr[lev] <= target[lev],
+        )
+        for lev in lfr
+    ]
+    if d.get("simulate_s") is not None:
+        rows.append(
+            _row(
+                "FSM: one simulate call, 8192 samples, init from 100 outputs",
+                d["simulate_s"],
+                "s",
+                "—",
+                None,
+                target="≤ 1 s",
+                passed=d["simulate_s"] <= 1.0,
+            )
+        )
+    if d.get("auto"):
+        rows.append(
+            _row(
+                f"FSM: identify --model auto on all training records (chose {d['auto']['chosen']})",
+                d["auto"]["wall_s"],
+                "s",
+                "—",
+                None,
+                target="≤ 600 s",
+                passed=d["auto"]["wall_s"] <= 600,
+            )
+        )
+    return rows
+
+
 BENCHMARKS: tuple[Benchmark, ...] = (
     Benchmark(
         "pi_batch",
@@ -477,6 +522,13 @@ BENCHMARKS: tuple[Benchmark, ...] = (
         "Dask scale-out: fleet identify 2 vs 1 workers, robustness runs/s, per-task overhead",
         ("--quick",),
         _fleet_rows,
+    ),
+    Benchmark(
+        "fsm",
+        "fsm.py",
+        "Fine Steering Mirror (issue 15): MIMO LFR vs linear on held-back realizations, per level",
+        ("--quick",),
+        _fsm_rows,
     ),
 )
 _BY_NAME = {b.name: b for b in BENCHMARKS}
