@@ -198,6 +198,29 @@ RECIPES = {
     "model.simulate": (ph.papers.mpi_seed2().simulate, (V,), {}, ["input"], []),
     "inverse.simulate": (ph.PI([0.0, 0.1, 0.2], [1.0, 0.5, 0.2]).inverse().simulate, (np.abs(V),), {}, ["desired"], []),
     "stage.simulate": (STAGE.simulate, (np.full(300, 50.0),), {}, ["command"], []),
+    # issue 15: multi-channel records and the MIMO feedforward
+    "MultiRecord": (
+        ph.signals.MultiRecord,
+        (np.ones((40, 3, 2, 2)), np.ones((40, 3, 2, 2))),
+        dict(fs=6400.0),
+        ["u", "y"],
+        ["fs"],
+    ),
+    "MimoFeedforward": (
+        ph.control.MimoFeedforward,
+        (np.diag([0.5, 0.6]), np.eye(2), np.eye(2), np.zeros((2, 2))),
+        dict(fs=1000.0, bandwidth=200.0),
+        ["A", "B"],
+        ["fs", "bandwidth", "regularization"],
+    ),
+    "MimoFeedforward.linear_command": (
+        ph.control.MimoFeedforward(np.diag([0.5, 0.6]), np.eye(2), np.eye(2), np.zeros((2, 2)), fs=1e3).linear_command,
+        (np.ones((50, 2)),),
+        {},
+        ["reference"],
+        [],
+    ),
+    "mirror_matrix": (ph.control.mirror_matrix, (0.02,), {}, [], ["radius"]),
 }
 
 

@@ -35,7 +35,9 @@ __all__ = [
     "initial_state",
     "inverse",
     "layout_codes",
+    "lfr_simulate",
     "pi_analytic_inverse",
+    "play_bank",
     "regressors",
     "simulate",
     "solve_cubic_increasing",
@@ -50,6 +52,7 @@ __version__: str
 
 _Array1 = npt.NDArray[np.float64]
 _Array2 = npt.NDArray[np.float64]
+_Array3 = npt.NDArray[np.float64]
 
 def family_layout(name: str, dims: list[int]) -> dict[str, Any]:
     """The core's layout table for a family with these dims: ``family``, ``code`` (the C
@@ -363,3 +366,22 @@ def stage_batch_rmse(
 ) -> _Array1:
     """``(S,)`` RMSE of the open-loop position of ``S`` stage rows against ``target``, from rest
     (GIL released, rayon)."""
+
+def lfr_simulate(
+    a: _Array2,
+    b: _Array2,
+    c: _Array2,
+    d: _Array2,
+    e: _Array2,
+    f: _Array2,
+    g: _Array2,
+    h: _Array2,
+    thresholds: _Array2,
+    weights: _Array2,
+    u: _Array3,
+    state: _Array2,
+) -> tuple[_Array3, _Array3, _Array2]:
+    """MIMO LFR with play-operator feedback on ``R`` records ``u (R, N, nu)``: ``(y, z, final state)``."""
+
+def play_bank(x: _Array3, thresholds: _Array2, state: _Array2) -> tuple[_Array3, _Array2]:
+    """Play operators on every channel of ``x (R, N, m)``: ``(outputs (R, N, m*nr), final state)``."""

@@ -266,3 +266,52 @@ def test_fuzz_regressions():
         suffix = Path(case["file"]).suffix
         got = _outcome(content, suffix, case["kwargs"])
         assert got == case["expect"], (case["file"], got, case.get("was"))
+
+
+# -- multi-channel data (issue 15): a mutated u_*.npy beside a valid y_*.npy, a mutated NPZ with u/y
+_UM = np.stack([_u, -_u, 0.5 * _u], axis=1).reshape(N, 3, 1, 1) * np.ones((1, 1, 2, 2))
+MULTI_SEEDS = {
+    "npy": _to_bytes(lambda p: np.save(p, _UM), ".npy"),
+    "npz": _to_bytes(lambda p: np.savez(p, u=_UM[:, :, 0, 0], y=1e-6 * _UM[:, :, 0, 0], fs=100.0), ".npz"),
+    "npz-compressed": _to_bytes(lambda p: np.savez_compressed(p, u=_UM, y=_UM), ".npz"),
+}
+
+
+def _outcome_multi(content: bytes, kind: str) -> str:
+    """Load mutated multi-channel data: "loaded" (and checked) or the PiezohystError's class name."""
+    from piezohyst.signals import load_multichannel
+
+    d = Path(tempfile.mkdtemp())
+    if kind == "npy":
+        (d / "u_a.npy").write_bytes(content)
+        np.save(d / "y_a.npy", _UM)
+        target = d
+    else:
+        target = d / "a.npz"
+        target.write_bytes(content)
+    faulthandler.dump_traceback_later(60, exit=True)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", RuntimeWarning)
+            recs = load_multichannel(target, fs=100.0, max_bytes=MAX_BYTES)
+    except ph.PiezohystError as e:
+        assert str(e).strip(), "an error without a message"
+        return type(e).__name__
+    finally:
+        faulthandler.cancel_dump_traceback_later()
+        shutil.rmtree(d, ignore_errors=True)
+    for rec in recs:
+        assert rec.u.ndim == rec.y.ndim == 4 and rec.samples >= 2
+        assert np.all(np.isfinite(rec.u)) and np.all(np.isfinite(rec.y))
+    return "loaded"
+
+
+@pytest.mark.parametrize("kind", sorted(MULTI_SEEDS))
+def test_multichannel_seeds_load(kind):
+    assert _outcome_multi(MULTI_SEEDS[kind], kind) == "loaded"
+
+
+@FUZZ
+@given(kind=st.sampled_from(sorted(MULTI_SEEDS)), data=st.data())
+def test_fuzz_mutated_multichannel(kind, data):
+    _outcome_multi(_mutate(MULTI_SEEDS[kind], data), kind)

@@ -45,6 +45,12 @@
 // Flag bit of `PhsController.flags`: the controller learns (ILC).
 #define PHS_FLAG_ILC 2
 
+// `PHS_MIMO_MAGIC` marks an initialized `PhsMimo`.
+#define PHS_MIMO_MAGIC 5714304098661584968
+
+// `PhsMimo.flags`: `A` is in modal (block-diagonal) form.
+#define PHS_MIMO_FLAG_MODAL 1
+
 // What every `phs_*` function returns. `PHS_OK` is 0; every error is positive. The
 // reason of the last failure on the calling thread, naming the argument and the value, is
 // `phs_last_error_message()`; a fixed description of a code is `phs_status_message(code)`.
@@ -262,6 +268,57 @@ typedef struct PhsIlcSpec {
   size_t delay;
 } PhsIlcSpec;
 
+// A MIMO model's description (issue 15; `piezohyst.models.mimo.MimoModel`, `kind: "mimo"`):
+//
+// ```text
+// z[t]   = G x[t] + H u[t]                                (nw feedback channels)
+// w_i[t] = sum_j weights[i, j] * play(z_i[t]; thresholds[i, j])
+// y[t]   = C x[t] + D u[t] + F w[t]
+// x[t+1] = A x[t] + B u[t] + E w[t]
+// ```
+//
+// `params` is the flat row `A, B, C, D, E, F, G, H, thresholds, weights`, each row-major
+// (`nx*nx + nx*nu + ny*nx + ny*nu + nx*nw + ny*nw + nw*nx + nw*nu + 2*nw*nr` values), as
+// `piezohyst export-c` writes it. `nw = 0`: a linear state space; `G = 0, H = I`: a
+// Hammerstein model (play operators per actuator ahead of the dynamics).
+typedef struct PhsMimoSpec {
+  // States of the linear part.
+  size_t nx;
+  // Inputs (actuators).
+  size_t nu;
+  // Outputs (sensors).
+  size_t ny;
+  // Feedback channels.
+  size_t nw;
+  // Play operators per feedback channel.
+  size_t nr;
+  // The parameter row; `phs_mimo_init` borrows it: it must stay valid and unchanged while
+  // the model is used.
+  const double *params;
+  // Length of `params`.
+  size_t n_params;
+} PhsMimoSpec;
+
+// An initialized MIMO model: filled by `phs_mimo_init`, then read-only (copies allowed; they
+// borrow the same parameter row). One model drives any number of states, from any thread.
+typedef struct PhsMimo {
+  // `PHS_MIMO_MAGIC` once initialized.
+  uint64_t magic;
+  // The dimensions `nx, nu, ny, nw, nr`.
+  size_t dims[5];
+  // `PHS_MIMO_FLAG_MODAL` when `A` is block diagonal with blocks of 1 or 2 states (found by
+  // `phs_mimo_init`): a step then reads only the blocks, as the core does.
+  uint64_t flags;
+  // The borrowed parameter row.
+  const double *params;
+  // Parameter count.
+  size_t n_params;
+  // Slots of a state buffer: `nx + nw * nr` (the linear states, then the plays' outputs).
+  size_t state_len;
+  // Slots of the work buffer a step needs: `nx + 2 * nw`.
+  size_t work_len;
+} PhsMimo;
+
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
@@ -431,6 +488,59 @@ PhsStatus phs_controller_step(const struct PhsController *controller,
                               double a_ref,
                               double y,
                               double *u_out);
+
+// Sizes of a MIMO model with these dims (`spec->params` is not read and may be NULL):
+// parameter count, state slots, work slots. Any output pointer may be NULL.
+//
+// # Safety
+// `spec` points to a `PhsMimoSpec`; each non-null output points to a writable `size_t`.
+PhsStatus phs_mimo_sizes(const struct PhsMimoSpec *spec,
+                         size_t *n_params,
+                         size_t *n_state,
+                         size_t *n_work);
+
+// Validate `spec` (lengths, every parameter finite, thresholds >= 0; the message names the
+// matrix and the flat index) and fill `*model`. Nothing is allocated or copied: the model
+// borrows `spec->params`. On failure `model->magic` is 0.
+//
+// # Safety
+// `model` points to a writable `PhsMimo`; `spec` to a `PhsMimoSpec` whose `params` holds
+// `n_params` values that outlive the model.
+PhsStatus phs_mimo_init(struct PhsMimo *model, const struct PhsMimoSpec *spec);
+
+// Slots of a state buffer and of a work buffer of an initialized model (either output may
+// be NULL).
+//
+// # Safety
+// `model` points to a `PhsMimo`; each non-null output to a writable `size_t`.
+PhsStatus phs_mimo_state_len(const struct PhsMimo *model, size_t *n_state, size_t *n_work);
+
+// Write the rest state (every state and play output 0). A state estimated elsewhere (e.g.
+// `MimoModel.estimate_state` in Python, exported by `piezohyst export-c`) may be copied
+// into the buffer instead.
+//
+// # Safety
+// `model` points to a `PhsMimo`; `state` to `n_state` writable values.
+PhsStatus phs_mimo_reset(const struct PhsMimo *model, double *state, size_t n_state);
+
+// One sample: read the inputs `u` (`n_u` = nu), write the outputs `y` (`n_y` = ny), advance
+// `state`. `work` (`n_work` slots) is scratch, the caller's, one per concurrently stepped
+// state. A non-finite input or state slot is rejected before the state is touched
+// (`PHS_ERR_NOT_FINITE`, the index named); a non-finite result (an unstable model driven
+// out of range) returns `PHS_ERR_NOT_FINITE` after the state advanced — reset it.
+//
+// # Safety
+// `model` points to a `PhsMimo`; `state`, `work`, `u`, `y` to distinct buffers of `n_state`,
+// `n_work`, `n_u`, `n_y` values.
+PhsStatus phs_mimo_step(const struct PhsMimo *model,
+                        double *state,
+                        size_t n_state,
+                        double *work,
+                        size_t n_work,
+                        const double *u,
+                        size_t n_u,
+                        double *y,
+                        size_t n_y);
 
 #ifdef __cplusplus
 }  // extern "C"

@@ -1220,6 +1220,300 @@ fn trackable(c: &Built, x_ref: f64) -> Result<(), Why> {
     }
 }
 
+// ---------------------------------------------------------------------------------------
+// MIMO models: a discrete state space with play operators in a feedback path (an LFR)
+
+/// `PHS_MIMO_MAGIC` marks an initialized `PhsMimo`.
+pub const PHS_MIMO_MAGIC: u64 = 0x4F4D_494D_5348_5048; // "PHSHMIMO"
+
+/// A MIMO model's description (issue 15; `piezohyst.models.mimo.MimoModel`, `kind: "mimo"`):
+///
+/// ```text
+/// z[t]   = G x[t] + H u[t]                                (nw feedback channels)
+/// w_i[t] = sum_j weights[i, j] * play(z_i[t]; thresholds[i, j])
+/// y[t]   = C x[t] + D u[t] + F w[t]
+/// x[t+1] = A x[t] + B u[t] + E w[t]
+/// ```
+///
+/// `params` is the flat row `A, B, C, D, E, F, G, H, thresholds, weights`, each row-major
+/// (`nx*nx + nx*nu + ny*nx + ny*nu + nx*nw + ny*nw + nw*nx + nw*nu + 2*nw*nr` values), as
+/// `piezohyst export-c` writes it. `nw = 0`: a linear state space; `G = 0, H = I`: a
+/// Hammerstein model (play operators per actuator ahead of the dynamics).
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct PhsMimoSpec {
+    /// States of the linear part.
+    pub nx: usize,
+    /// Inputs (actuators).
+    pub nu: usize,
+    /// Outputs (sensors).
+    pub ny: usize,
+    /// Feedback channels.
+    pub nw: usize,
+    /// Play operators per feedback channel.
+    pub nr: usize,
+    /// The parameter row; `phs_mimo_init` borrows it: it must stay valid and unchanged while
+    /// the model is used.
+    pub params: *const f64,
+    /// Length of `params`.
+    pub n_params: usize,
+}
+
+/// An initialized MIMO model: filled by `phs_mimo_init`, then read-only (copies allowed; they
+/// borrow the same parameter row). One model drives any number of states, from any thread.
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct PhsMimo {
+    /// `PHS_MIMO_MAGIC` once initialized.
+    pub magic: u64,
+    /// The dimensions `nx, nu, ny, nw, nr`.
+    pub dims: [usize; 5],
+    /// `PHS_MIMO_FLAG_MODAL` when `A` is block diagonal with blocks of 1 or 2 states (found by
+    /// `phs_mimo_init`): a step then reads only the blocks, as the core does.
+    pub flags: u64,
+    /// The borrowed parameter row.
+    pub params: *const f64,
+    /// Parameter count.
+    pub n_params: usize,
+    /// Slots of a state buffer: `nx + nw * nr` (the linear states, then the plays' outputs).
+    pub state_len: usize,
+    /// Slots of the work buffer a step needs: `nx + 2 * nw`.
+    pub work_len: usize,
+}
+
+/// `PhsMimo.flags`: `A` is in modal (block-diagonal) form.
+pub const PHS_MIMO_FLAG_MODAL: u64 = 1;
+
+const MIMO_DIM_MAX: usize = 1 << 20;
+
+fn mimo_param_len(d: &[usize; 5]) -> Result<usize, Why> {
+    let [nx, nu, ny, nw, nr] = *d;
+    for (name, v) in [("nx", nx), ("nu", nu), ("ny", ny), ("nw", nw), ("nr", nr)] {
+        if v > MIMO_DIM_MAX {
+            return Err(Why::Length(name, v, MIMO_DIM_MAX));
+        }
+    }
+    if nu == 0 || ny == 0 {
+        return Err(Why::Length(if nu == 0 { "nu" } else { "ny" }, 0, 1));
+    }
+    // at most 2^20 per dim: every product below fits in 64 bits
+    Ok(nx * nx + nx * nu + ny * nx + ny * nu + nx * nw + ny * nw + nw * nx + nw * nu + 2 * nw * nr)
+}
+
+/// The core model over a row of the right length (checked by the caller); `modal` as
+/// `Lfr::validated` found it.
+fn mimo_view<'a>(d: &[usize; 5], row: &'a [f64], modal: bool) -> piezohyst_core::lfr::Lfr<'a> {
+    let [nx, nu, ny, nw, nr] = *d;
+    let mut rest = row;
+    let mut take = |n: usize| {
+        let (a, b) = rest.split_at(n);
+        rest = b;
+        a
+    };
+    piezohyst_core::lfr::Lfr {
+        nx,
+        nu,
+        ny,
+        nw,
+        nr,
+        a: take(nx * nx),
+        b: take(nx * nu),
+        c: take(ny * nx),
+        d: take(ny * nu),
+        e: take(nx * nw),
+        f: take(ny * nw),
+        g: take(nw * nx),
+        h: take(nw * nu),
+        thresholds: take(nw * nr),
+        weights: take(nw * nr),
+        modal,
+    }
+}
+
+fn mimo_dims(spec: &PhsMimoSpec) -> [usize; 5] {
+    [spec.nx, spec.nu, spec.ny, spec.nw, spec.nr]
+}
+
+/// Sizes of a MIMO model with these dims (`spec->params` is not read and may be NULL):
+/// parameter count, state slots, work slots. Any output pointer may be NULL.
+///
+/// # Safety
+/// `spec` points to a `PhsMimoSpec`; each non-null output points to a writable `size_t`.
+#[no_mangle]
+pub unsafe extern "C" fn phs_mimo_sizes(
+    spec: *const PhsMimoSpec,
+    n_params: *mut usize,
+    n_state: *mut usize,
+    n_work: *mut usize,
+) -> PhsStatus {
+    guard("phs_mimo_sizes", || {
+        // SAFETY: API contract
+        let spec = unsafe { spec.as_ref() }.ok_or(Why::Null("spec"))?;
+        let d = mimo_dims(spec);
+        let len = mimo_param_len(&d)?;
+        for (p, v) in [(n_params, len), (n_state, d[0] + d[3] * d[4]), (n_work, d[0] + 2 * d[3])] {
+            // SAFETY: API contract: each size pointer is NULL or valid for one write
+            if let Some(p) = unsafe { p.as_mut() } {
+                *p = v;
+            }
+        }
+        Ok(())
+    })
+}
+
+/// Validate `spec` (lengths, every parameter finite, thresholds >= 0; the message names the
+/// matrix and the flat index) and fill `*model`. Nothing is allocated or copied: the model
+/// borrows `spec->params`. On failure `model->magic` is 0.
+///
+/// # Safety
+/// `model` points to a writable `PhsMimo`; `spec` to a `PhsMimoSpec` whose `params` holds
+/// `n_params` values that outlive the model.
+#[no_mangle]
+pub unsafe extern "C" fn phs_mimo_init(model: *mut PhsMimo, spec: *const PhsMimoSpec) -> PhsStatus {
+    guard("phs_mimo_init", || {
+        let dst = out(model, "model")?;
+        dst.magic = 0;
+        // SAFETY: API contract
+        let spec = unsafe { spec.as_ref() }.ok_or(Why::Null("spec"))?;
+        let d = mimo_dims(spec);
+        let len = mimo_param_len(&d)?;
+        // SAFETY: API contract: params holds n_params values and outlives the model
+        let row: &[f64] = unsafe { array(spec.params, spec.n_params, "spec->params")? };
+        if row.len() != len {
+            return Err(Why::Length("spec->n_params", row.len(), len));
+        }
+        let checked = mimo_view(&d, row, false).validated()?;
+        dst.flags = if checked.modal { PHS_MIMO_FLAG_MODAL } else { 0 };
+        dst.dims = d;
+        dst.params = spec.params;
+        dst.n_params = len;
+        dst.state_len = d[0] + d[3] * d[4];
+        dst.work_len = d[0] + 2 * d[3];
+        dst.magic = PHS_MIMO_MAGIC;
+        Ok(())
+    })
+}
+
+/// The initialized model behind `p`.
+///
+/// # Safety
+/// A non-null `p` points to a `PhsMimo`.
+unsafe fn mimo_ref<'a>(p: *const PhsMimo) -> Result<(&'a PhsMimo, piezohyst_core::lfr::Lfr<'a>), Why> {
+    // SAFETY: API contract
+    let m = unsafe { p.as_ref() }.ok_or(Why::Null("model"))?;
+    if m.magic != PHS_MIMO_MAGIC {
+        return Err(Why::NotInitialized("model"));
+    }
+    // SAFETY: init checked the row (params, n_params), which the caller keeps valid
+    let row = unsafe { array(m.params, m.n_params, "model->params")? };
+    Ok((m, mimo_view(&m.dims, row, m.flags & PHS_MIMO_FLAG_MODAL != 0)))
+}
+
+/// Slots of a state buffer and of a work buffer of an initialized model (either output may
+/// be NULL).
+///
+/// # Safety
+/// `model` points to a `PhsMimo`; each non-null output to a writable `size_t`.
+#[no_mangle]
+pub unsafe extern "C" fn phs_mimo_state_len(
+    model: *const PhsMimo,
+    n_state: *mut usize,
+    n_work: *mut usize,
+) -> PhsStatus {
+    guard("phs_mimo_state_len", || {
+        // SAFETY: API contract
+        let (m, _) = unsafe { mimo_ref(model)? };
+        for (p, v) in [(n_state, m.state_len), (n_work, m.work_len)] {
+            // SAFETY: API contract
+            if let Some(p) = unsafe { p.as_mut() } {
+                *p = v;
+            }
+        }
+        Ok(())
+    })
+}
+
+/// Write the rest state (every state and play output 0). A state estimated elsewhere (e.g.
+/// `MimoModel.estimate_state` in Python, exported by `piezohyst export-c`) may be copied
+/// into the buffer instead.
+///
+/// # Safety
+/// `model` points to a `PhsMimo`; `state` to `n_state` writable values.
+#[no_mangle]
+pub unsafe extern "C" fn phs_mimo_reset(model: *const PhsMimo, state: *mut f64, n_state: usize) -> PhsStatus {
+    guard("phs_mimo_reset", || {
+        // SAFETY: API contract
+        let (m, _) = unsafe { mimo_ref(model)? };
+        // SAFETY: API contract
+        let st = unsafe { buffer(state, n_state, m.state_len, "state", "n_state")? };
+        st.fill(0.0);
+        Ok(())
+    })
+}
+
+/// One sample: read the inputs `u` (`n_u` = nu), write the outputs `y` (`n_y` = ny), advance
+/// `state`. `work` (`n_work` slots) is scratch, the caller's, one per concurrently stepped
+/// state. A non-finite input or state slot is rejected before the state is touched
+/// (`PHS_ERR_NOT_FINITE`, the index named); a non-finite result (an unstable model driven
+/// out of range) returns `PHS_ERR_NOT_FINITE` after the state advanced — reset it.
+///
+/// # Safety
+/// `model` points to a `PhsMimo`; `state`, `work`, `u`, `y` to distinct buffers of `n_state`,
+/// `n_work`, `n_u`, `n_y` values.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn phs_mimo_step(
+    model: *const PhsMimo,
+    state: *mut f64,
+    n_state: usize,
+    work: *mut f64,
+    n_work: usize,
+    u: *const f64,
+    n_u: usize,
+    y: *mut f64,
+    n_y: usize,
+) -> PhsStatus {
+    guard("phs_mimo_step", || {
+        // SAFETY: API contract
+        let (m, lfr) = unsafe { mimo_ref(model)? };
+        let (nx, nu, ny, nw) = (m.dims[0], m.dims[1], m.dims[2], m.dims[3]);
+        // SAFETY: API contract
+        let st = unsafe { buffer(state, n_state, m.state_len, "state", "n_state")? };
+        // SAFETY: API contract
+        let wk = unsafe { buffer(work, n_work, m.work_len, "work", "n_work")? };
+        if n_u != nu {
+            return Err(Why::Length("n_u", n_u, nu));
+        }
+        // SAFETY: API contract
+        let u = unsafe { array(u, n_u, "u")? };
+        // SAFETY: API contract
+        let y = unsafe { buffer(y, n_y, ny, "y", "n_y")? };
+        if overlap(st, wk) || overlap(st, y) || overlap(wk, y) {
+            return Err(Why::Overlap("state, work", "y"));
+        }
+        if let Some(k) = u.iter().position(|v| !v.is_finite()) {
+            return Err(Why::NotFinite(MIMO_INPUT_NAMES[k.min(MIMO_INPUT_NAMES.len() - 1)], u[k]));
+        }
+        if let Some(k) = st.iter().position(|v| !v.is_finite()) {
+            return Err(Why::NotFinite(MIMO_STATE_NAMES[k.min(MIMO_STATE_NAMES.len() - 1)], st[k]));
+        }
+        let (scratch, z) = wk.split_at_mut(nx + nw);
+        lfr.step(u, st, scratch, y, z);
+        if let Some(k) = y.iter().position(|v| !v.is_finite()) {
+            return Err(Why::Diverged(y[k]));
+        }
+        if st.iter().any(|v| !v.is_finite()) {
+            return Err(diverged(st));
+        }
+        Ok(())
+    })
+}
+
+// the index in a message without formatting an allocation: names for the first slots
+const MIMO_INPUT_NAMES: [&str; 9] = ["u[0]", "u[1]", "u[2]", "u[3]", "u[4]", "u[5]", "u[6]", "u[7]", "u[8+]"];
+const MIMO_STATE_NAMES: [&str; 9] =
+    ["state[0]", "state[1]", "state[2]", "state[3]", "state[4]", "state[5]", "state[6]", "state[7]", "state[8+]"];
+
 #[cfg(test)]
 mod tests {
     use super::*;

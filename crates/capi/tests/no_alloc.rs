@@ -223,3 +223,44 @@ fn controllers_never_allocate() {
         assert!(lo >= -20.0 && hi <= 150.0);
     }
 }
+
+#[test]
+fn the_mimo_model_never_allocates() {
+    // 2 states, 2 inputs, 2 outputs, 2 feedback channels of 2 plays (row: A B C D E F G H r w)
+    let mut row = vec![0.6, 0.1, 0.0, 0.5]; // A
+    row.extend([1.0, 0.0, 0.0, 1.0]); // B
+    row.extend([1e-6, 0.0, 0.0, 1e-6]); // C
+    row.extend([0.0; 4]); // D
+    row.extend([0.1, 0.0, 0.0, 0.1]); // E
+    row.extend([1e-8; 4]); // F
+    row.extend([0.2, 0.0, 0.0, 0.2]); // G
+    row.extend([1.0, 0.0, 0.0, 1.0]); // H
+    row.extend([0.0, 0.1, 0.0, 0.1]); // thresholds
+    row.extend([0.5, 0.2, 0.5, 0.2]); // weights
+    let spec = PhsMimoSpec { nx: 2, nu: 2, ny: 2, nw: 2, nr: 2, params: row.as_ptr(), n_params: row.len() };
+    let mut m =
+        PhsMimo { magic: 0, dims: [0; 5], flags: 0, params: ptr::null(), n_params: 0, state_len: 0, work_len: 0 };
+    let (mut st, mut work, mut y) = ([0.0; 6], [0.0; 6], [0.0; 2]);
+    let init = allocations(|| {
+        assert_eq!(unsafe { phs_mimo_init(&mut m, &spec) }, PHS_OK);
+        assert_eq!(unsafe { phs_mimo_reset(&m, st.as_mut_ptr(), 6) }, PHS_OK);
+    });
+    let step = allocations(|| {
+        for k in 0..STEPS {
+            let u = [(k as f64 * 0.01).sin(), (k as f64 * 0.013).cos()];
+            let code = unsafe {
+                phs_mimo_step(&m, st.as_mut_ptr(), 6, work.as_mut_ptr(), 6, u.as_ptr(), 2, y.as_mut_ptr(), 2)
+            };
+            assert_eq!(code, PHS_OK);
+        }
+    });
+    let errors = allocations(|| {
+        let u = [f64::NAN, 0.0];
+        let code =
+            unsafe { phs_mimo_step(&m, st.as_mut_ptr(), 6, work.as_mut_ptr(), 6, u.as_ptr(), 2, y.as_mut_ptr(), 2) };
+        assert_eq!(code, PHS_ERR_NOT_FINITE);
+        let bad = PhsMimoSpec { n_params: row.len() - 1, ..spec };
+        assert_eq!(unsafe { phs_mimo_init(&mut m, &bad) }, PHS_ERR_BAD_LENGTH);
+    });
+    assert_eq!((init, step, errors), (0, 0, 0));
+}

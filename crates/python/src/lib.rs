@@ -11,6 +11,7 @@ static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 mod boucwen_benchmark;
 mod control;
 mod layout;
+mod lfr;
 mod models;
 mod plant;
 mod steps;
@@ -34,6 +35,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.setattr("_panic_for_tests", wrap_pyfunction!(_panic_for_tests, m)?)?;
     models::register(m)?;
     layout::register(m)?;
+    lfr::register(m)?;
     boucwen_benchmark::register(m)?;
     plant::register(m)?;
     steps::register(m)?;

@@ -32,7 +32,9 @@ def _export_c_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
             "(crates/capi: `cargo build --release -p piezohyst-capi` gives target/release/libpiezohyst.a). The\n"
             "C library runs the same code as Python: the exported objects give the same numbers, bit for bit.\n"
             "Without a controller the example runs the model's exact inverse (inverse feedforward); with one,\n"
-            "it closes the loop around the model. A controller behind an inverse must use MODEL's inverse."
+            "it closes the loop around the model. A controller behind an inverse must use MODEL's inverse.\n"
+            "A MIMO model file (kind 'mimo') gives piezohyst_mimo.h/.c for phs_mimo_* and an example.c that\n"
+            "steps it on inputs read from a text file (one sample per line) and prints the outputs."
         ),
         epilog=(
             "examples:\n"
@@ -80,7 +82,13 @@ def _export_c(args: argparse.Namespace) -> None:
     from ..models.boucwen_benchmark import BoucWenBenchmark
 
     model_path = _existing_file(args.model, "MODEL")
-    model = _read_model(model_path)
+    from .._io import read_json_file
+    from ..models.mimo import is_mimo_description
+
+    d = read_json_file(model_path, "MODEL =")
+    if is_mimo_description(d):
+        return _export_c_mimo(args, model_path, d)
+    model = _read_model(model_path, d)
     if isinstance(model, BoucWenBenchmark):
         raise _Fail(
             f"MODEL = '{model_path}': kind 'boucwen-benchmark' (the Noel-Schoukens oscillator) has no C "
@@ -148,6 +156,43 @@ def _export_c(args: argparse.Namespace) -> None:
         )
         return
     print(f"wrote {len(written)} files to {out}: {', '.join(p.name for p in written)}")
+    if lib is None:
+        print("  build the library first: cargo build --release -p piezohyst-capi")
+    print(f"  build the example: {build}")
+
+
+def _export_c_mimo(args: argparse.Namespace, model_path: Path, d: object) -> None:
+    """A MIMO model file: ``piezohyst_mimo.h/.c``, ``example.c`` and ``piezohyst.h`` for the C
+    library's ``phs_mimo_*`` functions."""
+    from ..export import c as X
+    from ..export.c_mimo import MIMO_EXPORT_FILES, export_c_mimo
+    from ..models.mimo import mimo_from_dict
+
+    for flag, value in (("CONTROLLER", args.controller), ("--input-range", args.input_range), ("--steps", args.steps)):
+        if value is not None:
+            raise _Fail(f"{flag} applies to single-channel models; MODEL = '{model_path}' is a MIMO model")
+    try:
+        model = mimo_from_dict(d)
+    except (ValueError, TypeError) as e:
+        raise _Fail(f"MODEL = '{model_path}': {e}") from None
+    names = list(MIMO_EXPORT_FILES) + (["piezohyst.h"] if X.header_path() is not None else [])
+    out = check_output_dir(args.out, name="--out", overwrite=args.force, names=names, inputs={"MODEL": model_path})
+    written = export_c_mimo(model, out, force=args.force, source=model_path.name, name="--out")
+    lib = X.library_path()
+    build = (
+        f"cc -std=c99 -O2 -ffp-contract=off -I{out} {out / 'example.c'} {out / 'piezohyst_mimo.c'} "
+        f"{lib if lib else 'path/to/libpiezohyst.a'} {X.LINK_LIBS} -o {out / 'example'}"
+    )
+    if args.json:
+        files = [str(p) for p in written]
+        print(
+            json.dumps(
+                {"out": str(out), "files": files, "build": build, "library": None if lib is None else str(lib)},
+                indent=2,
+            )
+        )
+        return
+    print(f"wrote {len(written)} files to {out}: {', '.join(p.name for p in written)} (MIMO model, phs_mimo_*)")
     if lib is None:
         print("  build the library first: cargo build --release -p piezohyst-capi")
     print(f"  build the example: {build}")

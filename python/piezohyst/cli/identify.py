@@ -67,7 +67,9 @@ class _KindsOrAuto(tuple[str, ...]):
     """``--model``'s choices: the registry's kinds (what the choices list), and ``auto``."""
 
     def __contains__(self, key: object) -> bool:
-        return key == "auto" or tuple.__contains__(self, key)
+        from ..identify.mimo import MIMO_KINDS  # the MIMO kinds, for multi-channel DATA (issue 15)
+
+        return key == "auto" or key in MIMO_KINDS or tuple.__contains__(self, key)
 
 
 def _identify_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
@@ -364,6 +366,10 @@ def _identify_outputs(i: argparse.ArgumentParser) -> None:
 
 def _identify(args: argparse.Namespace) -> int:
     from ..identify.dispatch import identify
+    from .identify_mimo import _identify_mimo, _is_multichannel
+
+    if _is_multichannel(args.data) or args.model.startswith("mimo-"):  # multi-channel DATA: MIMO models
+        return _identify_mimo(args)
 
     _check_count(args.operators, "--operators")
     _check_count(args.levels, "--levels")

@@ -51,6 +51,12 @@ def _simulate_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
             "that they read back bit for bit. Every 'identify --model' kind's file simulates: a\n"
             "boucwen-benchmark file at its own fs (input force in N, output displacement in m), a cemf\n"
             "stage file open loop (input = voltage command, output = position: Stage.simulate(input).position).\n\n"
+            "A multi-channel (MIMO) model file takes INPUT = U, a matrix (N, nu) of input voltages in V (one\n"
+            "column per actuator; .npy, .npz with one array or the array named by --input, or delimited\n"
+            "text), and writes YHAT (N, ny), the outputs in m, to --out (.npy, .npz with array y, or .csv;\n"
+            "'-': CSV on standard output). --init-output Y0 (M, ny), the first M measured outputs in m,\n"
+            "sets the initial state through the model's estimator (with U's first M samples); it is not\n"
+            "used otherwise. Without it the model starts at rest.\n\n"
             + _FORMATS.replace("DATA formats", "INPUT formats")
         ),
         epilog=(
@@ -59,7 +65,8 @@ def _simulate_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
             "  piezohyst simulate mpi.json run.csv --input v --output x --time t --out p.csv --json\n"
             "  piezohyst simulate mpi.json sweep.csv --input 0 > predicted.csv\n"
             "  piezohyst simulate mpi.json test.dat --input 0 --output 4 --fs 200 --rows 4652:6052 --lag 1 \\\n"
-            "      --score-from 400 --out p.csv\n\n"
+            "      --score-from 400 --out p.csv\n"
+            "  piezohyst simulate fsm.json U.npy --init-output Y0.npy --out YHAT.npy  (MIMO: U (N, 3) V)\n\n"
             "exit status: 0 on success, 2 on bad input (one line on stderr naming the argument)."
         ),
     )
@@ -123,7 +130,19 @@ def _simulate_parser(sub: argparse._SubParsersAction[_Parser]) -> None:
         help="leave the first K simulated samples out of the comparison with --output (the "
         "model's warm-up from the relaxed state; default 0)",
     )
-    s.add_argument("--out", metavar="FILE", default="-", help="CSV file to write (default: '-', standard output)")
+    s.add_argument(
+        "--init-output",
+        metavar="Y0",
+        help="multi-channel models: the first M measured outputs (M, ny), in m (.npy, .npz, text), used only "
+        "to set the initial state through the model's estimator",
+    )
+    s.add_argument(
+        "--out",
+        metavar="FILE",
+        default="-",
+        help="CSV file to write (default: '-', standard output); a multi-channel model's YHAT (N, ny) in m "
+        "as .npy, .npz or .csv",
+    )
     s.add_argument("--force", action="store_true", help="overwrite an existing --out file")
     s.add_argument(
         "--json",
@@ -158,6 +177,13 @@ def _read_simulated(path: Path) -> AnyModel | Stage:
     if isinstance(d, dict) and d.get("kind") == "stage":
         try:
             return Stage.from_dict(d)
+        except (ValueError, TypeError) as e:
+            raise _Fail(f"MODEL = '{path}': {e}") from None
+    from ..models.mimo import is_mimo_description, mimo_from_dict
+
+    if is_mimo_description(d):  # a multi-channel model: cli/simulate_mimo.py runs it
+        try:
+            return mimo_from_dict(d)  # type: ignore[return-value]
         except (ValueError, TypeError) as e:
             raise _Fail(f"MODEL = '{path}': {e}") from None
     return _read_model(path, d)
@@ -291,6 +317,15 @@ def _simulate(args: argparse.Namespace) -> None:
     inputs = {"MODEL": model_path, "INPUT": input_path}
     out = None if to_stdout else _writable(args.out, "--out", args.force, inputs)
     model = _read_simulated(model_path)
+    from .simulate_mimo import is_mimo, simulate_mimo
+
+    if is_mimo(model):
+        return simulate_mimo(args, model, model_path, input_path, out)
+    if args.init_output is not None:
+        raise _Fail(
+            f"--init-output = '{args.init_output}' sets the state of a multi-channel model; "
+            f"MODEL = '{model_path}' is a single-channel {_kind(model)} model (it starts at rest)"
+        )
 
     opts = _record_options(args)
     measured = None

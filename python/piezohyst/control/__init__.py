@@ -19,6 +19,7 @@ from .controllers import (
     is_controller,
     with_gains,
 )
+from .mimo import MimoFeedforward, mirror_matrix
 from .simulation import ClosedLoopResult, closed_loop, closed_loop_batch
 from .tuning import TuningResult, stage_from_model, track, tune
 
@@ -32,6 +33,7 @@ __all__ = [
     "Compensated",
     "FilteredPID",
     "InverseFeedforward",
+    "MimoFeedforward",
     "OpenLoop",
     "SampleRateWarning",
     "TuningResult",
@@ -41,6 +43,7 @@ __all__ = [
     "closed_loop",
     "closed_loop_batch",
     "is_controller",
+    "mirror_matrix",
     "stage_from_model",
     "track",
     "tune",

@@ -985,6 +985,8 @@ _OTHER_FILES = {
     "stage": "a stage file (piezohyst identify --model cemf, the plant): read it with "
     "piezohyst.plant.Stage.from_file; 'piezohyst simulate' runs it open loop, "
     "'piezohyst stage info --stage' and 'piezohyst track --stage' read it",
+    "mimo": "a MIMO model file (piezohyst identify on multi-channel data): read it with "
+    "piezohyst.models.mimo.load_mimo_model; 'piezohyst simulate' runs it",
 }
 
 

@@ -13,8 +13,8 @@ Examples
 --------
 >>> from piezohyst.benchmarks import BENCHMARKS
 >>> [b.name for b in BENCHMARKS]  # doctest: +NORMALIZE_WHITESPACE
-['pi_batch', 'closed_loop', 'identify_mpi', 'c_step', 'control', 'control_acceptance', 'demo',
- 'load_csv', 'identify_speed', 'fleet', 'identify_auto']
+['pi_batch', 'closed_loop', 'identify_mpi', 'c_step', 'mimo_c_step', 'control', 'control_acceptance',
+ 'demo', 'load_csv', 'identify_speed', 'fleet', 'identify_auto', 'fsm']
 """
 
 from __future__ import annotations
@@ -256,6 +256,23 @@ def _c_step_rows(d: Json) -> list[Row]:
     return rows
 
 
+def _mimo_c_step_rows(d: Json) -> list[Row]:
+    """MIMO model steps from C (issue 15): the median per case (means carry the preemption of a
+    shared machine), against 10 % of the 156 µs sample period of the 6400 Hz mirror."""
+    return [
+        _row(
+            f"one MIMO step from C: {name} (median of {d['steps_per_case']:.0e})",
+            s["median_ns"],
+            "ns",
+            "—",
+            None,
+            target="≤ 15600 ns (10 % of a 6400 Hz period)",
+            passed=s["median_ns"] <= 15600.0,
+        )
+        for name, s in d["summary"].items()
+    ]
+
+
 def _control_rows(d: Json) -> list[Row]:
     rows: list[Row] = []
     s1 = d["seed1_table3"]
@@ -481,6 +498,51 @@ def _fleet_rows(d: Json) -> list[Row]:
     ]
 
 
+def _fsm_rows(d: Json) -> list[Row]:
+    lfr, lin = d["mean_rmse_um"]["mimo-lfr"], d["mean_rmse_um"]["mimo-linear (order 28)"]
+    target = d["published"]["LFR + neural net (test, target)"]
+    split = " and ".join(f"{x['fit']}→{x['score']}" for x in d["directions"])
+    rows = [
+        _row(
+            f"FSM {lev}: held-out RMSE of mimo-lfr (fit {split}, init from 100 outputs)",
+            lfr[lev],
+            "µm",
+            "mimo-linear order 28, same split",
+            lin[lev],
+            ratio=lin[lev] / lfr[lev],
+            ratio_label="lower",
+            target=f"≤ {target[lev]}",
+            passed=lfr[lev] <= target[lev],
+        )
+        for lev in lfr
+    ]
+    if d.get("simulate_s") is not None:
+        rows.append(
+            _row(
+                "FSM: one simulate call, 8192 samples, init from 100 outputs",
+                d["simulate_s"],
+                "s",
+                "—",
+                None,
+                target="≤ 1 s",
+                passed=d["simulate_s"] <= 1.0,
+            )
+        )
+    if d.get("auto"):
+        rows.append(
+            _row(
+                f"FSM: identify --model auto on all training records (chose {d['auto']['chosen']})",
+                d["auto"]["wall_s"],
+                "s",
+                "—",
+                None,
+                target="≤ 600 s",
+                passed=d["auto"]["wall_s"] <= 600,
+            )
+        )
+    return rows
+
+
 _AUTO_RECORDS = {
     "yan9a": "yan9a (200 Hz, measured)",
     "5khz": "5 kHz ±150 V lookalikes (time column, lead-in)",
@@ -625,6 +687,7 @@ BENCHMARKS: tuple[Benchmark, ...] = (
         _identify_mpi_rows,
     ),
     Benchmark("c_step", "c_step.py", "ns per step from C", ("--rounds", "1"), _c_step_rows),
+    Benchmark("mimo_c_step", "mimo_c_step.py", "ns per MIMO model step from C", ("--rounds", "1"), _mimo_c_step_rows),
     Benchmark("control", "control.py", "seed 1 / seed 2 control tables, tuning time", ("--quick",), _control_rows),
     Benchmark(
         "control_acceptance",
@@ -661,6 +724,13 @@ BENCHMARKS: tuple[Benchmark, ...] = (
         "issue 14's acceptance command on yan9a and lookalike records, against --lag 0 --drift none",
         ("--quick",),
         _identify_auto_rows,
+    ),
+    Benchmark(
+        "fsm",
+        "fsm.py",
+        "Fine Steering Mirror (issue 15): MIMO LFR vs linear on held-back realizations, per level",
+        ("--quick",),
+        _fsm_rows,
     ),
 )
 _BY_NAME = {b.name: b for b in BENCHMARKS}

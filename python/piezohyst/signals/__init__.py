@@ -1,11 +1,13 @@
-"""Signals: measured records and their file readers (:mod:`.data`), their preprocessing
-(:mod:`.preprocess`), reference trajectories (:mod:`.references`; jerk-limited moves and input
-shaping: :mod:`.trajectory`), tracking/hysteresis metrics (:mod:`.metrics`), frequency responses
-(:mod:`.frequency`) and :class:`.Response`, the result of every time simulation."""
+"""Signals: measured records and their file readers (:mod:`.data`), multi-channel records
+(:mod:`.multichannel`), their preprocessing (:mod:`.preprocess`), reference trajectories
+(:mod:`.references`; jerk-limited moves and input shaping: :mod:`.trajectory`),
+tracking/hysteresis metrics (:mod:`.metrics`), frequency responses (:mod:`.frequency`) and
+:class:`.Response`, the result of every time simulation."""
 
 from .data import Record, load_record, load_yan9a_model_record
 from .frequency import FrequencyResponse, frf_from_record
 from .metrics import hysteresis_percent, linearity_error, max_error, rmse, tracking_metrics
+from .multichannel import MultiRecord, is_multichannel, load_multichannel, read_channels
 from .preprocess import (
     apply_lag,
     decimate,
@@ -23,6 +25,7 @@ from .trajectory import input_shaper, jerk_limited
 
 __all__ = [
     "FrequencyResponse",
+    "MultiRecord",
     "Record",
     "Response",
     "apply_lag",
@@ -35,13 +38,16 @@ __all__ = [
     "hysteresis_percent",
     "input_shaper",
     "jerk_limited",
+    "is_multichannel",
     "linearity_error",
+    "load_multichannel",
     "load_record",
     "load_yan9a_model_record",
     "max_error",
     "multisine",
     "preprocess",
     "processed_index",
+    "read_channels",
     "remove_drift",
     "replace_outliers",
     "rmse",

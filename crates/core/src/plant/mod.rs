@@ -8,6 +8,7 @@
 //!   integrator, decimation and record error.
 pub mod boucwen_benchmark;
 pub mod closed_loop;
+pub mod lfr;
 pub mod sensor;
 pub mod stage;
 pub mod structure;

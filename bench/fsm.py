@@ -1,0 +1,134 @@
+"""The Fine Steering Mirror benchmark (issue 15) on held-back training realizations.
+
+Usage (from the project root, after the extension is built):
+
+    .venv/bin/python bench/fsm.py [--out bench/results/fsm.json] [--data ../shared/data/fsm] [--quick]
+
+The benchmark's protocol (../shared/data/README.md, fsm/), with the training realizations split
+in their designed groups of three: fit on realizations {1,2,3} of every level, score on {4,5,6},
+and the reverse (``--quick``: the first direction only, and no timing of ``--model auto``).
+Each scored record is one period of one realization, simulated alone: its first 100 measured
+outputs set the initial state (after a periodic pre-run of its input), the RMSE per output from
+sample 100 on, averaged over outputs, realizations, periods and directions, in µm, per level.
+
+Models: ``mimo-lfr`` (the hysteretic LFR at its defaults, what ``--model auto`` chooses on this
+data) against the baseline ``mimo-linear`` of order 28 (the published linear model's order)
+fitted the same way, on the same split; the targets are the best published model's test RMSE
+(LFR with a neural network: 0.0866 / 0.131 / 0.169 µm). Also: the wall time of each fit, of one
+simulate call (8192 samples, init from 100 outputs) and (without ``--quick``) of
+``identify_mimo(all training records, "auto")`` (target ≤ 10 min).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import HERE, extension_digest, machine_info
+
+PUBLISHED = {
+    "linear BLA 28th order (test)": {"100mV": 0.252, "200mV": 0.179, "300mV": 0.658},
+    "LFR + neural net (test, target)": {"100mV": 0.0866, "200mV": 0.131, "300mV": 0.169},
+    "noise floor": {"100mV": 0.013, "200mV": 0.022, "300mV": 0.031},
+}
+
+
+def default_data() -> Path:
+    env = os.environ.get("PIEZOHYST_FSM_DATA")
+    return Path(env) if env else HERE.parent.parent / "shared" / "data" / "fsm"
+
+
+def run(data: Path, quick: bool) -> dict[str, Any]:
+    from piezohyst.identify.mimo import MimoSettings, identify_mimo, protocol_rmse, read_multisine_folder
+
+    rec = read_multisine_folder(data, 6400.0)
+    folds = rec.folds()
+    kinds = {
+        "mimo-lfr": ("mimo-lfr", MimoSettings()),
+        "mimo-linear (order 28)": ("mimo-linear", MimoSettings(order=28)),
+    }
+    directions = []
+    pairs = [(0, 1)] if quick else [(0, 1), (1, 0)]
+    simulate_s = None
+    for fit_f, test_f in pairs:
+        train, test = rec.select(folds[fit_f]), rec.select(folds[test_f])
+        models: dict[str, Any] = {}
+        for label, (kind, settings) in kinds.items():
+            t0 = time.perf_counter()
+            res = identify_mimo(train, kind, settings=settings)  # type: ignore[arg-type]
+            fit_s = time.perf_counter() - t0
+            err = protocol_rmse(res.model, test.u, test.y) * 1e6
+            per: dict[str, list[float]] = {}
+            for i, lab in enumerate(test.labels):
+                per.setdefault(lab, []).extend(err[i].tolist())
+            models[label] = {
+                "rmse_um": {k: float(np.mean(v)) for k, v in per.items()},
+                "fit_s": fit_s,
+                "states": res.model.nx,
+            }
+            print(label, f"fit {sorted(set(folds[fit_f]))[:3]}", models[label], flush=True)
+            if kind == "mimo-lfr" and simulate_s is None:
+                u1 = test.u[:, :, 0, 0]
+                y1 = test.y[:100, :, 0, 0]
+                t1 = time.perf_counter()
+                res.model.simulate(u1, init_output=y1)
+                simulate_s = time.perf_counter() - t1
+        names = "{1,2,3}" if fit_f == 0 else "{4,5,6}"
+        directions.append({"fit": names, "score": "{4,5,6}" if fit_f == 0 else "{1,2,3}", "models": models})
+    mean = {
+        label: {
+            lev: float(np.mean([d["models"][label]["rmse_um"][lev] for d in directions]))
+            for lev in directions[0]["models"][label]["rmse_um"]
+        }
+        for label in kinds
+    }
+    out: dict[str, Any] = {
+        "directions": directions,
+        "mean_rmse_um": mean,
+        "simulate_s": simulate_s,
+        "published": PUBLISHED,
+    }
+    if not quick:
+        t0 = time.perf_counter()
+        res = identify_mimo(rec, "auto")
+        out["auto"] = {"wall_s": time.perf_counter() - t0, "chosen": res.kind, "holdout": res.holdout}
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", default=str(HERE / "results" / "fsm.json"))
+    ap.add_argument("--data", default=None, help="the fsm/ training folder (default ../shared/data/fsm)")
+    ap.add_argument("--quick", action="store_true")
+    args = ap.parse_args()
+    data = Path(args.data) if args.data else default_data()
+    t0 = time.perf_counter()
+    result = run(data, args.quick)
+    doc = {
+        "benchmark": "fsm",
+        "date": datetime.now(UTC).isoformat(timespec="seconds"),
+        "quick": args.quick,
+        "machine": machine_info(),
+        "extension_sha256": extension_digest(),
+        "data": str(data),
+        "wall_s": time.perf_counter() - t0,
+        **result,
+    }
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(args.out).with_suffix(".tmp")
+    tmp.write_text(json.dumps(doc, indent=2) + "\n")
+    tmp.replace(args.out)
+    print(json.dumps(doc["mean_rmse_um"], indent=2))
+
+
+if __name__ == "__main__":
+    main()

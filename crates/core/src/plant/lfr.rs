@@ -1,0 +1,337 @@
+//! The MIMO linear fractional representation (LFR) with hysteresis in its feedback path: a
+//! discrete state space whose feedback channels pass through banks of play operators.
+//!
+//! ```text
+//! z[t]   = G x[t] + H u[t]                    (nw feedback channels)
+//! w_i[t] = sum_j weights[i, j] * play(z_i[t]; thresholds[i, j])
+//! y[t]   = C x[t] + D u[t] + F w[t]
+//! x[t+1] = A x[t] + B u[t] + E w[t]
+//! ```
+//!
+//! With `nw = 0` it is the plain linear MIMO state space; with `G = 0`, `H = I` a Hammerstein
+//! model (hysteresis per actuator ahead of the dynamics). Matrices are row-major. The state is
+//! `x` (`nx`) followed by the play operators' outputs (`nw * nr`, channel-major). A step
+//! allocates nothing: the caller gives a scratch buffer of [`Lfr::scratch_len`].
+use crate::error::{check_finite, ModelError};
+
+/// The dimensions and matrices of an LFR model, borrowed (see the module docs).
+#[derive(Clone, Copy, Debug)]
+pub struct Lfr<'a> {
+    /// States.
+    pub nx: usize,
+    /// Inputs.
+    pub nu: usize,
+    /// Outputs.
+    pub ny: usize,
+    /// Feedback channels.
+    pub nw: usize,
+    /// Play operators per feedback channel.
+    pub nr: usize,
+    /// `nx * nx`.
+    pub a: &'a [f64],
+    /// `nx * nu`.
+    pub b: &'a [f64],
+    /// `ny * nx`.
+    pub c: &'a [f64],
+    /// `ny * nu`.
+    pub d: &'a [f64],
+    /// `nx * nw`.
+    pub e: &'a [f64],
+    /// `ny * nw`.
+    pub f: &'a [f64],
+    /// `nw * nx`.
+    pub g: &'a [f64],
+    /// `nw * nu`.
+    pub h: &'a [f64],
+    /// `nw * nr` play thresholds (each ≥ 0).
+    pub thresholds: &'a [f64],
+    /// `nw * nr` play weights.
+    pub weights: &'a [f64],
+    /// Set by [`Lfr::validated`]: `A` is block diagonal with blocks of 1 or 2 states (a
+    /// modal form), so a step reads only the blocks.
+    pub modal: bool,
+}
+
+impl<'a> Lfr<'a> {
+    /// Check every length and that all numbers are finite (thresholds ≥ 0). The error names the
+    /// matrix  and the flat index.
+    pub fn validated(self) -> Result<Self, ModelError> {
+        let (nx, nu, ny, nw, nr) = (self.nx, self.nu, self.ny, self.nw, self.nr);
+        let parts: [(&'static str, &[f64], usize); 10] = [
+            ("A", self.a, nx * nx),
+            ("B", self.b, nx * nu),
+            ("C", self.c, ny * nx),
+            ("D", self.d, ny * nu),
+            ("E", self.e, nx * nw),
+            ("F", self.f, ny * nw),
+            ("G", self.g, nw * nx),
+            ("H", self.h, nw * nu),
+            ("thresholds", self.thresholds, nw * nr),
+            ("weights", self.weights, nw * nr),
+        ];
+        for (name, v, len) in parts {
+            if v.len() != len {
+                return Err(ModelError::Length(name, len, v.len()));
+            }
+            check_finite(name, v)?;
+        }
+        if let Some(k) = self.thresholds.iter().position(|&r| r < 0.0) {
+            return Err(ModelError::Negative("thresholds", k, self.thresholds[k]));
+        }
+        let mut out = self;
+        out.modal = is_modal(self.a, nx);
+        Ok(out)
+    }
+
+    /// Length of the state: `nx + nw * nr`.
+    pub fn state_len(&self) -> usize {
+        self.nx + self.nw * self.nr
+    }
+
+    /// Length of the scratch buffer a step needs: `nx + nw`.
+    pub fn scratch_len(&self) -> usize {
+        self.nx + self.nw
+    }
+
+    /// One sample: reads `u` (`nu`), writes `y` (`ny`) and `z` (`nw`), advances `state`.
+    #[inline]
+    pub fn step(&self, u: &[f64], state: &mut [f64], scratch: &mut [f64], y: &mut [f64], z: &mut [f64]) {
+        let (nx, nu, nw, nr) = (self.nx, self.nu, self.nw, self.nr);
+        let (x, plays) = state.split_at_mut(nx);
+        let (xn, w) = scratch.split_at_mut(nx);
+        for i in 0..nw {
+            let mut zi = dot(&self.g[i * nx..(i + 1) * nx], x) + dot(&self.h[i * nu..(i + 1) * nu], u);
+            if !zi.is_finite() {
+                zi = f64::NAN;
+            }
+            z[i] = zi;
+            let mut wi = 0.0;
+            for j in 0..nr {
+                let k = i * nr + j;
+                let r = self.thresholds[k];
+                let p = plays[k].max(zi - r).min(zi + r);
+                plays[k] = p;
+                wi += self.weights[k] * p;
+            }
+            w[i] = wi;
+        }
+        for (o, yo) in y.iter_mut().enumerate() {
+            *yo = dot(&self.c[o * nx..(o + 1) * nx], x)
+                + dot(&self.d[o * nu..(o + 1) * nu], u)
+                + dot(&self.f[o * nw..(o + 1) * nw], w);
+        }
+        for (s, xs) in xn.iter_mut().enumerate() {
+            let ax = if self.modal {
+                let row = &self.a[s * nx..(s + 1) * nx];
+                let lo = s.saturating_sub(1);
+                let hi = (s + 2).min(nx);
+                dot(&row[lo..hi], &x[lo..hi])
+            } else {
+                dot(&self.a[s * nx..(s + 1) * nx], x)
+            };
+            *xs = ax + dot(&self.b[s * nu..(s + 1) * nu], u) + dot(&self.e[s * nw..(s + 1) * nw], w);
+        }
+        x.copy_from_slice(xn);
+    }
+
+    /// Simulate `n` samples of `u` (`n * nu`, sample-major) from `state` (advanced in place)
+    /// into `y` (`n * ny`) and `z` (`n * nw`). Stops early (returning `false`) when `stop`
+    /// says so, checked every 1024 samples; returns `false` too when the state diverges.
+    pub fn simulate(
+        &self,
+        u: &[f64],
+        state: &mut [f64],
+        scratch: &mut [f64],
+        y: &mut [f64],
+        z: &mut [f64],
+        stop: &dyn Fn() -> bool,
+    ) -> bool {
+        let (nu, ny, nw) = (self.nu, self.ny, self.nw);
+        let n = u.len().checked_div(nu).unwrap_or(0);
+        for t in 0..n {
+            if t % 1024 == 0 && (stop() || !state.iter().all(|s| s.is_finite())) {
+                return false;
+            }
+            self.step(
+                &u[t * nu..(t + 1) * nu],
+                state,
+                scratch,
+                &mut y[t * ny..(t + 1) * ny],
+                &mut z[t * nw..(t + 1) * nw],
+            );
+        }
+        state.iter().all(|s| s.is_finite())
+    }
+}
+
+/// Run a bank of play operators: `x` (`n * m`, sample-major, `m` channels), `thresholds`
+/// (`m * nr`), `state` (`m * nr`, advanced in place), `out` (`n * m * nr`).
+pub fn play_bank(x: &[f64], m: usize, thresholds: &[f64], state: &mut [f64], out: &mut [f64]) {
+    let nr = thresholds.len().checked_div(m).unwrap_or(0);
+    let n = x.len().checked_div(m).unwrap_or(0);
+    for t in 0..n {
+        for i in 0..m {
+            let xi = x[t * m + i];
+            for j in 0..nr {
+                let k = i * nr + j;
+                let r = thresholds[k];
+                let p = state[k].max(xi - r).min(xi + r);
+                state[k] = p;
+                out[(t * m + i) * nr + j] = p;
+            }
+        }
+    }
+}
+
+/// Whether `a` (`n x n`) has nonzeros only in diagonal blocks of 1 or 2 states.
+fn is_modal(a: &[f64], n: usize) -> bool {
+    let mut s = 0;
+    while s < n {
+        // a block of 2 when the entry right of the diagonal or below it is nonzero
+        let two = s + 1 < n && (a[s * n + s + 1] != 0.0 || a[(s + 1) * n + s] != 0.0);
+        let size = if two { 2 } else { 1 };
+        for r in s..s + size {
+            for c in 0..n {
+                if (c < s || c >= s + size) && a[r * n + c] != 0.0 {
+                    return false;
+                }
+            }
+        }
+        s += size;
+    }
+    true
+}
+
+#[inline]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(p, q)| p * q).sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn first_order_siso_and_play_feedback() {
+        // x+ = 0.5 x + u, y = x; with a play of threshold 0 (identity) fed back with E = -0.25
+        let (a, b, c, d) = ([0.5], [1.0], [1.0], [0.0]);
+        let lin = Lfr {
+            nx: 1,
+            nu: 1,
+            ny: 1,
+            nw: 0,
+            nr: 0,
+            a: &a,
+            b: &b,
+            c: &c,
+            d: &d,
+            e: &[],
+            f: &[],
+            g: &[],
+            h: &[],
+            thresholds: &[],
+            weights: &[],
+            modal: false,
+        }
+        .validated()
+        .unwrap();
+        let u = [1.0, 0.0, 0.0];
+        let (mut st, mut sc, mut y, mut z) = ([0.0], [0.0], [0.0; 3], [0.0; 0]);
+        assert!(lin.simulate(&u, &mut st, &mut sc, &mut y, &mut z, &|| false));
+        assert_eq!(y, [0.0, 1.0, 0.5]);
+        let fb = Lfr {
+            nx: 1,
+            nu: 1,
+            ny: 1,
+            nw: 1,
+            nr: 1,
+            a: &a,
+            b: &b,
+            c: &c,
+            d: &d,
+            e: &[-0.25],
+            f: &[0.0],
+            g: &[1.0],
+            h: &[0.0],
+            thresholds: &[0.0],
+            weights: &[1.0],
+            modal: false,
+        }
+        .validated()
+        .unwrap();
+        let (mut st, mut sc, mut y, mut z) = ([0.0, 0.0], [0.0, 0.0], [0.0; 3], [0.0; 3]);
+        assert!(fb.simulate(&u, &mut st, &mut sc, &mut y, &mut z, &|| false));
+        // the loop is x+ = 0.25 x + u
+        assert_eq!(y, [0.0, 1.0, 0.25]);
+        assert_eq!(z, y);
+    }
+
+    #[test]
+    fn modal_fast_path_equals_dense() {
+        // two 2x2 blocks and a 1x1: the block path and the dense path agree
+        #[rustfmt::skip]
+        let a = [
+            0.9, -0.2, 0.0, 0.0, 0.0,
+            0.2, 0.9, 0.0, 0.0, 0.0,
+            0.0, 0.0, 0.5, 0.1, 0.0,
+            0.0, 0.0, -0.1, 0.5, 0.0,
+            0.0, 0.0, 0.0, 0.0, 0.7,
+        ];
+        let (b, c, d) = ([1.0, 0.5, -1.0, 0.2, 1.0], [1.0, 0.0, 1.0, 0.0, 1.0], [0.0]);
+        let m = Lfr {
+            nx: 5,
+            nu: 1,
+            ny: 1,
+            nw: 0,
+            nr: 0,
+            a: &a,
+            b: &b,
+            c: &c,
+            d: &d,
+            e: &[],
+            f: &[],
+            g: &[],
+            h: &[],
+            thresholds: &[],
+            weights: &[],
+            modal: false,
+        };
+        let fast = m.validated().unwrap();
+        assert!(fast.modal);
+        let u = [1.0, -0.5, 0.25, 0.0, 2.0, 0.0];
+        let run = |m: &Lfr<'_>| {
+            let (mut st, mut sc, mut y, mut z) = ([0.0; 5], [0.0; 5], [0.0; 6], [0.0; 0]);
+            m.simulate(&u, &mut st, &mut sc, &mut y, &mut z, &|| false);
+            y
+        };
+        assert_eq!(run(&fast), run(&m));
+        let mut full = a;
+        full[4] = 0.1; // a coupling outside the blocks
+        assert!(!is_modal(&full, 5));
+    }
+
+    #[test]
+    fn wrong_length_is_named() {
+        let e = Lfr {
+            nx: 2,
+            nu: 1,
+            ny: 1,
+            nw: 0,
+            nr: 0,
+            a: &[0.0; 3],
+            b: &[0.0; 2],
+            c: &[0.0; 2],
+            d: &[0.0],
+            e: &[],
+            f: &[],
+            g: &[],
+            h: &[],
+            thresholds: &[],
+            weights: &[],
+            modal: false,
+        }
+        .validated()
+        .unwrap_err();
+        assert!(e == ModelError::Length("A", 4, 3));
+    }
+}

@@ -1,0 +1,167 @@
+//! Bindings of the MIMO LFR model with play-operator feedback (`piezohyst_core::lfr`):
+//! batch simulation over records (rayon across records, GIL released) and a bank of play
+//! operators over multi-channel signals (the regressors of the LFR's identification).
+use numpy::ndarray::{Array2, Array3};
+use numpy::{IntoPyArray, PyArray2, PyArray3, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
+use piezohyst_core::lfr::{play_bank as core_play_bank, Lfr};
+use pyo3::prelude::*;
+use rayon::prelude::*;
+
+use crate::util::{bad_arg, check_alloc, check_finite, err, guarded, interruptible};
+
+/// `(y, z, state)`: outputs, feedback signals and final states of the records.
+/// `(outputs, final state)` of a play bank.
+type BankOut<'py> = (Bound<'py, PyArray3<f64>>, Bound<'py, PyArray2<f64>>);
+
+type SimOut<'py> = (Bound<'py, PyArray3<f64>>, Bound<'py, PyArray3<f64>>, Bound<'py, PyArray2<f64>>);
+
+fn mat<'a>(a: &'a PyReadonlyArray2<'_, f64>, name: &str, rows: usize, cols: usize) -> PyResult<&'a [f64]> {
+    let s = a.shape();
+    if s[0] != rows || s[1] != cols {
+        return Err(bad_arg(format!("{name} has shape ({}, {}), expected ({rows}, {cols})", s[0], s[1])));
+    }
+    a.as_slice().map_err(|_| bad_arg(format!("{name} must be a C-contiguous float64 array")))
+}
+
+/// Simulate the LFR model on `R` records at once: `u` `(R, N, nu)`, `state` `(R, nx + nw*nr)`
+/// → `(y (R, N, ny), z (R, N, nw), final state (R, nx + nw*nr))`. Matrices as in the core's
+/// module docs; `thresholds`, `weights` `(nw, nr)`. A record whose state diverges raises.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+fn lfr_simulate<'py>(
+    py: Python<'py>,
+    a: PyReadonlyArray2<'py, f64>,
+    b: PyReadonlyArray2<'py, f64>,
+    c: PyReadonlyArray2<'py, f64>,
+    d: PyReadonlyArray2<'py, f64>,
+    e: PyReadonlyArray2<'py, f64>,
+    f: PyReadonlyArray2<'py, f64>,
+    g: PyReadonlyArray2<'py, f64>,
+    h: PyReadonlyArray2<'py, f64>,
+    thresholds: PyReadonlyArray2<'py, f64>,
+    weights: PyReadonlyArray2<'py, f64>,
+    u: PyReadonlyArray3<'py, f64>,
+    state: PyReadonlyArray2<'py, f64>,
+) -> PyResult<SimOut<'py>> {
+    guarded(|| {
+        let nx = a.shape()[0];
+        let nu = b.shape()[1];
+        let ny = c.shape()[0];
+        let nw = g.shape()[0];
+        let nr = thresholds.shape()[1];
+        let model = Lfr {
+            nx,
+            nu,
+            ny,
+            nw,
+            nr,
+            a: mat(&a, "A", nx, nx)?,
+            b: mat(&b, "B", nx, nu)?,
+            c: mat(&c, "C", ny, nx)?,
+            d: mat(&d, "D", ny, nu)?,
+            e: mat(&e, "E", nx, nw)?,
+            f: mat(&f, "F", ny, nw)?,
+            g: mat(&g, "G", nw, nx)?,
+            h: mat(&h, "H", nw, nu)?,
+            thresholds: mat(&thresholds, "thresholds", nw, nr)?,
+            weights: mat(&weights, "weights", nw, nr)?,
+            modal: false,
+        }
+        .validated()
+        .map_err(err)?;
+        let us = u.shape();
+        let (r, n) = (us[0], us[1]);
+        if us[2] != nu {
+            return Err(bad_arg(format!("u has {} channels (shape[2]), the model has {nu} inputs", us[2])));
+        }
+        let ns = model.state_len();
+        let s0 = mat(&state, "state", r, ns)?;
+        let uu = u.as_slice().map_err(|_| bad_arg("u must be a C-contiguous float64 array".into()))?;
+        check_finite("u", uu)?;
+        check_finite("state", s0)?;
+        check_alloc("lfr_simulate: the (R, N, ny + nw) result", &[r, n, ny + nw])?;
+        // every buffer holds at least one value per record, so the records zip even when a
+        // dimension is 0 (a linear model has no feedback channel)
+        let (ly, lz, ls) = ((n * ny).max(1), (n * nw).max(1), ns.max(1));
+        let mut y = vec![0.0; r * ly];
+        let mut z = vec![0.0; r * lz];
+        let mut st = vec![0.0; r * ls];
+        for i in 0..r {
+            st[i * ls..i * ls + ns].copy_from_slice(&s0[i * ns..(i + 1) * ns]);
+        }
+        let ok: Vec<bool> = interruptible(py, |stop| {
+            y.par_chunks_mut(ly)
+                .zip(z.par_chunks_mut(lz))
+                .zip(st.par_chunks_mut(ls))
+                .enumerate()
+                .map(|(i, ((yi, zi), si))| {
+                    let mut scratch = vec![0.0; model.scratch_len()];
+                    let (yi, zi, si) = (&mut yi[..n * ny], &mut zi[..n * nw], &mut si[..ns]);
+                    model.simulate(&uu[i * n * nu..(i + 1) * n * nu], si, &mut scratch, yi, zi, &|| stop.stopped())
+                })
+                .collect()
+        })?;
+        if let Some(i) = ok.iter().position(|o| !o) {
+            return Err(bad_arg(format!("the simulation of record {i} diverged (its state is not finite)")));
+        }
+        let trim = |v: Vec<f64>, chunk: usize, len: usize| -> Vec<f64> {
+            if chunk == len {
+                v
+            } else {
+                (0..r).flat_map(|i| v[i * chunk..i * chunk + len].to_vec()).collect()
+            }
+        };
+        let y = Array3::from_shape_vec((r, n, ny), trim(y, ly, n * ny)).expect("shape matches length");
+        let z = Array3::from_shape_vec((r, n, nw), trim(z, lz, n * nw)).expect("shape matches length");
+        let st = Array2::from_shape_vec((r, ns), trim(st, ls, ns)).expect("shape matches length");
+        Ok((y.into_pyarray(py), z.into_pyarray(py), st.into_pyarray(py)))
+    })
+}
+
+/// Play operators on every channel of `R` records: `x` `(R, N, m)`, `thresholds` `(m, nr)`,
+/// `state` `(R, m*nr)` → `(outputs (R, N, m*nr), final state (R, m*nr))`.
+#[pyfunction]
+fn play_bank<'py>(
+    py: Python<'py>,
+    x: PyReadonlyArray3<'py, f64>,
+    thresholds: PyReadonlyArray2<'py, f64>,
+    state: PyReadonlyArray2<'py, f64>,
+) -> PyResult<BankOut<'py>> {
+    guarded(|| {
+        let xs = x.shape();
+        let (r, n, m) = (xs[0], xs[1], xs[2]);
+        let nr = thresholds.shape()[1];
+        let th = mat(&thresholds, "thresholds", m, nr)?;
+        check_finite("thresholds", th)?;
+        if let Some(k) = th.iter().position(|&v| v < 0.0) {
+            return Err(bad_arg(format!("thresholds[{k}] = {} must be >= 0", th[k])));
+        }
+        let s0 = mat(&state, "state", r, m * nr)?;
+        check_finite("state", s0)?;
+        let xx = x.as_slice().map_err(|_| bad_arg("x must be a C-contiguous float64 array".into()))?;
+        check_finite("x", xx)?;
+        check_alloc("play_bank: the (R, N, m*nr) result", &[r, n, m * nr])?;
+        let mut out = vec![0.0; r * n * m * nr];
+        let mut st = s0.to_vec();
+        if m * nr == 0 || n == 0 {
+            let out = Array3::from_shape_vec((r, n, m * nr), out).expect("shape matches length");
+            let st = Array2::from_shape_vec((r, m * nr), st).expect("shape matches length");
+            return Ok((out.into_pyarray(py), st.into_pyarray(py)));
+        }
+        interruptible(py, |_stop| {
+            out.par_chunks_mut((n * m * nr).max(1))
+                .zip(st.par_chunks_mut((m * nr).max(1)))
+                .enumerate()
+                .for_each(|(i, (oi, si))| core_play_bank(&xx[i * n * m..(i + 1) * n * m], m, th, si, oi))
+        })?;
+        let out = Array3::from_shape_vec((r, n, m * nr), out).expect("shape matches length");
+        let st = Array2::from_shape_vec((r, m * nr), st).expect("shape matches length");
+        Ok((out.into_pyarray(py), st.into_pyarray(py)))
+    })
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(lfr_simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(play_bank, m)?)?;
+    Ok(())
+}
