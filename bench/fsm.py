@@ -115,7 +115,7 @@ def main() -> None:
     result = run(data, args.quick)
     doc = {
         "benchmark": "fsm",
-        "date": datetime.now(UTC).isoformat(timespec="seconds"),
+        "timestamp_utc": datetime.now(UTC).isoformat(timespec="seconds"),
         "quick": args.quick,
         "machine": machine_info(),
         "extension_sha256": extension_digest(),
