@@ -16,6 +16,9 @@ figure to 1e-6. Baseline, in the same run: the same command with ``--lag 0 --dri
 league without the decisions taken on the training range: no input delay, no drift term, the fit
 from the training range's first sample). Records:
 
+The residual of each run is split by :func:`residual_parts` (slow vs fast, a phase lag, the
+input outside the training range, the amplitude ratio): what the error is made of.
+
 - ``yan9a``: ``../shared/data/piezo/yan9a_model_1hz.dat`` (200 Hz, input column 0, output 4) at
   the spans of the issue and others (target: <= 0.3 %);
 - ``5khz-S``: :func:`tests.lookalike_records.piezo_5khz` (seed S; target <= 0.2 %);
@@ -83,6 +86,8 @@ def acceptance(
     c, d = (int(x) for x in validate.split(":"))
     sim = ph.load_model(model_path).simulate(rec.input[a:d])
     again = ph.fit_metrics(sim[c - a :], rec.output[c:d])["rmse_percent"]
+    b = int(train.split(":")[1])
+    parts = residual_parts(rec.input[a:b], rec.input[c:d], rec.output[c:d], sim[c - a :], fs)
     structure = report.get("structure") or {}
     return {
         "exit": run.returncode,
@@ -94,6 +99,51 @@ def acceptance(
         "fit_start": structure.get("fit_start"),
         "reproduced": abs(again - report["validation"]["rmse_percent"]) <= 1e-6,
         "wall_s": wall,
+        "residual": parts,
+    }
+
+
+def residual_parts(
+    v_train: np.ndarray, v_val: np.ndarray, y_val: np.ndarray, sim: np.ndarray, fs: float
+) -> dict[str, float]:
+    """What the validation error is made of (% of the validation output's range, RMS):
+
+    - ``slow`` / ``fast``: the residual below / above a fifth of the training input's dominant
+      frequency (zero-phase 2nd-order Butterworth): creep and drift mis-extrapolated vs the
+      loop's shape;
+    - ``lag_samples``, ``fast_after_lag``: the fast part's least-squares coefficient on the
+      output's slope (a phase lag of the measurement chain, in samples) and what is left;
+    - ``out_of_range_fraction``, ``out_of_range``: validation samples whose input leaves the
+      training input's range, and the residual there;
+    - ``amplitude_ratio``: the validation input's standard deviation over the training's
+      (below 1: smaller loops than the fit saw).
+    """
+    from scipy import signal
+
+    r = sim - y_val
+    span = float(np.ptp(y_val)) or 1.0
+    f, p = signal.welch(v_train - v_train.mean(), fs=fs, nperseg=min(v_train.size, 1 << 16))
+    f0 = float(f[1:][np.argmax(p[1:])]) if f.size > 1 else fs / 4
+    cut = min(max(0.2 * f0, 2 * fs / r.size), 0.45 * fs)
+    bb, aa = signal.butter(2, cut, fs=fs)
+    slow = signal.filtfilt(bb, aa, r) if r.size > 15 else np.zeros_like(r)
+    fast = r - slow
+    dy = np.gradient(y_val)
+    k = float(fast @ dy) / max(float(dy @ dy), 1e-300)
+    out = (v_val < v_train.min()) | (v_val > v_train.max())
+
+    def pct(x: np.ndarray) -> float:
+        return float(100 * np.sqrt(np.mean(x * x)) / span) if x.size else 0.0
+
+    return {
+        "slow": pct(slow),
+        "fast": pct(fast),
+        "slow_cutoff_hz": cut,
+        "lag_samples": k,
+        "fast_after_lag": pct(fast - k * dy),
+        "out_of_range_fraction": float(np.mean(out)),
+        "out_of_range": pct(r[out]),
+        "amplitude_ratio": float(np.std(v_val) / (np.std(v_train) or 1.0)),
     }
 
 
@@ -135,7 +185,15 @@ def main() -> int:
                     f"{name:<9} {train:>12} {validate:>14}  {row.get('validation_rmse_percent', float('nan')):7.4f} % "
                     f"(target {row['target']})  {row.get('model', '-'):<9} delay {row.get('input_delay')} "
                     f"drift {row.get('drift')}  {row['wall_s']:.1f} s  reproduced {row.get('reproduced')}  "
-                    f"baseline {row.get('baseline_validation_rmse_percent', float('nan')):.4f} %",
+                    f"baseline {row.get('baseline_validation_rmse_percent', float('nan')):.4f} %  "
+                    + (
+                        (
+                            "residual slow {slow:.3f} fast {fast:.3f} lag {lag_samples:+.2f} out-of-range "
+                            "{out_of_range_fraction:.3f} ({out_of_range:.3f}) amplitude x{amplitude_ratio:.2f}"
+                        ).format(**row["residual"])
+                        if "residual" in row
+                        else ""
+                    ),
                     flush=True,
                 )
     summary: dict[str, Any] = {}
@@ -152,6 +210,8 @@ def main() -> int:
             "baseline_median_percent": None if args.no_baseline or not base else float(np.median(base)),
             "baseline_met": None if args.no_baseline else int(sum(v <= target for v in base)),
             "reproduced": all(r.get("reproduced") for r in mine),
+            "wall_median_s": float(np.median([r["wall_s"] for r in mine])) if mine else None,
+            "wall_max_s": float(np.max([r["wall_s"] for r in mine])) if mine else None,
         }
     doc = {
         "benchmark": "identify_auto",

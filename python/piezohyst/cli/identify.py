@@ -1040,8 +1040,10 @@ def _auto(
         if horizon != 1.0:
             kw["creep_horizon"] = horizon
         try:
-            # Bouc-Wen takes the decisions of the MPI (rate independent, no creep): the same regressors
-            choice = choices.get(_AUTO.index(("mpi", 0, 1.0))) if kind == "boucwen" else None
+            # Bouc-Wen takes the decisions of the MPI (rate independent, no creep), and the GPI
+            # and MPI of one creep structure share theirs: the same regressors, the same decisions
+            same = ("mpi", 0, 1.0) if kind == "boucwen" else ("mpi" if kind == "gpi" else "gpi", creep, horizon)
+            choice = choices.get(_AUTO.index(same)) if same in _AUTO and kind in ("boucwen", "gpi", "mpi") else None
             if choice is None:
                 choice = _decide(v, y, kind, common, kw, fs, model_lag, model_drift)
             choices[len(results)] = choice

@@ -897,25 +897,26 @@ def _identify_boucwen_projected(
     basis = np.column_stack(cols) if cols else np.zeros((n, 0))
     scale = np.maximum(np.sqrt(np.mean(basis[start:] ** 2, axis=0)), 1e-300)
     q, _ = np.linalg.qr(basis[start:] / scale) if basis.shape[1] else (np.zeros((n - start, 0)), None)
-    ys = y[start:]
+    # with the offset projected out, a constant shift of the output changes no cost: centred,
+    # the residuals' squares stay small (no cancellation in the projected sum below)
+    ys = y[start:] - (float(np.mean(y[start:])) if offset else 0.0)
 
-    def residual(rows: FloatArray) -> FloatArray:
+    def cost(rows: FloatArray) -> FloatArray:
+        # |r - Q Q'r|^2 = |r|^2 - |Q'r|^2 (Q orthonormal): the best offset and drift of each
+        # candidate removed without forming the projected residual (one pass over the samples
+        # fewer per candidate)
         out: FloatArray = _core.batch_simulate(family, [], np.ascontiguousarray(rows), v)[..., start:]
         with np.errstate(invalid="ignore", over="ignore"):
             r = ys - out
-            r = r - (r @ q) @ q.T  # the best offset and drift of each candidate, removed
-        return r
-
-    def cost(rows: FloatArray) -> FloatArray:
-        r = residual(rows)
-        with np.errstate(invalid="ignore", over="ignore"):
-            c: FloatArray = np.sqrt(np.mean(r * r, axis=-1))
+            p = r @ q
+            ss = np.einsum("...i,...i->...", r, r) - np.einsum("...i,...i->...", p, p)
+            c: FloatArray = np.sqrt(np.maximum(ss, 0.0) / r.shape[-1])
         return np.where(np.isfinite(c), c, np.inf)
 
     res = minimize(cost, bounds, method=method, polish=True, **search)
     fitted = BoucWen(*np.asarray(res.x, dtype=np.float64))
     if basis.shape[1]:
-        coef = np.linalg.lstsq(basis[start:], ys - fitted.simulate(v)[start:], rcond=None)[0]
+        coef = np.linalg.lstsq(basis[start:], y[start:] - fitted.simulate(v)[start:], rcond=None)[0]
         if offset:
             fitted = fitted.with_output_map(offset=float(coef[0]))
         if drift is not None:
