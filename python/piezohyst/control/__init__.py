@@ -1,6 +1,6 @@
-"""Control: the controllers (:mod:`.controllers`), closed-loop simulation (:mod:`.simulation`)
-and tuning/tracking (:mod:`.tuning`). This package is the former module
-``piezohyst.control`` (every public name of it is here)."""
+"""Control: the controllers (:mod:`.controllers`), closed-loop simulation (:mod:`.simulation`),
+tuning/tracking (:mod:`.tuning`) and feedforward of MIMO models (:mod:`.mimo`). This package
+is the former module ``piezohyst.control`` (every public name of it is here)."""
 
 from .controllers import (
     ABSMC,
@@ -19,7 +19,7 @@ from .controllers import (
     is_controller,
     with_gains,
 )
-from .mimo import MimoFeedforward, mirror_matrix
+from .mimo import MimoFeedforward, frequency_response, mirror_matrix, periodic_response
 from .simulation import ClosedLoopResult, closed_loop, closed_loop_batch
 from .tuning import TuningResult, stage_from_model, track, tune
 
@@ -42,8 +42,10 @@ __all__ = [
     "check_sample_rate",
     "closed_loop",
     "closed_loop_batch",
+    "frequency_response",
     "is_controller",
     "mirror_matrix",
+    "periodic_response",
     "stage_from_model",
     "track",
     "tune",

@@ -94,6 +94,41 @@ class MimoModel:
     Build one with :meth:`linear`, :meth:`from_dict` or :func:`load_mimo_model`, or from
     :func:`piezohyst.identify.mimo.identify_mimo`. Units: inputs ``input_unit`` (V), outputs
     ``output_unit`` (m); the feedback signal ``z`` is in the model's own scale.
+
+    Parameters
+    ----------
+    A, B, C, D : array_like
+        The linear part: ``A`` ``(nx, nx)``, ``B`` ``(nx, nu)``, ``C`` ``(ny, nx)``, ``D`` ``(ny, nu)``.
+    E, F : array_like
+        How the feedback ``w`` enters the states ``(nx, nw)`` and the outputs ``(ny, nw)``.
+    G, H : array_like
+        The feedback signal ``z = G x + H u``: ``G`` ``(nw, nx)``, ``H`` ``(nw, nu)``.
+    thresholds, weights : array_like
+        The play operators of each feedback channel, ``(nw, nr)``; thresholds ``>= 0``.
+    fs : float
+        Sample rate (Hz).
+    structure : {"lfr", "hammerstein", "linear"}
+        Which special case the model is (see the module docstring).
+    input_unit, output_unit : str
+        Units of the inputs (default ``"V"``) and outputs (default ``"m"``).
+    init : Mapping
+        How :meth:`simulate` sets the initial state by default (``method``, ``periods``, ``ridge``).
+    fit : Mapping
+        The identification report.
+
+    Examples
+    --------
+    A Hammerstein model: one input through two play operators into a first-order lag.
+
+    >>> import numpy as np
+    >>> from piezohyst.models.mimo import MimoModel
+    >>> h = MimoModel(A=[[0.5]], B=[[1.0]], C=[[1.0]], D=[[0.0]], E=[[0.0]], F=[[1.0]], G=[[0.0]],
+    ...               H=[[1.0]], thresholds=[[0.0, 0.5]], weights=[[1.0, 0.5]], fs=1000.0,
+    ...               structure="hammerstein")
+    >>> h
+    MimoModel(structure='hammerstein', nx=1, nu=1, ny=1, nw=1, nr=2, fs=1000)
+    >>> h.simulate(np.array([1.0, 2.0, 0.0]), init="rest").ravel().tolist()
+    [1.25, 3.75, 2.75]
     """
 
     A: FloatArray
@@ -159,7 +194,30 @@ class MimoModel:
     # -- construction ---------------------------------------------------------------------
     @classmethod
     def linear(cls, A: ArrayLike, B: ArrayLike, C: ArrayLike, D: ArrayLike, fs: float, **kw: Any) -> MimoModel:
-        """A linear model (no feedback channel): ``x+ = A x + B u``, ``y = C x + D u``."""
+        """A linear model (no feedback channel): ``x+ = A x + B u``, ``y = C x + D u``.
+
+        Parameters
+        ----------
+        A, B, C, D : array_like
+            The state-space matrices ``(nx, nx)``, ``(nx, nu)``, ``(ny, nx)``, ``(ny, nu)``.
+        fs : float
+            Sample rate (Hz).
+        **kw : Any
+            Further fields of :class:`MimoModel` (``input_unit``, ``init``, ``fit``, ...).
+
+        Returns
+        -------
+        MimoModel
+            With ``structure="linear"`` and ``nw = 0``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.models.mimo import MimoModel
+        >>> m = MimoModel.linear(A=[[0.5]], B=[[1.0, 0.0]], C=[[1.0], [2.0]], D=np.zeros((2, 2)), fs=100.0)
+        >>> (m.nx, m.nu, m.ny, m.nw, m.structure)
+        (1, 2, 2, 0, 'linear')
+        """
         a = _matrix(A, "A")
         b = _matrix(B, "B", a.shape[0])
         c = _matrix(C, "C", None, a.shape[0])
@@ -218,7 +276,29 @@ class MimoModel:
 
     def run(self, u: ArrayLike, state: ArrayLike | None = None) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Simulate records ``u`` ``(R, N, nu)`` from ``state`` ``(R, state_len)`` (rest if
-        ``None``): ``(y (R, N, ny), z (R, N, nw), final state (R, state_len))``."""
+        ``None``): ``(y (R, N, ny), z (R, N, nw), final state (R, state_len))``.
+
+        Parameters
+        ----------
+        u : array_like
+            Inputs ``(R, N, nu)`` or one record ``(N, nu)``.
+        state : array_like, optional
+            The initial states ``(R, state_len)``; rest if ``None``.
+
+        Returns
+        -------
+        y, z, state : numpy.ndarray
+            Outputs ``(R, N, ny)``, feedback signals ``(R, N, nw)``, final states ``(R, state_len)``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.models.mimo import MimoModel
+        >>> m = MimoModel.linear(A=[[0.5]], B=[[1.0, 0.0]], C=[[1.0], [2.0]], D=np.zeros((2, 2)), fs=100.0)
+        >>> y, z, st = m.run(np.array([[1.0, 0.0], [0.0, 0.0], [0.0, 0.0]]))
+        >>> y.shape, z.shape, st.tolist()
+        ((1, 3, 2), (1, 3, 0), [[0.25]])
+        """
         uu, _ = self._inputs(u)
         r = uu.shape[0]
         s = np.zeros((r, self.state_len)) if state is None else np.array(state, dtype=np.float64, ndmin=2)
@@ -233,7 +313,28 @@ class MimoModel:
 
     def periodic_state(self, u: ArrayLike, periods: int | None = None) -> FloatArray:
         """The state at the start of a period of the periodic input ``u`` ``(N, nu)`` or
-        ``(R, N, nu)``: the input run ``periods`` times from rest (``init["periods"]``)."""
+        ``(R, N, nu)``: the input run ``periods`` times from rest (``init["periods"]``).
+
+        Parameters
+        ----------
+        u : array_like
+            One period of the input, ``(N, nu)`` or ``(R, N, nu)``.
+        periods : int, optional
+            How many periods to run from rest (default ``init["periods"]``).
+
+        Returns
+        -------
+        numpy.ndarray
+            The states ``(R, state_len)``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.models.mimo import MimoModel
+        >>> m = MimoModel.linear(A=[[0.5]], B=[[1.0, 0.0]], C=[[1.0], [2.0]], D=np.zeros((2, 2)), fs=100.0)
+        >>> m.periodic_state(np.ones((4, 2)), periods=1).tolist()  # 1 + 0.5 + 0.25 + 0.125
+        [[1.875]]
+        """
         uu, _ = self._inputs(u)
         p = int(self.init.get("periods", 2)) if periods is None else int(periods)
         if p < 0:
@@ -249,7 +350,31 @@ class MimoModel:
         (default: :meth:`periodic_state` or rest, per ``init``), the linear states are corrected
         by least squares over ``y0`` (``C A^t dx`` for ``t < M``, the feedback held at its
         simulated value), ridge-regularized by ``init["ridge"]`` (relative to the norm of
-        the observability rows)."""
+        the observability rows).
+
+        Parameters
+        ----------
+        u : array_like
+            The record's input ``(N, nu)``.
+        y0 : array_like
+            Its first ``M`` measured outputs ``(M, ny)``, ``1 <= M <= N``.
+        state : array_like, optional
+            The state to correct ``(1, state_len)``; default per ``init``.
+
+        Returns
+        -------
+        numpy.ndarray
+            The corrected state ``(1, state_len)``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.models.mimo import MimoModel
+        >>> m = MimoModel.linear(A=[[0.5]], B=[[1.0, 0.0]], C=[[1.0], [2.0]], D=np.zeros((2, 2)), fs=100.0)
+        >>> st = m.estimate_state(np.zeros((3, 2)), [[1.0, 2.0]], state=np.zeros((1, 1)))
+        >>> round(float(st[0, 0]), 4)  # y = C x = [1, 2] for x = 1
+        1.0
+        """
         uu, single = self._inputs(u)
         if not single:
             raise ParameterError("estimate_state takes one record: u of shape (N, nu)")
@@ -308,6 +433,32 @@ class MimoModel:
         ``init["periods"]`` times first; ``"rest"``; default the model's ``init["method"]``),
         corrected to fit ``init_output`` — the first measured outputs ``(M, ny)`` — if given
         (:meth:`estimate_state`; one record only).
+
+        Parameters
+        ----------
+        u : array_like
+            Inputs ``(N, nu)`` or ``(R, N, nu)``.
+        init : {"periodic", "rest"}, optional
+            How the initial state is set (default the model's ``init["method"]``).
+        init_output : array_like, optional
+            The first measured outputs ``(M, ny)`` the initial state is corrected to fit.
+        state : array_like, optional
+            The initial state itself ``(R, state_len)``.
+
+        Returns
+        -------
+        numpy.ndarray
+            Outputs ``(N, ny)`` (or ``(R, N, ny)``).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.models.mimo import MimoModel
+        >>> m = MimoModel.linear(A=[[0.5]], B=[[1.0, 0.0]], C=[[1.0], [2.0]], D=np.zeros((2, 2)), fs=100.0)
+        >>> m.simulate(np.array([[1.0, 0.0], [0.0, 0.0], [0.0, 0.0]]), init="rest").tolist()
+        [[0.0, 0.0], [1.0, 2.0], [0.5, 1.0]]
+        >>> m.simulate(np.zeros((3, 2)), init="rest", init_output=[[1.0, 2.0]]).round(3).tolist()
+        [[1.0, 2.0], [0.5, 1.0], [0.25, 0.5]]
         """
         uu, single = self._inputs(u)
         method = init if init is not None else self.init.get("method", "periodic")
@@ -328,18 +479,66 @@ class MimoModel:
 
     # -- linear part ----------------------------------------------------------------------
     def linear_part(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-        """``(A, B, C, D)`` of the dynamics with the feedback signal ``w`` held at zero."""
+        """``(A, B, C, D)`` of the dynamics with the feedback signal ``w`` held at zero.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            ``(A, B, C, D)``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.models.mimo import MimoModel
+        >>> m = MimoModel.linear(A=[[0.5]], B=[[1.0, 0.0]], C=[[1.0], [2.0]], D=np.zeros((2, 2)), fs=100.0)
+        >>> [a.shape for a in m.linear_part()]
+        [(1, 1), (1, 2), (2, 1), (2, 2)]
+        """
         return self.A, self.B, self.C, self.D
 
     def to_scipy(self) -> Any:
-        """The linear part as :class:`scipy.signal.StateSpace` (discrete, ``dt = 1/fs``)."""
+        """The linear part as :class:`scipy.signal.StateSpace` (discrete, ``dt = 1/fs``).
+
+        Returns
+        -------
+        scipy.signal.StateSpace
+            The discrete linear part.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.models.mimo import MimoModel
+        >>> m = MimoModel.linear(A=[[0.5]], B=[[1.0, 0.0]], C=[[1.0], [2.0]], D=np.zeros((2, 2)), fs=100.0)
+        >>> m.to_scipy().dt
+        0.01
+        """
         from scipy.signal import StateSpace
 
         return StateSpace(*self.linear_part(), dt=1.0 / self.fs)
 
     def to_control(self, *, continuous: bool = False) -> Any:
         """The linear part as a python-control ``StateSpace``: discrete (``dt = 1/fs``), or its
-        zero-order-hold equivalent in continuous time (``continuous=True``, :meth:`continuous`)."""
+        zero-order-hold equivalent in continuous time (``continuous=True``, :meth:`continuous`).
+
+        Parameters
+        ----------
+        continuous : bool
+            Return the continuous-time equivalent instead of the discrete system.
+
+        Returns
+        -------
+        control.StateSpace
+            The linear part (needs the ``control`` package).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.models.mimo import MimoModel
+        >>> m = MimoModel.linear(A=[[0.5]], B=[[1.0, 0.0]], C=[[1.0], [2.0]], D=np.zeros((2, 2)), fs=100.0)
+        >>> sys = m.to_control()
+        >>> (sys.nstates, sys.ninputs, sys.noutputs, sys.dt)
+        (1, 2, 2, 0.01)
+        """
         import control
 
         if continuous:
@@ -349,7 +548,22 @@ class MimoModel:
     def continuous(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """``(Ac, Bc, C, D)``: the continuous system whose zero-order-hold discretization at
         ``1/fs`` is the linear part (matrix logarithm; refused for a pole on the negative real
-        axis, which has no continuous equivalent)."""
+        axis, which has no continuous equivalent).
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            ``(Ac, Bc, C, D)``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.models.mimo import MimoModel
+        >>> m = MimoModel.linear(A=[[0.5]], B=[[1.0, 0.0]], C=[[1.0], [2.0]], D=np.zeros((2, 2)), fs=100.0)
+        >>> Ac, Bc, C, D = m.continuous()
+        >>> round(float(Ac[0, 0]), 4)  # 100 Hz * ln(0.5)
+        -69.3147
+        """
         from scipy.linalg import logm
 
         ev = np.linalg.eigvals(self.A)
@@ -364,7 +578,21 @@ class MimoModel:
         return lg[:n, :n], lg[:n, n:], self.C.copy(), self.D.copy()
 
     def poles(self) -> FloatArray:
-        """Frequencies (Hz) and damping ratios of the linear part's poles, ``(n, 2)``, by frequency."""
+        """Frequencies (Hz) and damping ratios of the linear part's poles, ``(n, 2)``, by frequency.
+
+        Returns
+        -------
+        numpy.ndarray
+            One row ``(frequency, damping ratio)`` per pole (one of each complex pair).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.models.mimo import MimoModel
+        >>> m = MimoModel.linear(A=[[0.5]], B=[[1.0, 0.0]], C=[[1.0], [2.0]], D=np.zeros((2, 2)), fs=100.0)
+        >>> m.poles().round(3).tolist()  # a real pole: critically damped
+        [[11.032, 1.0]]
+        """
         ev = np.linalg.eigvals(self.A).astype(complex)
         s = np.log(ev) * self.fs
         f = np.abs(s) / (2 * np.pi)
@@ -374,7 +602,28 @@ class MimoModel:
         return np.asarray(out[np.argsort(out[:, 0])], dtype=np.float64)
 
     def frequency_response(self, freqs: ArrayLike) -> NDArray[np.complex128]:
-        """The linear part's frequency response ``(K, ny, nu)`` at ``freqs`` (Hz)."""
+        """The linear part's frequency response ``(K, ny, nu)`` at ``freqs`` (Hz).
+
+        Parameters
+        ----------
+        freqs : array_like
+            Frequencies (Hz), ``K`` of them.
+
+        Returns
+        -------
+        numpy.ndarray
+            Complex ``(K, ny, nu)``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.models.mimo import MimoModel
+        >>> m = MimoModel.linear(A=[[0.5]], B=[[1.0, 0.0]], C=[[1.0], [2.0]], D=np.zeros((2, 2)), fs=100.0)
+        >>> m.frequency_response([0.0, 10.0]).shape
+        (2, 2, 2)
+        >>> m.frequency_response([0.0])[0].real.tolist()  # the static gain C (1 - A)^-1 B
+        [[2.0, 0.0], [4.0, 0.0]]
+        """
         f = np.asarray(freqs, dtype=np.float64)
         z = np.exp(2j * np.pi * f / self.fs)
         eye = np.eye(self.nx)
@@ -383,7 +632,22 @@ class MimoModel:
 
     # -- file -----------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
-        """The model file's JSON object."""
+        """The model file's JSON object.
+
+        Returns
+        -------
+        dict
+            Read back by :func:`mimo_from_dict`.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.models.mimo import MimoModel
+        >>> m = MimoModel.linear(A=[[0.5]], B=[[1.0, 0.0]], C=[[1.0], [2.0]], D=np.zeros((2, 2)), fs=100.0)
+        >>> d = m.to_dict()
+        >>> d["kind"], d["dims"]
+        ('mimo', {'nx': 1, 'nu': 2, 'ny': 2, 'nw': 0, 'nr': 0})
+        """
         return {
             "schema_version": MIMO_SCHEMA_VERSION,
             "kind": MIMO_KIND,
@@ -405,15 +669,75 @@ class MimoModel:
         }
 
     def to_json(self) -> str:
-        """:meth:`to_dict` as JSON text."""
+        """:meth:`to_dict` as JSON text.
+
+        Returns
+        -------
+        str
+            The JSON text, one line ending in a newline.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.models.mimo import MimoModel
+        >>> m = MimoModel.linear(A=[[0.5]], B=[[1.0, 0.0]], C=[[1.0], [2.0]], D=np.zeros((2, 2)), fs=100.0)
+        >>> import json
+        >>> json.loads(m.to_json())["structure"]
+        'linear'
+        """
         return json.dumps(self.to_dict(), allow_nan=False) + "\n"
 
     def save(self, path: PathLike, *, overwrite: bool = False) -> Path:
-        """Write the model file (JSON) atomically; an existing file is kept unless ``overwrite``."""
+        """Write the model file (JSON) atomically; an existing file is kept unless ``overwrite``.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write.
+        overwrite : bool
+            Replace an existing file.
+
+        Returns
+        -------
+        pathlib.Path
+            The file written.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.models.mimo import MimoModel
+        >>> m = MimoModel.linear(A=[[0.5]], B=[[1.0, 0.0]], C=[[1.0], [2.0]], D=np.zeros((2, 2)), fs=100.0)
+        >>> import tempfile, pathlib
+        >>> from piezohyst.models.mimo import load_mimo_model
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     path = m.save(pathlib.Path(tmp) / "mirror.json")
+        ...     back = load_mimo_model(path)
+        >>> bool(np.array_equal(back.C, m.C)), back.fs
+        (True, 100.0)
+        """
         return write_atomic(path, self.to_json(), overwrite=overwrite)
 
     def with_fit(self, fit: Mapping[str, Any]) -> MimoModel:
-        """A copy with the identification report ``fit``."""
+        """A copy with the identification report ``fit``.
+
+        Parameters
+        ----------
+        fit : Mapping
+            The identification report.
+
+        Returns
+        -------
+        MimoModel
+            The same model with ``fit`` replaced.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.models.mimo import MimoModel
+        >>> m = MimoModel.linear(A=[[0.5]], B=[[1.0, 0.0]], C=[[1.0], [2.0]], D=np.zeros((2, 2)), fs=100.0)
+        >>> dict(m.with_fit({"rmse": 0.1}).fit), dict(m.fit)
+        ({'rmse': 0.1}, {})
+        """
         return replace(self, fit=dict(fit))
 
     def __repr__(self) -> str:
@@ -438,7 +762,27 @@ def _dims_of(nx: int, nu: int, ny: int, nw: int, nr: int) -> dict[str, tuple[int
 
 def mimo_from_dict(d: Any) -> MimoModel:
     """Rebuild a :class:`MimoModel` from :meth:`MimoModel.to_dict` output (a model file's
-    JSON object); ``ParameterError`` naming the field otherwise."""
+    JSON object); ``ParameterError`` naming the field otherwise.
+
+    Parameters
+    ----------
+    d : dict
+        The model file's JSON object.
+
+    Returns
+    -------
+    MimoModel
+        The model.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst.models.mimo import MimoModel, mimo_from_dict
+    >>> m = MimoModel.linear(A=[[0.5]], B=[[1.0, 0.0]], C=[[1.0], [2.0]], D=np.zeros((2, 2)), fs=100.0)
+    >>> back = mimo_from_dict(m.to_dict())
+    >>> back.to_dict() == m.to_dict()
+    True
+    """
     if not isinstance(d, dict):
         raise ParameterError(f"a MIMO model description must be a JSON object, got {type(d).__name__}")
     if d.get("kind") != MIMO_KIND:
@@ -466,10 +810,49 @@ def mimo_from_dict(d: Any) -> MimoModel:
 
 def load_mimo_model(path: PathLike) -> MimoModel:
     """Read a MIMO model file (written by :meth:`MimoModel.save` or ``piezohyst identify`` on
-    multi-channel data); ``DataError`` naming the file if it is not one."""
+    multi-channel data); ``DataError`` naming the file if it is not one.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The model file.
+
+    Returns
+    -------
+    MimoModel
+        The model.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> import numpy as np
+    >>> from piezohyst.models.mimo import MimoModel, load_mimo_model
+    >>> m = MimoModel.linear(A=[[0.5]], B=[[1.0, 0.0]], C=[[1.0], [2.0]], D=np.zeros((2, 2)), fs=100.0)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     back = load_mimo_model(m.save(pathlib.Path(tmp) / "m.json"))
+    >>> back.simulate(np.ones((2, 2)), init="rest").tolist() == m.simulate(np.ones((2, 2)), init="rest").tolist()
+    True
+    """
     return load_json_file(path, "MIMO model file", mimo_from_dict)
 
 
 def is_mimo_description(d: object) -> bool:
-    """Whether a parsed model file is a MIMO model's (``kind: "mimo"``)."""
+    """Whether a parsed model file is a MIMO model's (``kind: "mimo"``).
+
+    Parameters
+    ----------
+    d : object
+        A parsed model file (any JSON value).
+
+    Returns
+    -------
+    bool
+        ``True`` for a MIMO model's JSON object.
+
+    Examples
+    --------
+    >>> from piezohyst.models.mimo import is_mimo_description
+    >>> is_mimo_description({"kind": "mimo"}), is_mimo_description({"kind": "pi"}), is_mimo_description([])
+    (True, False, False)
+    """
     return isinstance(d, dict) and d.get("kind") == MIMO_KIND

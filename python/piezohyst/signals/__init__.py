@@ -1,11 +1,13 @@
 """Signals: measured records and their file readers (:mod:`.data`), multi-channel records
 (:mod:`.multichannel`), their preprocessing (:mod:`.preprocess`), reference trajectories
 (:mod:`.references`; jerk-limited moves and input shaping: :mod:`.trajectory`),
-tracking/hysteresis metrics (:mod:`.metrics`), frequency responses (:mod:`.frequency`) and
-:class:`.Response`, the result of every time simulation."""
+tracking/hysteresis metrics (:mod:`.metrics`), frequency responses (:mod:`.frequency`), the
+best linear approximation of multisine records (:mod:`.frf`) and :class:`.Response`, the
+result of every time simulation."""
 
 from .data import Record, load_record, load_yan9a_model_record
 from .frequency import FrequencyResponse, frf_from_record
+from .frf import BestLinearApproximation, estimate_bla, multisine_records
 from .metrics import hysteresis_percent, linearity_error, max_error, rmse, tracking_metrics
 from .multichannel import MultiRecord, is_multichannel, load_multichannel, read_channels
 from .preprocess import (
@@ -24,6 +26,7 @@ from .response import Response
 from .trajectory import input_shaper, jerk_limited
 
 __all__ = [
+    "BestLinearApproximation",
     "FrequencyResponse",
     "MultiRecord",
     "Record",
@@ -31,6 +34,7 @@ __all__ = [
     "apply_lag",
     "chirp",
     "decimate",
+    "estimate_bla",
     "estimate_lag",
     "find_excitation_start",
     "flag_outliers",
@@ -45,6 +49,7 @@ __all__ = [
     "load_yan9a_model_record",
     "max_error",
     "multisine",
+    "multisine_records",
     "preprocess",
     "processed_index",
     "read_channels",

@@ -40,7 +40,26 @@ FloatArray = NDArray[np.float64]
 def multisine_records(u: ArrayLike, y: ArrayLike) -> tuple[FloatArray, FloatArray]:
     """``u``, ``y`` as float arrays ``(N, nu, R, P)`` and ``(N, ny, R, P)`` (the
     nonlinear-benchmark layout: samples, channels, realizations, periods), checked: same
-    ``N``, ``R``, ``P``; finite. A 3-D array is one period per realization."""
+    ``N``, ``R``, ``P``; finite. A 3-D array is one period per realization.
+
+    Parameters
+    ----------
+    u, y : array_like
+        Inputs ``(N, nu, R, P)`` and outputs ``(N, ny, R, P)``, or ``(N, channels, R)``.
+
+    Returns
+    -------
+    u, y : numpy.ndarray
+        The checked 4-D float arrays.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst.signals.frf import multisine_records
+    >>> u, y = multisine_records(np.zeros((8, 2, 3)), np.zeros((8, 1, 3)))
+    >>> u.shape, y.shape
+    ((8, 2, 3, 1), (8, 1, 3, 1))
+    """
     out = []
     for name, v in (("u", u), ("y", y)):
         a = np.asarray(v, dtype=np.float64)
@@ -65,6 +84,37 @@ class BestLinearApproximation(DataclassMatFile):
     ``freqs`` (Hz, ``(K,)``), ``G_real`` / ``G_imag`` ``(K, ny, nu)`` (:attr:`G` the complex
     FRF), ``noise_var`` and ``total_var`` ``(K, ny, nu)`` (variances of the BLA estimate, the
     mean over groups), ``bins`` (DFT bin numbers), ``fs``, ``groups``, ``periods``.
+
+    Parameters
+    ----------
+    freqs : numpy.ndarray
+        Frequencies of the excited bins (Hz), ``(K,)``.
+    bins : numpy.ndarray
+        Their DFT bin numbers ``(K,)``.
+    G_real, G_imag : numpy.ndarray
+        Real and imaginary parts of the FRF ``(K, ny, nu)``.
+    noise_var, total_var : numpy.ndarray
+        Noise and total (noise and nonlinear distortion) variances of the BLA ``(K, ny, nu)``.
+    fs : float
+        Sample rate (Hz).
+    groups : int
+        Groups of ``nu`` realizations averaged.
+    periods : int
+        Periods per realization.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst.signals.frf import estimate_bla
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal((64, 1, 4, 2)); u[..., 1] = u[..., 0]   # 4 realizations, 2 periods
+    >>> y = u + 0.5 * np.roll(u, 1, axis=0)                           # y[t] = u[t] + 0.5 u[t-1]
+    >>> y[..., 1] += 0.01 * rng.standard_normal((64, 1, 4))           # noise on the second period
+    >>> bla = estimate_bla(u, y, fs=64.0)
+    >>> bla.G.shape, bla.groups, bla.periods
+    ((32, 1, 1), 4, 2)
+    >>> bool(np.allclose(bla.G[:, 0, 0], 1 + 0.5 * np.exp(-2j * np.pi * bla.freqs / 64), atol=0.05))
+    True
     """
 
     freqs: FloatArray
@@ -89,7 +139,26 @@ class BestLinearApproximation(DataclassMatFile):
 
     def to_pandas(self) -> Any:
         """One row per bin and (output, input) pair: frequency, |G| (dB), phase (deg), noise
-        and distortion levels (dB, standard deviations)."""
+        and distortion levels (dB, standard deviations); needs pandas.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns ``freq_hz``, ``output``, ``input``, ``gain_db``, ``phase_deg``,
+            ``noise_db``, ``distortion_db``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.signals.frf import estimate_bla
+        >>> rng = np.random.default_rng(0)
+        >>> u = rng.standard_normal((64, 1, 4, 2)); u[..., 1] = u[..., 0]   # 4 realizations, 2 periods
+        >>> y = u + 0.5 * np.roll(u, 1, axis=0)                           # y[t] = u[t] + 0.5 u[t-1]
+        >>> y[..., 1] += 0.01 * rng.standard_normal((64, 1, 4))           # noise on the second period
+        >>> bla = estimate_bla(u, y, fs=64.0)
+        >>> bla.to_pandas().shape  # doctest: +SKIP
+        (32, 7)
+        """
         pd = require_pandas("BestLinearApproximation")
         k, ny, nu = self.G_real.shape
         g = self.G
@@ -106,7 +175,31 @@ class BestLinearApproximation(DataclassMatFile):
 
     def plot(self, *, ax: Any = None) -> Any:
         """The Bode-magnitude matrix (one panel per output/input pair): |G|, and the noise and
-        nonlinear-distortion levels (standard deviations of the BLA) in dB."""
+        nonlinear-distortion levels (standard deviations of the BLA) in dB.
+
+        Parameters
+        ----------
+        ax : matplotlib.axes.Axes or array of them, optional
+            ``ny * nu`` axes to draw on; a new figure if ``None``.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            The figure.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.signals.frf import estimate_bla
+        >>> rng = np.random.default_rng(0)
+        >>> u = rng.standard_normal((64, 1, 4, 2)); u[..., 1] = u[..., 0]   # 4 realizations, 2 periods
+        >>> y = u + 0.5 * np.roll(u, 1, axis=0)                           # y[t] = u[t] + 0.5 u[t-1]
+        >>> y[..., 1] += 0.01 * rng.standard_normal((64, 1, 4))           # noise on the second period
+        >>> bla = estimate_bla(u, y, fs=64.0)
+        >>> fig = bla.plot()
+        >>> len(fig.axes)  # one panel per output/input pair
+        1
+        """
         import matplotlib.pyplot as plt
 
         _, ny, nu = self.G_real.shape
@@ -149,7 +242,41 @@ def estimate_bla(
     """The nonparametric BLA of records ``u`` ``(N, nu, R, P)``, ``y`` ``(N, ny, R, P)`` (see the
     module docstring). ``R`` must be a multiple of ``nu`` (groups of ``nu`` realizations).
     ``excited`` (bin numbers) defaults to the bins where every input's amplitude exceeds
-    ``threshold`` times its largest (DC excluded)."""
+    ``threshold`` times its largest (DC excluded).
+
+    Parameters
+    ----------
+    u, y : array_like
+        Inputs ``(N, nu, R, P)`` and outputs ``(N, ny, R, P)`` (:func:`multisine_records`).
+    fs : float
+        Sample rate (Hz).
+    excited : array_like of int, optional
+        The DFT bins to estimate at; default the excited ones.
+    threshold : float
+        Relative amplitude below which a bin counts as not excited.
+
+    Returns
+    -------
+    BestLinearApproximation
+        The BLA and its variances at the excited bins.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst.signals.frf import estimate_bla
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal((64, 1, 4, 2)); u[..., 1] = u[..., 0]   # 4 realizations, 2 periods
+    >>> y = u + 0.5 * np.roll(u, 1, axis=0)                           # y[t] = u[t] + 0.5 u[t-1]
+    >>> y[..., 1] += 0.01 * rng.standard_normal((64, 1, 4))           # noise on the second period
+    >>> bla = estimate_bla(u, y, fs=64.0)
+    >>> bla.freqs[:3].tolist()
+    [1.0, 2.0, 3.0]
+    >>> exact = 1 + 0.5 * np.exp(-2j * np.pi * bla.freqs / 64)
+    >>> bool(np.abs(bla.G[:, 0, 0] - exact).max() < 0.05)
+    True
+    >>> bool((bla.noise_var > 0).all()), estimate_bla(u, y, fs=64.0, excited=[4]).G.shape
+    (True, (1, 1, 1))
+    """
     uu, yy = multisine_records(u, y)
     n, nu, r, p = uu.shape
     if r < nu or r % nu:
