@@ -136,6 +136,13 @@ class _Filter:
         -------
         tuple of float
             ``(b0, b1, b2, a1, a2)``.
+
+        Examples
+        --------
+        >>> from piezohyst.control.filters import IRC
+        >>> b0, b1, b2, a1, a2 = IRC(1000.0, static_gain=1.0).biquad(1e-4)
+        >>> round((b0 + b1 + b2) / (1.0 + a1 + a2), 9)        # the static gain 1 / (feedthrough g)
+        0.5
         """
         num, den = self.polynomials()
         return bilinear(num, den, sample_time, self.warp_hz())
@@ -153,6 +160,15 @@ class _Filter:
         Returns
         -------
         ndarray of complex
+
+        Examples
+        --------
+        >>> from piezohyst.control.filters import IRC
+        >>> h = IRC(1000.0, static_gain=1.0).frequency_response([0.0, 1000.0])
+        >>> [round(complex(x).real, 6) for x in h], round(float(abs(h[1]) / abs(h[0])), 6)   # -3 dB at the pole
+        ([0.5, 0.25], 0.707107)
+        >>> round(float(abs(IRC(1000.0, static_gain=1.0).frequency_response([1000.0], 1e-4)[0])), 6)  # prewarped
+        0.353553
         """
         if sample_time is not None:
             return _biquad_response(self.biquad(sample_time), f, sample_time)
@@ -166,6 +182,13 @@ class _Filter:
         Returns
         -------
         control.TransferFunction
+
+        Examples
+        --------
+        >>> from piezohyst.control.filters import IRC
+        >>> tf = IRC(1000.0, static_gain=1.0).to_control()
+        >>> round(float(tf.dcgain()), 6), round(float(tf.poles()[0].real), 2)    # pole at -2 pi 1000
+        (0.5, -6283.19)
         """
         num, den = self.polynomials()
         return polynomial_tf(num, den, inputs=["input"], outputs=["output"], name=type(self).__name__.lower())

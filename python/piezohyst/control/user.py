@@ -40,6 +40,33 @@ STEP_SIGNATURE = ctypes.CFUNCTYPE(
 #: ``void reset(void *state, double measured)``
 RESET_SIGNATURE = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_double)
 
+# ctypes function types take a docstring (and a module, so that doctest collects it here)
+STEP_SIGNATURE.__doc__ = """The ctypes type of the C step,
+``double step(void *state, double reference, double measured, double velocity, double acceleration)``:
+wraps a Python callable (or casts a C function pointer) into a step for :class:`CController`.
+
+Examples
+--------
+>>> from piezohyst.control.user import STEP_SIGNATURE, CController
+>>> step = STEP_SIGNATURE(lambda state, r, y, v, a: 2.0 * (r - y) + 0.5 * v)
+>>> CController(step).step(1.0, 0.25, velocity=1.0)
+2.0
+"""
+STEP_SIGNATURE.__module__ = __name__
+RESET_SIGNATURE.__doc__ = """The ctypes type of the optional C reset, ``void reset(void *state, double measured)``,
+called with the first reading before each run (after the state is zeroed).
+
+Examples
+--------
+>>> from piezohyst.control.user import RESET_SIGNATURE, STEP_SIGNATURE, CController
+>>> seen = []
+>>> c = CController(STEP_SIGNATURE(lambda *_: 0.0), RESET_SIGNATURE(lambda state, y: seen.append(y)))
+>>> c.reset(0.125)
+>>> seen
+[0.125]
+"""
+RESET_SIGNATURE.__module__ = __name__
+
 
 @dataclass
 class CController:
@@ -102,6 +129,16 @@ class CController:
         Returns
         -------
         CController
+
+        Examples
+        --------
+        >>> import ctypes.util
+        >>> from piezohyst.control.user import CController
+        >>> libm = ctypes.util.find_library("m") or ctypes.util.find_library("msvcrt")
+        >>> CController.from_library(libm, "no_such_step")     # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        piezohyst.errors.ParameterError: step = 'no_such_step': no such function in ...
         """
         try:
             lib = ctypes.CDLL(os.fspath(library))
