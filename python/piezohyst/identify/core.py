@@ -101,11 +101,14 @@ class DriftBasis:
 
     @property
     def name(self) -> str:
+        """The basis's label in reports and the CLI: ``exp(tau)`` terms and ``linear`` joined
+        by ``+``, ``"none"`` when empty (e.g. ``DriftBasis().name == "none"``)."""
         parts = [f"exp({t:.6g})" for t in self.taus] + (["linear"] if self.linear else [])
         return "+".join(parts) or "none"
 
     @property
     def size(self) -> int:
+        """The number of columns (fitted weights): one per ``tau`` plus one for the ramp."""
         return len(self.taus) + int(self.linear)
 
     def columns(self, n: int) -> FloatArray:

@@ -270,8 +270,30 @@ class Drift:
 
     @classmethod
     def from_any(cls, d: object) -> Drift | None:
-        """A ``Drift``, a model file's ``{"slope", "taus", "weights"}`` (absent keys: none), or
-        ``None`` (no drift)."""
+        """A ``Drift`` from what a caller or a model file gives.
+
+        Parameters
+        ----------
+        d : Drift, dict or None
+            A ``Drift`` (returned as is); a model file's ``{"slope", "taus", "weights"}``
+            (absent keys: none); or ``None`` (no drift).
+
+        Returns
+        -------
+        Drift or None
+
+        Examples
+        --------
+        >>> from piezohyst.models.model import Drift
+        >>> Drift.from_any({"slope": 0.1, "taus": [2.0], "weights": [0.5]})
+        Drift(taus=(2.0,), weights=(0.5,), slope=0.1)
+        >>> Drift.from_any(None) is None
+        True
+        >>> Drift.from_any({"offset": 1.0})
+        Traceback (most recent call last):
+        ...
+        piezohyst.errors.ParameterError: drift has unknown keys ['offset']; expected 'slope', 'taus' and 'weights'
+        """
         if d is None or isinstance(d, Drift):
             return d
         if isinstance(d, dict):
