@@ -62,7 +62,28 @@ class UnitConversion(NamedTuple):
     """How a column was converted: from ``source`` (as read or given) to ``si`` by ``scale``
     (``value_si = scale * value``). ``origin`` tells where ``source`` came from: ``"header"``
     (a column-name annotation), ``"argument"`` (given), or ``"assumed"`` (nothing said; for a
-    time column seconds are assumed, other columns keep their values and ``si`` is ``""``)."""
+    time column seconds are assumed, other columns keep their values and ``si`` is ``""``).
+
+    Parameters
+    ----------
+    source : str
+        The unit as read from the header or given (``"ms"``, ``"um"``, ...).
+    si : str
+        The SI unit the values are converted to (``""`` when nothing was said).
+    scale : float
+        The factor: ``value_si = scale * value``.
+    origin : str
+        ``"header"``, ``"argument"`` or ``"assumed"``.
+
+    Examples
+    --------
+    >>> from piezohyst.signals.units import parse_unit
+    >>> c = parse_unit("ms", "time")
+    >>> c
+    UnitConversion(source='ms', si='s', scale=0.001, origin='argument')
+    >>> c.scale * 250.0                                    # 250 ms in s
+    0.25
+    """
 
     source: str
     si: str
@@ -70,7 +91,19 @@ class UnitConversion(NamedTuple):
     origin: str
 
     def to_dict(self) -> dict[str, str | float]:
-        """JSON-ready: ``{"from": ..., "to": ..., "scale": ..., "origin": ...}``."""
+        """JSON-ready: ``{"from": ..., "to": ..., "scale": ..., "origin": ...}``.
+
+        Returns
+        -------
+        dict
+            The fields under the names the ``--json`` reports use.
+
+        Examples
+        --------
+        >>> from piezohyst.signals.units import UnitConversion
+        >>> UnitConversion("um", "m", 1e-6, "header").to_dict()
+        {'from': 'um', 'to': 'm', 'scale': 1e-06, 'origin': 'header'}
+        """
         return {"from": self.source, "to": self.si, "scale": self.scale, "origin": self.origin}
 
 
