@@ -67,7 +67,31 @@ _Print = Callable[..., object]
 @dataclass(frozen=True)
 class Benchmark:
     """One script in ``bench/``: how to run it (with its defaults, or with ``quick_args`` for
-    ``--quick``), where it writes its JSON, and how to read its headline rows from that JSON."""
+    ``--quick``), where it writes its JSON, and how to read its headline rows from that JSON.
+
+    Parameters
+    ----------
+    name : str
+        The benchmark's name (``--only``/``--skip``; its JSON is ``<name>.json``).
+    script : str
+        The script's file name in ``bench/``.
+    what : str
+        What it measures, for the progress line.
+    quick_args : tuple of str
+        The script's arguments under ``--quick``.
+    rows : callable
+        The script's parsed JSON to the summary table's rows.
+
+    Examples
+    --------
+    >>> from pathlib import Path
+    >>> from piezohyst.papers.benchmarks import BENCHMARKS, Benchmark
+    >>> b = Benchmark("toy", "toy.py", "a toy", ("--quick",), lambda d: [])
+    >>> b.result_path(Path("bench/results")).as_posix()
+    'bench/results/toy.json'
+    >>> {x.name: x.script for x in BENCHMARKS}["load_csv"]
+    'load_csv.py'
+    """
 
     name: str
     script: str
@@ -76,6 +100,25 @@ class Benchmark:
     rows: Callable[[Json], list[Row]] = field(repr=False)
 
     def result_path(self, results: Path) -> Path:
+        """Where the script writes its JSON in the folder ``results``.
+
+        Parameters
+        ----------
+        results : pathlib.Path
+            The results folder (``bench/results`` by default).
+
+        Returns
+        -------
+        pathlib.Path
+            ``results / "<name>.json"``.
+
+        Examples
+        --------
+        >>> from pathlib import Path
+        >>> from piezohyst.papers.benchmarks import BENCHMARKS
+        >>> BENCHMARKS[0].result_path(Path("out")).as_posix()
+        'out/pi_batch.json'
+        """
         return results / f"{self.name}.json"
 
 
@@ -738,7 +781,37 @@ _BY_NAME = {b.name: b for b in BENCHMARKS}
 
 def find_bench_dir(explicit: str | Path | None = None) -> Path:
     """The ``bench/`` directory of the source tree this package was built from (or
-    ``explicit``)."""
+    ``explicit``).
+
+    Parameters
+    ----------
+    explicit : str or pathlib.Path, optional
+        A ``bench/`` directory given by the caller (``--bench-dir``): checked to hold
+        ``common.py``.
+
+    Returns
+    -------
+    pathlib.Path
+
+    Raises
+    ------
+    ParameterError
+        ``explicit`` is not a ``bench/`` directory, or none is beside this installation.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from piezohyst.papers.benchmarks import find_bench_dir
+    >>> d = tempfile.mkdtemp()
+    >>> find_bench_dir(d)                              # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    piezohyst.errors.ParameterError: --bench-dir = '...' is not piezohyst's bench/ directory (no common.py in it)
+    >>> _ = open(f"{d}/common.py", "w").close()
+    >>> find_bench_dir(d) == Path(d)
+    True
+    """
     if explicit is not None:
         p = Path(explicit)
         if not (p / "common.py").is_file():
@@ -770,7 +843,45 @@ def run_suite(
 ) -> dict[str, dict[str, Any]]:
     """Run each benchmark script in a fresh subprocess, writing its JSON to ``results``.
     A failing script is recorded (exit code and the end of its stderr) and the others still
-    run. Returns ``{name: {"status", "wall_s", ...}}``."""
+    run.
+
+    Parameters
+    ----------
+    benchmarks : sequence of Benchmark
+        The benchmarks to run, in order.
+    bench_dir : pathlib.Path
+        The ``bench/`` directory holding the scripts (its parent is the working directory).
+    results : pathlib.Path
+        The folder the scripts write their JSON to.
+    quick : bool
+        Run each with its ``quick_args``.
+    print_fn : callable
+        Takes the progress lines (``print`` by default).
+
+    Returns
+    -------
+    dict
+        ``{name: {"status": "ok" or "failed", "wall_s", "command", ...}}``; a failed one
+        also has ``"exit_code"`` and ``"stderr_tail"``.
+
+    Examples
+    --------
+    A toy ``bench/`` with one script that writes its JSON and one that fails:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from piezohyst.papers.benchmarks import Benchmark, run_suite
+    >>> bench = Path(tempfile.mkdtemp()) / "bench"
+    >>> bench.mkdir()
+    >>> _ = (bench / "ok.py").write_text("import sys; open(sys.argv[2], 'w').write('{}')")
+    >>> _ = (bench / "bad.py").write_text("raise SystemExit('no data')")
+    >>> toys = [Benchmark(n, f"{n}.py", n, (), lambda d: []) for n in ("ok", "bad")]
+    >>> status = run_suite(toys, bench, bench, print_fn=lambda *a, **k: None)
+    >>> status["ok"]["status"], (bench / "ok.json").read_text()
+    ('ok', '{}')
+    >>> status["bad"]["status"], status["bad"]["exit_code"], status["bad"]["stderr_tail"]
+    ('failed', 1, 'no data')
+    """
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", PYTHONUNBUFFERED="1")
     status: dict[str, dict[str, Any]] = {}
     for i, b in enumerate(benchmarks, 1):
@@ -802,7 +913,42 @@ def summarize(
     benchmarks: Sequence[Benchmark], results: Path, run_status: dict[str, dict[str, Any]] | None = None
 ) -> Json:
     """One summary from the JSON files in ``results``: per benchmark its rows, the time
-    its JSON was written and the machine it ran on."""
+    its JSON was written and the machine it ran on.
+
+    Parameters
+    ----------
+    benchmarks : sequence of Benchmark
+        The benchmarks to summarize.
+    results : pathlib.Path
+        The folder of their JSON files.
+    run_status : dict, optional
+        :func:`run_suite`'s return (``None``: ``--report-only``, the JSON already there).
+
+    Returns
+    -------
+    dict
+        ``{"benchmarks": {name: {"status", "rows", ...}}, "targets": {"met", "judged",
+        "missed"}, ...}``; a benchmark without its JSON has status ``"missing"``.
+
+    Raises
+    ------
+    DataError
+        A JSON file is not one its benchmark's reader understands.
+
+    Examples
+    --------
+    >>> import json, tempfile
+    >>> from pathlib import Path
+    >>> from piezohyst.papers.benchmarks import Benchmark, summarize
+    >>> results = Path(tempfile.mkdtemp())
+    >>> _ = (results / "toy.json").write_text(json.dumps({"ms": 2.5}))
+    >>> row = dict(figure="toy step", value=None, unit="ms", baseline="—", baseline_value=None,
+    ...            ratio=None, ratio_label="", target="≤ 3 ms", **{"pass": None})
+    >>> toy = Benchmark("toy", "toy.py", "a toy", (), lambda d: [dict(row, value=d["ms"], **{"pass": d["ms"] <= 3})])
+    >>> s = summarize([toy, Benchmark("gone", "gone.py", "absent", (), lambda d: [])], results)
+    >>> s["benchmarks"]["toy"]["rows"][0]["value"], s["benchmarks"]["gone"]["status"], s["targets"]["met"]
+    (2.5, 'missing', 1)
+    """
     out: Json = {
         "benchmark": "suite",
         "timestamp_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
@@ -870,7 +1016,28 @@ def _times(x: float) -> str:
 
 
 def to_markdown(summary: Json) -> str:
-    """The summary as one Markdown table plus a provenance line per benchmark."""
+    """The summary as one Markdown table plus a provenance line per benchmark.
+
+    Parameters
+    ----------
+    summary : dict
+        :func:`summarize`'s return.
+
+    Returns
+    -------
+    str
+        The table, the count of targets met, and the provenance line.
+
+    Examples
+    --------
+    >>> from piezohyst.papers.benchmarks import to_markdown
+    >>> row = dict(figure="toy step", value=2.5, unit="ns", baseline="Rust", baseline_value=5.0,
+    ...            ratio=2.0, ratio_label="faster", target="≤ 3 ns", **{"pass": True})
+    >>> summary = {"results_dir": "bench/results", "targets": {"met": 1, "judged": 1, "missed": []},
+    ...            "benchmarks": {"toy": {"status": "ok", "rows": [row], "result_file": "toy.json"}}}
+    >>> print(to_markdown(summary).splitlines()[2])
+    | toy | toy step | 2 ns | Rust | 5 ns | 2× faster | ≤ 3 ns: **met** |
+    """
     lines = [
         "| benchmark | figure | piezohyst | baseline (same run) | baseline | ratio | target |",
         "|---|---|---|---|---|---|---|",
@@ -928,7 +1095,39 @@ def update_readme(
 ) -> None:
     """Replace the text between the markers ``begin`` and ``end`` of ``readme`` (atomically):
     the bench section by default, the demo's with ``<!-- demo:begin -->`` / ``<!-- demo:end -->``.
-    A note names the ``generator`` (the command that wrote the section)."""
+    A note names the ``generator`` (the command that wrote the section).
+
+    Parameters
+    ----------
+    readme : pathlib.Path
+        The file to edit in place (see :func:`check_readme`).
+    markdown : str
+        The new section's text.
+    begin, end : str
+        The markers around the section (kept).
+    generator : str
+        The command named in the note above the section.
+
+    Raises
+    ------
+    DataError
+        ``readme`` has no ``begin`` ... ``end`` section.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from piezohyst.papers.benchmarks import update_readme
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "README.md"
+    >>> _ = p.write_text("# Bench\\n<!-- bench:begin -->\\nold\\n<!-- bench:end -->\\n")
+    >>> update_readme(p, "| new |\\n")
+    >>> print(p.read_text())
+    # Bench
+    <!-- bench:begin -->
+    <!-- generated by `piezohyst bench`; edits here are overwritten -->
+    | new |
+    <!-- bench:end -->
+    <BLANKLINE>
+    """
     check_readme(readme)
     text = readme.read_text(encoding="utf-8")
     i, j = text.find(begin), text.find(end)
