@@ -102,13 +102,25 @@ class DriftBasis:
     @property
     def name(self) -> str:
         """The basis's label in reports and the CLI: ``exp(tau)`` terms and ``linear`` joined
-        by ``+``, ``"none"`` when empty (e.g. ``DriftBasis().name == "none"``)."""
+        by ``+``, ``"none"`` when empty.
+
+        Examples
+        --------
+        >>> DriftBasis().name, DriftBasis(taus=(50.0, 2000.0), linear=True).name
+        ('none', 'exp(50)+exp(2000)+linear')
+        """
         parts = [f"exp({t:.6g})" for t in self.taus] + (["linear"] if self.linear else [])
         return "+".join(parts) or "none"
 
     @property
     def size(self) -> int:
-        """The number of columns (fitted weights): one per ``tau`` plus one for the ramp."""
+        """The number of columns (fitted weights): one per ``tau`` plus one for the ramp.
+
+        Examples
+        --------
+        >>> DriftBasis().size, DriftBasis(taus=(50.0, 2000.0), linear=True).size
+        (0, 3)
+        """
         return len(self.taus) + int(self.linear)
 
     def columns(self, n: int) -> FloatArray:
