@@ -87,7 +87,39 @@ def steady_sine(
     freq: float, amplitude: float, offset: float, fs: float, variable: bool = False, warm: float = 1.0
 ) -> tuple[FloatArray, int]:
     """``warm`` s of constant-amplitude sine from the bottom, then two evaluated periods
-    (constant, or under a decaying envelope). Returns ``(reference, first evaluated sample)``."""
+    (constant, or under a decaying envelope).
+
+    Parameters
+    ----------
+    freq : float
+        The sine's frequency, Hz.
+    amplitude : float
+        Its amplitude (the reference's unit).
+    offset : float
+        Its centre: the reference starts at ``offset - amplitude``.
+    fs : float
+        The sample rate, Hz.
+    variable : bool
+        Evaluate under a decaying envelope (seed 2's "variable" cases) instead of a constant
+        amplitude.
+    warm : float
+        Seconds of warm-up before the evaluated periods.
+
+    Returns
+    -------
+    reference : ndarray
+        The reference, warm-up included.
+    first : int
+        Its first evaluated sample (a quarter period after a bottom: the reference at
+        ``offset``, rising).
+
+    Examples
+    --------
+    >>> from piezohyst.papers.experiments import steady_sine
+    >>> ref, k0 = steady_sine(5.0, 1.0, 1.0, 1000.0)
+    >>> ref.shape, k0, float(ref[0]), float(ref[k0]), float(ref.max())  # 1 s + 1/4 period warm, 2 periods
+    ((1450,), 1050, 0.0, 1.0, 2.0)
+    """
     n_warm = round(fs * (warm + 1 / (4 * freq)))
     _, w = sine(freq, amplitude, n_warm / fs, fs, offset=offset)
     if variable:
@@ -112,7 +144,46 @@ def identify_stage_cemf(
     seed 1) followed by a least-squares polish (``polish=False``: the optimizer's best alone;
     with 100 CSS iterations that is 0.95-1.08 % RMSE over three seeds, polished 0.43 %).
     The mass is invisible at 5 Hz: it comes from the measured first resonance (a
-    small-signal frequency-response test), ``M = K / (2 pi f_r)^2``, damping ratio 0.03."""
+    small-signal frequency-response test), ``M = K / (2 pi f_r)^2``, damping ratio 0.03.
+
+    Parameters
+    ----------
+    stage : Stage
+        The (virtual) stage measured.
+    rng : numpy.random.Generator
+        The measurement noise and the optimizer's draws.
+    optimizer : str
+        The population optimizer (``"css"`` as in seed 1).
+    max_iterations : int
+        Its iteration budget.
+    seconds : float
+        The measured record's length, s.
+    callback : callable, optional
+        Called by the optimizer after each iteration.
+    progress : bool
+        Show a progress bar.
+    polish : bool
+        Polish the optimizer's best by least squares.
+
+    Returns
+    -------
+    model : StageParameters
+        The identified model with the mass from the measured resonance.
+    identification : IdentificationResult
+        The identification's result (RMSE, history).
+    resonance : float
+        The measured first resonance, Hz.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst.papers.experiments import identify_stage_cemf
+    >>> from piezohyst.plant.stage import virtual_stage
+    >>> stage = virtual_stage()
+    >>> model, ident, f_res = identify_stage_cemf(stage, np.random.default_rng(0))  # doctest: +SKIP
+    >>> 1.0 / stage.sample_time                                  # the 10 kHz record it measures
+    10000.0
+    """
     fs = 1.0 / stage.sample_time
     u, y = measure(stage, excitation(fs, seconds, hold=0.4), rng)
     ident = identify_cemf(
@@ -137,7 +208,33 @@ def identify_stage_cemf(
 
 def identify_stage_mpi(stage: Stage, rng: np.random.Generator, *, operators: int = 9) -> FitResult:
     """Seed 2's MPI model (9 generalized plays, cubic polynomial, plus creep lags) from a
-    measured 2 s record, by least squares over the linear parameters."""
+    measured 2 s record, by least squares over the linear parameters.
+
+    Parameters
+    ----------
+    stage : Stage
+        The (virtual) stage measured.
+    rng : numpy.random.Generator
+        The measurement noise.
+    operators : int
+        The number of generalized play operators.
+
+    Returns
+    -------
+    FitResult
+        The fit (``.model``, ``.metrics``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst.papers.experiments import identify_stage_mpi
+    >>> from piezohyst.plant.stage import virtual_stage
+    >>> fit = identify_stage_mpi(virtual_stage(), np.random.default_rng(0))  # doctest: +SKIP
+    >>> fit.metrics["rmse_percent"] < 1.0                                     # doctest: +SKIP
+    True
+    >>> virtual_stage().sample_time
+    0.0001
+    """
     fs = 1.0 / stage.sample_time
     u, y = measure(stage, excitation(fs), rng)
     return identify_mpi(u, y, operators=operators, creep=Creep(1 / fs, [0.01, 0.1, 1.0], [0.0, 0.0, 0.0]))
@@ -145,7 +242,31 @@ def identify_stage_mpi(stage: Stage, rng: np.random.Generator, *, operators: int
 
 def loop_lag(stage: Stage, model: HysteresisModel) -> float:
     """The loop's lag (s) seen by a feedforward: regress the deviation of the output from its
-    best line on the reference velocity, on a 100 Hz sine through the inverse."""
+    best line on the reference velocity, on a 100 Hz sine through the inverse.
+
+    Parameters
+    ----------
+    stage : Stage
+        The (virtual) stage the feedforward drives.
+    model : HysteresisModel
+        The identified model whose inverse is the feedforward.
+
+    Returns
+    -------
+    float
+        The lag, s (about 0.1 ms on the virtual stage).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst.papers.experiments import identify_stage_mpi, loop_lag, steady_sine
+    >>> from piezohyst.plant.stage import virtual_stage
+    >>> stage = virtual_stage()
+    >>> lag = loop_lag(stage, identify_stage_mpi(stage, np.random.default_rng(0)).model)  # doctest: +SKIP
+    >>> ref, k0 = steady_sine(100, 8e-6, 9e-6, 1.0 / stage.sample_time, warm=0.3)  # the sine it runs
+    >>> round(float(ref[k0]) * 1e6, 6), round(float(ref[k0:].max()) * 1e6, 6), ref.size - k0  # 2 periods
+    (9.0, 17.0, 200)
+    """
     fs = 1.0 / stage.sample_time
     ref, k0 = steady_sine(100, 8e-6, 9e-6, fs, False, warm=0.3)
     res = track(InverseFeedforward(model), ref, stage=stage, rng=1)
@@ -164,7 +285,38 @@ def mpi_validation(
     variable: Sequence[float] = (5, 10, 100),
 ) -> dict[str, dict[str, float]]:
     """Seed 2, Table 2: the identified MPI model's free-run prediction against the measured
-    output for full-range sine voltages; max error and RMS error in % of the output range."""
+    output for full-range sine voltages; max error and RMS error in % of the output range.
+
+    Parameters
+    ----------
+    stage : Stage
+        The (virtual) stage measured.
+    model : HysteresisModel
+        The identified model.
+    rng : numpy.random.Generator
+        The measurement noise.
+    freqs : sequence of float
+        The constant-amplitude cases, Hz.
+    variable : sequence of float
+        The decaying-amplitude cases, Hz.
+
+    Returns
+    -------
+    dict
+        ``{"<f> Hz constant" or "<f> Hz variable": {"max_error_percent", "rms_error_percent"}}``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst.papers.experiments import SEED2_TABLE2, identify_stage_mpi, mpi_validation
+    >>> from piezohyst.plant.stage import virtual_stage
+    >>> stage, rng = virtual_stage(), np.random.default_rng(0)
+    >>> table = mpi_validation(stage, identify_stage_mpi(stage, rng).model, rng)  # doctest: +SKIP
+    >>> sorted(table) == sorted(SEED2_TABLE2)                                    # doctest: +SKIP
+    True
+    >>> SEED2_TABLE2["10 Hz constant"]            # the seed's max / mean square error, %
+    (0.49, 0.18)
+    """
     fs = 1.0 / stage.sample_time
     out: dict[str, dict[str, float]] = {}
     cases = [(f, False) for f in freqs] + [(f, True) for f in variable]
@@ -221,7 +373,41 @@ def seed1_case_studies(
     around 7 µm): ``rmse_um["each tuned for itself"]``. Also seed 1's own protocol (the gains
     tuned for SMC + CEMF reused for SMC: ``rmse_um["tuned for SMC+CEMF"]``, which makes that SMC
     worse than itself tuned), gains tuned for Case 1 alone, for both cases at once, and at the
-    seed's level."""
+    seed's level.
+
+    Parameters
+    ----------
+    stage : Stage
+        The (virtual) stage the controllers run on.
+    model : StageParameters
+        The identified CEMF model (:func:`identify_stage_cemf`) the gains are tuned on.
+    rng : numpy.random.Generator
+        The tuning's seed and the runs' noise.
+    tuning_iterations : int
+        Each :func:`~piezohyst.tune` call's iteration budget.
+    method : str
+        Its optimizer.
+    keep_runs : bool
+        Also return the closed-loop runs the figures show.
+
+    Returns
+    -------
+    dict or (dict, dict)
+        The numbers (``"rmse_um"``, ``"gains"``, ``"tuning_wall_s"``, ...); with
+        ``keep_runs``, also ``{(reference, controller): ClosedLoopResult}``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst.papers.experiments import SEED1_TABLE3, identify_stage_cemf, seed1_case_studies
+    >>> from piezohyst.plant.stage import virtual_stage
+    >>> stage, rng = virtual_stage(), np.random.default_rng(0)
+    >>> numbers = seed1_case_studies(stage, identify_stage_cemf(stage, rng)[0], rng)  # doctest: +SKIP
+    >>> sorted(numbers["rmse_um"]["each tuned for itself"])                        # doctest: +SKIP
+    ['sine 5 Hz', 'triangle 10 Hz', 'triangle 5 Hz']
+    >>> SEED1_TABLE3["sine 5 Hz"]                   # the seed's RMSE, um, on the real stage
+    {'SMC': 0.1007, 'SMC+CEMF': 0.0539}
+    """
     fs = 1.0 / stage.sample_time
     refs = {
         name: fn(f, 5e-6, 1.0, fs, offset=7e-6)[1]
@@ -345,7 +531,35 @@ def seed2_compensation(
     stage: Stage, model: HysteresisModel, *, keep_runs: bool = False
 ) -> dict[str, Any] | tuple[dict[str, Any], dict[tuple[str, str, str], ClosedLoopResult]]:
     """Seed 2, Tables 3 and 4: linearity error without/with the inverse-MPI feedforward at
-    10-100 Hz, and none / feedforward / feedforward + ABSMC at 80 Hz (8 µm around 9 µm)."""
+    10-100 Hz, and none / feedforward / feedforward + ABSMC at 80 Hz (8 µm around 9 µm).
+
+    Parameters
+    ----------
+    stage : Stage
+        The (virtual) stage the compensators run on.
+    model : HysteresisModel
+        The identified MPI model (:func:`identify_stage_mpi`) whose inverse is the feedforward.
+    keep_runs : bool
+        Also return the closed-loop runs the figures show.
+
+    Returns
+    -------
+    dict or (dict, dict)
+        The numbers (``"table3_linearity_percent"``, ``"table4_80hz"``, ``"lag_s"``, ...);
+        with ``keep_runs``, also ``{(table, case, compensation): ClosedLoopResult}``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst.papers.experiments import SEED2_TABLE3, identify_stage_mpi, seed2_compensation
+    >>> from piezohyst.plant.stage import virtual_stage
+    >>> stage = virtual_stage()
+    >>> numbers = seed2_compensation(stage, identify_stage_mpi(stage, np.random.default_rng(0)).model)  # doctest: +SKIP
+    >>> set(SEED2_TABLE3) <= set(numbers["table3_linearity_percent"])  # every case of the seed's  # doctest: +SKIP
+    True
+    >>> SEED2_TABLE3["100 Hz constant"]      # the seed's linearity error %, without -> with
+    (13.05, 0.67)
+    """
     fs = 1.0 / stage.sample_time
     lag = loop_lag(stage, model)
     ff = InverseFeedforward(model, c1=lag)
