@@ -84,6 +84,47 @@ def run_demo(
     fails, leaves ``out_dir`` as it was; with ``force`` the new report replaces the old one
     whole (no figure of the old run is left beside the new). ``name`` is the argument the
     messages name.
+
+    Parameters
+    ----------
+    out_dir : str or pathlib.Path
+        The report's folder (created; its parents too).
+    force : bool
+        Replace a report already in ``out_dir``.
+    quick : bool
+        The quick demo (smaller tuning budgets; ``piezohyst demo --quick``).
+    seed : int
+        The seed of every random draw (non-negative): the same seed, the same numbers.
+    progress : bool
+        Print the steps on stderr.
+    print_fn : callable
+        Takes the closing summary lines (``print`` by default).
+    name : str
+        The argument's name in the messages (``"--out"`` from the CLI).
+
+    Returns
+    -------
+    dict
+        Every number of the report (also written to ``results.json``).
+
+    Raises
+    ------
+    FileExistsError
+        ``out_dir`` already holds a report and ``force`` is false.
+    ParameterError
+        ``seed`` is not a non-negative int.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from piezohyst.papers.demo import REPORT_FILES, run_demo
+    >>> results = run_demo(tempfile.mkdtemp(), quick=True, progress=False)  # doctest: +SKIP
+    >>> REPORT_FILES                                  # what the folder holds afterwards
+    ('index.html', 'report.md', 'results.json')
+    >>> run_demo(tempfile.mkdtemp(), seed=-1)        # checked before anything runs
+    Traceback (most recent call last):
+    ...
+    piezohyst.errors.ParameterError: seed = -1 must be a non-negative int
     """
     out_dir = Path(out_dir)
     hint = "--force" if name.startswith("--") else "--force (force=True)"

@@ -467,7 +467,39 @@ def write_report(
     stage: Stage,
 ) -> dict[str, str]:
     """Write figures, ``report.md`` and ``index.html`` into ``out_dir``; return the figure
-    files by name."""
+    files by name.
+
+    Parameters
+    ----------
+    out_dir : str or pathlib.Path
+        The report's folder (created if missing).
+    results : dict
+        The demo's numbers (``results.json``, as :func:`~piezohyst.papers.demo.run_demo` builds them).
+    runs1 : mapping
+        Seed 1's closed-loop runs by ``(reference, controller)``
+        (:func:`~piezohyst.papers.experiments.seed1_case_studies` with ``keep_runs=True``).
+    runs2 : mapping
+        Seed 2's runs by ``(table, case, compensation)``
+        (:func:`~piezohyst.papers.experiments.seed2_compensation` with ``keep_runs=True``).
+    mpi_fit : FitResult
+        The MPI identification (:func:`~piezohyst.papers.experiments.identify_stage_mpi`).
+    stage : Stage
+        The virtual stage the experiments ran on.
+
+    Returns
+    -------
+    dict of str
+        The figure files (names in ``out_dir``) by figure.
+
+    Examples
+    --------
+    The report of a finished demo run (the run takes seconds: see ``piezohyst demo``):
+
+    >>> from piezohyst.papers.report import EQUAL_TUNING, write_report
+    >>> figures = write_report("report", results, runs1=runs1, runs2=runs2, mpi_fit=fit, stage=stage)  # doctest: +SKIP
+    >>> EQUAL_TUNING                     # the seed 1 comparison the report leads with
+    'each tuned for itself'
+    """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     figures = _figures(out_dir, results, runs1, runs2, mpi_fit, stage)
