@@ -108,11 +108,14 @@ class DriftBasis:
 
     @property
     def name(self) -> str:
+        """The basis' name in reports: ``"exp(tau)"`` terms and ``"linear"`` joined by ``+``,
+        ``"none"`` for the empty basis."""
         parts = [f"exp({t:.6g})" for t in self.taus] + (["linear"] if self.linear else [])
         return "+".join(parts) or "none"
 
     @property
     def size(self) -> int:
+        """Number of columns (and of fitted weights): one per tau, plus one for the ramp."""
         return len(self.taus) + int(self.linear)
 
     def columns(self, n: int) -> FloatArray:

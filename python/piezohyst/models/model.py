@@ -305,7 +305,28 @@ class Drift:
     @classmethod
     def from_any(cls, d: object) -> Drift | None:
         """A ``Drift``, a model file's ``{"slope", "taus", "weights"}`` (absent keys: none), or
-        ``None`` (no drift)."""
+        ``None`` (no drift).
+
+        Parameters
+        ----------
+        d : Drift, dict or None
+            The drift, its description (:meth:`to_dict`) or ``None``.
+
+        Returns
+        -------
+        Drift or None
+
+        Examples
+        --------
+        >>> Drift.from_any({"slope": 0.01})
+        Drift(taus=(), weights=(), slope=0.01)
+        >>> Drift.from_any(None) is None
+        True
+        >>> Drift.from_any({"offset": 1.0})
+        Traceback (most recent call last):
+        ...
+        piezohyst.errors.ParameterError: drift has unknown keys ['offset']; expected 'slope', 'taus' and 'weights'
+        """
         if d is None or isinstance(d, Drift):
             return d
         if isinstance(d, dict):
