@@ -79,6 +79,13 @@ class DriftBasis:
     fitted with the model's linear parameters (free columns of the least squares); :meth:`drift`
     turns the weights into the model's :class:`~piezohyst.models.model.Drift`.
 
+    Parameters
+    ----------
+    taus : sequence of float
+        Time constants of the exponential settling terms, samples (> 0).
+    linear : bool
+        Add a ramp ``k``.
+
     Examples
     --------
     >>> b = DriftBasis(taus=(100.0,), linear=True)
@@ -124,7 +131,24 @@ class DriftBasis:
         return len(self.taus) + int(self.linear)
 
     def columns(self, n: int) -> FloatArray:
-        """The ``(n, size)`` basis over samples ``0 ... n - 1``: the exponentials, then the ramp."""
+        """The ``(n, size)`` basis over samples ``0 ... n - 1``: the exponentials, then the ramp.
+
+        Parameters
+        ----------
+        n : int
+            Number of samples.
+
+        Returns
+        -------
+        ndarray, shape (n, size)
+
+        Examples
+        --------
+        >>> DriftBasis(taus=(1.0,), linear=True).columns(3).round(4).tolist()
+        [[0.0, 0.0], [0.6321, 1.0], [0.8647, 2.0]]
+        >>> DriftBasis().columns(4).shape
+        (4, 0)
+        """
         k = np.arange(n, dtype=np.float64)
         cols = [-np.expm1(-k / t) for t in self.taus]
         if self.linear:
@@ -133,7 +157,24 @@ class DriftBasis:
 
     def drift(self, weights: npt.ArrayLike) -> Drift | None:
         """The model's drift term for the fitted ``weights`` (the basis' column order); ``None``
-        for the empty basis."""
+        for the empty basis.
+
+        Parameters
+        ----------
+        weights : array_like, shape (size,)
+            The fitted weights of :meth:`columns`, in its column order.
+
+        Returns
+        -------
+        Drift or None
+
+        Examples
+        --------
+        >>> DriftBasis(taus=(100.0,), linear=True).drift([2.0, 0.01])
+        Drift(taus=(100.0,), weights=(2.0,), slope=0.01)
+        >>> DriftBasis().drift([]) is None
+        True
+        """
         w = np.asarray(weights, dtype=np.float64)
         if self.empty:
             return None
@@ -141,12 +182,35 @@ class DriftBasis:
         return Drift(taus=self.taus, weights=tuple(float(x) for x in w[:m]), slope=float(w[m]) if self.linear else 0.0)
 
     def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (as ``piezohyst identify --json`` reports the drift basis).
+
+        Returns
+        -------
+        dict
+            ``{"name": ..., "taus": [...], "linear": ...}``.
+
+        Examples
+        --------
+        >>> DriftBasis(taus=(100.0,), linear=True).to_dict()
+        {'name': 'exp(100)+linear', 'taus': [100.0], 'linear': True}
+        """
         return {"name": self.name, "taus": list(self.taus), "linear": self.linear}
 
 
 def delayed(input: npt.ArrayLike, delay: int) -> FloatArray:
     """The input a model with an input delay of ``delay`` samples sees: ``input`` shifted late
     by ``delay`` samples, the first sample held before the record starts.
+
+    Parameters
+    ----------
+    input : array_like, shape (N,)
+        The input record.
+    delay : int
+        Input delay, samples (>= 0).
+
+    Returns
+    -------
+    ndarray, shape (N,)
 
     Examples
     --------

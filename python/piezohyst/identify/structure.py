@@ -75,7 +75,24 @@ DRIFT_BASES: tuple[tuple[str, float | None], ...] = (("exp", 1.0),)
 
 def default_max_delay(fs: float | None, n: int) -> int:
     """The largest input delay searched by default: 20 ms of samples (at least 10), at most a
-    fifth of the record; 10 samples (or a fifth of the record) without a sample rate."""
+    fifth of the record; 10 samples (or a fifth of the record) without a sample rate.
+
+    Parameters
+    ----------
+    fs : float or None
+        Sample rate, Hz.
+    n : int
+        Samples of the training span.
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> default_max_delay(10000.0, 5000), default_max_delay(None, 5000), default_max_delay(10000.0, 501)
+    (200, 10, 100)
+    """
     m = 10 if fs is None else max(10, round(0.02 * float(fs)))
     return int(max(0, min(m, (n - 1) // 5)))
 
@@ -94,6 +111,24 @@ def fit_start(
     determined by a monotone excursion of ``2 r``; the default thresholds reach half the range:
     80 % leaves the widest few). At most ``cap`` of the excited span. Returns ``(start,
     report)``, ``start = lead_in + wipe_out``.
+
+    Parameters
+    ----------
+    input : array_like, shape (N,)
+        The training span's input, N >= 2.
+    fs : float, optional
+        Sample rate, Hz; ``None``: no lead-in is looked for.
+    sweep : float, default 0.8
+        Fraction of the input's range to sweep before the fit starts.
+    cap : float, default 0.3
+        Largest wipe-out, as a fraction of the excited span.
+
+    Returns
+    -------
+    start : int
+        The fit's first sample.
+    report : dict
+        ``{"lead_in": ..., "wipe_out": ..., "start": ...}``, samples.
 
     Examples
     --------
@@ -123,7 +158,33 @@ def fit_start(
 
 @dataclass(frozen=True)
 class StructureChoice:
-    """What :func:`choose_structure` decided, with the evidence (JSON-ready by :meth:`to_dict`)."""
+    """What :func:`choose_structure` decided, with the evidence (JSON-ready by :meth:`to_dict`).
+
+    Parameters
+    ----------
+    delay : int
+        The input delay, samples.
+    drift : DriftBasis
+        The drift basis kept (empty: no drift).
+    start : int
+        The fit's first sample.
+    delay_rmse : dict of int to float
+        Training RMSE (output units) of each delay tried.
+    drift_rmse : dict of str to float
+        Internal-split RMSE (output units) of each drift basis tried, ``"none"`` included.
+    split : int, optional
+        The internal split: the fit on ``[start, split)``, scored on ``[split, n)``.
+    n_eff : float, optional
+        Effective samples of the internal score (autocorrelation discounted).
+    start_rmse : dict of int to float
+        Internal-split RMSE (output units) of each fit start weighed.
+
+    Examples
+    --------
+    >>> c = StructureChoice(delay=3, drift=DriftBasis(), start=120, delay_rmse={0: 0.2, 3: 0.1})
+    >>> c.to_dict()["delay_rmse"], c.to_dict()["fit_start"], c.drift.empty
+    ({'0': 0.2, '3': 0.1}, 120, True)
+    """
 
     delay: int
     drift: DriftBasis
@@ -140,6 +201,20 @@ class StructureChoice:
     start_rmse: dict[int, float] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
+        """JSON-ready: the decisions and their evidence (delays as string keys).
+
+        Returns
+        -------
+        dict
+            ``delay``, ``drift`` (:meth:`DriftBasis.to_dict`), ``fit_start``, ``delay_rmse``,
+            ``drift_rmse``, ``split``, ``n_eff`` and ``start_rmse``.
+
+        Examples
+        --------
+        >>> d = StructureChoice(delay=2, drift=DriftBasis(linear=True), start=0).to_dict()
+        >>> d["delay"], d["drift"]["name"], d["split"]
+        (2, 'linear', None)
+        """
         return {
             "delay": self.delay,
             "drift": self.drift.to_dict(),
@@ -289,6 +364,8 @@ def choose_structure(
         The fit's first sample (:func:`fit_start`): earlier samples are simulated, not scored.
     max_delay : int
         Largest input delay tried (samples); ``delay`` given: that delay, not searched.
+    delay : int, optional
+        A known input delay, samples: used as it is, not searched.
     drifts : tuple of DriftBasis
         The drift bases tried against none (empty: no drift).
     split : float
@@ -402,7 +479,26 @@ def choose_structure(
 
 def drift_bases(n: int, spec: tuple[tuple[str, float | None], ...] = DRIFT_BASES) -> tuple[DriftBasis, ...]:
     """The drift bases of ``spec`` (``("exp", multiple of the span)`` or ``("linear", None)``)
-    for a training span of ``n`` samples."""
+    for a training span of ``n`` samples.
+
+    Parameters
+    ----------
+    n : int
+        Samples of the training span.
+    spec : tuple of (str, float or None)
+        The bases, by default :data:`DRIFT_BASES`.
+
+    Returns
+    -------
+    tuple of DriftBasis
+
+    Examples
+    --------
+    >>> drift_bases(2000)
+    (DriftBasis(taus=(2000.0,), linear=False),)
+    >>> [b.name for b in drift_bases(2000, (("exp", 0.5), ("linear", None)))]
+    ['exp(1000)', 'linear']
+    """
     out = []
     for kind, f in spec:
         if kind == "linear":
@@ -449,14 +545,28 @@ def decide_structure(
         The kind's structure, as :func:`~piezohyst.identify` fits it (``creep_horizon`` too).
     delay : int or "auto"
         The input delay in samples, or ``"auto"``: searched from 0 to ``max_delay``.
+    max_delay : int, optional
+        Largest delay searched, samples; ``None``: :func:`default_max_delay`.
     drift : {"auto", "none"}
         ``"auto"``: the bases of :data:`DRIFT_BASES` tried by the internal split; ``"none"``.
     start : int or "auto"
         The fit's first sample, or ``"auto"``: :func:`fit_start`.
+    creep_horizon : float, default 1.0
+        The upper edge of the slowest creep band of an ``rdpi``, in record durations.
 
     Returns
     -------
     StructureChoice
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst import PI
+    >>> v = np.sin(np.linspace(0, 40, 4000)) * np.linspace(1, 0.5, 4000)
+    >>> y = PI([0.2, 0.5], [0.6, 0.3], p0=1.0).simulate(delayed(v, 3))
+    >>> c = decide_structure(v, y, "pi", fs=1000.0, operators=4, drift="none")
+    >>> c.delay, c.drift.name, c.start
+    (3, 'none', 0)
     """
     from .dispatch import _linear_template
 

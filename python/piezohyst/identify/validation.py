@@ -63,7 +63,43 @@ class ValidatedResult(IdentificationResult):
     """:class:`~piezohyst.identify.IdentificationResult` with the validation report:
     ``assessment`` holds how the spans were scored (``validate_from``, ``warmup``,
     ``periodic``), the residual whiteness of the training and validation spans
-    (:func:`residual_whiteness`) and the trust verdict (:func:`trust`)."""
+    (:func:`residual_whiteness`) and the trust verdict (:func:`trust`).
+
+    Parameters
+    ----------
+    model : object
+        The identified model.
+    train : dict
+        Free-run metrics on the training record (:func:`~piezohyst.identify.core.fit_metrics`).
+    validation : dict or None
+        The same on the validation span (state carried), when given.
+    method : str
+        How it was fitted (``"ls"``, ``"vp-de+polish"``, ...).
+    wall_time : float
+        Seconds the identification took.
+    history : dict
+        The optimizer's per-iteration history (empty for a linear fit).
+    simulator : callable, optional
+        How :meth:`simulate` predicts the output for models without a ``simulate(input)``.
+    partial : bool
+        Ctrl-C stopped the optimizer.
+    evaluations : int
+        Candidate evaluations the fit spent.
+    assessment : dict
+        ``validate_from``, ``warmup``, ``periodic``, the whiteness of the ``train`` and
+        ``validation`` spans, ``trusted`` and its ``reasons``.
+
+    Examples
+    --------
+    :func:`~piezohyst.identify` returns one when given validation data; built here by hand:
+
+    >>> from piezohyst import PI
+    >>> from piezohyst.identify import IdentificationResult
+    >>> m = {"rmse": 0.01, "max_error": 0.03, "rmse_percent": 0.5, "max_error_percent": 1.5}
+    >>> res = ValidatedResult(PI([0.2], [0.5]), m, m, "ls", 0.1, assessment={"trusted": True, "reasons": []})
+    >>> isinstance(res, IdentificationResult), res.assessment["trusted"], res.metrics["validation"]["rmse"]
+    (True, True, 0.01)
+    """
 
     assessment: dict[str, Any] = field(default_factory=dict, compare=False)
 
@@ -78,7 +114,25 @@ def _check_warmup(warmup: object, n: int, name: str) -> int:
 def estimate_period(input: npt.ArrayLike) -> int:
     """The input's period in samples: the first peak of its autocorrelation (by FFT, unbiased)
     above 0.8 after the first zero crossing. Raises :class:`ParameterError` when the input is not periodic
-    within the record (no repeat with correlation above 0.8)."""
+    within the record (no repeat with correlation above 0.8).
+
+    Parameters
+    ----------
+    input : array_like, shape (N,)
+        The input record, N >= 4.
+
+    Returns
+    -------
+    int
+        The period, samples.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> k = np.arange(1000)
+    >>> estimate_period(np.sin(2 * np.pi * k / 125)), estimate_period(np.sign(np.sin(2 * np.pi * (k + 0.5) / 80)))
+    (125, 80)
+    """
     from scipy.signal import correlate
 
     v = as_record(input, "input", min_length=4)
@@ -119,7 +173,39 @@ def scored_metrics(
     """Metrics of ``output[start + warmup:]`` against the model's free run over the whole
     ``input`` (the state carried over ``input[:start]``); with ``periodic = P`` the input's
     first ``P`` samples are simulated first (one period before the record: the periodic
-    steady state). Returns ``(metrics, residual)``, the residual over the scored samples."""
+    steady state). Returns ``(metrics, residual)``, the residual over the scored samples.
+
+    Parameters
+    ----------
+    simulate : callable
+        ``simulate(input) -> output`` of the fitted model.
+    input, output : ndarray, shape (N,)
+        The simulated stretch and its measured output.
+    start : int, default 0
+        First sample of the scored span (the state carried over the samples before it).
+    warmup : int, default 0
+        Samples after ``start`` simulated but not scored.
+    periodic : int, optional
+        The input's period, samples: one period simulated before the record.
+
+    Returns
+    -------
+    metrics : dict
+        ``rmse``, ``max_error`` and both in % of the measured range.
+    residual : ndarray, shape (N - start - warmup,)
+        Predicted minus measured output over the scored samples.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst import PI
+    >>> model = PI([0.2, 0.4], [0.5, 0.2], p0=0.8)
+    >>> v = np.sin(2 * np.pi * np.arange(1000) / 250)
+    >>> y = model.simulate(v)
+    >>> metrics, residual = scored_metrics(model.simulate, v, y + 0.1, start=500, warmup=10)
+    >>> round(metrics["rmse"], 12), residual.shape
+    (0.1, (490,))
+    """
     lead = 0 if periodic is None else periodic
     u = input if periodic is None else np.concatenate([input[:periodic], input])
     predicted = np.asarray(simulate(u), dtype=np.float64)[lead + start + warmup :]
@@ -138,6 +224,30 @@ def residual_whiteness(residual: npt.ArrayLike, input: npt.ArrayLike, max_lag: i
     degrees of freedom), ``cross_peak_lag`` (the lag of the largest ``|cross-correlation|``,
     positive when the residual follows the input) and ``cross_peak``, and the residual's
     ``mean`` and ``trend`` (the least-squares line's change over the span), in output units.
+
+    Parameters
+    ----------
+    residual : array_like, shape (N,)
+        Predicted minus measured output, N >= 4.
+    input : array_like, shape (N,)
+        The input over the same samples.
+    max_lag : int, optional
+        ``L``, the largest lag; default ``min(50, N // 5)``.
+
+    Returns
+    -------
+    dict
+        The statistics above, plus ``lag1`` (the lag-1 autocorrelation) and ``samples``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> v = np.sin(2 * np.pi * np.arange(1000) / 250)
+    >>> white = residual_whiteness(np.random.default_rng(0).normal(size=1000), v)
+    >>> white["lags"], white["autocorrelation_outside"] < 0.1
+    (50, True)
+    >>> residual_whiteness(np.sin(2 * np.pi * np.arange(1000) / 100), v)["autocorrelation_outside"]
+    0.96
     """
     from scipy.signal import correlate
     from scipy.stats import chi2
@@ -187,7 +297,30 @@ def trust(metrics: Metrics, whiteness: dict[str, Any]) -> tuple[bool, list[str]]
     """``(trusted, reasons)``: not trusted when the RMSE exceeds :data:`RMSE_LIMIT_PERCENT`
     of the range, or when the residual is far from white (more than :data:`WHITENESS_LIMIT`
     of its autocorrelation lags outside the 95 % band with an RMSE above
-    :data:`STRUCTURED_LIMIT_PERCENT`)."""
+    :data:`STRUCTURED_LIMIT_PERCENT`).
+
+    Parameters
+    ----------
+    metrics : dict
+        The scored span's metrics (``rmse_percent`` is read).
+    whiteness : dict
+        Its :func:`residual_whiteness`.
+
+    Returns
+    -------
+    trusted : bool
+    reasons : list of str
+        Why not (empty when trusted).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> v = np.sin(2 * np.pi * np.arange(1000) / 250)
+    >>> trust({"rmse_percent": 0.5}, residual_whiteness(np.random.default_rng(0).normal(size=1000), v))
+    (True, [])
+    >>> trust({"rmse_percent": 8.0}, residual_whiteness(np.random.default_rng(0).normal(size=1000), v))
+    (False, ['RMSE 8 % of range > 5 %'])
+    """
     reasons = []
     if metrics["rmse_percent"] > RMSE_LIMIT_PERCENT:
         reasons.append(f"RMSE {metrics['rmse_percent']:.3g} % of range > {RMSE_LIMIT_PERCENT:g} %")
@@ -227,6 +360,43 @@ def diagnose(
       constants (creep lags of 3 ms to 30 s) at a sample rate; when it fits at ``fs`` x 1000 or
       / 1000 (a time column in ms read as s, or the reverse) with half the error it has at the
       stated ``fs`` (and half the base error), the record's time scale contradicts ``fs``.
+
+    Parameters
+    ----------
+    refit : callable
+        ``refit(input, output, fs) -> validation RMSE in % of range``.
+    train : tuple of ndarray
+        The training ``(input, output)``.
+    residual : ndarray
+        The scored span's residual.
+    whiteness : dict
+        Its :func:`residual_whiteness`.
+    rmse_percent : float
+        Its RMSE, % of range.
+    fs : float or None
+        The stated sample rate, Hz.
+    rate_refit : callable, optional
+        ``rate_refit(fs) -> validation RMSE in %`` of a model with physical time constants.
+    max_lag : int, optional
+        Largest output lag tried; default a tenth of the training span.
+
+    Returns
+    -------
+    list of dict
+        ``{"cause", "evidence"}`` (and ``"lag"`` for a delay), strongest first.
+
+    Examples
+    --------
+    A residual that is mostly a constant, and a fit that only works with the columns swapped:
+
+    >>> import numpy as np
+    >>> v = np.sin(np.linspace(0, 20, 400))
+    >>> y = 2.0 * v
+    >>> residual = 0.5 + 0.01 * np.sin(np.linspace(0, 50, 400))
+    >>> refit = lambda u, out, fs: 1.0 if u is y else 9.0
+    >>> causes = diagnose(refit, (v, y), residual, residual_whiteness(residual, v), 9.0, None)
+    >>> [c["cause"] for c in causes]
+    ['offset', 'swapped columns']
     """
     causes: list[dict[str, Any]] = []
     rms = float(np.sqrt(np.mean(residual**2))) or 1.0
@@ -343,7 +513,25 @@ def plot_validation(
 def parameter_count(model: object) -> int:
     """Parameters a fit adjusts: the linear families' regressor columns (their structure is
     fixed), Bouc–Wen's four (``a``, ``beta``, ``gamma``, ``d``; ``n = 1``), else the model's
-    row length; plus one for an input delay and one per drift term."""
+    row length; plus one for an input delay and one per drift term.
+
+    Parameters
+    ----------
+    model : object
+        The fitted model.
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> from piezohyst import PI
+    >>> from piezohyst.models.model import Drift
+    >>> model = PI([0.2, 0.4], [0.5, 0.2], p0=0.8)
+    >>> parameter_count(model), parameter_count(model.with_input_delay(3).with_drift(Drift(slope=0.1)))
+    (3, 5)
+    """
     from ..models.differential import BoucWen
     from ..models.pi import PI, GeneralizedPI, RateDependentPI
     from ..models.preisach import Preisach
@@ -378,6 +566,39 @@ def league_table(
     validation samples discounted by the residual's lag-1 autocorrelation
     (``n (1 - r1) / (1 + r1)``). Without validation data: by BIC on the training record,
     ``n ln(MSE) + k ln(n)``.
+
+    Parameters
+    ----------
+    results : list of tuple
+        ``(kind, creep, result or None, error or None)`` per candidate.
+    n_train : int
+        Training samples (the BIC's ``n``; the validation samples when the results carry none).
+    labels : list of str, optional
+        Names of the candidates, one each.
+
+    Returns
+    -------
+    rows : list of dict
+        One per candidate, ranked: ``rank``, ``name``, ``parameters``, the RMSEs, ``score``,
+        ``chosen``...; those that could not be fitted last, with their ``error``.
+    chosen : int
+        Index in ``results`` of the chosen candidate.
+
+    Examples
+    --------
+    A larger model better by less than the hold-out's noise loses to the smaller one:
+
+    >>> from piezohyst import PI
+    >>> from piezohyst.identify import IdentificationResult
+    >>> def result(model, rmse):
+    ...     m = {"rmse": rmse, "rmse_percent": 10 * rmse}
+    ...     return IdentificationResult(model, m, m, "ls", 0.0)
+    >>> small = result(PI([0.2, 0.4], [0.5, 0.2]), 0.100)
+    >>> large = result(PI([0.1, 0.2, 0.3, 0.4], [0.5, 0.2, 0.1, 0.1]), 0.099)
+    >>> candidates = [("pi", 0, small, None), ("pi", 0, large, None), ("mpi", 0, None, "failed")]
+    >>> rows, chosen = league_table(candidates, 1000, labels=["pi2", "pi4", "mpi"])
+    >>> chosen, [(r["name"], r["rank"], r["chosen"]) for r in rows]
+    (0, [('pi4', 1, False), ('pi2', 2, True), ('mpi', None, False)])
     """
     fitted = [(i, r) for i, (_, _, r, _) in enumerate(results) if r is not None]
     if not fitted:

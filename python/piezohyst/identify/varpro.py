@@ -139,6 +139,19 @@ def _poly_shape_coefficients(
 def vp_parameters(model: str = "mpi", *, envelope: str = "polynomial", creep: int = 0) -> tuple[str, ...]:
     """Names of the nonlinear parameters :func:`identify_vp` searches, in order.
 
+    Parameters
+    ----------
+    model : str, default "mpi"
+        The model family (one of :data:`VP_KINDS`).
+    envelope : str, default "polynomial"
+        The envelope of a generalized or modified PI model (one of :data:`ENVELOPES`).
+    creep : int, default 0
+        Number of creep time constants (rate-dependent PI).
+
+    Returns
+    -------
+    tuple of str
+
     Examples
     --------
     >>> from piezohyst.varpro import vp_parameters

@@ -157,6 +157,17 @@ def decimate(y: npt.ArrayLike, factor: int) -> FloatArray:
     """MATLAB ``decimate(y, p, 'fir')`` for each prime factor ``p`` of ``factor``
     (increasing), as the official benchmark generator; ``ceil(len(y) / factor)`` samples.
 
+    Parameters
+    ----------
+    y : array_like, shape (N,)
+        The record to decimate.
+    factor : int
+        Decimation factor (>= 1).
+
+    Returns
+    -------
+    ndarray, shape (ceil(N / factor),)
+
     Examples
     --------
     >>> import numpy as np

@@ -259,13 +259,47 @@ class Drift:
         object.__setattr__(self, "slope", as_scalar(self.slope, "drift.slope"))
 
     def evaluate(self, k: FloatArray) -> FloatArray:
-        """The drift at samples ``k`` (since the simulation's first sample)."""
+        """The drift at samples ``k`` (since the simulation's first sample).
+
+        Parameters
+        ----------
+        k : ndarray of float
+            Sample indices counted from the simulation's first sample.
+
+        Returns
+        -------
+        ndarray of float
+            The drift, output units, one value per ``k``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> Drift(slope=0.5).evaluate(np.array([0.0, 2.0, 4.0])).tolist()
+        [0.0, 1.0, 2.0]
+        >>> float(Drift(taus=(10.0,), weights=(3.0,)).evaluate(np.array([1e6]))[0])
+        3.0
+        """
         out: FloatArray = self.slope * k
         for tau, w in zip(self.taus, self.weights, strict=True):
             out = out - w * np.expm1(-k / tau)
         return out
 
     def to_dict(self) -> JSONDict:
+        """JSON-ready description, the model file's ``drift`` (:meth:`from_any` reads it).
+
+        Returns
+        -------
+        dict
+            ``{"slope": ..., "taus": [...], "weights": [...]}``.
+
+        Examples
+        --------
+        >>> d = Drift(taus=(100.0,), weights=(2.0,), slope=0.01)
+        >>> d.to_dict()
+        {'slope': 0.01, 'taus': [100.0], 'weights': [2.0]}
+        >>> Drift.from_any(d.to_dict()) == d
+        True
+        """
         return {"slope": self.slope, "taus": list(self.taus), "weights": list(self.weights)}
 
     @classmethod

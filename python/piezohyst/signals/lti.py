@@ -54,7 +54,19 @@ TRIM_RTOL = 1e-8
 
 
 def require_control() -> ModuleType:
-    """The ``control`` module (python-control), or ``ImportError`` saying how to install it."""
+    """The ``control`` module (python-control), or ``ImportError`` saying how to install it.
+
+    Returns
+    -------
+    module
+        The imported ``control`` package.
+
+    Examples
+    --------
+    >>> from piezohyst.signals.lti import require_control
+    >>> require_control().__name__
+    'control'
+    """
     try:
         import control
     except ImportError:
@@ -82,7 +94,35 @@ def state_space(
     name: str | None = None,
 ) -> Any:
     """A ``control.StateSpace`` (continuous for ``dt=None``, else discrete with sample time
-    ``dt`` in s) with named signals."""
+    ``dt`` in s) with named signals.
+
+    Parameters
+    ----------
+    a, b, c, d : array_like
+        The state-space matrices ``x' = a x + b u``, ``y = c x + d u``.
+    dt : float, optional
+        Sample time in s (> 0) of a discrete system; ``None`` for a continuous one.
+    inputs, outputs : sequence of str, optional
+        Names of the input and output signals.
+    states : sequence of str, optional
+        Names of the states.
+    name : str, optional
+        Name of the system.
+
+    Returns
+    -------
+    control.StateSpace
+
+    Examples
+    --------
+    >>> import control
+    >>> from piezohyst.signals.lti import state_space
+    >>> g = state_space([[-2.0]], [[1.0]], [[3.0]], [[0.0]], inputs=["u"], outputs=["y"])
+    >>> float(control.dcgain(g)), g.input_labels, g.output_labels
+    (1.5, ['u'], ['y'])
+    >>> state_space([[0.5]], [[1.0]], [[1.0]], [[0.0]], 0.01).dt
+    0.01
+    """
     ct = require_control()
     kw: dict[str, Any] = {k: list(v) for k, v in (("inputs", inputs), ("outputs", outputs), ("states", states)) if v}
     if name:
@@ -102,7 +142,31 @@ def polynomial_tf(
     name: str | None = None,
 ) -> Any:
     """A SISO ``control.TransferFunction`` ``num(s) / den(s)`` (coefficients highest power
-    first; ``z`` for a discrete one with sample time ``dt``)."""
+    first; ``z`` for a discrete one with sample time ``dt``).
+
+    Parameters
+    ----------
+    num, den : array_like
+        Numerator and denominator coefficients, highest power first.
+    dt : float, optional
+        Sample time in s (> 0) of a discrete system; ``None`` for a continuous one.
+    inputs, outputs : sequence of str, optional
+        Names of the input and output signals.
+    name : str, optional
+        Name of the system.
+
+    Returns
+    -------
+    control.TransferFunction
+
+    Examples
+    --------
+    >>> import control
+    >>> from piezohyst.signals.lti import polynomial_tf
+    >>> g = polynomial_tf([2.0], [1.0, 4.0])
+    >>> float(control.dcgain(g)), g.ninputs, g.noutputs
+    (0.5, 1, 1)
+    """
     ct = require_control()
     kw: dict[str, Any] = {}
     if inputs is not None:
@@ -120,7 +184,28 @@ def polynomial_tf(
 def scipy_state_space(
     a: npt.ArrayLike, b: npt.ArrayLike, c: npt.ArrayLike, d: npt.ArrayLike, dt: float | None = None
 ) -> Any:
-    """``scipy.signal.StateSpace`` (an ``lti``, or a ``dlti`` with ``dt``)."""
+    """``scipy.signal.StateSpace`` (an ``lti``, or a ``dlti`` with ``dt``).
+
+    Parameters
+    ----------
+    a, b, c, d : array_like
+        The state-space matrices.
+    dt : float, optional
+        Sample time in s (> 0) of a discrete system; ``None`` for a continuous one.
+
+    Returns
+    -------
+    scipy.signal.StateSpace
+
+    Examples
+    --------
+    >>> from piezohyst.signals.lti import scipy_state_space
+    >>> g = scipy_state_space([[-2.0]], [[1.0]], [[3.0]], [[0.0]])
+    >>> g.A.tolist(), g.dt
+    ([[-2.0]], None)
+    >>> scipy_state_space([[0.5]], [[1.0]], [[1.0]], [[0.0]], dt=0.01).dt
+    0.01
+    """
     from scipy import signal
 
     args = [np.asarray(m, dtype=np.float64) for m in (a, b, c, d)]
@@ -129,7 +214,26 @@ def scipy_state_space(
 
 
 def scipy_transfer_function(num: npt.ArrayLike, den: npt.ArrayLike, dt: float | None = None) -> Any:
-    """``scipy.signal.TransferFunction`` (an ``lti``, or a ``dlti`` with ``dt``)."""
+    """``scipy.signal.TransferFunction`` (an ``lti``, or a ``dlti`` with ``dt``).
+
+    Parameters
+    ----------
+    num, den : array_like
+        Numerator and denominator coefficients, highest power first.
+    dt : float, optional
+        Sample time in s (> 0) of a discrete system; ``None`` for a continuous one.
+
+    Returns
+    -------
+    scipy.signal.TransferFunction
+
+    Examples
+    --------
+    >>> from piezohyst.signals.lti import scipy_transfer_function
+    >>> g = scipy_transfer_function([1.0], [1.0, -0.5], dt=0.1)
+    >>> g.den.tolist(), g.dt
+    ([1.0, -0.5], 0.1)
+    """
     from scipy import signal
 
     n = np.asarray(num, dtype=np.float64)
@@ -177,6 +281,29 @@ def siso_polynomials(sys: object, name: str) -> tuple[FloatArray, FloatArray, fl
     a discrete one. A system with several inputs or outputs, a discrete system without a
     sample time (python-control's ``dt=True``) or anything else raises an error naming
     ``name``.
+
+    Parameters
+    ----------
+    sys : object
+        The system.
+    name : str
+        The argument's name, used in error messages.
+
+    Returns
+    -------
+    num, den : ndarray
+        Numerator and monic denominator, highest power first.
+    dt : float or None
+        Sample time in s, or ``None`` for a continuous system.
+
+    Examples
+    --------
+    >>> from piezohyst.signals.lti import scipy_transfer_function, siso_polynomials, state_space
+    >>> num, den, dt = siso_polynomials(state_space([[-2.0]], [[1.0]], [[3.0]], [[0.0]]), "plant")
+    >>> num.tolist(), den.tolist(), dt
+    ([3.0], [1.0, 2.0], None)
+    >>> siso_polynomials(scipy_transfer_function([2.0], [2.0, -1.0], dt=0.1), "plant")[1].tolist()
+    [1.0, -0.5]
     """
     num, den, dt = _raw_polynomials(sys, name)
     if not (np.all(np.isfinite(num)) and np.all(np.isfinite(den))):

@@ -82,6 +82,18 @@ def is_matlab_name(name: object) -> bool:
     """``True`` for a valid MATLAB field name: a letter, then letters, digits or ``_``, at most
     63 characters.
 
+    Parameters
+    ----------
+    name : object
+        The candidate name (anything that is not a ``str`` is not a name).
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> from piezohyst.signals.matfile import is_matlab_name
     >>> is_matlab_name("rmse_percent"), is_matlab_name("term_P"), is_matlab_name("1x"), is_matlab_name("a b")
     (True, True, False, False)
     """
@@ -171,7 +183,35 @@ def write_mat(path: PathLike, content: str, value: Mapping[str, Any], *, overwri
     """Write ``value`` (a dict) to the ``.mat`` file ``path`` as the struct variable ``content``
     (``"record"``, ``"model"``, ``"result"``) with the ``piezohyst`` variable beside it (the
     layout of this module's docstring), atomically. ``overwrite=False`` keeps an existing file
-    (:class:`~piezohyst.errors.OutputExistsError`)."""
+    (:class:`~piezohyst.errors.OutputExistsError`).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The ``.mat`` file to write.
+    content : str
+        Name of the struct variable: a MATLAB name other than ``"piezohyst"``.
+    value : dict
+        The content: numbers, strings, arrays, lists, tuples and nested dicts.
+    overwrite : bool, default True
+        ``False`` refuses to replace an existing file.
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> import numpy as np
+    >>> from piezohyst.signals.matfile import read_mat, write_mat
+    >>> value = {"gain": 0.1, "name": "pi", "x": np.array([1.0, 2.5]), "n": (1, 2)}
+    >>> path = write_mat(pathlib.Path(tempfile.mkdtemp()) / "m.mat", "model", value)
+    >>> back = read_mat(path, "model")
+    >>> back["gain"], back["name"], back["x"].tolist(), back["n"]
+    (0.1, 'pi', [1.0, 2.5], (1, 2))
+    """
     from scipy.io import savemat
 
     if not is_matlab_name(content) or content == "piezohyst":
@@ -250,7 +290,32 @@ def read_mat(path: PathLike, content: str | None = None) -> dict[str, Any]:
     """Read back the value :func:`write_mat` wrote (exactly: types and every bit of every
     float). ``content`` is the struct's name (``"model"``, ...); ``None`` takes what the file
     says. A file that is not a ``.mat`` file of piezohyst raises
-    :class:`~piezohyst.errors.DataError` naming it."""
+    :class:`~piezohyst.errors.DataError` naming it.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The ``.mat`` file.
+    content : str, optional
+        The struct expected (``"record"``, ``"model"``, ``"result"``); ``None`` accepts any.
+
+    Returns
+    -------
+    dict
+        The value written.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> from piezohyst.signals.matfile import read_mat, write_mat
+    >>> path = write_mat(pathlib.Path(tempfile.mkdtemp()) / "r.mat", "record", {"dt": 1e-3})
+    >>> read_mat(path)
+    {'dt': 0.001}
+    >>> read_mat(path, "model")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    piezohyst.errors.DataError: ...r.mat holds a 'record', not a 'model'
+    """
     from scipy.io import loadmat
 
     p = Path(path)
@@ -290,7 +355,37 @@ def load_mat_file(path: PathLike, content: str, what: str, build: Callable[[dict
     """Read the struct ``content`` of the ``.mat`` file ``path`` (:func:`read_mat`) and turn it
     into an object with ``build``; anything wrong — not a piezohyst ``.mat`` file, another
     content, a description ``build`` refuses — is :class:`~piezohyst.errors.DataError` naming
-    ``what`` and the path (as :func:`piezohyst._io.load_json_file` does for JSON)."""
+    ``what`` and the path (as :func:`piezohyst._io.load_json_file` does for JSON).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The ``.mat`` file.
+    content : str
+        The struct expected (``"record"``, ``"model"``, ``"result"``).
+    what : str
+        What the file is, for error messages (``"model file"``...).
+    build : callable
+        Makes the object from the struct's dict.
+
+    Returns
+    -------
+    object
+        What ``build`` returns.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> from piezohyst.models.model import Drift
+    >>> from piezohyst.signals.matfile import load_mat_file, write_mat
+    >>> path = write_mat(pathlib.Path(tempfile.mkdtemp()) / "d.mat", "model", {"slope": 0.5})
+    >>> load_mat_file(path, "model", "drift file", Drift.from_any)
+    Drift(taus=(), weights=(), slope=0.5)
+    >>> load_mat_file(path, "model", "drift file", lambda d: d["gain"])  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    piezohyst.errors.DataError: drift file '...d.mat' is malformed: KeyError: 'gain'
+    """
     p = Path(path)
     if p.is_dir():
         raise DataError(f"{what} '{p}' is a directory, not a file")

@@ -65,6 +65,21 @@ def rms(x: npt.ArrayLike) -> float:
     magnitude: the squares of values near 1e300 do not overflow and those of subnormal values
     (1e-310) do not vanish, so a record's RMS is never 0 beside a non-zero maximum.
 
+    Parameters
+    ----------
+    x : array_like, shape (N,)
+        A finite record, N >= 1.
+
+    Returns
+    -------
+    float
+        ``sqrt(mean(x**2))``.
+
+    Examples
+    --------
+    >>> from piezohyst.metrics import rms
+    >>> rms([3.0, -4.0, 0.0, 0.0])
+    2.5
     >>> from piezohyst.metrics import rms
     >>> rms([3e300, -4e300]) == rms([3.0, -4.0]) * 1e300, rms([3e-310, 4e-310]) > 0
     (True, True)

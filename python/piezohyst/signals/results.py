@@ -66,7 +66,22 @@ CLASS_FIELD = "python_class"
 
 @runtime_checkable
 class Result(Protocol):
-    """What every result class of piezohyst provides (see the module docstring)."""
+    """What every result class of piezohyst provides (see the module docstring).
+
+    A protocol: checked with ``isinstance``, never instantiated.
+
+    Parameters
+    ----------
+    *args, **kwargs : object
+        None are taken (a protocol cannot be instantiated).
+
+    Examples
+    --------
+    >>> from piezohyst.signals import Response
+    >>> from piezohyst.signals.results import Result
+    >>> isinstance(Response([0.0, 1.0], {"x": [1.0, 2.0]}), Result), isinstance(1.0, Result)
+    (True, False)
+    """
 
     to_pandas: Callable[[], Any]
     plot: Callable[..., Any]
@@ -77,7 +92,24 @@ class Result(Protocol):
 
 def require_pandas(owner: str) -> ModuleType:
     """The ``pandas`` module, or ``ImportError`` naming ``owner.to_pandas()`` and saying how to
-    install it."""
+    install it.
+
+    Parameters
+    ----------
+    owner : str
+        The class whose ``to_pandas()`` needs pandas, named in the error.
+
+    Returns
+    -------
+    module
+        The imported ``pandas`` package.
+
+    Examples
+    --------
+    >>> from piezohyst.signals.results import require_pandas
+    >>> require_pandas("Response").__name__  # doctest: +SKIP
+    'pandas'
+    """
     try:
         import pandas
     except ImportError:
@@ -88,7 +120,30 @@ def require_pandas(owner: str) -> ModuleType:
 
 def html_table(title: str, rows: Sequence[Sequence[str]], header: Sequence[str] | None = None) -> str:
     """A small HTML table: ``title`` above, one ``<tr>`` per ``(name, value)`` row (or, with
-    ``header``, one cell per column of each row); every text escaped."""
+    ``header``, one cell per column of each row); every text escaped.
+
+    Parameters
+    ----------
+    title : str
+        The text above the table.
+    rows : sequence of sequence of str
+        ``(name, value)`` pairs, or with ``header`` one cell per column.
+    header : sequence of str, optional
+        Column titles; without it each row is a name and a value.
+
+    Returns
+    -------
+    str
+        The HTML fragment.
+
+    Examples
+    --------
+    >>> from piezohyst.signals.results import html_table
+    >>> html_table("fit", [("rmse", "1 < 2")])
+    '<div><p>fit</p><table><tr><th>rmse</th><td>1 &lt; 2</td></tr></table></div>'
+    >>> html_table("t", [("1", "2")], header=("a", "b")).count("<td>")
+    2
+    """
     esc = html.escape
     head = ""
     if header is not None:
@@ -109,7 +164,27 @@ def encode_object(value: object) -> Any:
     """``value`` as plain data for a ``.mat`` file: numbers, strings, arrays, lists and dicts as
     they are; a piezohyst object with ``to_dict()`` and a class method ``from_dict`` (a model,
     a stage) or a dataclass (stage parameters, a controller) as a struct naming its class
-    (``python_class``) with its description; anything else raises ``ParameterTypeError``."""
+    (``python_class``) with its description; anything else raises ``ParameterTypeError``.
+
+    Parameters
+    ----------
+    value : object
+        The value to store.
+
+    Returns
+    -------
+    object
+        Plain data (numbers, strings, arrays, lists, tuples, dicts).
+
+    Examples
+    --------
+    >>> from piezohyst.models.model import Drift
+    >>> from piezohyst.signals.results import decode_object, encode_object
+    >>> encode_object({"n": 3, "drift": Drift(slope=0.5)})["drift"]["python_class"]
+    'piezohyst.models.model.Drift'
+    >>> decode_object(encode_object([Drift(slope=0.5)]))[0] == Drift(slope=0.5)
+    True
+    """
     if value is None or isinstance(value, (bool, int, float, str, np.generic, np.ndarray)):
         return value
     if isinstance(value, Mapping):
@@ -146,7 +221,25 @@ def _resolve(path: object) -> type:
 
 def decode_object(value: object) -> Any:
     """The inverse of :func:`encode_object`: structs naming a ``python_class`` become that
-    object again (only classes of piezohyst are built)."""
+    object again (only classes of piezohyst are built).
+
+    Parameters
+    ----------
+    value : object
+        Plain data as :func:`encode_object` returns it (or as read back from a ``.mat`` file).
+
+    Returns
+    -------
+    object
+        The value with every struct naming a ``python_class`` built again.
+
+    Examples
+    --------
+    >>> from piezohyst.models.model import Drift
+    >>> from piezohyst.signals.results import decode_object, encode_object
+    >>> decode_object(encode_object({"d": Drift(slope=0.1)}))["d"].slope
+    0.1
+    """
     if isinstance(value, dict):
         if CLASS_FIELD in value:
             cls = _resolve(value[CLASS_FIELD])
@@ -181,7 +274,19 @@ class MatFile:
     struct ``result`` names the result's class (``python_class``) beside what the class writes
     (``_mat_value``: a response's time base and signals, a dataclass result's fields);
     ``from_mat`` resolves that class (only classes of piezohyst are built) and has it build
-    itself again from the struct (``_from_mat_value``)."""
+    itself again from the struct (``_from_mat_value``).
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> from piezohyst.signals import Response
+    >>> from piezohyst.signals.results import MatFile
+    >>> r = Response([0.0, 1.0], {"x": [1.0, 2.0]})
+    >>> isinstance(r, MatFile)
+    True
+    >>> MatFile.from_mat(r.to_mat(pathlib.Path(tempfile.mkdtemp()) / "r.mat")).x.tolist()
+    [1.0, 2.0]
+    """
 
     def _mat_value(self) -> dict[str, Any]:
         """The fields of the struct ``result`` besides ``python_class``."""
@@ -265,7 +370,16 @@ class DataclassMatFile(MatFile):
     """``to_mat``/``from_mat`` for a result that is a frozen dataclass: a struct ``result`` with
     ``python_class`` (the result's class) and one field per dataclass field. Fields that hold
     functions (an identification's ``simulator``) are left out and take their default when
-    read back; the others come back exactly (:func:`encode_object`)."""
+    read back; the others come back exactly (:func:`encode_object`).
+
+    Examples
+    --------
+    >>> import dataclasses, pathlib, tempfile
+    >>> from piezohyst.signals import FrequencyResponse
+    >>> from piezohyst.signals.results import DataclassMatFile
+    >>> issubclass(FrequencyResponse, DataclassMatFile), dataclasses.is_dataclass(FrequencyResponse)
+    (True, True)
+    """
 
     #: Fields not written (callables); they take their default on reading.
     _mat_skip: ClassVar[tuple[str, ...]] = ()

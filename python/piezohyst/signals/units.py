@@ -122,7 +122,39 @@ def lookup_unit(text: str) -> tuple[str, float] | None:
 
 
 def parse_unit(text: object, role: str, origin: str = "argument") -> UnitConversion:
-    """The conversion to SI of a unit spelling given for ``role`` (``ParameterError`` when unknown)."""
+    """The conversion to SI of a unit spelling given for ``role`` (``ParameterError`` when unknown).
+
+    Parameters
+    ----------
+    text : str
+        The unit spelling, e.g. ``"ms"``, ``"mV"``, ``"um"`` or ``"µm"``.
+    role : str
+        The column it applies to (``"time"``, ``"input"``, ``"output"``...): a time column needs
+        a unit of time, any other column a unit that is not one. Names the argument in errors.
+    origin : str, default "argument"
+        Where the spelling came from, copied to :attr:`UnitConversion.origin`.
+
+    Returns
+    -------
+    UnitConversion
+
+    Raises
+    ------
+    ParameterError
+        When ``text`` is not a known unit or does not fit ``role``.
+
+    Examples
+    --------
+    >>> from piezohyst.signals.units import parse_unit
+    >>> parse_unit("ms", "time")
+    UnitConversion(source='ms', si='s', scale=0.001, origin='argument')
+    >>> parse_unit("um", "output").scale
+    1e-06
+    >>> parse_unit("V", "time")
+    Traceback (most recent call last):
+    ...
+    piezohyst.errors.ParameterError: time_unit = 'V' is not a unit of time (s, ms, us, ns, min)
+    """
     if not isinstance(text, str) or not text.strip():
         raise ParameterError(f"{role}_unit = {text!r} must be a unit such as 's', 'ms', 'V', 'mV', 'um', 'nm'")
     hit = lookup_unit(text)
@@ -146,7 +178,26 @@ _SUFFIX = re.compile(r"^(?P<name>.+?)[_ ](?P<unit>[A-Za-zµμ]+)$")
 def split_annotation(label: str) -> tuple[str, str | None]:
     """A column name and the unit it is annotated with: ``"t [ms]"``, ``"x (um)"`` (any unit
     spelling), or a suffix ``"disp_um"`` (only a unit :func:`parse_unit` knows, so that
-    ``"run_a"`` stays a name)."""
+    ``"run_a"`` stays a name).
+
+    Parameters
+    ----------
+    label : str
+        A column name as read from a header.
+
+    Returns
+    -------
+    name : str
+        The label without its annotation.
+    unit : str or None
+        The unit spelling, or ``None`` when the label carries none.
+
+    Examples
+    --------
+    >>> from piezohyst.signals.units import split_annotation
+    >>> split_annotation("t [ms]"), split_annotation("disp_um"), split_annotation("run_a")
+    (('t', 'ms'), ('disp', 'um'), ('run_a', None))
+    """
     m = _BRACKETS.match(label)
     if m is not None and m.group("name"):
         return m.group("name"), m.group("a") or m.group("b")
