@@ -136,6 +136,13 @@ class _Filter:
         -------
         tuple of float
             ``(b0, b1, b2, a1, a2)``.
+
+        Examples
+        --------
+        >>> from piezohyst.control.filters import LowPass
+        >>> b0, b1, b2, a1, a2 = LowPass(1000.0).biquad(1e-4)
+        >>> round((b0 + b1 + b2) / (1 + a1 + a2), 12)          # unit gain at DC
+        1.0
         """
         num, den = self.polynomials()
         return bilinear(num, den, sample_time, self.warp_hz())
@@ -153,6 +160,16 @@ class _Filter:
         Returns
         -------
         ndarray of complex
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.control.filters import Notch
+        >>> n = Notch(1000.0, width=0.3)
+        >>> np.abs(n.frequency_response([0.0, 1000.0])).round(6).tolist()      # continuous
+        [1.0, 0.0]
+        >>> round(float(abs(n.frequency_response([1000.0], sample_time=1e-4)[0])), 6)   # prewarped
+        0.0
         """
         if sample_time is not None:
             return _biquad_response(self.biquad(sample_time), f, sample_time)
@@ -166,6 +183,13 @@ class _Filter:
         Returns
         -------
         control.TransferFunction
+
+        Examples
+        --------
+        >>> from piezohyst.control.filters import LagLead
+        >>> tf = LagLead(zero=10.0, pole=20.0).to_control()
+        >>> round(float(abs(tf(0.0))), 6), tf.ninputs, tf.noutputs
+        (1.0, 1, 1)
         """
         num, den = self.polynomials()
         return polynomial_tf(num, den, inputs=["input"], outputs=["output"], name=type(self).__name__.lower())

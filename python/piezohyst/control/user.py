@@ -127,6 +127,18 @@ class CController:
         Returns
         -------
         CController
+
+        Examples
+        --------
+        A function the library does not have is named in the error (the C math library here):
+
+        >>> import ctypes.util
+        >>> from piezohyst.control.user import CController
+        >>> try:
+        ...     CController.from_library(ctypes.util.find_library("m") or "libm.so.6", "my_step")
+        ... except ValueError as e:
+        ...     print(str(e).split(":")[0])
+        step = 'my_step'
         """
         try:
             lib = ctypes.CDLL(os.fspath(library))
