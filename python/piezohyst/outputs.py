@@ -259,6 +259,21 @@ def check_output(path: PathLike, *, name: str = "path", overwrite: bool = False,
     not offered) or :class:`~piezohyst.errors.OutputExistsError` (an existing file or a link
     without ``overwrite``).
 
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The output file.
+    name : str, optional
+        The argument the messages name (``"--out"``).
+    overwrite : bool, optional
+        Whether an existing file may be replaced.
+    inputs : mapping of str to path, optional
+        The files the run reads, by the name the messages give them.
+
+    Returns
+    -------
+    pathlib.Path
+
     Examples
     --------
     >>> import os, tempfile, pathlib
@@ -299,6 +314,39 @@ def write_atomic(
 
     With ``overwrite=False`` an existing ``path`` is kept and :class:`OutputExistsError`
     (a :class:`FileExistsError`) names the argument ``name``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The output file.
+    data : str or bytes, optional
+        The content (exactly one of ``data`` and ``writer``).
+    writer : callable, optional
+        ``writer(temp_path)`` writes the content into the temporary file.
+    overwrite : bool, optional
+        Whether an existing file may be replaced.
+    name : str, optional
+        The argument the messages name (``"--out"``).
+    inputs : mapping of str to path, optional
+        The files the run reads, by the name the messages give them.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from piezohyst.outputs import write_atomic
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "model.json"
+    >>> write_atomic(p, "{}\\n").read_text()
+    '{}\\n'
+    >>> try:
+    ...     write_atomic(p, "new", overwrite=False, name="--out")
+    ... except FileExistsError:
+    ...     print(p.read_text() == "{}\\n")                   # the old file is kept
+    True
     """
     if (data is None) == (writer is None):
         raise TypeError("write_atomic needs exactly one of data and writer")
@@ -365,6 +413,41 @@ def check_output_dir(
     ``overwrite``, a non-regular one or an input is refused. ``force_hint`` is how a message
     says to ask for a replacement (default: ``--force`` for an option ``name``, else
     ``overwrite=True``).
+
+    Parameters
+    ----------
+    directory : str or os.PathLike
+        The output folder (existing or not).
+    name : str, optional
+        The argument the messages name (``"--out-dir"``).
+    overwrite : bool, optional
+        Whether existing files of the set may be replaced.
+    names : collection of str, optional
+        The plain file names of the set.
+    inputs : mapping of str to path, optional
+        The files the run reads, by the name the messages give them.
+    parents : bool, optional
+        Whether missing ancestors of ``directory`` may be created.
+    force_hint : str, optional
+        How a message says to ask for a replacement.
+
+    Returns
+    -------
+    pathlib.Path
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from piezohyst.outputs import check_output_dir
+    >>> d = pathlib.Path(tempfile.mkdtemp())
+    >>> _ = (d / "a.txt").write_text("old")
+    >>> check_output_dir(d, names=["b.txt"]) == d            # a new file: fine
+    True
+    >>> try:
+    ...     check_output_dir(d, name="--out-dir", names=["a.txt"])
+    ... except FileExistsError:
+    ...     print("a.txt exists")
+    a.txt exists
     """
     out = Path(directory)
     if str(directory) == "-" or not str(directory):
@@ -492,7 +575,21 @@ def signals_deferred() -> Iterator[None]:
     """Hold SIGINT, SIGTERM and SIGHUP for the duration of the block, then deliver them: a
     commit of renames runs whole. Python-level handlers are swapped for a recorder (only in
     the main thread, the only one that runs Python signal handlers); a signal that arrived is
-    raised again after the block, so the handler (or the default action) runs then."""
+    raised again after the block, so the handler (or the default action) runs then.
+
+    Examples
+    --------
+    >>> import signal
+    >>> from piezohyst.outputs import signals_deferred
+    >>> got = []
+    >>> old = signal.signal(signal.SIGTERM, lambda signum, frame: got.append(signum))
+    >>> with signals_deferred():
+    ...     signal.raise_signal(signal.SIGTERM)
+    ...     held = list(got)
+    >>> held, got == [signal.SIGTERM]                          # held in the block, delivered after
+    ([], True)
+    >>> _ = signal.signal(signal.SIGTERM, old)
+    """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -539,6 +636,30 @@ def output_set(
     replaces (removed with ``overwrite`` when the new set does not hold them: a folder never
     mixes two runs). With ``parents`` missing ancestors of ``directory`` are created;
     ``force_hint`` as for :func:`check_output_dir`.
+
+    Parameters
+    ----------
+    directory : str or os.PathLike
+        The output folder (existing or not).
+    name : str, optional
+        The argument the messages name (``"--out-dir"``).
+    overwrite : bool, optional
+        Whether an earlier set may be replaced.
+    names : collection of str, optional
+        The plain file names the set is expected to hold.
+    previous : collection of str, optional
+        Names an earlier run may have left that this set replaces.
+    inputs : mapping of str to path, optional
+        The files the run reads, by the name the messages give them.
+    parents : bool, optional
+        Whether missing ancestors of ``directory`` are created.
+    force_hint : str, optional
+        How a message says to ask for a replacement.
+
+    Yields
+    ------
+    pathlib.Path
+        The temporary folder the block writes the files into.
 
     Examples
     --------

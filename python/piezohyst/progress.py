@@ -96,6 +96,15 @@ def progress_mode(stream: IO[str] | None = None) -> Mode:
     else ``PIEZOHYST_PROGRESS`` (``bar`` / ``lines``) when set, else ``"bar"`` on a terminal
     and ``"lines"`` elsewhere.
 
+    Parameters
+    ----------
+    stream : file-like, optional
+        The stream progress would be written to (default ``sys.stderr``).
+
+    Returns
+    -------
+    {"bar", "lines", "off"}
+
     Examples
     --------
     >>> import io
@@ -308,7 +317,27 @@ class Progress:
 
     def update(self, n: int, **postfix: float) -> None:
         """Record that ``n`` units are done (absolute, not an increment), with named numbers
-        to show beside the count (``best=1.2e-7``)."""
+        to show beside the count (``best=1.2e-7``).
+
+        Parameters
+        ----------
+        n : int
+            Units done so far (clipped to ``total``).
+        **postfix : float
+            Named numbers shown beside the count.
+
+        Examples
+        --------
+        >>> import io
+        >>> from piezohyst.progress import Progress
+        >>> p = Progress(10, "css", stream=io.StringIO(), mode="lines")
+        >>> p.update(4, best=1.5)
+        >>> p.n
+        4
+        >>> p.update(99)                                       # absolute, at most total
+        >>> p.n
+        10
+        """
         if self.mode == "off" or self._closed:
             return
         self.n = min(int(n), self.total)
@@ -338,7 +367,22 @@ class Progress:
 
     def close(self) -> None:
         """End the display: the terminal bar stays as it ended; plain lines end with a line of
-        the count and the time taken."""
+        the count and the time taken.
+
+        Examples
+        --------
+        >>> import io
+        >>> from piezohyst.progress import Progress
+        >>> log = io.StringIO()
+        >>> p = Progress(10, "css", stream=log, mode="lines")
+        >>> p.update(4, best=1.5)
+        >>> p.close()
+        >>> log.getvalue().startswith("css: 4/10 (40 %), best 1.5 in ")
+        True
+        >>> p.close()                                          # a second close writes nothing
+        >>> log.getvalue().count("\\n")
+        1
+        """
         if self._closed:
             return
         self._closed = True

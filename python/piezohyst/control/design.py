@@ -46,7 +46,7 @@ MAX_ORDER = 7
 class MixedSensitivity:
     """The result of :func:`mixed_sensitivity`.
 
-    Attributes
+    Parameters
     ----------
     controller : FilteredPID
         The loop the core runs (``Compensated(result.controller, model)`` behind a hysteresis
@@ -60,6 +60,19 @@ class MixedSensitivity:
         discretization).
     plant : control.TransferFunction
         The design plant (normalized to a unit static gain).
+
+    Examples
+    --------
+    :func:`mixed_sensitivity` needs slycot; the result's fields, built by hand for a PI
+    controller ``K(s) = kp + ki / s`` (what the FilteredPID realizes without sections):
+
+    >>> import control
+    >>> import piezohyst as ph
+    >>> from piezohyst.control.design import MixedSensitivity
+    >>> k = control.tf([1e4, 1e9], [1.0, 0.0])
+    >>> d = MixedSensitivity(ph.FilteredPID(kp=1e4, ki=1e9), 0.8, k, k, control.tf([1.0], [1e-4, 1.0]))
+    >>> bool(d.gamma < 1), d.controller.ki, d.realized.poles().tolist()   # every bound holds
+    (True, 1000000000.0, [0j])
     """
 
     controller: FilteredPID

@@ -200,6 +200,15 @@ class Notch(_Filter):
     (Hz): ``width`` is the poles' damping ratio (the notch's breadth), ``depth`` the gain at the
     notch frequency (0: zeros on the axis, full removal; 0.1: -20 dB).
 
+    Parameters
+    ----------
+    frequency : float
+        The notch frequency, Hz.
+    width : float, optional
+        The poles' damping ratio (the notch's breadth).
+    depth : float, optional
+        The gain at the notch frequency, in [0, 1).
+
     Examples
     --------
     >>> from piezohyst.control.filters import Notch
@@ -240,6 +249,12 @@ class Notch(_Filter):
         Returns
         -------
         float
+
+        Examples
+        --------
+        >>> from piezohyst.control.filters import Notch
+        >>> Notch(1000.0).warp_hz()
+        1000.0
         """
         return float(self.frequency)
 
@@ -247,6 +262,13 @@ class Notch(_Filter):
 @dataclass(frozen=True)
 class LowPass(_Filter):
     """A second-order low-pass ``w^2 / (s^2 + 2 damping w s + w^2)`` at ``frequency`` (Hz).
+
+    Parameters
+    ----------
+    frequency : float
+        The corner frequency, Hz.
+    damping : float, optional
+        The poles' damping ratio (Butterworth by default).
 
     Examples
     --------
@@ -284,6 +306,12 @@ class LowPass(_Filter):
         Returns
         -------
         float
+
+        Examples
+        --------
+        >>> from piezohyst.control.filters import LowPass
+        >>> LowPass(250.0).warp_hz()
+        250.0
         """
         return float(self.frequency)
 
@@ -293,6 +321,13 @@ class LagLead(_Filter):
     """A first-order lag-lead ``(1 + s / (2 pi zero)) / (1 + s / (2 pi pole))`` (unit static
     gain; ``zero < pole`` is a lead, ``zero > pole`` a lag): the shape of a gain that changes
     by ``pole / zero`` between two corners, as a stage's creep makes it.
+
+    Parameters
+    ----------
+    zero : float
+        The zero's corner frequency, Hz.
+    pole : float
+        The pole's corner frequency, Hz.
 
     Examples
     --------
@@ -330,6 +365,12 @@ class LagLead(_Filter):
         Returns
         -------
         float
+
+        Examples
+        --------
+        >>> from piezohyst.control.filters import LagLead
+        >>> LagLead(zero=10.0, pole=1000.0).warp_hz()
+        100.0
         """
         return math.sqrt(self.zero * self.pole)
 
@@ -340,6 +381,15 @@ class PPF(_Filter):
     ``gain w^2 / (s^2 + 2 damping w s + w^2)`` tuned to a resonance at ``frequency`` (Hz), added
     to the command (V per m of reading: for a stage with static gain ``g`` m/V, ``gain`` of about
     ``0.5 / g`` adds damping; the loop is stable while ``gain g < 1``).
+
+    Parameters
+    ----------
+    frequency : float
+        The resonance the filter is tuned to, Hz.
+    damping : float, optional
+        The filter's damping ratio.
+    gain : float, optional
+        The static gain, command units per unit of reading.
 
     Examples
     --------
@@ -379,6 +429,12 @@ class PPF(_Filter):
         Returns
         -------
         float
+
+        Examples
+        --------
+        >>> from piezohyst.control.filters import PPF
+        >>> PPF(5000.0).warp_hz()
+        5000.0
         """
         return float(self.frequency)
 
@@ -399,6 +455,15 @@ class IRC(_Filter):
     on included. It raises the damped stage's static gain by ``1 / (1 - 1 / feedthrough)``
     (:meth:`static_factor`: 2 for the usual ``feedthrough = 2``), which the outer loop's
     integral removes and a feedforward divides by.
+
+    Parameters
+    ----------
+    frequency : float
+        The integrator's pole, Hz.
+    static_gain : float
+        The loop's static gain ``g``, m per command unit.
+    feedthrough : float, optional
+        The feedthrough ratio (> 1).
 
     Examples
     --------
@@ -442,6 +507,12 @@ class IRC(_Filter):
         Returns
         -------
         float
+
+        Examples
+        --------
+        >>> from piezohyst.control.filters import IRC
+        >>> IRC(1000.0, static_gain=1.0, feedthrough=4.0).static_factor()     # 1 / (1 - 1/4)
+        1.3333333333333333
         """
         return 1.0 / (1.0 - 1.0 / self.feedthrough)
 
@@ -451,6 +522,12 @@ class IRC(_Filter):
         Returns
         -------
         float
+
+        Examples
+        --------
+        >>> from piezohyst.control.filters import IRC
+        >>> IRC(800.0, static_gain=1e-6).warp_hz()
+        800.0
         """
         return float(self.frequency)
 
@@ -462,6 +539,17 @@ class Section(_Filter):
     ``warp`` (Hz): how a controller designed elsewhere (e.g.
     :func:`piezohyst.control.design.mixed_sensitivity`'s H-infinity controller) is cut into the
     biquads a :class:`~piezohyst.FilteredPID` runs.
+
+    Parameters
+    ----------
+    num : tuple of float
+        Numerator coefficients in ``s``, highest power first (at most three).
+    den : tuple of float
+        Denominator coefficients in ``s``, highest power first (at most three, not all zero).
+    warp : float
+        The frequency kept exact, Hz.
+    discretization : {"bilinear", "matched"}, optional
+        How :meth:`biquad` discretizes the section.
 
     Examples
     --------
@@ -544,6 +632,12 @@ class Section(_Filter):
         Returns
         -------
         tuple of list of float
+
+        Examples
+        --------
+        >>> from piezohyst.control.filters import Section
+        >>> Section((2, 10), (1, 3, 20), warp=100.0).polynomials()
+        ([2.0, 10.0], [1.0, 3.0, 20.0])
         """
         return [float(c) for c in self.num], [float(c) for c in self.den]
 
@@ -553,5 +647,11 @@ class Section(_Filter):
         Returns
         -------
         float
+
+        Examples
+        --------
+        >>> from piezohyst.control.filters import Section
+        >>> Section((1.0, 10.0), (1.0, 20.0), warp=100.0).warp_hz()
+        100.0
         """
         return float(self.warp)

@@ -266,12 +266,14 @@ def _stepped(
 class LoopMargins:
     """Stability margins of a loop ``L = C P`` (python-control), and its sensitivity peaks.
 
-    Attributes
+    Parameters
     ----------
     gain_margin : float
         Factor the loop gain may grow before instability (``inf``: none).
     gain_margin_db : float
+        The same in dB, ``20 log10 gain_margin``.
     phase_margin_deg : float
+        The phase margin at the gain crossover, degrees.
     modulus_margin : float
         The smallest distance of ``L`` to -1, ``1 / sensitivity_peak``.
     gain_crossover_hz, phase_crossover_hz : float
@@ -284,6 +286,19 @@ class LoopMargins:
         Every closed-loop pole inside the unit circle.
     loop : FrequencyResponse
         ``L`` on the grid the peaks were taken on.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import piezohyst as ph
+    >>> from piezohyst.control.frequency import loop_margins
+    >>> m = loop_margins(ph.virtual_stage(), ph.PID(kp=4e4, ki=1.4e10))
+    >>> m.stable, round(m.gain_margin_db, 1), round(m.phase_margin_deg, 1)
+    (True, 14.9, 72.9)
+    >>> bool(np.isclose(m.gain_margin_db, 20 * np.log10(m.gain_margin)))
+    True
+    >>> bool(np.isclose(m.modulus_margin * m.sensitivity_peak, 1.0))
+    True
     """
 
     gain_margin: float
@@ -443,6 +458,17 @@ class DynamicInversion:
     zero)) e^(s delay)``: the lag-lead inverted as a filter on the reference, the lead
     ``e^(s delay) ~ 1 + delay s + delay^2 s^2 / 2`` from the reference's velocity and
     acceleration (:meth:`feedforward`).
+
+    Parameters
+    ----------
+    gain : float
+        The static gain.
+    zero : float
+        The lag-lead's zero, Hz.
+    pole : float
+        The lag-lead's pole, Hz.
+    delay : float
+        The delay, s.
 
     Examples
     --------

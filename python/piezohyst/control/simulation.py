@@ -48,9 +48,58 @@ class UserController(Protocol):
     measured, velocity, acceleration)``). :func:`closed_loop` runs it from the Rust loop, one
     Python call per sample: the slow path (about a microsecond of Python per sample, against
     tens of nanoseconds for a packaged controller), for prototyping a law before writing it in
-    Rust."""
+    Rust.
 
-    def step(self, reference: float, measured: float, /) -> float: ...
+    Parameters
+    ----------
+    *args, **kwargs
+        None: a protocol is a type to check against, not a class to instantiate; any class
+        with a matching ``step`` is a ``UserController``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst import closed_loop, virtual_stage
+    >>> class Integral:
+    ...     def __init__(self, ki, ts):
+    ...         self.ki, self.ts, self.u, self.calls = ki, ts, 0.0, 0
+    ...     def step(self, reference, measured):
+    ...         self.calls += 1
+    ...         self.u += self.ki * self.ts * (reference - measured)
+    ...         return self.u
+    >>> stage = virtual_stage()
+    >>> t = np.arange(0, 0.05, stage.sample_time)
+    >>> ref = 10e-6 * (1 - np.cos(2 * np.pi * 20 * t)) / 2
+    >>> law = Integral(2e9, stage.sample_time)
+    >>> r = closed_loop(stage, law, ref)
+    >>> law.calls == ref.size, round(r.metrics["rmse_percent"], 1)     # one call per sample
+    (True, 16.7)
+    """
+
+    def step(self, reference: float, measured: float, /) -> float:
+        """The command for this sample.
+
+        Parameters
+        ----------
+        reference : float
+            The reference position, m.
+        measured : float
+            The sensor's reading, m.
+
+        Returns
+        -------
+        float
+            The command, V.
+
+        Examples
+        --------
+        >>> class Proportional:
+        ...     def step(self, reference, measured):
+        ...         return 1e5 * (reference - measured)
+        >>> round(Proportional().step(2e-6, 1e-6), 12)
+        0.1
+        """
+        ...
 
 
 __all__ = [
@@ -65,7 +114,29 @@ __all__ = [
 
 
 def seed_from(rng: RngLike) -> int:
-    """A 63-bit seed for the core's noise generator from an int, a Generator or None (0)."""
+    """A 63-bit seed for the core's noise generator from an int, a Generator or None (0).
+
+    Parameters
+    ----------
+    rng : int, numpy.random.Generator or None
+        A non-negative int (the same seed each time), a Generator (advanced by one draw) or
+        ``None``.
+
+    Returns
+    -------
+    int
+        The seed, in ``[0, 2**63 - 1)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst.control.simulation import seed_from
+    >>> seed_from(None), seed_from(3) == seed_from(3), seed_from(3) == seed_from(4)
+    (0, True, False)
+    >>> g = np.random.default_rng(1)
+    >>> seed_from(g) == seed_from(g)                            # the Generator advances
+    False
+    """
     if rng is None:
         return 0
     if isinstance(rng, np.random.Generator):
@@ -566,6 +637,28 @@ def closed_loop_batch_stages(
     the Rust core, the GIL released; row ``j``'s figures depend on row ``j`` and ``seeds[j]`` only
     (the same bits whatever the number of threads or how the rows are split into calls).
 
+    Parameters
+    ----------
+    stage : Stage
+        The nominal stage the controller is packed for.
+    controller : PID, FilteredPID, ...
+        The controller configuration.
+    reference : array_like, shape (N,)
+        The reference position, m, one value per control period.
+    params : array_like, shape (S, STAGE_PARAM_LEN)
+        One plant per row, in the layout of :meth:`Stage.core_params`.
+    seeds : array_like of int, shape (S,)
+        Each run's sensor-noise seed (non-negative).
+    skip : int, optional
+        First samples left out of the figures.
+    initial_state : array_like, optional
+        Every run's initial stage state (default: the stage at rest).
+
+    Returns
+    -------
+    ndarray, shape (S, 3)
+        ``[rmse, max_error, saturated_fraction]`` per row.
+
     Examples
     --------
     >>> import numpy as np
@@ -606,7 +699,45 @@ def closed_loop_perturbed(
     """One run of :func:`closed_loop_batch_stages` with its signals: ``controller`` packed for
     ``stage`` (the nominal stage) runs on the plant of the parameter row ``params`` with sensor-noise
     seed ``seed`` (the core's seed, as given). The metrics leave out the first ``skip`` samples, so
-    ``rmse`` and ``max_error`` are the batch's row to rounding."""
+    ``rmse`` and ``max_error`` are the batch's row to rounding.
+
+    Parameters
+    ----------
+    stage : Stage
+        The nominal stage the controller is packed for.
+    controller : PID, FilteredPID, ...
+        The controller configuration.
+    reference : array_like, shape (N,)
+        The reference position, m, one value per control period.
+    params : array_like, shape (STAGE_PARAM_LEN,)
+        The plant, in the layout of :meth:`Stage.core_params`.
+    seed : int
+        The sensor-noise seed, in ``[0, 2**64)``.
+    skip : int, optional
+        First samples left out of the metrics.
+    initial_state : array_like, optional
+        The initial stage state (default: the stage at rest).
+
+    Returns
+    -------
+    ClosedLoopResult
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst import PID, virtual_stage
+    >>> from piezohyst.control.simulation import closed_loop_batch_stages, closed_loop_perturbed
+    >>> stage = virtual_stage()
+    >>> t = np.arange(0, 0.05, stage.sample_time)
+    >>> ref = 10e-6 * (1 - np.cos(2 * np.pi * 20 * t)) / 2
+    >>> row = stage.core_params().copy()
+    >>> row[2] *= 1.2                                           # a 20 % stiffer part
+    >>> pid = PID(kp=2e6, ki=2e9)
+    >>> r = closed_loop_perturbed(stage, pid, ref, row, 5, skip=100)
+    >>> m = closed_loop_batch_stages(stage, pid, ref, row[None, :], np.array([5], dtype=np.uint64), skip=100)
+    >>> bool(np.isclose(r.metrics["rmse"], m[0, 0], rtol=1e-9)), r.position.shape
+    (True, (500,))
+    """
     x, v, a, spec = _prepare(stage, controller, reference, None, None)
     row = as_record(params, "params")
     s = stage.sensor

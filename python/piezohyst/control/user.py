@@ -73,14 +73,39 @@ class CController:
     """A C function as a controller (the slow path of :func:`~piezohyst.closed_loop`,
     :func:`~piezohyst.track`); see the module's documentation for the C signatures.
 
+    A C function here is a ``ctypes`` function pointer: one of a loaded library (see
+    :meth:`from_library`) or a Python callable wrapped in ``STEP_SIGNATURE`` /
+    ``RESET_SIGNATURE``, as in the example (no compiler needed).
+
     Parameters
     ----------
-    step : ctypes function
+    step_function : ctypes function
         The step (``STEP_SIGNATURE``, or a ``ctypes.CDLL`` function: its types are set here).
-    reset : ctypes function, optional
+    reset_function : ctypes function, optional
         Called with the first reading before each run.
     state_size : int
         Bytes of the state buffer handed to both.
+    _library : ctypes.CDLL, optional
+        Internal: the library the functions come from, kept loaded (set by
+        :meth:`from_library`).
+
+    Examples
+    --------
+    >>> import ctypes
+    >>> from piezohyst.control.user import RESET_SIGNATURE, STEP_SIGNATURE, CController
+    >>> def doubles(state):
+    ...     return ctypes.cast(state, ctypes.POINTER(ctypes.c_double))
+    >>> @STEP_SIGNATURE
+    ... def step(state, reference, measured, velocity, acceleration):
+    ...     doubles(state)[1] += reference - measured         # the error's sum
+    ...     return doubles(state)[0] + 1e5 * doubles(state)[1]
+    >>> @RESET_SIGNATURE
+    ... def reset(state, measured):
+    ...     doubles(state)[0] = 1e5 * measured                # an offset from the first reading
+    >>> c = CController(step, reset, state_size=16)
+    >>> c.reset(1e-6)
+    >>> round(c.step(3e-6, 1e-6), 12), round(c.step(3e-6, 2e-6), 12)
+    (0.3, 0.4)
     """
 
     step_function: Any
@@ -158,13 +183,73 @@ class CController:
         return c
 
     def reset(self, measured: float) -> None:
-        """Zero the state and call the C ``reset`` (if any) with the first reading."""
+        """Zero the state and call the C ``reset`` (if any) with the first reading.
+
+        Parameters
+        ----------
+        measured : float
+            The first sensor reading, m.
+
+        Examples
+        --------
+        >>> import ctypes
+        >>> from piezohyst.control.user import RESET_SIGNATURE, STEP_SIGNATURE, CController
+        >>> def doubles(state):
+        ...     return ctypes.cast(state, ctypes.POINTER(ctypes.c_double))
+        >>> @STEP_SIGNATURE
+        ... def step(state, reference, measured, velocity, acceleration):
+        ...     doubles(state)[1] += reference - measured         # the error's sum
+        ...     return doubles(state)[0] + 1e5 * doubles(state)[1]
+        >>> @RESET_SIGNATURE
+        ... def reset(state, measured):
+        ...     doubles(state)[0] = 1e5 * measured                # an offset from the first reading
+        >>> c = CController(step, reset, state_size=16)
+        >>> c.reset(0.0)
+        >>> round(c.step(1e-6, 0.0), 12), round(c.step(1e-6, 0.0), 12)
+        (0.1, 0.2)
+        >>> c.reset(0.0)                                      # the sum starts again from zero
+        >>> round(c.step(1e-6, 0.0), 12)
+        0.1
+        """
         ctypes.memset(self._state, 0, len(self._state))
         if self.reset_function is not None:
             self.reset_function(ctypes.cast(self._state, ctypes.c_void_p), float(measured))
 
     def step(self, reference: float, measured: float, velocity: float = 0.0, acceleration: float = 0.0) -> float:
-        """One call of the C step: the command (V)."""
+        """One call of the C step: the command (V).
+
+        Parameters
+        ----------
+        reference : float
+            The reference position, m.
+        measured : float
+            The sensor reading, m.
+        velocity, acceleration : float, optional
+            The reference's derivatives, m/s and m/s^2.
+
+        Returns
+        -------
+        float
+            The command, V.
+
+        Examples
+        --------
+        >>> import ctypes
+        >>> from piezohyst.control.user import RESET_SIGNATURE, STEP_SIGNATURE, CController
+        >>> def doubles(state):
+        ...     return ctypes.cast(state, ctypes.POINTER(ctypes.c_double))
+        >>> @STEP_SIGNATURE
+        ... def step(state, reference, measured, velocity, acceleration):
+        ...     doubles(state)[1] += reference - measured         # the error's sum
+        ...     return doubles(state)[0] + 1e5 * doubles(state)[1]
+        >>> @RESET_SIGNATURE
+        ... def reset(state, measured):
+        ...     doubles(state)[0] = 1e5 * measured                # an offset from the first reading
+        >>> c = CController(step, reset, state_size=16)
+        >>> c.reset(0.0)
+        >>> round(c.step(2e-6, 1.5e-6), 12)                 # 1e5 V/m times the error's sum
+        0.05
+        """
         u = float(
             self.step_function(
                 ctypes.cast(self._state, ctypes.c_void_p),

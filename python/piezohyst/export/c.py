@@ -107,7 +107,36 @@ class _HasSampleTime(Protocol):
 class ExportedController:
     """A controller read from a controller file: exactly the flat description the core runs.
     It works wherever a controller does (:func:`piezohyst.closed_loop`, :func:`piezohyst.track`)
-    on a stage with the sample time it was saved for."""
+    on a stage with the sample time it was saved for.
+
+    Parameters
+    ----------
+    kind : str
+        The controller kind (one of ``CONTROLLER_KINDS``).
+    params : ndarray
+        The flat parameters, in the layout ``CONTROLLER_PARAMS[kind]``.
+    inverse : tuple, optional
+        ``(family, dims, row, u_min, u_max)`` of the inverse model it acts behind.
+    ilc : tuple, optional
+        The iterative learning control's settings.
+    sample_time : float, optional
+        The sample time it was saved for, s.
+    description : str, optional
+        What the controller was saved from.
+
+    Examples
+    --------
+    >>> import piezohyst as ph
+    >>> from piezohyst.export.c import ExportedController
+    >>> stage = ph.virtual_stage()
+    >>> pid = ph.PID(kp=1e6, ki=5e9)
+    >>> c = ExportedController("pid", pid.core(stage)[1], sample_time=stage.sample_time)
+    >>> ref = [5e-6] * 200
+    >>> a = ph.closed_loop(stage, c, ref, rng=1).position
+    >>> b = ph.closed_loop(stage, pid, ref, rng=1).position
+    >>> bool((a == b).all())                                # runs as the PID it came from
+    True
+    """
 
     kind: str
     params: FloatArray
@@ -120,6 +149,31 @@ class ExportedController:
     uses_reference_derivatives = True
 
     def core(self, stage: _HasSampleTime, *, limits: Limits | None = None) -> CoreSpec:
+        """The description the core runs, as saved, for ``stage`` (checked: the same sample
+        time).
+
+        Parameters
+        ----------
+        stage : Stage
+            A stage with the controller's sample time.
+        limits : Limits, optional
+            Refused: an exported controller is already complete.
+
+        Returns
+        -------
+        tuple
+            ``(kind, params, inverse, ilc)``.
+
+        Examples
+        --------
+        >>> import piezohyst as ph
+        >>> from piezohyst.export.c import ExportedController
+        >>> stage = ph.virtual_stage()
+        >>> c = ExportedController("pid", ph.PID(kp=1e6, ki=5e9).core(stage)[1], sample_time=stage.sample_time)
+        >>> kind, params, inverse, ilc = c.core(stage)
+        >>> kind, params[:2].tolist(), inverse, ilc
+        ('pid', [1000000.0, 5000000000.0], None, None)
+        """
         if limits is not None:
             raise ParameterTypeError("an exported controller cannot be wrapped again (it is already complete)")
         ts = float(stage.sample_time)
@@ -419,7 +473,28 @@ def load_controller(path: PathLike) -> ExportedController:
 
 def row_names(family: str, dims: Iterable[int]) -> list[str]:
     """Names of the slots of a model family's parameter row (the core's layout table,
-    ``_core.family_layout``)."""
+    ``_core.family_layout``).
+
+    Parameters
+    ----------
+    family : str
+        The model family (one of ``FAMILY_CODES``).
+    dims : iterable of int
+        The family's dimensions, a model's ``dims`` (for ``"pi"``: the number of play
+        operators, then the number of creep terms).
+
+    Returns
+    -------
+    list of str
+
+    Examples
+    --------
+    >>> from piezohyst.export.c import row_names
+    >>> row_names("pi", [3, 0])                             # offset, thresholds, weights
+    ['p0', 'r[0]', 'r[1]', 'r[2]', 'w[0]', 'w[1]', 'w[2]']
+    >>> row_names("pi", [3, 2])[7:]                         # and two creep terms
+    ['creep_ts', 'creep_tau[0]', 'creep_tau[1]', 'creep_c[0]', 'creep_c[1]']
+    """
     if family not in FAMILY_CODES:
         raise ParameterError(f"family = {family!r} is unknown; expected one of {', '.join(FAMILY_CODES)}")
     return list(_core.family_layout(family, [int(x) for x in dims])["slots"])
@@ -431,7 +506,20 @@ def _repo_root() -> Path:
 
 def header_path() -> Path | None:
     """``piezohyst.h`` of the C library: the source tree's when piezohyst runs from one, else the
-    copy the wheel ships (:func:`piezohyst.capi.header_path`)."""
+    copy the wheel ships (:func:`piezohyst.capi.header_path`).
+
+    Returns
+    -------
+    pathlib.Path or None
+        ``None`` when neither exists.
+
+    Examples
+    --------
+    >>> from piezohyst.export.c import header_path
+    >>> p = header_path()
+    >>> p is None or (p.name == "piezohyst.h" and "phs_" in p.read_text())
+    True
+    """
     p = _repo_root() / "crates" / "capi" / "include" / "piezohyst.h"
     if p.is_file():
         return p
@@ -445,7 +533,20 @@ def header_path() -> Path | None:
 
 def library_path() -> Path | None:
     """The static library: the source tree's build ``target/release/libpiezohyst.a`` if it
-    exists, else the copy the wheel ships (:func:`piezohyst.capi.library_path`)."""
+    exists, else the copy the wheel ships (:func:`piezohyst.capi.library_path`).
+
+    Returns
+    -------
+    pathlib.Path or None
+        ``None`` when neither exists (a source tree not built with ``cargo build --release``).
+
+    Examples
+    --------
+    >>> from piezohyst.export.c import library_path
+    >>> p = library_path()
+    >>> p is None or (p.name == "libpiezohyst.a" and p.is_file())
+    True
+    """
     p = _repo_root() / "target" / "release" / "libpiezohyst.a"
     if p.is_file():
         return p

@@ -68,7 +68,7 @@ __all__ = [
 class LinearPart:
     """The coefficients of a stage's linear part (see the module docstring).
 
-    Attributes
+    Parameters
     ----------
     mass, damping, stiffness : float
         ``m`` (kg), ``b`` (N s/m), ``k'`` (N/m; with the CEMF slope when asked).
@@ -86,6 +86,13 @@ class LinearPart:
         the position being their normalized sum with the stack's displacement.
     mode_mechanics : tuple of float
         The stage's own ``(m, b, k)`` that drive the added modes.
+
+    Examples
+    --------
+    >>> from piezohyst.plant.linear import LinearPart, frequency_response
+    >>> part = LinearPart(1.0, 2.0, 4.0, input_gain=4.0, tem=4.0, creep_taus=(), creep_weights=(), amplifier_tau=0.0)
+    >>> complex(frequency_response(part, [0.0])[0])               # g / k
+    (1+0j)
     """
 
     mass: float
@@ -111,7 +118,38 @@ def linear_part(
     """The linear part of a stage with ``params`` behind ``amplifier`` (``None``: ideal).
 
     ``creep=False`` leaves the creep lags out; ``cemf=True`` adds the CEMF hysteresis's slope
-    at the demagnetized rest state; ``modes`` are the stage's added modes."""
+    at the demagnetized rest state; ``modes`` are the stage's added modes.
+
+    Parameters
+    ----------
+    params : StageParameters
+        The stage's physical parameters.
+    amplifier : Amplifier, optional
+        The amplifier whose bandwidth gives the first-order lag (``None``: ideal).
+    creep : bool, optional
+        Whether the creep lags are kept.
+    cemf : bool, optional
+        Whether the CEMF hysteresis enters by its slope at rest.
+    modes : tuple of (float, float, float), optional
+        Added modes ``(frequency Hz, damping ratio, relative gain)``.
+
+    Returns
+    -------
+    LinearPart
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst import virtual_stage
+    >>> from piezohyst.plant.linear import frequency_response, linear_part
+    >>> params = virtual_stage().params
+    >>> stiff = linear_part(params, creep=False)                 # the static gain Tem / k
+    >>> bool(np.isclose(abs(frequency_response(stiff, [0.0])[0]), params.static_gain))
+    True
+    >>> crept = linear_part(params)                              # the creep adds 7.5 %
+    >>> round(float(abs(frequency_response(crept, [0.0])[0]) / params.static_gain), 6)
+    1.075
+    """
     p = params
     gain, stiffness = p.tem, p.stiffness
     if cemf:
@@ -159,7 +197,29 @@ def _mode_factor(part: LinearPart, s: npt.NDArray[np.complexfloating[Any, Any]])
 
 def frequency_response(part: LinearPart, f: npt.ArrayLike) -> ComplexArray:
     """``H(j 2 pi f)``, position per command volt (m/V), evaluated from the coefficients at the
-    frequencies ``f`` (Hz, finite, ``>= 0``)."""
+    frequencies ``f`` (Hz, finite, ``>= 0``).
+
+    Parameters
+    ----------
+    part : LinearPart
+        The linear part.
+    f : array_like
+        Frequencies, Hz.
+
+    Returns
+    -------
+    ndarray of complex
+        The response, m/V.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst.plant.linear import LinearPart, frequency_response
+    >>> part = LinearPart(1.0, 2.0, 4.0, input_gain=4.0, tem=4.0, creep_taus=(), creep_weights=(), amplifier_tau=0.0)
+    >>> h = frequency_response(part, [0.0, 1 / np.pi])           # 4 / (s^2 + 2 s + 4) at s = 0, 2j
+    >>> np.round(h, 12).tolist()
+    [(1+0j), -1j]
+    """
     freq = as_record(np.atleast_1d(np.asarray(f, dtype=np.float64)), "f", min_length=1)
     bad = np.flatnonzero(freq < 0)
     if bad.size:
@@ -176,7 +236,26 @@ def frequency_response(part: LinearPart, f: npt.ArrayLike) -> ComplexArray:
 
 def state_space(part: LinearPart) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, list[str]]:
     """``(A, B, C, D, state names)`` of the linear part: input the command (V), output the
-    position (m), states ``["va", "x", "v", "w0", ...]`` (``va`` only with an amplifier lag)."""
+    position (m), states ``["va", "x", "v", "w0", ...]`` (``va`` only with an amplifier lag).
+
+    Parameters
+    ----------
+    part : LinearPart
+        The linear part.
+
+    Returns
+    -------
+    tuple
+        ``(A, B, C, D, state names)``.
+
+    Examples
+    --------
+    >>> from piezohyst.plant.linear import LinearPart, state_space
+    >>> part = LinearPart(1.0, 2.0, 4.0, input_gain=4.0, tem=4.0, creep_taus=(), creep_weights=(), amplifier_tau=0.0)
+    >>> a, b, c, d, names = state_space(part)
+    >>> a.tolist(), b.ravel().tolist(), names
+    ([[0.0, 1.0], [-4.0, -2.0]], [0.0, 4.0], ['x', 'v'])
+    """
     amp = part.amplifier_tau > 0
     nc = len(part.creep_taus)
     nm = len(part.modes)
@@ -235,7 +314,27 @@ def second_order_from_control(sys: object, tem: float) -> tuple[float, float, fl
     """``(mass, damping, stiffness)`` of ``m x'' + b x' + k x = Tem u`` whose transfer function
     ``Tem / (m s^2 + b s + k)`` is ``sys`` (continuous, single input and output, no zeros,
     ``m, k > 0``, ``b >= 0``); ``tem`` (N/V) fixes the scale, which the transfer function alone
-    does not tell."""
+    does not tell.
+
+    Parameters
+    ----------
+    sys : control.TransferFunction
+        The continuous second-order system ``b0 / (s^2 + a1 s + a0)``.
+    tem : float
+        ``Tem``, N/V.
+
+    Returns
+    -------
+    tuple of float
+        ``(mass, damping, stiffness)``.
+
+    Examples
+    --------
+    >>> import control
+    >>> from piezohyst.plant.linear import second_order_from_control
+    >>> second_order_from_control(control.tf([2.0], [1.0, 3.0, 4.0]), tem=2.0)
+    (1.0, 3.0, 4.0)
+    """
     t = as_scalar(tem, "tem", positive=True)
     num, den, dt = siso_polynomials(sys, "sys")
     if dt is not None:
@@ -265,7 +364,33 @@ def discretize(
     """The zero-order-hold discretization over ``dt`` (the command held over each sample, as
     :meth:`~piezohyst.plant.Stage.simulate` holds it; :func:`scipy.signal.cont2discrete`), with
     the output delayed by ``delay`` whole samples (a sensor's delay): ``delay`` more states,
-    the last of which is the output."""
+    the last of which is the output.
+
+    Parameters
+    ----------
+    a, b, c, d : ndarray
+        The continuous system's matrices (one input, one output).
+    dt : float
+        The sample time, s.
+    delay : int, optional
+        Whole samples of output delay.
+
+    Returns
+    -------
+    tuple of ndarray
+        ``(Ad, Bd, Cd, Dd)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst.plant.linear import discretize
+    >>> a, b, c, d = np.array([[-1.0]]), np.array([[1.0]]), np.array([[1.0]]), np.zeros((1, 1))
+    >>> ad, bd, cd, dd = discretize(a, b, c, d, 0.1)
+    >>> bool(np.isclose(ad[0, 0], np.exp(-0.1))), bool(np.isclose(bd[0, 0], 1 - np.exp(-0.1)))
+    (True, True)
+    >>> discretize(a, b, c, d, 0.1, delay=2)[0].shape            # two more states
+    (3, 3)
+    """
     from scipy.signal import cont2discrete
 
     ad, bd, cd, dd, _ = cont2discrete((a, b, c, d), dt, method="zoh")
@@ -290,7 +415,27 @@ def discretize(
 @dataclass(frozen=True)
 class LinearSystem:
     """Matrices of a stage's linear part, ready for python-control or scipy: ``dt`` ``None``
-    (continuous) or the sample time in s; ``states``, ``output`` the signal names."""
+    (continuous) or the sample time in s; ``states``, ``output`` the signal names.
+
+    Parameters
+    ----------
+    a, b, c, d : ndarray
+        The state-space matrices.
+    dt : float or None
+        ``None`` (continuous) or the sample time, s.
+    states : list of str
+        The states' names.
+    output : str
+        The output's name (``"position"`` or ``"measured"``).
+
+    Examples
+    --------
+    >>> from piezohyst.plant.linear import LinearPart, linear_system
+    >>> part = LinearPart(1.0, 2.0, 4.0, input_gain=4.0, tem=4.0, creep_taus=(), creep_weights=(), amplifier_tau=0.0)
+    >>> sys = linear_system(part)
+    >>> sys.dt, sys.states, sys.output
+    (None, ['x', 'v'], 'position')
+    """
 
     a: FloatArray
     b: FloatArray
@@ -304,7 +449,29 @@ class LinearSystem:
 def linear_system(part: LinearPart, *, sample_time: float | None = None, delay: int = 0) -> LinearSystem:
     """The continuous system of ``part`` (``sample_time=None``), or its zero-order-hold
     discretization at ``sample_time`` with the output delayed by ``delay`` samples (the
-    sensor's reading: output ``"measured"`` instead of ``"position"``)."""
+    sensor's reading: output ``"measured"`` instead of ``"position"``).
+
+    Parameters
+    ----------
+    part : LinearPart
+        The linear part.
+    sample_time : float, optional
+        The sample time, s (``None``: continuous).
+    delay : int, optional
+        Whole samples of output delay (discrete only).
+
+    Returns
+    -------
+    LinearSystem
+
+    Examples
+    --------
+    >>> from piezohyst.plant.linear import LinearPart, linear_system
+    >>> part = LinearPart(1.0, 2.0, 4.0, input_gain=4.0, tem=4.0, creep_taus=(), creep_weights=(), amplifier_tau=0.0)
+    >>> sys = linear_system(part, sample_time=0.01, delay=2)
+    >>> sys.a.shape, sys.states, sys.output
+    ((4, 4), ['x', 'v', 'delay1', 'delay2'], 'measured')
+    """
     a, b, c, d, names = state_space(part)
     if sample_time is None:
         return LinearSystem(a, b, c, d, None, names, "position")
