@@ -1,9 +1,10 @@
 """Every public name has a numpydoc docstring with a runnable example and documents every
 parameter (issue 17: "every public name has a docstring with an example, a test proves it").
 
-Public means: each name of ``piezohyst.__all__`` and of each wing's ``__all__`` (``models``,
+Public means: each name of ``piezohyst.__all__``, of each wing's ``__all__`` (``models``,
 ``signals``, ``identify``, ``optimize``, ``plant``, ``control``, ``export``, ``papers``,
-``errors``, ``fleet``, ``capi``) that is a class or a function, and every public method (functions, class and
+``errors``, ``fleet``, ``capi``) and of every other module's ``__all__`` (the command line's
+modules and private ones aside) that is a class or a function, and every public method (functions, class and
 static methods) of those classes, inherited from a base inside piezohyst included. Properties
 must have a docstring. The docstrings are parsed by numpydoc, as the documentation site parses
 them; the examples themselves run as doctests (``--doctest-modules`` in ``pyproject.toml``), so
@@ -15,6 +16,7 @@ from __future__ import annotations
 import importlib
 import inspect
 import os
+import pkgutil
 import sys
 from collections.abc import Iterator
 
@@ -35,17 +37,24 @@ CODES = {"GL08", "EX01", "PR01", "PR02"}
 
 
 def _modules():
-    # the wings first: a name is checked at the path of the wing that defines it
+    # the wings first: a name is checked at the path of the wing that defines it; then every
+    # other module's __all__ (a name a submodule lists is public too: piezohyst.control.filters.IRC),
+    # the command line's modules and private ones (a leading underscore) aside
     for wing in WINGS:
         yield importlib.import_module(f"piezohyst.{wing}")
     yield piezohyst
+    for info in pkgutil.walk_packages(piezohyst.__path__, "piezohyst."):
+        parts = info.name.split(".")[1:]
+        if parts[0] == "cli" or any(p.startswith("_") for p in parts):
+            continue
+        yield importlib.import_module(info.name)
 
 
 def _public() -> dict[str, object]:
     """Every public class and function by the first path that names it."""
     found: dict[int, tuple[str, object]] = {}
     for module in _modules():
-        for name in module.__all__:
+        for name in getattr(module, "__all__", ()):
             obj = getattr(module, name)
             if inspect.isclass(obj) or inspect.isfunction(obj):
                 found.setdefault(id(obj), (f"{module.__name__}.{name}", obj))
@@ -114,6 +123,8 @@ def test_the_public_surface_is_what_we_check():
         "piezohyst.fleet.Runner.run",
         "piezohyst.fleet.RobustnessResult.worst",
         "piezohyst.capi.cflags",
+        "piezohyst.control.filters.IRC",
+        "piezohyst.models.MimoModel.simulate",
     ):
         assert id(_resolve(name)) in checked, name
 
