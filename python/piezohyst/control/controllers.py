@@ -117,6 +117,18 @@ __all__ = [
 ]
 
 
+def _pid_feedforward(c: PID | FilteredPID, stage: Stage, limits: Limits | None) -> float:
+    """A PID law's gains checked for the core, and its static feedforward gain: the given
+    ``ff_gain``, else 1 behind an inverse (the plant linearized to unit gain) or the stage's
+    ``1 / static_gain``."""
+    for name in ("kp", "ki", "kd"):
+        as_scalar(getattr(c, name), name, nonnegative=True)
+    as_scalar(c.tau_d, "tau_d", positive=True)
+    if c.ff_gain is not None:
+        return as_scalar(c.ff_gain, "ff_gain")
+    return 1.0 if limits is not None else 1.0 / stage.params.static_gain
+
+
 def _check_limits(u_min: object, u_max: object) -> None:
     """Output limits given at construction: each ``None`` (the amplifier's) or finite, ordered."""
     lo = None if u_min is None else as_scalar(u_min, "u_min")
@@ -517,13 +529,7 @@ class PID:
         >>> kind, params.size, inverse, ilc
         ('pid', 9, None, None)
         """
-        for name in ("kp", "ki", "kd"):
-            as_scalar(getattr(self, name), name, nonnegative=True)
-        as_scalar(self.tau_d, "tau_d", positive=True)
-        if limits is not None and self.ff_gain is None:
-            ff = 1.0  # behind an inverse the plant is linearized to unit gain
-        else:
-            ff = 1.0 / stage.params.static_gain if self.ff_gain is None else as_scalar(self.ff_gain, "ff_gain")
+        ff = _pid_feedforward(self, stage, limits)
         lo, hi = _domain_limits(self.u_min, self.u_max, stage, limits)
         return (
             "pid",
@@ -818,13 +824,7 @@ class FilteredPID:
         >>> kind, params.size, inverse, ilc
         ('filtered_pid', 42, None, None)
         """
-        for name in ("kp", "ki", "kd"):
-            as_scalar(getattr(self, name), name, nonnegative=True)
-        as_scalar(self.tau_d, "tau_d", positive=True)
-        if self.ff_gain is None:
-            ff = 1.0 if limits is not None else 1.0 / stage.params.static_gain
-        else:
-            ff = as_scalar(self.ff_gain, "ff_gain")
+        ff = _pid_feedforward(self, stage, limits)
         lo, hi = _domain_limits(self.u_min, self.u_max, stage, limits)
         ffq, nq, dq = self._filters(stage.sample_time)
         if isinstance(self.damping, PPF) and self.damping.gain != 0 and dq == IDENTITY:

@@ -453,14 +453,12 @@ def fit_residues(
     --------
     >>> import numpy as np
     >>> from piezohyst.models.mimo import MimoModel
-    >>> from piezohyst.identify.mimo import MimoRecords, MimoSettings, identify_mimo
     >>> true = MimoModel.linear(A=[[0.9, 0.0], [0.0, 0.5]], B=[[1.0], [1.0]], C=[[0.1, 0.2]], D=[[0.0]], fs=1000.0)
     >>> spec = np.zeros((4, 65), complex)
     >>> spec[:, 1:64] = np.exp(2j * np.pi * np.random.default_rng(0).random((4, 63)))
     >>> u = np.fft.irfft(spec, 128, axis=1)[:, :, None]  # 4 random-phase multisines (R, N, nu)
     >>> y = true.simulate(u)  # in periodic steady state (R, N, ny)
     >>> u4, y4 = (np.stack([np.moveaxis(a, 0, 2)] * 2, axis=3) for a in (u, y))  # (N, ch, R, P=2)
-    >>> recs = MimoRecords.from_sets([("1V", u4, y4)], fs=1000.0)
     >>> from piezohyst.identify.mimo import fit_residues, realize
     >>> fit = fit_residues(u4.mean(axis=3), y4.mean(axis=3), np.array([0.9, 0.5]), np.zeros(0, complex))
     >>> A, B, E, C, D = realize(fit)
@@ -586,14 +584,12 @@ def realize(
     --------
     >>> import numpy as np
     >>> from piezohyst.models.mimo import MimoModel
-    >>> from piezohyst.identify.mimo import MimoRecords, MimoSettings, identify_mimo
     >>> true = MimoModel.linear(A=[[0.9, 0.0], [0.0, 0.5]], B=[[1.0], [1.0]], C=[[0.1, 0.2]], D=[[0.0]], fs=1000.0)
     >>> spec = np.zeros((4, 65), complex)
     >>> spec[:, 1:64] = np.exp(2j * np.pi * np.random.default_rng(0).random((4, 63)))
     >>> u = np.fft.irfft(spec, 128, axis=1)[:, :, None]  # 4 random-phase multisines (R, N, nu)
     >>> y = true.simulate(u)  # in periodic steady state (R, N, ny)
     >>> u4, y4 = (np.stack([np.moveaxis(a, 0, 2)] * 2, axis=3) for a in (u, y))  # (N, ch, R, P=2)
-    >>> recs = MimoRecords.from_sets([("1V", u4, y4)], fs=1000.0)
     >>> from piezohyst.identify.mimo import fit_residues, realize
     >>> fit = fit_residues(u4.mean(axis=3), y4.mean(axis=3), np.array([0.9, 0.5]), np.zeros(0, complex))
     >>> A, B, E, C, D = realize(fit)
