@@ -9,6 +9,7 @@
 pub mod boucwen_benchmark;
 pub mod closed_loop;
 pub mod lfr;
+pub mod multiaxis;
 pub mod sensor;
 pub mod stage;
 pub mod structure;
