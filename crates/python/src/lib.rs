@@ -13,6 +13,7 @@ mod control;
 mod layout;
 mod lfr;
 mod models;
+mod multiaxis;
 mod plant;
 mod steps;
 mod util;
@@ -38,6 +39,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     lfr::register(m)?;
     boucwen_benchmark::register(m)?;
     plant::register(m)?;
+    multiaxis::register(m)?;
     steps::register(m)?;
     Ok(())
 }

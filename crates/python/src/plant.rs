@@ -661,8 +661,16 @@ impl Stage {
             })?,
         }
     }
+    /// Control period, s (for the multi-axis plant).
+    pub(crate) fn ts_value(&self) -> f64 {
+        self.ts
+    }
+    /// The sensor (for the multi-axis plant).
+    pub(crate) fn sensor_ref(&self) -> &Sensor {
+        &self.sensor
+    }
     /// The stage, its sensor and its structure (built) as one [`Plant`] for `f`.
-    fn with_plant<R>(&self, f: impl FnOnce(&Plant<'_>) -> R) -> PyResult<R> {
+    pub(crate) fn with_plant<R>(&self, f: impl FnOnce(&Plant<'_>) -> R) -> PyResult<R> {
         match &self.structure {
             None => Ok(f(&Plant { stage: &self.stage, sensor: &self.sensor, structure: None })),
             Some(spec) => {
@@ -673,10 +681,11 @@ impl Stage {
 }
 
 /// What a run needs of a stage: the kernel, the sensor and the structure (if any).
+#[derive(Clone, Copy)]
 pub(crate) struct Plant<'a> {
-    stage: &'a CoreStage,
+    pub(crate) stage: &'a CoreStage,
     sensor: &'a Sensor,
-    structure: Option<&'a Structure<piezohyst_core::spec::Model<'a>>>,
+    pub(crate) structure: Option<&'a Structure<piezohyst_core::spec::Model<'a>>>,
 }
 
 impl Plant<'_> {

@@ -21,7 +21,8 @@ from .controllers import (
 )
 from .mimo import MimoFeedforward, frequency_response, mirror_matrix, periodic_response
 from .simulation import ClosedLoopResult, closed_loop, closed_loop_batch
-from .tuning import TuningResult, stage_from_model, track, tune
+from .multiaxis import MultiAxisResult, closed_loop_multi
+from .tuning import MultiAxisTuningResult, TuningResult, stage_from_model, track, tune, tune_axes
 
 __all__ = [
     "ABSMC",
@@ -34,6 +35,8 @@ __all__ = [
     "FilteredPID",
     "InverseFeedforward",
     "MimoFeedforward",
+    "MultiAxisResult",
+    "MultiAxisTuningResult",
     "OpenLoop",
     "SampleRateWarning",
     "TuningResult",
@@ -42,6 +45,7 @@ __all__ = [
     "check_sample_rate",
     "closed_loop",
     "closed_loop_batch",
+    "closed_loop_multi",
     "frequency_response",
     "is_controller",
     "mirror_matrix",
@@ -49,5 +53,6 @@ __all__ = [
     "stage_from_model",
     "track",
     "tune",
+    "tune_axes",
     "with_gains",
 ]

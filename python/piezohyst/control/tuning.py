@@ -13,8 +13,8 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -38,10 +38,11 @@ from .simulation import (
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from ..optimize.core import IntermediateResult, Optimizer
+    from ..plant.multiaxis import MultiAxisStage
     from ..plant.stage import Stage, StageParameters
 
 
-__all__ = ["TuningResult", "stage_from_model", "track", "tune"]
+__all__ = ["MultiAxisTuningResult", "TuningResult", "stage_from_model", "track", "tune", "tune_axes"]
 
 
 def track(
@@ -231,11 +232,11 @@ class TuningResult(RunReport):
 
 
 def tune(
-    controller: ControllerLike,
-    gains: dict[str, Sequence[float]],
+    controller: ControllerLike | Sequence[ControllerLike],
+    gains: dict[str, Sequence[float]] | Sequence[dict[str, Sequence[float]] | None],
     references: npt.ArrayLike,
     *,
-    stage: Stage | None = None,
+    stage: Stage | MultiAxisStage | None = None,
     method: str | type[Optimizer] = "css",
     max_iterations: int = 40,
     population_size: int | None = None,
@@ -256,7 +257,9 @@ def tune(
     Parameters
     ----------
     controller : controller configuration
-        The template (e.g. ``SMC(model)``); its other fields stay as they are.
+        The template (e.g. ``SMC(model)``); its other fields stay as they are. On a
+        :class:`~piezohyst.plant.MultiAxisStage`: one per axis, tuned by sequential loop
+        closing (:func:`tune_axes`; ``gains`` then one box for all axes or one per axis).
     gains : dict of name -> (low, high)
         Fields to tune and their search box; a dotted name reaches into a wrapped controller
         (``"inner.kp"`` of a :class:`~piezohyst.Compensated`).
@@ -327,6 +330,25 @@ def tune(
     from ..optimize.core import minimize
     from ..plant.stage import virtual_stage
 
+    from ..plant.multiaxis import MultiAxisStage
+
+    if isinstance(stage, MultiAxisStage):  # one controller per axis: sequential loop closing
+        if variants is not None or stages is not None or aggregate != "mean" or callback is not None:
+            raise ParameterError("variants, stages, aggregate and callback are single-axis options of tune")
+        return tune_axes(
+            stage,
+            cast("Sequence[ControllerLike]", controller),
+            gains,
+            references,
+            method=cast("str", method),
+            max_iterations=max_iterations,
+            population_size=population_size,
+            rng=rng,
+            skip=skip,
+            saturation_limit=saturation_limit,
+            log_scale=log_scale,
+            objective=objective,
+        )
     t0 = time.perf_counter()
     stage = virtual_stage() if stage is None else stage
     if not is_controller(controller):
@@ -439,4 +461,250 @@ def tune(
         time.perf_counter() - t0,
         int(res.nfev),
         partial=res.interrupted,
+    )
+
+
+# -- multi-axis stages (issue 19): sequential loop closing -------------------------------
+
+
+@dataclass(frozen=True)
+class MultiAxisTuningResult(TuningResult):
+    """Controllers of every axis tuned by sequential loop closing (:func:`tune_axes`).
+
+    A :class:`TuningResult` whose ``controller`` is the tuple of the axes' controllers,
+    ``gains`` the tuned values as ``"<axis>.<field>"``, ``rmse`` the mean of ``axis_rmse``;
+    ``axes`` holds each axis's own tuning (the last pass).
+
+    Parameters
+    ----------
+    controller, gains, rmse, history, wall_time, nfev, partial
+        As :class:`TuningResult`.
+    axes : tuple of TuningResult
+        Each axis's tuning (its last pass).
+    axis_rmse : ndarray
+        Per-axis tracking RMSE (m) of the final controllers, all loops closed, mean over the
+        references.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import piezohyst as ph
+    >>> from piezohyst.plant import MultiAxisStage
+    >>> s = ph.virtual_stage()
+    >>> xy = MultiAxisStage.from_axes([s, s], coupling=0.05)
+    >>> ref = np.column_stack([np.full(1500, 6e-6), np.full(1500, 4e-6)])
+    >>> res = ph.tune([ph.PID(kp=1e6, ki=1e9)] * 2, {"ki": (1e8, 1e11)}, ref, stage=xy,
+    ...               max_iterations=3, population_size=6, rng=0)
+    >>> len(res.controller), sorted(res.gains), res.axis_rmse.shape
+    (2, ['x.ki', 'y.ki'], (2,))
+    """
+
+    axes: tuple[TuningResult, ...] = ()
+    axis_rmse: FloatArray = field(default_factory=lambda: np.zeros(0))
+
+    def _headline(self) -> str:
+        names = "/".join(type(c).__name__ for c in cast("tuple[object, ...]", self.controller))
+        return f"{names} tuned per axis: RMSE {self.rmse:.4g} m"
+
+
+def tune_axes(
+    stage: MultiAxisStage,
+    controllers: Sequence[ControllerLike],
+    gains: Mapping[str, Sequence[float]] | Sequence[Mapping[str, Sequence[float]] | None],
+    references: npt.ArrayLike,
+    *,
+    decouple: bool | npt.ArrayLike = False,
+    passes: int = 1,
+    method: str = "css",
+    max_iterations: int = 40,
+    population_size: int | None = None,
+    rng: RngLike = None,
+    skip: float = 0.1,
+    saturation_limit: float = 0.01,
+    log_scale: bool = True,
+    objective: str = "rmse",
+) -> MultiAxisTuningResult:
+    """Tune each axis's controller with the other axes' loops closed (decentralized,
+    sequential loop closing), each by :func:`piezohyst.tune`'s procedure and budget.
+
+    Axis after axis (in order, ``passes`` times), the axis's ``gains`` are searched by the
+    population optimizer (``method``, ``max_iterations``, ``population_size``) for the
+    axis's own tracking figure (mean over ``references``), every axis tracking its
+    reference: the axes before it with their tuned controllers, the axes after it with the
+    ones given. A candidate whose command sits on a limit for more than ``saturation_limit``
+    of the samples, or whose loop diverges, costs ``inf``. ``piezohyst.tune(controllers, ...,
+    stage=multi_axis_stage)`` calls this.
+
+    Parameters
+    ----------
+    stage : MultiAxisStage
+        The plant (normally one built from identified models).
+    controllers : sequence of controller configurations
+        One template per axis.
+    gains : dict, or sequence of (dict or None)
+        Search box ``{field: (low, high)}``: one for every axis, or one per axis (``None``:
+        leave that axis as given).
+    references : array_like, shape (N, n_axes), or a list of such
+        References; the cost is the mean over them.
+    decouple : bool or array_like
+        As :func:`~piezohyst.control.multiaxis.closed_loop_multi` (tune the loops that will run).
+    passes : int
+        Sweeps over the axes (a second pass retunes each axis with the others tuned).
+    method, max_iterations, population_size, rng, skip, saturation_limit, log_scale, objective
+        As :func:`piezohyst.tune`.
+
+    Returns
+    -------
+    MultiAxisTuningResult
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import piezohyst as ph
+    >>> from piezohyst.plant import MultiAxisStage
+    >>> from piezohyst.control.tuning import tune_axes
+    >>> s = ph.virtual_stage()
+    >>> xy = MultiAxisStage.from_axes([s, s], coupling=0.05)
+    >>> ref = np.column_stack([np.full(1500, 6e-6), np.full(1500, 4e-6)])
+    >>> res = tune_axes(xy, [ph.PID(kp=1e6, ki=1e9)] * 2, {"ki": (1e8, 1e11)}, ref,
+    ...                 max_iterations=3, population_size=6, rng=0)
+    >>> bool(res.axis_rmse.max() < 0.05e-6), res.nfev
+    (True, 36)
+    """
+    from ..optimize.core import minimize
+    from ..plant.multiaxis import MultiAxisStage
+    from .multiaxis import _controllers, _decoupling, _derivatives, _references, _seeds
+
+    t0 = time.perf_counter()
+    if not isinstance(stage, MultiAxisStage):
+        raise ParameterTypeError(f"stage must be a MultiAxisStage, got {type(stage).__name__}")
+    n = stage.n_axes
+    ctl = _controllers(stage, controllers)
+    boxes: list[Mapping[str, Sequence[float]] | None]
+    if isinstance(gains, Mapping):
+        boxes = [gains] * n
+    elif isinstance(gains, Sequence) and len(gains) == n:
+        boxes = list(gains)
+    else:
+        raise ParameterError(f"gains must be a dict or a list of {n} dicts (or None), one per axis")
+    if all(not b for b in boxes):
+        raise ParameterError("gains names no field to tune on any axis")
+    if objective not in ("rmse", "max_error"):
+        raise ParameterError(f"objective = {objective!r} must be 'rmse' or 'max_error'")
+    passes = int(passes)
+    if passes < 1:
+        raise ParameterError(f"passes = {passes} must be >= 1")
+    items = [references] if np.ndim(references) == 2 else list(cast("Sequence[npt.ArrayLike]", references))
+    refs = [_references(stage, r, f"references[{j}]") for j, r in enumerate(items)]
+    derivs = [_derivatives(r, stage.sample_time, ctl) for r in refs]
+    seeds = _seeds(rng, n)
+    first = round(as_scalar(skip, "skip", nonnegative=True) / stage.sample_time)
+    if first >= min(r.shape[0] for r in refs) - 1:
+        raise ParameterError(f"skip = {skip} s leaves fewer than 2 samples of a reference")
+    t = _decoupling(stage, decouple)
+    column = 0 if objective == "rmse" else 1
+    fields_of = {i: list(b) for i, b in enumerate(boxes) if b}
+    bounds: dict[int, list[tuple[float, float]]] = {}
+    for i, names in fields_of.items():
+        box = boxes[i]
+        assert box is not None
+        bounds[i] = []
+        for nm in names:
+            if nm not in getattr(ctl[i], "__dataclass_fields__", {}) and "." not in nm:
+                raise ParameterError(f"gains: {type(ctl[i]).__name__} (axis {stage.names[i]}) has no field {nm!r}")
+            lo, hi = (as_scalar(b, f"gains[{nm!r}]") for b in box[nm])
+            if not lo < hi:
+                raise ParameterError(f"gains[{nm!r}] = ({lo}, {hi}): low must be < high")
+            if log_scale and not lo > 0:
+                raise ParameterError(f"gains[{nm!r}] low = {lo} must be > 0 with log_scale=True")
+            bounds[i].append((float(np.log10(lo)), float(np.log10(hi))) if log_scale else (lo, hi))
+
+    def figures(candidates: list[list[ControllerLike]]) -> FloatArray:
+        """``(S, n_axes, 3)`` figures, mean over the references (saturation: the worst)."""
+        specs = [[c.core(v) for c, v in zip(row, stage.views, strict=True)] for row in candidates]
+        out = []
+        for r, (v, a) in zip(refs, derivs, strict=True):
+            out.append(stage.compiled.closed_loop_batch_tracking(specs, r, v, a, seeds, first, t))
+        m = np.array(out)  # (R, S, N, 3)
+        res = m.mean(axis=0)
+        res[:, :, 2] = m[:, :, :, 2].max(axis=0)
+        return np.asarray(res, dtype=np.float64)
+
+    tuned = list(ctl)
+    per_axis: dict[int, TuningResult] = {}
+    nfev = 0
+    history: dict[str, Any] = {}
+    for _ in range(passes):
+        for i, names in fields_of.items():
+            ti = time.perf_counter()
+            template = tuned[i]
+            fields = getattr(template, "__dataclass_fields__", {})
+            if "tuned_sample_time" in fields and getattr(template, "tuned_sample_time", None) is not None:
+                template = replace(cast("Any", template), tuned_sample_time=None)
+
+            def candidate(theta: FloatArray, template: Any = template, names: list[str] = names) -> ControllerLike:
+                values = 10.0**theta if log_scale else theta
+                return cast("ControllerLike", _with_fields(template, {nm: float(v) for nm, v in zip(names, values)}))
+
+            def cost(X: FloatArray, i: int = i, candidate: Any = candidate) -> FloatArray:
+                rows: list[list[ControllerLike]] = []
+                valid: list[int] = []
+                for j, row in enumerate(X):
+                    try:
+                        c = candidate(np.asarray(row))
+                        c.core(stage.views[i])  # validates the gains
+                    except (ValueError, TypeError):
+                        continue
+                    rows.append([*tuned[:i], c, *tuned[i + 1 :]])
+                    valid.append(j)
+                out = np.full(len(X), np.inf)
+                if rows:
+                    f = figures(rows)
+                    fig = f[:, i, column].copy()
+                    fig[f[:, i, 2] > saturation_limit] = np.inf
+                    fig[~np.all(np.isfinite(f[:, :, 0]), axis=1)] = np.inf
+                    out[np.array(valid)] = fig
+                return out
+
+            res = minimize(
+                cost,
+                bounds[i],
+                method=method,
+                max_iterations=max_iterations,
+                population_size=population_size,
+                rng=rng,
+            )
+            if res.x is None or not np.isfinite(res.fun):
+                raise ComputationError(
+                    f"tuning axis {stage.names[i]} found no stable candidate within the gain bounds"
+                )
+            best = candidate(res.x)
+            if "tuned_sample_time" in fields:
+                best = cast("ControllerLike", replace(cast("Any", best), tuned_sample_time=stage.sample_time))
+            tuned[i] = best
+            values = 10.0**res.x if log_scale else res.x
+            per_axis[i] = TuningResult(
+                best,
+                {nm: float(v) for nm, v in zip(names, values)},
+                float(res.fun),
+                res.history,
+                time.perf_counter() - ti,
+                int(res.nfev),
+                partial=res.interrupted,
+            )
+            history = res.history
+            nfev += int(res.nfev)
+    final = figures([tuned])[0]
+    axis_rmse = final[:, column].astype(np.float64)
+    gains_out = {f"{stage.names[i]}.{k}": v for i, r in per_axis.items() for k, v in r.gains.items()}
+    return MultiAxisTuningResult(
+        cast("ControllerLike", tuple(tuned)),
+        gains_out,
+        float(axis_rmse.mean()),
+        history,
+        time.perf_counter() - t0,
+        nfev,
+        partial=any(r.partial for r in per_axis.values()),
+        axes=tuple(per_axis[i] for i in sorted(per_axis)),
+        axis_rmse=axis_rmse,
     )

@@ -3,6 +3,7 @@
 
 from .experiment import excitation, measure
 from .flexure import A7075_YOUNGS_MODULUS, CemfCoefficients, FlexureStage, LeafSpring
+from .multiaxis import MAX_AXES, MultiAxisStage
 from .stage import (
     PERTURBABLE,
     Amplifier,
@@ -18,12 +19,14 @@ from .stage import (
 
 __all__ = [
     "A7075_YOUNGS_MODULUS",
+    "MAX_AXES",
     "PERTURBABLE",
     "Amplifier",
     "CemfCoefficients",
     "Drift",
     "FlexureStage",
     "LeafSpring",
+    "MultiAxisStage",
     "Sensor",
     "Stage",
     "StageInfo",
