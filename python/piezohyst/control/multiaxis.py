@@ -196,12 +196,19 @@ class MultiAxisResult(Response):
     @cached_property
     def metrics(self) -> dict[str, dict[str, float]]:
         """Per axis name, :func:`piezohyst.metrics.tracking_metrics` of its output against its
-        reference from ``skip_samples`` on."""
+        reference from ``skip_samples`` on; for an axis whose reference holds still (a
+        crosstalk measurement) only ``rmse`` and ``max_error`` (the relative figures need a
+        range)."""
         k = self.skip_samples
-        return {
-            nm: tracking_metrics(self.signals[f"reference_{nm}"][k:], self.signals[f"position_{nm}"][k:])
-            for nm in self.names
-        }
+        out = {}
+        for nm in self.names:
+            r, y = self.signals[f"reference_{nm}"][k:], self.signals[f"position_{nm}"][k:]
+            if np.ptp(r) > 0:
+                out[nm] = tracking_metrics(r, y)
+            else:
+                e = y - r
+                out[nm] = {"rmse": float(np.sqrt(np.mean(e**2))), "max_error": float(np.abs(e).max())}
+        return out
 
     @property
     def rmse(self) -> FloatArray:
@@ -374,6 +381,20 @@ def _decoupling(stage: MultiAxisStage, decouple: bool | npt.ArrayLike) -> FloatA
     return np.ascontiguousarray(t)
 
 
+def _check_signs(stage: MultiAxisStage, t: FloatArray | None) -> None:
+    """Each controller's loop gain at DC must be positive (``(G T)_ii > 0``): a packaged
+    controller with a negative plant gain feeds its error back positively."""
+    g = stage.dc_gain() if t is None else stage.dc_gain() @ t
+    bad = np.flatnonzero(np.diag(g) <= 0)
+    if bad.size:
+        i = int(bad[0])
+        raise ParameterError(
+            f"axis {stage.names[i]}: the DC gain from its actuator to its output is {g[i, i]:.4g} m/V "
+            f"{'with this decoupling' if t is not None else ''}; a controller would feed its error back "
+            "positively: run with decouple=True (or flip the actuator's sign)"
+        )
+
+
 def _seeds(rng: RngLike | Sequence[int], n: int) -> list[int]:
     """One sensor-noise seed per axis: a list of ``n`` seeds (each as :func:`closed_loop`'s
     ``rng``: axis ``i`` then sees the noise a single-axis run with ``rng=rng[i]`` sees), or
@@ -456,6 +477,7 @@ def closed_loop_multi(
     specs = [c.core(v) for c, v in zip(ctl, stage.views, strict=True)]
     v, a = _derivatives(x, stage.sample_time, ctl)
     t = _decoupling(stage, decouple)
+    _check_signs(stage, t)
     d = stage.compiled.closed_loop(specs, x, v, a, _seeds(rng, stage.n_axes), t)
     signals = {
         "reference": x,

@@ -573,7 +573,7 @@ def tune_axes(
     """
     from ..optimize.core import minimize
     from ..plant.multiaxis import MultiAxisStage
-    from .multiaxis import _controllers, _decoupling, _derivatives, _references, _seeds
+    from .multiaxis import _check_signs, _controllers, _decoupling, _derivatives, _references, _seeds
 
     t0 = time.perf_counter()
     if not isinstance(stage, MultiAxisStage):
@@ -602,6 +602,7 @@ def tune_axes(
     if first >= min(r.shape[0] for r in refs) - 1:
         raise ParameterError(f"skip = {skip} s leaves fewer than 2 samples of a reference")
     t = _decoupling(stage, decouple)
+    _check_signs(stage, t)
     column = 0 if objective == "rmse" else 1
     fields_of = {i: list(b) for i, b in enumerate(boxes) if b}
     bounds: dict[int, list[tuple[float, float]]] = {}

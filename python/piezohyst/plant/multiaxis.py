@@ -70,7 +70,8 @@ class MultiAxisStage:
         Per axis, the single-axis stage its controller is packed for (sample time, amplifier
         range, sensor, static gain): for :meth:`from_axes` the axis's own stage; for
         :meth:`from_model` a stand-in with the model's sample time, the actuator's range, the
-        output's sensor and the model's DC gain from that actuator to that output.
+        output's sensor and the magnitude of the model's DC gain from that actuator to that
+        output.
     coupling : ndarray, shape (N, N)
         Static coupling of the axes' positions (:meth:`from_axes`), or ``None``.
     model : MimoModel or None
@@ -213,14 +214,11 @@ class MultiAxisStage:
         g = _model_dc_gain(model)
         views = []
         for i in range(n):
-            if not (np.isfinite(g[i, i]) and g[i, i] > 0):
-                raise ParameterError(
-                    f"the model's DC gain from actuator {i} to output {i} is {g[i, i]:.4g} m/V; "
-                    "a positive gain is needed (reorder or flip the signs of the inputs)"
-                )
+            if not (np.isfinite(g[i, i]) and g[i, i] != 0):
+                raise ParameterError(f"the model's DC gain from actuator {i} to output {i} is {g[i, i]:.4g} m/V: no axis")
             # a stand-in single-axis stage: the controllers read its sample time, amplifier
-            # range, sensor and static gain (Tem / k) from it
-            params = StageParameters(mass=1e-3, damping=1.0, stiffness=1.0 / g[i, i], tem=1.0)
+            # range, sensor and static gain (Tem / k = |G_ii|) from it
+            params = StageParameters(mass=1e-3, damping=1.0, stiffness=1.0 / abs(g[i, i]), tem=1.0)
             views.append(Stage(params, amplifier=amps[i], sensor=sens[i], sample_time=ts))
         return cls(views=tuple(views), model=model, hysteresis=laws, names=_names(names, n))
 
@@ -256,11 +254,27 @@ class MultiAxisStage:
         gains = np.array([s.params.static_gain for s in self.views])
         return self.coupling * gains[None, :]
 
+    def axis_gains(self) -> FloatArray:
+        """The static gain each axis's controller is packed for (its view's ``Tem / k``), m/V.
+
+        Returns
+        -------
+        ndarray, shape (N,)
+
+        Examples
+        --------
+        >>> from piezohyst.plant import MultiAxisStage, virtual_stage
+        >>> s = virtual_stage()
+        >>> bool(MultiAxisStage.from_axes([s, s]).axis_gains()[0] == s.params.static_gain)
+        True
+        """
+        return np.array([v.params.static_gain for v in self.views], dtype=np.float64)
+
     def decoupler(self) -> FloatArray:
-        """The static decoupling matrix ``T = G^-1 diag(G)`` (``G``: :meth:`dc_gain`): the
-        actuators get ``T c`` for the controllers' commands ``c``, so each controller sees its
-        own axis's static gain and no static crosstalk. ``ParameterError`` when ``G`` is
-        singular.
+        """The static decoupling matrix ``T = G^-1 diag(g)`` (``G``: :meth:`dc_gain`, ``g``:
+        :meth:`axis_gains`, ``diag(G)`` for stages with a unit coupling diagonal): the actuators
+        get ``T c`` for the controllers' commands ``c``, so at DC controller ``i`` moves output
+        ``i`` alone, with its axis's gain. ``ParameterError`` when ``G`` is singular.
 
         Returns
         -------
@@ -279,7 +293,7 @@ class MultiAxisStage:
         cond = np.linalg.cond(g)
         if not np.isfinite(cond) or cond > 1e12:
             raise ParameterError(f"the DC gain matrix is singular (condition number {cond:.3g}): no static decoupling")
-        return np.asarray(np.linalg.solve(g, np.diag(np.diag(g))), dtype=np.float64)
+        return np.asarray(np.linalg.solve(g, np.diag(self.axis_gains())), dtype=np.float64)
 
     def stroke(self, axis: int) -> tuple[float, float]:
         """Reachable output range of ``axis`` with the other actuators at rest, m (from the
@@ -304,7 +318,7 @@ class MultiAxisStage:
         v = self.views[axis]
         if self.model is None:
             return v.stroke()
-        g = self.dc_gain()[axis, axis]
+        g = self.axis_gains()[axis]
         return (g * v.amplifier.v_min, g * v.amplifier.v_max)
 
     @cached_property
