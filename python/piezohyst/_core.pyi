@@ -283,6 +283,59 @@ class Stage:
         ``j`` of ``params`` (``(S, STAGE_PARAM_LEN)``) replaces this stage's parameters, ``seeds[j]``
         the scenario's noise seed (GIL released, rayon across rows)."""
 
+@final
+class MultiAxisPlant:
+    """``N`` coupled axes with one sensor per output (issue 19): stages whose positions a static
+    coupling matrix mixes, or an LFR model with a hysteresis law per actuator. Runs start at
+    rest; one controller per axis, optionally behind a decoupling matrix."""
+
+    @staticmethod
+    def stages(stages: list[Stage], coupling: _Array2) -> MultiAxisPlant: ...
+    @staticmethod
+    def lfr(
+        a: _Array2,
+        b: _Array2,
+        c: _Array2,
+        d: _Array2,
+        e: _Array2,
+        f: _Array2,
+        g: _Array2,
+        h: _Array2,
+        thresholds: _Array2,
+        weights: _Array2,
+        hysteresis: list[tuple[str, list[int], _Array1] | None],
+        limits: list[tuple[float, float]],
+        sensors: list[tuple[float, float, int]],
+        ts: float,
+    ) -> MultiAxisPlant: ...
+    @property
+    def axes(self) -> int: ...
+    @property
+    def ts(self) -> float: ...
+    def closed_loop(
+        self,
+        controllers: list[_ControllerSpec],
+        reference: _Array2,
+        velocity: _Array2 | None,
+        acceleration: _Array2 | None,
+        seeds: list[int],
+        decoupling: _Array2 | None = None,
+    ) -> dict[str, Any]:
+        """``command``, ``voltage``, ``position``, ``measured`` ``(n, N)``; ``terms`` (per axis
+        ``(n, w_i)``) and ``term_names``."""
+    def closed_loop_batch_tracking(
+        self,
+        candidates: list[list[_ControllerSpec]],
+        reference: _Array2,
+        velocity: _Array2 | None,
+        acceleration: _Array2 | None,
+        seeds: list[int],
+        skip: int,
+        decoupling: _Array2 | None = None,
+    ) -> _Array3:
+        """``(S, N, 3)`` ``[rmse, max_error, saturated_fraction]`` per candidate and axis (GIL
+        released, rayon across candidates; a diverging run gives ``inf``)."""
+
 def virtual_stage_params() -> _Array1:
     """The Rust core's copy of the packaged virtual stage's parameters (flat layout of
     ``StageParams::from_slice``), held equal to ``presets/virtual_stage.json`` by a test."""

@@ -217,8 +217,16 @@ def test_tune_on_a_multi_axis_stage_closes_the_loops_in_sequence() -> None:
     t = _time(0.3)
     ref = np.column_stack([8e-6 + 4e-6 * np.sin(2 * np.pi * 10 * t), 6e-6 + 2e-6 * np.sin(2 * np.pi * 7 * t)])
     template = ph.PID(kp=1e5, ki=1e8)
-    res = ph.tune([template] * 2, {"kp": (1e4, 1e7), "ki": (1e8, 1e11)}, ref, stage=xy, max_iterations=5,
-                  population_size=8, rng=0, skip=0.1)
+    res = ph.tune(
+        [template] * 2,
+        {"kp": (1e4, 1e7), "ki": (1e8, 1e11)},
+        ref,
+        stage=xy,
+        max_iterations=5,
+        population_size=8,
+        rng=0,
+        skip=0.1,
+    )
     assert isinstance(res, MultiAxisTuningResult) and len(res.axes) == 2
     assert res.nfev == 2 * 5 * 8 and sorted(res.gains) == ["x.ki", "x.kp", "y.ki", "y.kp"]
     before = closed_loop_multi(xy, [template] * 2, ref, rng=0).with_skip(0.1).rmse

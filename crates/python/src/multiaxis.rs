@@ -103,7 +103,7 @@ impl LfrSpec {
 #[derive(Debug)]
 enum Kind {
     Stages { stages: Vec<Py<Stage>>, coupling: Vec<f64> },
-    Lfr(LfrSpec),
+    Lfr(Box<LfrSpec>),
 }
 
 /// A multi-axis plant with one sensor per output, built once (see the module docs).
@@ -138,9 +138,8 @@ fn signal<'a>(a: &'a Option<PyReadonlyArray2<'_, f64>>, name: &str, n: usize, ax
         None => Ok(&[]),
         Some(a) => {
             let s = a.shape();
-            if s[1] != axes || (n != usize::MAX && s[0] != n) {
-                let rows = if n == usize::MAX { "n".to_string() } else { n.to_string() };
-                return Err(bad_arg(format!("{name} has shape ({}, {}), expected ({rows}, {axes})", s[0], s[1])));
+            if s[1] != axes || s[0] != n {
+                return Err(bad_arg(format!("{name} has shape ({}, {}), expected ({n}, {axes})", s[0], s[1])));
             }
             let v = a.as_slice().map_err(|_| bad_arg(format!("{name} must be a C-contiguous float64 array")))?;
             check_finite(name, v)?;
@@ -319,9 +318,12 @@ impl MultiAxisPlant {
         decoupling: &'a Option<PyReadonlyArray2<'_, f64>>,
     ) -> PyResult<RunArgs<'a>> {
         let n = self.axes();
-        let r = signal(&Some(reference.clone()), "reference", usize::MAX, n).map(|_| ())?;
-        let _ = r;
+        let s = reference.shape();
+        if s[1] != n {
+            return Err(bad_arg(format!("reference has shape ({}, {}), expected (n, {n})", s[0], s[1])));
+        }
         let position = reference.as_slice().map_err(|_| bad_arg("reference must be C-contiguous".into()))?;
+        check_finite("reference", position)?;
         let rows = reference.shape()[0];
         if rows < 2 {
             return Err(bad_arg(format!("reference has {rows} samples; at least 2")));
@@ -454,7 +456,7 @@ impl MultiAxisPlant {
             }
             let spec = LfrSpec { dims: spec_dims, mats, laws, limits };
             spec.model().validated().map_err(err)?;
-            Ok(MultiAxisPlant { kind: Kind::Lfr(spec), sensors, ts })
+            Ok(MultiAxisPlant { kind: Kind::Lfr(Box::new(spec)), sensors, ts })
         })
     }
 
@@ -475,6 +477,7 @@ impl MultiAxisPlant {
     /// optional decoupling matrix `(N, N)`. Returns a dict: `command`, `voltage`, `position`,
     /// `measured` `(n, N)`; `terms` (a list of `(n, w_i)` arrays) and `term_names`.
     #[pyo3(signature = (controllers, reference, velocity, acceleration, seeds, decoupling=None))]
+    #[allow(clippy::too_many_arguments)]
     fn closed_loop<'py>(
         &self,
         py: Python<'py>,

@@ -20,8 +20,8 @@ from .controllers import (
     with_gains,
 )
 from .mimo import MimoFeedforward, frequency_response, mirror_matrix, periodic_response
-from .simulation import ClosedLoopResult, closed_loop, closed_loop_batch
 from .multiaxis import MultiAxisResult, closed_loop_multi
+from .simulation import ClosedLoopResult, closed_loop, closed_loop_batch
 from .tuning import MultiAxisTuningResult, TuningResult, stage_from_model, track, tune, tune_axes
 
 __all__ = [

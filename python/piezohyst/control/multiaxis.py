@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from functools import cached_property
-from typing import TYPE_CHECKING, Any, Self, cast
+from typing import TYPE_CHECKING, Any, Self
 
 import numpy as np
 import numpy.typing as npt
@@ -184,13 +184,18 @@ class MultiAxisResult(Response):
         """
         i = self._index(axis)
         nm = self.names[i]
+        sig = self.signals
         return ClosedLoopResult(
             self.sample_time,
-            *(self.signals[f"{k}_{nm}"] for k in _SIGNALS),
-            terms=self.terms[i] if self.terms else {},
-            final_state=np.zeros(0),
-            controller=self.controllers[i] if self.controllers else "",
-            skip_samples=self.skip_samples,
+            sig[f"reference_{nm}"],
+            sig[f"command_{nm}"],
+            sig[f"voltage_{nm}"],
+            sig[f"position_{nm}"],
+            sig[f"measured_{nm}"],
+            self.terms[i] if self.terms else {},
+            np.zeros(0),
+            self.controllers[i] if self.controllers else "",
+            self.skip_samples,
         )
 
     @cached_property
@@ -342,7 +347,7 @@ class MultiAxisResult(Response):
             ax[1, i].plot(self.time, err[:, i] * 1e6, lw=0.8)
             ax[1, i].set_ylabel(f"{nm} error (µm)")
             ax[1, i].set_xlabel("time (s)")
-        return cast("Figure", fig)
+        return fig
 
 
 def _controllers(stage: MultiAxisStage, controllers: object) -> list[ControllerLike]:
@@ -359,7 +364,9 @@ def _controllers(stage: MultiAxisStage, controllers: object) -> list[ControllerL
 def _references(stage: MultiAxisStage, reference: npt.ArrayLike, name: str = "reference") -> FloatArray:
     x = np.array(reference, dtype=np.float64)
     if x.ndim != 2 or x.shape[1] != stage.n_axes or x.shape[0] < 2:
-        raise ParameterError(f"{name} has shape {x.shape}; expected (samples >= 2, {stage.n_axes}), one column per axis")
+        raise ParameterError(
+            f"{name} has shape {x.shape}; expected (samples >= 2, {stage.n_axes}), one column per axis"
+        )
     for i, view in enumerate(stage.views):
         col = np.ascontiguousarray(x[:, i])
         try:
@@ -399,7 +406,7 @@ def _seeds(rng: RngLike | Sequence[int], n: int) -> list[int]:
     """One sensor-noise seed per axis: a list of ``n`` seeds (each as :func:`closed_loop`'s
     ``rng``: axis ``i`` then sees the noise a single-axis run with ``rng=rng[i]`` sees), or
     ``n`` seeds drawn from one ``rng``."""
-    if isinstance(rng, Sequence) and not isinstance(rng, str):
+    if isinstance(rng, Sequence):
         if len(rng) != n:
             raise ParameterError(f"rng has {len(rng)} seeds, one per axis ({n})")
         return [seed_from(int(r)) for r in rng]

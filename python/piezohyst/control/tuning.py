@@ -328,9 +328,8 @@ def tune(
     (True, 0.0001)
     """
     from ..optimize.core import minimize
-    from ..plant.stage import virtual_stage
-
     from ..plant.multiaxis import MultiAxisStage
+    from ..plant.stage import virtual_stage
 
     if isinstance(stage, MultiAxisStage):  # one controller per axis: sequential loop closing
         if variants is not None or stages is not None or aggregate != "mean" or callback is not None:
@@ -349,6 +348,7 @@ def tune(
             log_scale=log_scale,
             objective=objective,
         )
+    controller = cast("ControllerLike", controller)
     t0 = time.perf_counter()
     stage = virtual_stage() if stage is None else stage
     if not is_controller(controller):
@@ -645,7 +645,10 @@ def tune_axes(
 
             def candidate(theta: FloatArray, template: Any = template, names: list[str] = names) -> ControllerLike:
                 values = 10.0**theta if log_scale else theta
-                return cast("ControllerLike", _with_fields(template, {nm: float(v) for nm, v in zip(names, values)}))
+                return cast(
+                    "ControllerLike",
+                    _with_fields(template, {nm: float(v) for nm, v in zip(names, values, strict=True)}),
+                )
 
             def cost(X: FloatArray, i: int = i, candidate: Any = candidate) -> FloatArray:
                 rows: list[list[ControllerLike]] = []
@@ -676,9 +679,7 @@ def tune_axes(
                 rng=rng,
             )
             if res.x is None or not np.isfinite(res.fun):
-                raise ComputationError(
-                    f"tuning axis {stage.names[i]} found no stable candidate within the gain bounds"
-                )
+                raise ComputationError(f"tuning axis {stage.names[i]} found no stable candidate within the gain bounds")
             best = candidate(res.x)
             if "tuned_sample_time" in fields:
                 best = cast("ControllerLike", replace(cast("Any", best), tuned_sample_time=stage.sample_time))
@@ -686,7 +687,7 @@ def tune_axes(
             values = 10.0**res.x if log_scale else res.x
             per_axis[i] = TuningResult(
                 best,
-                {nm: float(v) for nm, v in zip(names, values)},
+                {nm: float(v) for nm, v in zip(names, values, strict=True)},
                 float(res.fun),
                 res.history,
                 time.perf_counter() - ti,

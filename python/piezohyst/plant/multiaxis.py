@@ -215,7 +215,9 @@ class MultiAxisStage:
         views = []
         for i in range(n):
             if not (np.isfinite(g[i, i]) and g[i, i] != 0):
-                raise ParameterError(f"the model's DC gain from actuator {i} to output {i} is {g[i, i]:.4g} m/V: no axis")
+                raise ParameterError(
+                    f"the model's DC gain from actuator {i} to output {i} is {g[i, i]:.4g} m/V: no axis"
+                )
             # a stand-in single-axis stage: the controllers read its sample time, amplifier
             # range, sensor and static gain (Tem / k = |G_ii|) from it
             params = StageParameters(mass=1e-3, damping=1.0, stiffness=1.0 / abs(g[i, i]), tem=1.0)
@@ -252,7 +254,7 @@ class MultiAxisStage:
             return _model_dc_gain(self.model)
         assert self.coupling is not None
         gains = np.array([s.params.static_gain for s in self.views])
-        return self.coupling * gains[None, :]
+        return np.asarray(self.coupling * gains[None, :], dtype=np.float64)
 
     def axis_gains(self) -> FloatArray:
         """The static gain each axis's controller is packed for (its view's ``Tem / k``), m/V.
@@ -328,12 +330,25 @@ class MultiAxisStage:
             assert self.coupling is not None
             return _core.MultiAxisPlant.stages([s.compiled for s in self.views], np.ascontiguousarray(self.coupling))
         m = self.model
-        laws = [None if law is None else _law_row(law, v.amplifier) for law, v in zip(self.hysteresis, self.views)]
-        mats = [np.ascontiguousarray(x, dtype=np.float64) for x in (m.A, m.B, m.C, m.D, m.E, m.F, m.G, m.H)]
+        laws = [
+            None if law is None else _law_row(law, v.amplifier)
+            for law, v in zip(self.hysteresis, self.views, strict=True)
+        ]
+
+        def mat(x: npt.ArrayLike) -> FloatArray:
+            return np.ascontiguousarray(x, dtype=np.float64)
+
         return _core.MultiAxisPlant.lfr(
-            *mats,
-            np.ascontiguousarray(m.thresholds, dtype=np.float64),
-            np.ascontiguousarray(m.weights, dtype=np.float64),
+            mat(m.A),
+            mat(m.B),
+            mat(m.C),
+            mat(m.D),
+            mat(m.E),
+            mat(m.F),
+            mat(m.G),
+            mat(m.H),
+            mat(m.thresholds),
+            mat(m.weights),
             laws,
             [(v.amplifier.v_min, v.amplifier.v_max) for v in self.views],
             [(v.sensor.quantization, v.sensor.noise_std, v.sensor.delay) for v in self.views],
@@ -359,7 +374,7 @@ class MultiAxisStage:
         [2, 2]
         """
         sens = _per_axis(sensors, Sensor, self.n_axes, "sensors")
-        return replace(self, views=tuple(replace(v, sensor=s) for v, s in zip(self.views, sens)))
+        return replace(self, views=tuple(replace(v, sensor=s) for v, s in zip(self.views, sens, strict=True)))
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()

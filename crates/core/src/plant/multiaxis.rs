@@ -61,8 +61,8 @@ impl<E: Extra> Coupled for CoupledStages<'_, E> {
     fn positions(&self, x: &mut [f64]) {
         let n = self.stages.len();
         let mut own = [0.0; MAX_AXES];
-        for j in 0..n {
-            own[j] = self.extras[j].position(self.states[j].x);
+        for ((o, e), st) in own.iter_mut().zip(self.extras.iter()).zip(self.states.iter()) {
+            *o = e.position(st.x);
         }
         for (i, xi) in x.iter_mut().enumerate().take(n) {
             let mut acc = 0.0;
@@ -324,8 +324,10 @@ mod tests {
         let n = 2000;
         let stage = Stage::new(StageParams::virtual_stage(), ts, 1, 0.05).unwrap();
         let sensor = Sensor::new(1e-9, 2e-9, 1).unwrap();
-        let rx: Vec<f64> = (0..n).map(|k| 8e-6 + 5e-6 * libm::sin(k as f64 * ts * 2.0 * 3.14159 * 20.0)).collect();
-        let ry: Vec<f64> = (0..n).map(|k| 6e-6 + 2e-6 * libm::cos(k as f64 * ts * 2.0 * 3.14159 * 7.0)).collect();
+        let rx: Vec<f64> =
+            (0..n).map(|k| 8e-6 + 5e-6 * libm::sin(k as f64 * ts * 2.0 * core::f64::consts::PI * 20.0)).collect();
+        let ry: Vec<f64> =
+            (0..n).map(|k| 6e-6 + 2e-6 * libm::cos(k as f64 * ts * 2.0 * core::f64::consts::PI * 7.0)).collect();
         let p = pid();
         let single = |r: &[f64], seed: u64| {
             let (mut c, mut va, mut x, mut y, mut t) =
