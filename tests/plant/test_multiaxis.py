@@ -191,19 +191,19 @@ def test_closed_loop_on_the_fsm_identified_model(fsm_stage: tuple[MultiAxisStage
     ref = np.column_stack([0.3e-6 * np.sin(2 * np.pi * 5 * t), np.zeros(t.size), np.zeros(t.size)])
     with pytest.raises(ParameterError, match="decouple=True"):
         closed_loop_multi(stage, [ph.PID(kp=1e2, ki=3e7)] * 3, ref)
-    res = tune_axes(
-        stage,
-        [ph.PID(kp=1e2, ki=3e7)] * 3,
+    decoupled = stage.with_decoupling()
+    res = ph.tune(
+        [ph.PID(kp=1e2, ki=3e7)] * 3,  # type: ignore[arg-type]
         {"kp": (1e1, 1e5), "ki": (1e6, 1e10)},
         ref,
-        decouple=True,
-        passes=2,
+        stage=decoupled,
         max_iterations=10,
         population_size=10,
         rng=0,
         skip=0.1,
     )
-    run = closed_loop_multi(stage, list(res.controller), ref, decouple=True, rng=0).with_skip(0.1)  # type: ignore[arg-type]
+    assert isinstance(res, MultiAxisTuningResult)
+    run = closed_loop_multi(decoupled, list(res.controller), ref, rng=0).with_skip(0.1)  # type: ignore[call-overload]
     template = closed_loop_multi(stage, [ph.PID(kp=1e2, ki=3e7)] * 3, ref, decouple=True, rng=0).with_skip(0.1)
     assert run.rmse[0] < 12e-9 and run.rmse[1:].max() < 5e-9
     assert run.rmse[0] < 0.8 * template.rmse[0]

@@ -376,16 +376,11 @@ def _references(stage: MultiAxisStage, reference: npt.ArrayLike, name: str = "re
     return np.ascontiguousarray(x)
 
 
-def _decoupling(stage: MultiAxisStage, decouple: bool | npt.ArrayLike) -> FloatArray | None:
-    if decouple is True:
-        return np.ascontiguousarray(stage.decoupler())
-    if decouple is False or decouple is None:
-        return None
-    t = np.array(decouple, dtype=np.float64)
-    n = stage.n_axes
-    if t.shape != (n, n) or not np.all(np.isfinite(t)):
-        raise ParameterError(f"decouple must be True, False or a finite ({n}, {n}) matrix, got shape {t.shape}")
-    return np.ascontiguousarray(t)
+def _decoupling(stage: MultiAxisStage, decouple: bool | npt.ArrayLike | None) -> FloatArray | None:
+    """The matrix a run uses: ``None`` the stage's own (:meth:`MultiAxisStage.with_decoupling`),
+    else as :meth:`MultiAxisStage.with_decoupling` reads ``decouple``."""
+    chosen = stage if decouple is None else stage.with_decoupling(decouple)
+    return None if chosen.decoupling is None else np.ascontiguousarray(chosen.decoupling)
 
 
 def _check_signs(stage: MultiAxisStage, t: FloatArray | None) -> None:
@@ -428,7 +423,7 @@ def closed_loop_multi(
     controllers: Sequence[ControllerLike],
     reference: npt.ArrayLike,
     *,
-    decouple: bool | npt.ArrayLike = False,
+    decouple: bool | npt.ArrayLike | None = None,
     rng: RngLike | Sequence[int] = None,
 ) -> MultiAxisResult:
     """Run one controller per axis on ``stage`` from rest, tracking ``reference``.
@@ -446,9 +441,11 @@ def closed_loop_multi(
         One per axis (``PID``, ``FilteredPID``, ``SMC``, ``Compensated``, ...).
     reference : array_like, shape (N, n_axes)
         Desired outputs per controller sample, m; each column within its axis's stroke.
-    decouple : bool or array_like, shape (n_axes, n_axes)
+    decouple : bool or array_like, shape (n_axes, n_axes), optional
         ``True``: the actuators get ``stage.decoupler() @ c`` for the commands ``c`` (static
-        inverse of the DC gain matrix, diagonal kept); a matrix: that matrix; ``False``: ``c``.
+        inverse of the DC gain matrix, the axes' gains kept); a matrix: that matrix;
+        ``False``: ``c``; ``None`` (default): the stage's own setting
+        (:meth:`~piezohyst.plant.MultiAxisStage.with_decoupling`, none unless set).
     rng : int, Generator, or sequence of int
         Sensor-noise seeds: one seed per axis (axis ``i`` then sees the noise of a single-axis
         :func:`~piezohyst.closed_loop` with ``rng=rng[i]``), or one seed for all.

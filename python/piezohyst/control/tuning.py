@@ -513,7 +513,7 @@ def tune_axes(
     gains: Mapping[str, Sequence[float]] | Sequence[Mapping[str, Sequence[float]] | None],
     references: npt.ArrayLike,
     *,
-    decouple: bool | npt.ArrayLike = False,
+    decouple: bool | npt.ArrayLike | None = None,
     passes: int = 1,
     method: str = "css",
     max_iterations: int = 40,
@@ -546,8 +546,10 @@ def tune_axes(
         leave that axis as given).
     references : array_like, shape (N, n_axes), or a list of such
         References; the cost is the mean over them.
-    decouple : bool or array_like
-        As :func:`~piezohyst.control.multiaxis.closed_loop_multi` (tune the loops that will run).
+    decouple : bool or array_like, optional
+        As :func:`~piezohyst.control.multiaxis.closed_loop_multi` (tune the loops that will
+        run; default: the stage's own setting, so ``tune`` on ``stage.with_decoupling()``
+        tunes the decoupled loops).
     passes : int
         Sweeps over the axes (a second pass retunes each axis with the others tuned).
     method, max_iterations, population_size, rng, skip, saturation_limit, log_scale, objective

@@ -80,6 +80,9 @@ class MultiAxisStage:
         Per actuator, the law ahead of the model (:meth:`from_model`).
     names : tuple of str
         Axis names (``"x", "y", "z", ...`` by default).
+    decoupling : ndarray, shape (N, N), or None
+        A static matrix ahead of the actuators that every closed loop on this stage runs with
+        by default (:meth:`with_decoupling`), or ``None``.
 
     Examples
     --------
@@ -95,6 +98,7 @@ class MultiAxisStage:
     model: MimoModel | None = None
     hysteresis: tuple[HysteresisModel | None, ...] = ()
     names: tuple[str, ...] = field(default=())
+    decoupling: FloatArray | None = None
 
     @classmethod
     def from_axes(
@@ -296,6 +300,37 @@ class MultiAxisStage:
         if not np.isfinite(cond) or cond > 1e12:
             raise ParameterError(f"the DC gain matrix is singular (condition number {cond:.3g}): no static decoupling")
         return np.asarray(np.linalg.solve(g, np.diag(self.axis_gains())), dtype=np.float64)
+
+    def with_decoupling(self, decouple: bool | npt.ArrayLike = True) -> MultiAxisStage:
+        """The same stage with a static matrix ahead of the actuators: ``True`` the
+        :meth:`decoupler`, a matrix that matrix, ``False`` none. Closed loops and
+        :func:`piezohyst.tune` on the result run behind it unless told otherwise.
+
+        Parameters
+        ----------
+        decouple : bool or array_like, shape (N, N)
+
+        Returns
+        -------
+        MultiAxisStage
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from piezohyst.plant import MultiAxisStage, virtual_stage
+        >>> xy = MultiAxisStage.from_axes([virtual_stage()] * 2, coupling=0.05).with_decoupling()
+        >>> bool(np.allclose(xy.decoupling, xy.decoupler()))
+        True
+        """
+        if decouple is True:
+            return replace(self, decoupling=self.decoupler())
+        if decouple is False:
+            return replace(self, decoupling=None)
+        t = np.array(decouple, dtype=np.float64)
+        n = self.n_axes
+        if t.shape != (n, n) or not np.all(np.isfinite(t)):
+            raise ParameterError(f"decouple must be True, False or a finite ({n}, {n}) matrix, got shape {t.shape}")
+        return replace(self, decoupling=t)
 
     def stroke(self, axis: int) -> tuple[float, float]:
         """Reachable output range of ``axis`` with the other actuators at rest, m (from the
