@@ -181,8 +181,9 @@ def test_closed_loop_on_the_fsm_identified_model(fsm_stage: tuple[MultiAxisStage
     """The fine steering mirror's linear model identified on realizations 1-3 (100 mV),
     scored on 4-6 (held out: 0.094 µm), three PI hysteresis laws ahead of it. Its DC gain
     matrix has negative diagonal entries and larger off-diagonal ones: decentralized loops
-    run behind the static decoupler; each axis's PID tuned by sequential loop closing.
-    Measured (x: 0.3 µm 5 Hz sine, y and z hold 0): x 8.7 nm, y 2.0 nm, z 3.3 nm RMSE."""
+    run behind the static decoupler; each axis's PID tuned by sequential loop closing (300
+    closed loops, 4.5 s). Measured (x: 0.3 µm 5 Hz sine, y and z hold 0): tuned x 8.2, y 1.5,
+    z 3.4 nm RMSE; the template PID (kp 1e2, ki 3e7 V/m) x 38.9 nm."""
     stage, held_out = fsm_stage
     assert held_out < 0.12e-6
     g = stage.dc_gain()
@@ -206,7 +207,7 @@ def test_closed_loop_on_the_fsm_identified_model(fsm_stage: tuple[MultiAxisStage
     run = closed_loop_multi(decoupled, list(res.controller), ref, rng=0).with_skip(0.1)  # type: ignore[call-overload]
     template = closed_loop_multi(stage, [ph.PID(kp=1e2, ki=3e7)] * 3, ref, decouple=True, rng=0).with_skip(0.1)
     assert run.rmse[0] < 12e-9 and run.rmse[1:].max() < 5e-9
-    assert run.rmse[0] < 0.8 * template.rmse[0]
+    assert run.rmse[0] < 0.3 * template.rmse[0]
     np.testing.assert_allclose(run.rmse, res.axis_rmse, rtol=1e-9)
 
 

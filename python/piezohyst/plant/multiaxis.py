@@ -130,7 +130,7 @@ class MultiAxisStage:
         --------
         >>> from piezohyst.plant import MultiAxisStage, virtual_stage
         >>> xy = MultiAxisStage.from_axes([virtual_stage()] * 2, coupling=[[1.0, 0.0], [0.05, 1.0]])
-        >>> xy.dc_gain()[1, 0] / xy.dc_gain()[0, 0]
+        >>> float(xy.dc_gain()[1, 0] / xy.dc_gain()[0, 0])
         0.05
         """
         if isinstance(axes, Stage) or not isinstance(axes, Sequence):
@@ -199,7 +199,7 @@ class MultiAxisStage:
         ...                      [[0.0, 0.0], [0.0, 0.0]], fs=5000.0)
         >>> st = MultiAxisStage.from_model(m)
         >>> st.n_axes, st.sample_time, st.dc_gain().round(9).tolist()
-        (2, 0.0002, [[1e-07, 0.0], [1e-08, 1e-07]])
+        (2, 0.0002, [[1e-07, 0.0], [5e-09, 1e-07]])
         """
         from ..models.mimo import MimoModel
 
