@@ -131,6 +131,32 @@ def _tuning():
     )
 
 
+def _multi_axis():
+    from piezohyst.control import closed_loop_multi
+    from piezohyst.plant import MultiAxisStage
+
+    xy = MultiAxisStage.from_axes([ph.virtual_stage()] * 2, coupling=0.05)
+    ref = np.column_stack([np.linspace(4e-6, 6e-6, 300), np.full(300, 5e-6)])
+    return closed_loop_multi(xy, [ph.PID(kp=1e6, ki=5e9)] * 2, ref, rng=1).with_skip(0.005)
+
+
+def _multi_axis_tuning():
+    from piezohyst.plant import MultiAxisStage
+
+    xy = MultiAxisStage.from_axes([ph.virtual_stage()] * 2, coupling=0.05)
+    ref = np.column_stack([np.linspace(4e-6, 6e-6, 300), np.full(300, 5e-6)])
+    return ph.tune(
+        [ph.PID(kp=1e6, ki=5e9)] * 2,
+        {"ki": (1e8, 1e10)},
+        ref,
+        stage=xy,
+        max_iterations=2,
+        population_size=4,
+        rng=1,
+        skip=0.01,
+    )
+
+
 def _robustness():
     from piezohyst.fleet.cluster import Runner, plan
     from piezohyst.fleet.robustness import RobustnessProblem, parse_perturbations, robustness
@@ -154,12 +180,14 @@ FACTORIES = {
     "piezohyst.signals.frequency.FrequencyResponse": _frequency_response,
     "piezohyst.plant.stage.StageResponse": _stage_response,
     "piezohyst.control.simulation.ClosedLoopResult": _closed_loop,
+    "piezohyst.control.multiaxis.MultiAxisResult": _multi_axis,
     "piezohyst.identify.core.FitResult": _fit,
     "piezohyst.identify.core.IdentificationResult": _identification,
     "piezohyst.identify.validation.ValidatedResult": _validated,
     "piezohyst.optimize.core.OptimizeResult": _minimize,
     "piezohyst.optimize.core.IntermediateResult": _intermediate,
     "piezohyst.control.tuning.TuningResult": _tuning,
+    "piezohyst.control.tuning.MultiAxisTuningResult": _multi_axis_tuning,
     "piezohyst.fleet.robustness.RobustnessResult": _robustness,
 }
 
