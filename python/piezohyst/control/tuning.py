@@ -332,8 +332,8 @@ def tune(
     from ..plant.stage import virtual_stage
 
     if isinstance(stage, MultiAxisStage):  # one controller per axis: sequential loop closing
-        if variants is not None or stages is not None or aggregate != "mean" or callback is not None:
-            raise ParameterError("variants, stages, aggregate and callback are single-axis options of tune")
+        if variants is not None or stages is not None or aggregate != "mean" or callback is not None or progress:
+            raise ParameterError("variants, stages, aggregate, callback and progress are single-axis options of tune")
         return tune_axes(
             stage,
             cast("Sequence[ControllerLike]", controller),
