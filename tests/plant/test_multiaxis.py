@@ -289,3 +289,24 @@ def test_bad_input_is_a_parameter_error() -> None:
         tune_axes(xy, [pid, pid], {"kq": (1.0, 2.0)}, ref, skip=0.0)
     with pytest.raises(ParameterError, match="single-axis options"):
         ph.tune([pid, pid], {"kp": (1.0, 2.0)}, ref, stage=xy, aggregate="worst")  # type: ignore[arg-type]
+
+
+def test_model_stage_with_play_feedback_runs_the_lfr_model() -> None:
+    """A Hammerstein model (play operators on the inputs, entering the states through E):
+    with D = F = 0 the loop's outputs are the model's own simulation on the applied voltages,
+    and the static gain counts the plays at their large-signal slope."""
+    a = np.array([[0.9, 0.0], [0.0, 0.85]])
+    b = np.array([[5e-9, 0.0], [1e-9, 5e-9]])
+    e = np.array([[5e-9, 5e-10], [0.0, 6e-9]])
+    model = MimoModel(
+        A=a, B=b, C=np.eye(2), D=np.zeros((2, 2)), E=e, F=np.zeros((2, 2)), G=np.zeros((2, 2)), H=np.eye(2),
+        thresholds=[[0.0, 1.0], [0.0, 1.5]], weights=[[0.6, 0.4], [0.7, 0.3]], fs=1e4, structure="hammerstein",
+    )  # fmt: skip
+    st = MultiAxisStage.from_model(model, sensors=Sensor(noise_std=1e-10, delay=1))
+    np.testing.assert_allclose(st.dc_gain(), np.linalg.solve(np.eye(2) - a, b + e), rtol=1e-12)
+    t = _time(0.1)
+    ref = np.column_stack([2e-6 + 1e-6 * np.sin(2 * np.pi * 15 * t), 1.5e-6 + 0.5e-6 * np.sin(2 * np.pi * 9 * t)])
+    res = closed_loop_multi(st, [ph.PID(kp=1e6, ki=1e10)] * 2, ref, rng=5)
+    y = model.simulate(res.voltage, init="rest")
+    np.testing.assert_allclose(res.position, y, rtol=0, atol=1e-12 * np.abs(y).max())
+    assert res.with_skip(0.03).rmse.max() < 0.1e-6
