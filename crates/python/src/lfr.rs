@@ -16,6 +16,9 @@ use crate::util::{bad_arg, check_alloc, check_finite, err, guarded, interruptibl
 /// `(outputs, final state)` of a play bank.
 type BankOut<'py> = (Bound<'py, PyArray3<f64>>, Bound<'py, PyArray2<f64>>);
 
+/// `(losses per record, flat gradient)` of [`lfr_loss_grad`].
+type GradOut<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>);
+
 type SimOut<'py> = (Bound<'py, PyArray3<f64>>, Bound<'py, PyArray3<f64>>, Bound<'py, PyArray2<f64>>);
 
 fn mat<'a>(a: &'a PyReadonlyArray2<'_, f64>, name: &str, rows: usize, cols: usize) -> PyResult<&'a [f64]> {
@@ -147,7 +150,7 @@ fn lfr_loss_grad<'py>(
     state: PyReadonlyArray2<'py, f64>,
     skip: usize,
     record_weights: PyReadonlyArray1<'py, f64>,
-) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
+) -> PyResult<GradOut<'py>> {
     guarded(|| {
         let nx = a.shape()[0];
         let nu = b.shape()[1];

@@ -10,8 +10,9 @@ fit of :func:`piezohyst.identify.mimo.identify_mimo`) and runs L-BFGS-B on:
 
 - the parameters: ``A`` by its modal blocks (a real pole ``a``; a complex pair
   ``[[r cos p, -r sin p], [r sin p, r cos p]]`` by radius ``r`` and angle ``p``), the radius
-  bounded by ``radius`` so the model stays stable; ``B``, ``C``, ``D``, ``E``, ``F``; the
-  nonzero entries of ``G`` and ``H`` (the structure of the feedback path is kept); the play
+  bounded by ``radius`` so the model stays stable; ``B``, ``C``, ``D``, ``E``, ``F`` (a
+  matrix all 0 stays 0); the nonzero entries of ``G`` and ``H`` (the structure of the
+  feedback path is kept); the play
   weights when a channel has more than one play; thresholds fixed. Each group is scaled
   (its RMS; a pole by its distance to the unit circle);
 - the loss: the squared simulation error of the period-averaged records, each weighted by
@@ -67,6 +68,13 @@ MATRICES = ("A", "B", "C", "D", "E", "F", "G", "H", "thresholds", "weights")
 
 def _mats(model: MimoModel) -> list[FloatArray]:
     return [np.ascontiguousarray(getattr(model, k), dtype=np.float64) for k in MATRICES]
+
+
+def _core_loss_grad(
+    model: MimoModel, u: FloatArray, y: FloatArray, state: FloatArray, skip: int, weights: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    a, b, c, d, e, f, g, h, th, w = _mats(model)
+    return _core.lfr_loss_grad(a, b, c, d, e, f, g, h, th, w, u, y, state, skip, weights)
 
 
 def loss_gradient(
@@ -128,7 +136,7 @@ def loss_gradient(
     w = np.ones(r) if record_weights is None else np.ascontiguousarray(record_weights, dtype=np.float64)
     if not 0 <= int(skip) < uu.shape[1]:
         raise ParameterError(f"skip = {skip} must be in [0, {uu.shape[1]}) (samples per record)")
-    losses, flat = _core.lfr_loss_grad(*_mats(model), uu, yy, st, int(skip), w)
+    losses, flat = _core_loss_grad(model, uu, yy, st, int(skip), w)
     out: dict[str, FloatArray] = {}
     k = 0
     for name, mat in zip(MATRICES, _mats(model), strict=True):
@@ -196,8 +204,10 @@ class _Params:
         self.masks: dict[str, NDArray[np.bool_]] = {}
         for name in MATRICES[1:]:
             m = np.asarray(getattr(model, name), dtype=np.float64)
-            if name in ("G", "H"):
-                mask = m != 0  # the structure of the feedback path is kept
+            if name in ("G", "H") or not m.any():
+                # the structure of the feedback path is kept; a matrix all 0 (e.g. F of a
+                # strictly proper fit) stays 0 (it has no scale to start from)
+                mask = m != 0
             elif name == "thresholds":
                 mask = np.zeros(m.shape, dtype=bool)
             elif name == "weights":
@@ -213,7 +223,9 @@ class _Params:
             hi += [np.inf] * v.size
         self.scale = np.asarray(scale)
         self.x0 = np.asarray(theta) / self.scale
-        self.bounds = list(zip((np.asarray(lo) / self.scale).tolist(), (np.asarray(hi) / self.scale).tolist(), strict=True))
+        self.bounds = list(
+            zip((np.asarray(lo) / self.scale).tolist(), (np.asarray(hi) / self.scale).tolist(), strict=True)
+        )
 
     def model_of(self, x: FloatArray) -> MimoModel:
         th = np.asarray(x) * self.scale
@@ -261,7 +273,7 @@ class _Params:
                     k += 2
         for name, mask in self.masks.items():
             out += np.asarray(grad[name])[mask].tolist()
-        return np.asarray(out) * self.scale
+        return np.asarray(np.asarray(out) * self.scale, dtype=np.float64)
 
 
 # -- the refinement ---------------------------------------------------------------------------
@@ -406,7 +418,12 @@ def refine_output_error(
     t0 = time.perf_counter()
     if not isinstance(model, MimoModel):
         raise ParameterError(f"model must be a MimoModel, got {type(model).__name__}")
-    for name, v, low in (("maxiter", maxiter, 0), ("warmup", warmup, 0), ("chunk", chunk, 1), ("patience", patience, 1)):
+    for name, v, low in (
+        ("maxiter", maxiter, 0),
+        ("warmup", warmup, 0),
+        ("chunk", chunk, 1),
+        ("patience", patience, 1),
+    ):
         if int(v) != v or v < low:
             raise ParameterError(f"{name} = {v} must be an integer >= {low}")
     if not (np.isfinite(time_budget) and time_budget > 0):
@@ -444,10 +461,12 @@ def refine_output_error(
     def val_rmse(m: MimoModel) -> dict[str, float]:
         assert val is not None
         e = _periodic_rmse(m, val[0], val[1])
-        return {lab: float(np.mean([e[i] for i, li in enumerate(val[2]) if li == lab])) for lab in dict.fromkeys(val[2])}
+        return {
+            lab: float(np.mean([e[i] for i, li in enumerate(val[2]) if li == lab])) for lab in dict.fromkeys(val[2])
+        }
 
     state = start_state(model)
-    loss0 = float(np.sum(_core.lfr_loss_grad(*_mats(model), uw, yw, state, k, rw)[0])) or 1.0
+    loss0 = float(np.sum(_core_loss_grad(model, uw, yw, state, k, rw)[0])) or 1.0
     v0 = val_rmse(model) if val is not None else {}
     history: list[dict[str, Any]] = [
         {"iteration": 0, "evaluations": 0, "seconds": time.perf_counter() - t0, "train_loss": 1.0,

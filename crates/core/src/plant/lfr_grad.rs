@@ -156,19 +156,20 @@ pub fn loss_grad(
         let x = &xs[t * nx..(t + 1) * nx];
         let ut = &u[t * nu..(t + 1) * nu];
         let wt = &ws[t * nw..(t + 1) * nw];
-        for o in 0..ny {
-            gy[o] = if t >= skip { 2.0 * weight * es[t * ny + o] } else { 0.0 };
+        for (o, g) in gy.iter_mut().enumerate() {
+            *g = if t >= skip { 2.0 * weight * es[t * ny + o] } else { 0.0 };
         }
-        // gw = F' gy + E' lam
-        for (i, g) in gw.iter_mut().enumerate() {
-            let mut s = 0.0;
-            for o in 0..ny {
-                s += m.f[o * nw + i] * gy[o];
+        // gw = F' gy + E' lam (row by row: contiguous reads)
+        gw.fill(0.0);
+        for (o, &g) in gy.iter().enumerate() {
+            if g != 0.0 {
+                axpy(gw, g, &m.f[o * nw..(o + 1) * nw]);
             }
-            for r in 0..nx {
-                s += m.e[r * nw + i] * lam[r];
+        }
+        for (r, &l) in lam.iter().enumerate() {
+            if l != 0.0 {
+                axpy(gw, l, &m.e[r * nw..(r + 1) * nw]);
             }
-            *g = s;
         }
         // outputs: C, D, F
         for o in 0..ny {
@@ -226,23 +227,19 @@ pub fn loss_grad(
         let mut s0 = 0;
         while s0 < nx {
             let size = block_at(m, s0);
-            for c in s0..s0 + size {
-                let mut v = 0.0;
-                for r in s0..s0 + size {
-                    v += m.a[r * nx + c] * lam[r];
-                }
-                lam_new[c] = v;
+            for (c, ln) in lam_new.iter_mut().enumerate().skip(s0).take(size) {
+                *ln = lam.iter().enumerate().skip(s0).take(size).map(|(r, l)| m.a[r * nx + c] * l).sum();
             }
             s0 += size;
         }
-        for o in 0..ny {
-            if gy[o] != 0.0 {
-                axpy(lam_new, gy[o], &m.c[o * nx..(o + 1) * nx]);
+        for (o, &g) in gy.iter().enumerate() {
+            if g != 0.0 {
+                axpy(lam_new, g, &m.c[o * nx..(o + 1) * nx]);
             }
         }
-        for i in 0..nw {
-            if gz[i] != 0.0 {
-                axpy(lam_new, gz[i], &m.g[i * nx..(i + 1) * nx]);
+        for (i, &g) in gz.iter().enumerate() {
+            if g != 0.0 {
+                axpy(lam_new, g, &m.g[i * nx..(i + 1) * nx]);
             }
         }
         lam.copy_from_slice(lam_new);
@@ -390,7 +387,7 @@ mod tests {
             assert!(l0 > 0.0);
             let off = grad_offsets(&lfr);
             let mut checked = 0;
-            for k in 0..m.p.len() {
+            for (k, &gk) in g.iter().enumerate() {
                 if modal && k < off[1] && m.p[k] == 0.0 {
                     continue; // outside the blocks: not a parameter of the modal form
                 }
@@ -404,8 +401,8 @@ mod tests {
                 mp.p[k] -= 2.0 * h;
                 let lm = loss_of(&mp, &u, &y, &s0, skip);
                 let fd = (lp - lm) / (2.0 * h);
-                let rel = (fd - g[k]).abs() / (fd.abs().max(g[k].abs()).max(1e-3 * l0));
-                assert!(rel < 1e-5, "modal {modal}, parameter {k}: fd {fd} vs adjoint {}", g[k]);
+                let rel = (fd - gk).abs() / (fd.abs().max(gk.abs()).max(1e-3 * l0));
+                assert!(rel < 1e-5, "modal {modal}, parameter {k}: fd {fd} vs adjoint {}", gk);
                 checked += 1;
             }
             assert!(checked > 50);
