@@ -410,10 +410,11 @@ def refine_output_error(
     >>> y = true.simulate(u)  # periodic steady state
     >>> four = lambda a: np.stack([np.moveaxis(a, 0, 2)] * 2, axis=3)  # (N, ch, R, P=2)
     >>> recs = MimoRecords.from_sets([("1V", four(u), four(y))], fs=100.0)
-    >>> start = MimoModel.linear(A=[[0.6]], B=[[1.0]], C=[[0.4]], D=[[0.0]], fs=100.0)
+    >>> start = MimoModel.linear(A=[[0.6]], B=[[1.0]], C=[[0.4]], D=[[0.2]], fs=100.0)
     >>> res = refine_output_error(start, recs, warmup=64, maxiter=100)
-    >>> round(float(res.model.A[0, 0]), 4), round(float(res.model.C[0, 0] * res.model.B[0, 0]), 4)
-    (0.8, 0.5)
+    >>> m = res.model
+    >>> round(float(m.A[0, 0]), 4), round(float(m.C[0, 0] * m.B[0, 0]), 4), round(float(m.D[0, 0]), 4)
+    (0.8, 0.5, 0.1)
     """
     t0 = time.perf_counter()
     if not isinstance(model, MimoModel):
