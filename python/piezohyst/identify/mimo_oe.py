@@ -58,7 +58,7 @@ from ..models.mimo import MimoModel
 if TYPE_CHECKING:
     from .mimo import MimoRecords
 
-__all__ = ["OutputErrorResult", "loss_gradient", "refine_output_error"]
+__all__ = ["OutputErrorRefinement", "loss_gradient", "refine_output_error"]
 
 FloatArray = NDArray[np.float64]
 
@@ -278,7 +278,7 @@ class _Params:
 
 # -- the refinement ---------------------------------------------------------------------------
 @dataclass(frozen=True)
-class OutputErrorResult:
+class OutputErrorRefinement:
     """What :func:`refine_output_error` returns: the ``model`` (the best on the validation
     records, or the last one without them), ``history`` (one entry per check: ``iteration``,
     ``evaluations``, ``seconds``, ``train_loss`` (relative to the start), ``validation_rmse``
@@ -301,10 +301,10 @@ class OutputErrorResult:
 
     Examples
     --------
-    >>> from piezohyst.identify.mimo_oe import OutputErrorResult
+    >>> from piezohyst.identify.mimo_oe import OutputErrorRefinement
     >>> from piezohyst.models.mimo import MimoModel
     >>> m = MimoModel.linear(A=[[0.5]], B=[[1.0]], C=[[1.0]], D=[[0.0]], fs=100.0)
-    >>> OutputErrorResult(m, [], 0, "maxiter", 0.0).stopped
+    >>> OutputErrorRefinement(m, [], 0, "maxiter", 0.0).stopped
     'maxiter'
     """
 
@@ -360,7 +360,7 @@ def refine_output_error(
     radius: float = 0.9999,
     callback: Callable[[dict[str, Any]], bool | None] | None = None,
     log: Callable[[str], None] | None = None,
-) -> OutputErrorResult:
+) -> OutputErrorRefinement:
     """Refine ``model`` by output error on ``records`` (all sets jointly), early-stopped on
     ``validation`` (see the module docstring).
 
@@ -394,7 +394,7 @@ def refine_output_error(
 
     Returns
     -------
-    OutputErrorResult
+    OutputErrorRefinement
         The refined model and the history.
 
     Examples
@@ -533,4 +533,4 @@ def refine_output_error(
             stopped = "converged"
             break
     out = p.model_of(best[1] if val is not None else x)
-    return OutputErrorResult(out, history, best[2] if val is not None else it, stopped, time.perf_counter() - t0)
+    return OutputErrorRefinement(out, history, best[2] if val is not None else it, stopped, time.perf_counter() - t0)
