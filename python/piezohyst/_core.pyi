@@ -35,6 +35,7 @@ __all__ = [
     "initial_state",
     "inverse",
     "layout_codes",
+    "lfr_loss_grad",
     "lfr_simulate",
     "pi_analytic_inverse",
     "play_bank",
@@ -435,6 +436,28 @@ def lfr_simulate(
     state: _Array2,
 ) -> tuple[_Array3, _Array3, _Array2]:
     """MIMO LFR with play-operator feedback on ``R`` records ``u (R, N, nu)``: ``(y, z, final state)``."""
+
+def lfr_loss_grad(
+    a: _Array2,
+    b: _Array2,
+    c: _Array2,
+    d: _Array2,
+    e: _Array2,
+    f: _Array2,
+    g: _Array2,
+    h: _Array2,
+    thresholds: _Array2,
+    weights: _Array2,
+    u: _Array3,
+    y: _Array3,
+    state: _Array2,
+    skip: int,
+    record_weights: _Array1,
+) -> tuple[_Array1, _Array1]:
+    """Squared output error of the LFR on ``R`` records (``u (R, N, nu)`` against ``y (R, N, ny)``
+    from ``state``, the first ``skip`` samples not counted, each record weighted) and its gradient
+    (reverse mode): ``(losses (R,), flat gradient in the order A, B, C, D, E, F, G, H, thresholds,
+    weights)``."""
 
 def play_bank(x: _Array3, thresholds: _Array2, state: _Array2) -> tuple[_Array3, _Array2]:
     """Play operators on every channel of ``x (R, N, m)``: ``(outputs (R, N, m*nr), final state)``."""

@@ -42,7 +42,7 @@ pub use hysteresis::{Hysteresis, Invertible};
 pub use control::{absmc, cemf, compensated, ilc, smc};
 pub use hysteresis::{creep, differential, envelope, generalized, inverse, pi, preisach, rate};
 pub use num::{linalg, rng};
-pub use plant::{boucwen_benchmark, closed_loop, lfr, multiaxis, sensor, stage, structure};
+pub use plant::{boucwen_benchmark, closed_loop, lfr, lfr_grad, multiaxis, sensor, stage, structure};
 
 // batch.rs (rewritten in parallel) imports the elementary functions from their old home.
 use num::math;

@@ -1,9 +1,12 @@
 //! Bindings of the MIMO LFR model with play-operator feedback (`piezohyst_core::lfr`):
 //! batch simulation over records (rayon across records, GIL released) and a bank of play
-//! operators over multi-channel signals (the regressors of the LFR's identification).
+//! operators over multi-channel signals (the regressors of the LFR's identification), and the
+//! gradient of the simulation's squared output error (records in parallel) for output-error fits.
 use numpy::ndarray::{Array2, Array3};
 use numpy::{IntoPyArray, PyArray2, PyArray3, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
+use numpy::{PyArray1, PyReadonlyArray1};
 use piezohyst_core::lfr::{play_bank as core_play_bank, Lfr};
+use piezohyst_core::lfr_grad::{grad_len, loss_grad, work_len};
 use pyo3::prelude::*;
 use rayon::prelude::*;
 
@@ -12,6 +15,9 @@ use crate::util::{bad_arg, check_alloc, check_finite, err, guarded, interruptibl
 /// `(y, z, state)`: outputs, feedback signals and final states of the records.
 /// `(outputs, final state)` of a play bank.
 type BankOut<'py> = (Bound<'py, PyArray3<f64>>, Bound<'py, PyArray2<f64>>);
+
+/// `(losses per record, flat gradient)` of [`lfr_loss_grad`].
+type GradOut<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>);
 
 type SimOut<'py> = (Bound<'py, PyArray3<f64>>, Bound<'py, PyArray3<f64>>, Bound<'py, PyArray2<f64>>);
 
@@ -118,6 +124,133 @@ fn lfr_simulate<'py>(
     })
 }
 
+/// The weighted squared output error of `R` records and its gradient with respect to every
+/// parameter (`piezohyst_core::lfr_grad`, reverse mode): `u` `(R, N, nu)`, `y` `(R, N, ny)`
+/// the measured outputs, `state` `(R, nx + nw*nr)` the initial states, `skip` the samples
+/// of each record whose error is not counted (a warm-up), `record_weights` `(R,)` →
+/// `(losses (R,), gradient)`: the gradient of the summed loss, flat, in the order
+/// `A, B, C, D, E, F, G, H, thresholds, weights` (each row-major). A record whose
+/// simulation diverges has the loss `inf` (and adds nothing to the gradient).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+fn lfr_loss_grad<'py>(
+    py: Python<'py>,
+    a: PyReadonlyArray2<'py, f64>,
+    b: PyReadonlyArray2<'py, f64>,
+    c: PyReadonlyArray2<'py, f64>,
+    d: PyReadonlyArray2<'py, f64>,
+    e: PyReadonlyArray2<'py, f64>,
+    f: PyReadonlyArray2<'py, f64>,
+    g: PyReadonlyArray2<'py, f64>,
+    h: PyReadonlyArray2<'py, f64>,
+    thresholds: PyReadonlyArray2<'py, f64>,
+    weights: PyReadonlyArray2<'py, f64>,
+    u: PyReadonlyArray3<'py, f64>,
+    y: PyReadonlyArray3<'py, f64>,
+    state: PyReadonlyArray2<'py, f64>,
+    skip: usize,
+    record_weights: PyReadonlyArray1<'py, f64>,
+) -> PyResult<GradOut<'py>> {
+    guarded(|| {
+        let nx = a.shape()[0];
+        let nu = b.shape()[1];
+        let ny = c.shape()[0];
+        let nw = g.shape()[0];
+        let nr = thresholds.shape()[1];
+        let model = Lfr {
+            nx,
+            nu,
+            ny,
+            nw,
+            nr,
+            a: mat(&a, "A", nx, nx)?,
+            b: mat(&b, "B", nx, nu)?,
+            c: mat(&c, "C", ny, nx)?,
+            d: mat(&d, "D", ny, nu)?,
+            e: mat(&e, "E", nx, nw)?,
+            f: mat(&f, "F", ny, nw)?,
+            g: mat(&g, "G", nw, nx)?,
+            h: mat(&h, "H", nw, nu)?,
+            thresholds: mat(&thresholds, "thresholds", nw, nr)?,
+            weights: mat(&weights, "weights", nw, nr)?,
+            modal: false,
+        }
+        .validated()
+        .map_err(err)?;
+        let us = u.shape();
+        let (r, n) = (us[0], us[1]);
+        if us[2] != nu {
+            return Err(bad_arg(format!("u has {} channels (shape[2]), the model has {nu} inputs", us[2])));
+        }
+        let ys = y.shape();
+        if ys[0] != r || ys[1] != n || ys[2] != ny {
+            return Err(bad_arg(format!(
+                "y has shape ({}, {}, {}), expected ({r}, {n}, {ny}) (the records of u, the model's outputs)",
+                ys[0], ys[1], ys[2]
+            )));
+        }
+        if r == 0 || n == 0 {
+            return Err(bad_arg(format!("u has shape ({r}, {n}, {nu}): no record or no sample")));
+        }
+        if skip >= n {
+            return Err(bad_arg(format!("skip = {skip} leaves no sample of the {n} to score")));
+        }
+        let ns = model.state_len();
+        let s0 = mat(&state, "state", r, ns)?;
+        let rw = record_weights
+            .as_slice()
+            .map_err(|_| bad_arg("record_weights must be a contiguous float64 array".into()))?;
+        if rw.len() != r {
+            return Err(bad_arg(format!("record_weights has {} values, expected {r} (one per record)", rw.len())));
+        }
+        let uu = u.as_slice().map_err(|_| bad_arg("u must be a C-contiguous float64 array".into()))?;
+        let yy = y.as_slice().map_err(|_| bad_arg("y must be a C-contiguous float64 array".into()))?;
+        check_finite("u", uu)?;
+        check_finite("y", yy)?;
+        check_finite("state", s0)?;
+        check_finite("record_weights", rw)?;
+        if let Some(k) = rw.iter().position(|&v| v < 0.0) {
+            return Err(bad_arg(format!("record_weights[{k}] = {} must be >= 0", rw[k])));
+        }
+        let wl = work_len(&model, n);
+        check_alloc("lfr_loss_grad: the stored trajectory of two records", &[2, wl])?;
+        let gl = grad_len(&model);
+        let parts: Vec<(f64, Vec<f64>)> = interruptible(py, |stop| {
+            (0..r)
+                .into_par_iter()
+                .map(|i| {
+                    let mut grad = vec![0.0; gl];
+                    let mut work = vec![0.0; wl];
+                    let loss = loss_grad(
+                        &model,
+                        &uu[i * n * nu..(i + 1) * n * nu],
+                        &yy[i * n * ny..(i + 1) * n * ny],
+                        &s0[i * ns..(i + 1) * ns],
+                        skip,
+                        rw[i],
+                        &mut grad,
+                        &mut work,
+                        &|| stop.stopped(),
+                    );
+                    match loss {
+                        Some(l) => (l, grad),
+                        None => (f64::INFINITY, Vec::new()),
+                    }
+                })
+                .collect()
+        })?;
+        let mut total = vec![0.0; gl];
+        let mut losses = Vec::with_capacity(r);
+        for (l, gr) in parts {
+            losses.push(l);
+            for (t, v) in total.iter_mut().zip(&gr) {
+                *t += v;
+            }
+        }
+        Ok((losses.into_pyarray(py), total.into_pyarray(py)))
+    })
+}
+
 /// Play operators on every channel of `R` records: `x` `(R, N, m)`, `thresholds` `(m, nr)`,
 /// `state` `(R, m*nr)` → `(outputs (R, N, m*nr), final state (R, m*nr))`.
 #[pyfunction]
@@ -163,5 +296,6 @@ fn play_bank<'py>(
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(lfr_simulate, m)?)?;
     m.add_function(wrap_pyfunction!(play_bank, m)?)?;
+    m.add_function(wrap_pyfunction!(lfr_loss_grad, m)?)?;
     Ok(())
 }

@@ -1,0 +1,536 @@
+"""Output-error refinement of MIMO LFR models (issue 15): the simulation error of a
+:class:`~piezohyst.models.mimo.MimoModel` minimized over all its records jointly, with exact
+gradients through the Rust simulator.
+
+The gradient (:func:`loss_gradient`) is computed by reverse mode in Rust
+(``piezohyst_core::lfr_grad``: a forward pass storing the trajectory, the adjoint run
+backwards; a play operator passes the derivative 1 when it moves, 0 when stuck), records in
+parallel. :func:`refine_output_error` starts from a fitted model (e.g. the frequency-domain
+fit of :func:`piezohyst.identify.mimo.identify_mimo`) and runs L-BFGS-B on:
+
+- the parameters: ``A`` by its modal blocks (a real pole ``a``; a complex pair
+  ``[[r cos p, -r sin p], [r sin p, r cos p]]`` by radius ``r`` and angle ``p``), the radius
+  bounded by ``radius`` so the model stays stable; ``B``, ``C``, ``D``, ``E``, ``F`` (a
+  matrix all 0 stays 0); the nonzero entries of ``G`` and ``H`` (the structure of the
+  feedback path is kept); the play
+  weights when a channel has more than one play; thresholds fixed. Each group is scaled
+  (its RMS; a pole by its distance to the unit circle);
+- the loss: the squared simulation error of the period-averaged records, each weighted by
+  its set's (level's) mean square output to the power ``-balance`` (``1``: every level
+  counts relative to its amplitude, so the smallest is not drowned by the largest);
+- the warm-up: the records are periodic; each simulated record is its last ``warmup``
+  samples followed by the full period, from the state the current model reaches there in
+  periodic steady state (recomputed every ``chunk`` iterations); the warm-up's error is not
+  scored;
+- early stopping: every ``chunk`` iterations the model is scored on the ``validation``
+  records (never fitted): the RMSE of its periodic steady-state simulation per set, relative
+  to the starting model's; the best model on them is returned, and the run stops after
+  ``patience`` checks without improvement, at ``maxiter`` iterations, at ``time_budget``
+  seconds or when ``callback`` returns ``True``.
+
+Examples
+--------
+>>> import numpy as np
+>>> from piezohyst.models.mimo import MimoModel
+>>> from piezohyst.identify.mimo_oe import loss_gradient
+>>> m = MimoModel.linear(A=[[0.5]], B=[[1.0]], C=[[1.0]], D=[[0.0]], fs=100.0)
+>>> u = np.ones((1, 3, 1)); y = np.zeros((1, 3, 1))
+>>> loss, grad = loss_gradient(m, u, y)  # y_hat = [0, 1, 1.5]: loss 1 + 2.25
+>>> float(loss[0]), float(grad["C"][0, 0])  # d/dC of sum (C x)^2 = 2 (1*1 + 1.5*1.5)
+(3.25, 6.5)
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import minimize
+
+from .. import _core
+from ..errors import ParameterError
+from ..models.mimo import MimoModel
+
+if TYPE_CHECKING:
+    from .mimo import MimoRecords
+
+__all__ = ["OutputErrorRefinement", "loss_gradient", "refine_output_error"]
+
+FloatArray = NDArray[np.float64]
+
+#: The model's matrices in the order of the flat gradient of ``_core.lfr_loss_grad``.
+MATRICES = ("A", "B", "C", "D", "E", "F", "G", "H", "thresholds", "weights")
+
+
+def _mats(model: MimoModel) -> list[FloatArray]:
+    return [np.ascontiguousarray(getattr(model, k), dtype=np.float64) for k in MATRICES]
+
+
+def _core_loss_grad(
+    model: MimoModel, u: FloatArray, y: FloatArray, state: FloatArray, skip: int, weights: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    a, b, c, d, e, f, g, h, th, w = _mats(model)
+    return _core.lfr_loss_grad(a, b, c, d, e, f, g, h, th, w, u, y, state, skip, weights)
+
+
+def loss_gradient(
+    model: MimoModel,
+    u: ArrayLike,
+    y: ArrayLike,
+    state: ArrayLike | None = None,
+    *,
+    skip: int = 0,
+    record_weights: ArrayLike | None = None,
+) -> tuple[FloatArray, dict[str, FloatArray]]:
+    """The squared output error of ``model`` simulated on records ``u`` ``(R, N, nu)``
+    against ``y`` ``(R, N, ny)`` from ``state`` ``(R, state_len)`` (rest if ``None``), each
+    record's ``weight * sum_{t >= skip} |y_hat[t] - y[t]|^2``, and the gradient of their sum
+    with respect to every matrix (reverse mode in Rust, records in parallel). For a modal
+    ``A`` only the entries inside its diagonal blocks get a gradient (the others are 0).
+
+    Parameters
+    ----------
+    model : MimoModel
+        The model.
+    u, y : array_like
+        Inputs ``(R, N, nu)`` and measured outputs ``(R, N, ny)``.
+    state : array_like, optional
+        Initial states ``(R, state_len)``; rest if ``None``.
+    skip : int
+        Samples at the start of each record whose error is not counted (a warm-up).
+    record_weights : array_like, optional
+        One weight ``>= 0`` per record (default 1).
+
+    Returns
+    -------
+    losses : numpy.ndarray
+        Per record ``(R,)`` (``inf`` for a record whose simulation diverged).
+    gradient : dict of str to numpy.ndarray
+        Per matrix (``A`` ... ``H``, ``thresholds``, ``weights``), shaped like it.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst.models.mimo import MimoModel
+    >>> from piezohyst.identify.mimo_oe import loss_gradient
+    >>> m = MimoModel.linear(A=[[0.5]], B=[[1.0]], C=[[1.0]], D=[[0.0]], fs=100.0)
+    >>> loss, grad = loss_gradient(m, np.ones((1, 3, 1)), np.zeros((1, 3, 1)), skip=2)
+    >>> float(loss[0]), float(grad["D"][0, 0])  # only the last sample counts: (1.5)^2, 2*1.5*u
+    (2.25, 3.0)
+    """
+    uu = np.ascontiguousarray(u, dtype=np.float64)
+    yy = np.ascontiguousarray(y, dtype=np.float64)
+    if uu.ndim != 3 or uu.shape[2] != model.nu or uu.shape[0] == 0 or uu.shape[1] == 0:
+        raise ParameterError(f"u has shape {uu.shape}; expected (R, N, {model.nu}) with R, N >= 1")
+    if yy.shape != (uu.shape[0], uu.shape[1], model.ny):
+        raise ParameterError(f"y has shape {yy.shape}; expected {(uu.shape[0], uu.shape[1], model.ny)}")
+    for name, v in (("u", uu), ("y", yy)):
+        if not np.isfinite(v).all():
+            raise ParameterError(f"{name} holds a value that is not finite")
+    r = uu.shape[0]
+    st = np.zeros((r, model.state_len)) if state is None else np.ascontiguousarray(state, dtype=np.float64)
+    w = np.ones(r) if record_weights is None else np.ascontiguousarray(record_weights, dtype=np.float64)
+    if not 0 <= int(skip) < uu.shape[1]:
+        raise ParameterError(f"skip = {skip} must be in [0, {uu.shape[1]}) (samples per record)")
+    losses, flat = _core_loss_grad(model, uu, yy, st, int(skip), w)
+    out: dict[str, FloatArray] = {}
+    k = 0
+    for name, mat in zip(MATRICES, _mats(model), strict=True):
+        out[name] = flat[k : k + mat.size].reshape(mat.shape)
+        k += mat.size
+    return losses, out
+
+
+# -- the parameterization -----------------------------------------------------------------------
+def _modal_blocks(a: FloatArray) -> list[tuple[int, int]] | None:
+    """The blocks ``(start, size)`` of ``a`` in the real modal form ``[[s, -w], [w, s]]``
+    (sizes 1 or 2), or ``None`` when ``a`` is not in that form."""
+    n = a.shape[0]
+    tol = 1e-12 * max(1.0, float(np.abs(a).max(initial=0.0)))
+    out: list[tuple[int, int]] = []
+    s = 0
+    while s < n:
+        two = s + 1 < n and (a[s, s + 1] != 0 or a[s + 1, s] != 0)
+        size = 2 if two else 1
+        if two and (abs(a[s, s] - a[s + 1, s + 1]) > tol or abs(a[s, s + 1] + a[s + 1, s]) > tol):
+            return None
+        rows = a[s : s + size]
+        if np.count_nonzero(rows[:, :s]) or np.count_nonzero(rows[:, s + size :]):
+            return None
+        out.append((s, size))
+        s += size
+    return out
+
+
+class _Params:
+    """The free parameters of a model as one scaled vector (see the module docstring)."""
+
+    def __init__(self, model: MimoModel, radius: float) -> None:
+        self.model = model
+        self.radius = radius
+        a = model.A
+        self.blocks = _modal_blocks(a)
+        theta: list[float] = []
+        scale: list[float] = []
+        lo: list[float] = []
+        hi: list[float] = []
+        if self.blocks is None:  # a dense A: every entry free, no stability bound
+            theta += a.ravel().tolist()
+            sa = float(np.sqrt((a**2).mean())) or 1.0
+            scale += [sa] * a.size
+            lo += [-np.inf] * a.size
+            hi += [np.inf] * a.size
+        else:
+            for s, size in self.blocks:
+                if size == 1:
+                    p = float(a[s, s])
+                    theta.append(p)
+                    scale.append(max(1.0 - abs(p), 1e-4))
+                    lo.append(-radius)
+                    hi.append(radius)
+                else:
+                    rho = float(np.hypot(a[s, s], a[s + 1, s]))
+                    phi = float(np.arctan2(a[s + 1, s], a[s, s]))
+                    d = max(1.0 - rho, 1e-4)
+                    theta += [rho, phi]
+                    scale += [d, d]
+                    lo += [0.0, 1e-9 if phi > 0 else -np.pi + 1e-9]
+                    hi += [radius, np.pi - 1e-9 if phi > 0 else -1e-9]
+        self.na = len(theta)
+        self.masks: dict[str, NDArray[np.bool_]] = {}
+        for name in MATRICES[1:]:
+            m = np.asarray(getattr(model, name), dtype=np.float64)
+            if name in ("G", "H") or not m.any():
+                # the structure of the feedback path is kept; a matrix all 0 (e.g. F of a
+                # strictly proper fit) stays 0 (it has no scale to start from)
+                mask = m != 0
+            elif name == "thresholds":
+                mask = np.zeros(m.shape, dtype=bool)
+            elif name == "weights":
+                mask = np.ones(m.shape, dtype=bool) if model.thresholds.shape[1] > 1 else np.zeros(m.shape, dtype=bool)
+            else:
+                mask = np.ones(m.shape, dtype=bool)
+            self.masks[name] = mask
+            v = m[mask]
+            theta += v.tolist()
+            sg = float(np.sqrt((v**2).mean())) if v.size else 1.0
+            scale += [sg if sg > 0 else 1.0] * v.size
+            lo += [-np.inf] * v.size
+            hi += [np.inf] * v.size
+        self.scale = np.asarray(scale)
+        self.x0 = np.asarray(theta) / self.scale
+        self.bounds = list(
+            zip((np.asarray(lo) / self.scale).tolist(), (np.asarray(hi) / self.scale).tolist(), strict=True)
+        )
+
+    def model_of(self, x: FloatArray) -> MimoModel:
+        th = np.asarray(x) * self.scale
+        a = np.array(self.model.A, dtype=np.float64)
+        if self.blocks is None:
+            a = th[: a.size].reshape(a.shape)
+        else:
+            k = 0
+            for s, size in self.blocks:
+                if size == 1:
+                    a[s, s] = th[k]
+                    k += 1
+                else:
+                    rho, phi = th[k], th[k + 1]
+                    c, sn = rho * np.cos(phi), rho * np.sin(phi)
+                    a[s : s + 2, s : s + 2] = [[c, -sn], [sn, c]]
+                    k += 2
+        k = self.na
+        mats: dict[str, Any] = {"A": a}
+        for name, mask in self.masks.items():
+            m = np.array(getattr(self.model, name), dtype=np.float64)
+            n = int(mask.sum())
+            m[mask] = th[k : k + n]
+            k += n
+            mats[name] = m
+        return replace(self.model, **mats)
+
+    def grad_of(self, x: FloatArray, grad: Mapping[str, FloatArray]) -> FloatArray:
+        th = np.asarray(x) * self.scale
+        ga = grad["A"]
+        out: list[float] = []
+        if self.blocks is None:
+            out += ga.ravel().tolist()
+        else:
+            k = 0
+            for s, size in self.blocks:
+                if size == 1:
+                    out.append(float(ga[s, s]))
+                    k += 1
+                else:
+                    rho, phi = th[k], th[k + 1]
+                    diag = ga[s, s] + ga[s + 1, s + 1]
+                    off = ga[s + 1, s] - ga[s, s + 1]
+                    out += [diag * np.cos(phi) + off * np.sin(phi), rho * (-diag * np.sin(phi) + off * np.cos(phi))]
+                    k += 2
+        for name, mask in self.masks.items():
+            out += np.asarray(grad[name])[mask].tolist()
+        return np.asarray(np.asarray(out) * self.scale, dtype=np.float64)
+
+
+# -- the refinement ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class OutputErrorRefinement:
+    """What :func:`refine_output_error` returns: the ``model`` (the best on the validation
+    records, or the last one without them), ``history`` (one entry per check: ``iteration``,
+    ``evaluations``, ``seconds``, ``train_loss`` (relative to the start), ``validation_rmse``
+    (per set) and ``validation_score`` (their mean relative to the start's)),
+    ``best_iteration``, ``stopped`` (why: ``maxiter``, ``converged``, ``patience``,
+    ``time_budget``, ``callback``) and ``seconds``.
+
+    Parameters
+    ----------
+    model : MimoModel
+        The refined model.
+    history : list of dict
+        One entry per check.
+    best_iteration : int
+        The L-BFGS iterations of the returned model.
+    stopped : str
+        Why the run stopped.
+    seconds : float
+        Wall time.
+
+    Examples
+    --------
+    >>> from piezohyst.identify.mimo_oe import OutputErrorRefinement
+    >>> from piezohyst.models.mimo import MimoModel
+    >>> m = MimoModel.linear(A=[[0.5]], B=[[1.0]], C=[[1.0]], D=[[0.0]], fs=100.0)
+    >>> OutputErrorRefinement(m, [], 0, "maxiter", 0.0).stopped
+    'maxiter'
+    """
+
+    model: MimoModel
+    history: list[dict[str, Any]] = field(default_factory=list)
+    best_iteration: int = 0
+    stopped: str = "maxiter"
+    seconds: float = 0.0
+
+
+class _Stop(Exception):
+    pass
+
+
+def _records(rec: MimoRecords, name: str) -> tuple[FloatArray, FloatArray, tuple[str, ...]]:
+    """Period-averaged ``(R, N, nu)``, ``(R, N, ny)`` and the labels."""
+    u, y = np.asarray(rec.u, dtype=np.float64), np.asarray(rec.y, dtype=np.float64)
+    if u.ndim != 4 or y.ndim != 4 or u.shape[2] == 0 or u.shape[0] == 0:
+        raise ParameterError(f"{name} hold no record: u has shape {u.shape}, expected (N, nu, R, P) with N, R >= 1")
+    for k, v in (("u", u), ("y", y)):
+        if not np.isfinite(v).all():
+            i = np.argwhere(~np.isfinite(v))[0].tolist()
+            raise ParameterError(f"{name}.{k}[{', '.join(map(str, i))}] = {v[tuple(i)]} is not finite")
+    uu = np.ascontiguousarray(np.moveaxis(u.mean(axis=3), 2, 0))
+    yy = np.ascontiguousarray(np.moveaxis(y.mean(axis=3), 2, 0))
+    return uu, yy, tuple(rec.labels)
+
+
+def _level_weights(y: FloatArray, labels: Sequence[str], balance: float) -> FloatArray:
+    ms = {lab: float(np.mean([np.mean(y[i] ** 2) for i, li in enumerate(labels) if li == lab])) for lab in set(labels)}
+    w = np.array([ms[lab] ** (-balance) for lab in labels])
+    return np.asarray(w / np.mean([ms[lab] ** (1 - balance) for lab in labels]), dtype=np.float64)
+
+
+def _periodic_rmse(model: MimoModel, u: FloatArray, y: FloatArray) -> FloatArray:
+    """RMSE per record (mean over outputs) of the periodic steady-state simulation."""
+    st = model.periodic_state(u)
+    yh, _, _ = model.run(u, st)
+    return np.asarray(np.sqrt(((yh - y) ** 2).mean(axis=1)).mean(axis=1), dtype=np.float64)
+
+
+def refine_output_error(
+    model: MimoModel,
+    records: MimoRecords,
+    *,
+    validation: MimoRecords | None = None,
+    maxiter: int = 200,
+    time_budget: float = 120.0,
+    warmup: int = 1024,
+    balance: float = 1.0,
+    chunk: int = 20,
+    patience: int = 2,
+    radius: float = 0.9999,
+    callback: Callable[[dict[str, Any]], bool | None] | None = None,
+    log: Callable[[str], None] | None = None,
+) -> OutputErrorRefinement:
+    """Refine ``model`` by output error on ``records`` (all sets jointly), early-stopped on
+    ``validation`` (see the module docstring).
+
+    Parameters
+    ----------
+    model : MimoModel
+        The starting model (e.g. from :func:`~piezohyst.identify.mimo.identify_mimo`).
+    records : MimoRecords
+        The periodic records fitted (period-averaged).
+    validation : MimoRecords, optional
+        Records never fitted, scored every ``chunk`` iterations; the best model on them is
+        returned. Without them, the last model is.
+    maxiter : int
+        L-BFGS-B iterations at most (``>= 0``).
+    time_budget : float
+        Seconds at most (checked at every evaluation; the best model so far is kept).
+    warmup : int
+        Samples of the period's end run ahead of each record, their error not scored.
+    balance : float
+        Each record weighted by its set's mean square output to the power ``-balance``.
+    chunk : int
+        Iterations between checks (the warm-up state is recomputed at each).
+    patience : int
+        Checks without a better validation score before stopping.
+    radius : float
+        The largest pole radius (``< 1``: the model stays stable).
+    callback : callable, optional
+        Called with each history entry; returning ``True`` stops the run.
+    log : callable, optional
+        Called with one line of progress per check.
+
+    Returns
+    -------
+    OutputErrorRefinement
+        The refined model and the history.
+
+    Examples
+    --------
+    A first-order system with a wrong pole and gain, refined on a multisine record:
+
+    >>> import numpy as np
+    >>> from piezohyst.models.mimo import MimoModel
+    >>> from piezohyst.identify.mimo import MimoRecords
+    >>> from piezohyst.identify.mimo_oe import refine_output_error
+    >>> true = MimoModel.linear(A=[[0.8]], B=[[1.0]], C=[[0.5]], D=[[0.1]], fs=100.0)
+    >>> u = np.random.default_rng(0).standard_normal((2, 256, 1))
+    >>> y = true.simulate(u)  # periodic steady state
+    >>> four = lambda a: np.stack([np.moveaxis(a, 0, 2)] * 2, axis=3)  # (N, ch, R, P=2)
+    >>> recs = MimoRecords.from_sets([("1V", four(u), four(y))], fs=100.0)
+    >>> start = MimoModel.linear(A=[[0.6]], B=[[1.0]], C=[[0.4]], D=[[0.2]], fs=100.0)
+    >>> res = refine_output_error(start, recs, warmup=64, maxiter=100)
+    >>> m = res.model
+    >>> round(float(m.A[0, 0]), 4), round(float(m.C[0, 0] * m.B[0, 0]), 4), round(float(m.D[0, 0]), 4)
+    (0.8, 0.5, 0.1)
+    """
+    t0 = time.perf_counter()
+    if not isinstance(model, MimoModel):
+        raise ParameterError(f"model must be a MimoModel, got {type(model).__name__}")
+    for name, v, low in (
+        ("maxiter", maxiter, 0),
+        ("warmup", warmup, 0),
+        ("chunk", chunk, 1),
+        ("patience", patience, 1),
+    ):
+        if int(v) != v or v < low:
+            raise ParameterError(f"{name} = {v} must be an integer >= {low}")
+    if not (np.isfinite(time_budget) and time_budget > 0):
+        raise ParameterError(f"time_budget = {time_budget} must be > 0 (seconds)")
+    if not (np.isfinite(balance) and 0 <= balance <= 2):
+        raise ParameterError(f"balance = {balance} must be in [0, 2]")
+    if not 0 < radius < 1:
+        raise ParameterError(f"radius = {radius} must be in (0, 1)")
+    u, y, labels = _records(records, "records")
+    if u.shape[2] != model.nu or y.shape[2] != model.ny:
+        raise ParameterError(
+            f"records have {u.shape[2]} inputs and {y.shape[2]} outputs; the model {model.nu} and {model.ny}"
+        )
+    n = u.shape[1]
+    k = min(int(warmup), n)
+    # each record: its last k samples, then the period; the state at sample n - k from a
+    # periodic run of the current model
+    uw = np.ascontiguousarray(np.concatenate([u[:, n - k :], u], axis=1))
+    yw = np.ascontiguousarray(np.concatenate([y[:, n - k :], y], axis=1))
+    rw = _level_weights(y, labels, balance) / (len(labels) * n * model.ny)
+    val = _records(validation, "validation") if validation is not None else None
+    if val is not None and (val[0].shape[2] != model.nu or val[1].shape[2] != model.ny):
+        raise ParameterError("validation records have other channels than the model")
+    p = _Params(model, radius)
+    if p.blocks is not None and np.any(np.abs(np.linalg.eigvals(model.A)) > radius):
+        raise ParameterError(f"the model has a pole outside radius = {radius}")
+
+    def start_state(m: MimoModel) -> FloatArray:
+        st = m.periodic_state(u)
+        if k == n:
+            return st
+        _, _, s = m.run(np.ascontiguousarray(u[:, : n - k]), st)
+        return s
+
+    def val_rmse(m: MimoModel) -> dict[str, float]:
+        assert val is not None
+        e = _periodic_rmse(m, val[0], val[1])
+        return {
+            lab: float(np.mean([e[i] for i, li in enumerate(val[2]) if li == lab])) for lab in dict.fromkeys(val[2])
+        }
+
+    state = start_state(model)
+    loss0 = float(np.sum(_core_loss_grad(model, uw, yw, state, k, rw)[0])) or 1.0
+    v0 = val_rmse(model) if val is not None else {}
+    history: list[dict[str, Any]] = [
+        {"iteration": 0, "evaluations": 0, "seconds": time.perf_counter() - t0, "train_loss": 1.0,
+         "validation_rmse": v0, "validation_score": 1.0 if v0 else None}
+    ]  # fmt: skip
+    x = p.x0.copy()
+    best = (1.0, x.copy(), 0)
+    track: dict[str, Any] = {"f": np.inf, "x": x.copy(), "evals": 0}
+    stopped = "maxiter"
+    stop_flag = {"callback": False}
+
+    def fun(xx: FloatArray) -> tuple[float, FloatArray]:
+        if time.perf_counter() - t0 > time_budget:
+            raise _Stop("time_budget")
+        m = p.model_of(xx)
+        losses, g = loss_gradient(m, uw, yw, state, skip=k, record_weights=rw)
+        track["evals"] += 1
+        f = float(np.sum(losses)) / loss0
+        if not np.isfinite(f):
+            return 1e10, np.zeros_like(xx)
+        if f < track["f"]:
+            track["f"], track["x"] = f, xx.copy()
+        return f, p.grad_of(xx, g) / loss0
+
+    it = 0
+    bad = 0
+    while it < maxiter:
+        track["f"] = np.inf
+        try:
+            res = minimize(
+                fun, x, jac=True, method="L-BFGS-B", bounds=p.bounds,
+                options={"maxiter": min(chunk, maxiter - it), "maxcor": 20, "ftol": 1e-12, "gtol": 1e-10},
+            )  # fmt: skip
+            x, nit, converged = np.asarray(res.x), int(res.nit), res.status == 0 and res.nit < min(chunk, maxiter - it)
+        except _Stop as e:
+            x, nit, converged = np.asarray(track["x"]), chunk, False
+            stopped = str(e)
+        it += nit
+        m = p.model_of(x)
+        vr = val_rmse(m) if val is not None else {}
+        score = float(np.mean([vr[lab] / v0[lab] for lab in vr])) if vr else None
+        state = start_state(m)
+        entry = {
+            "iteration": it, "evaluations": track["evals"], "seconds": time.perf_counter() - t0,
+            "train_loss": float(track["f"]), "validation_rmse": vr, "validation_score": score,
+        }  # fmt: skip
+        history.append(entry)
+        if log is not None:
+            log(f"output error: iteration {it}, train {entry['train_loss']:.4g}, validation {score}")
+        if score is None or score < best[0]:
+            best, bad = (score if score is not None else best[0], x.copy(), it), 0
+        else:
+            bad += 1
+        if callback is not None and callback(entry):
+            stop_flag["callback"] = True
+            stopped = "callback"
+        if stopped != "maxiter" or stop_flag["callback"]:
+            break
+        if bad >= patience:
+            stopped = "patience"
+            break
+        if converged or nit == 0:
+            stopped = "converged"
+            break
+    out = p.model_of(best[1] if val is not None else x)
+    return OutputErrorRefinement(out, history, best[2] if val is not None else it, stopped, time.perf_counter() - t0)
