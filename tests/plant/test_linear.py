@@ -73,6 +73,8 @@ def test_python_controls_default_evaluation_agrees_with_the_dense_solve():
         assert err < 1e-12, err
     else:
         assert 1e-12 < err < 2e-6, err  # tb05ad's digits lost (measured 7e-7), nothing more
+
+
 @pytest.mark.parametrize(
     "options", [dict(creep=False), dict(amplifier=False), dict(cemf=True), dict(creep=False, amplifier=False)]
 )
