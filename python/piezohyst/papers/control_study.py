@@ -435,8 +435,9 @@ def identify_operating_mpi(
     >>> fit, info = identify_operating_mpi(ph.virtual_stage(), np.random.default_rng(0))  # doctest: +SKIP
     >>> info["heldout"]["operating"]["rmse_percent"] < info["heldout"]["full_range"]["rmse_percent"]  # doctest: +SKIP
     True
-    >>> sorted(identify_operating_mpi.__annotations__)[:2]
-    ['first', 'freq']
+    >>> from piezohyst.papers.control_study import operating_excitation
+    >>> operating_excitation(1e4, -5.3, 121.6).size   # the record it measures: 0.05 s ramp + 4 s
+    40500
     """
     lo, hi = (float(x) for x in span)
     if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
