@@ -56,6 +56,9 @@ def _summary(r):
         "worst_ratio_nominal_tuning": r["robustness_nominal_tuning"]["worst_ratio"],
         "nominal_rmse_um": r["robustness"]["nominal_rmse_um"],
         "feedforward_max_error_percent": comp["rmse"]["feedforward_max_error_percent"],
+        # the compensated loop's MPI, identified over the 80 Hz task's range, against the
+        # full-range model on a held-out record of that range
+        "mpi_heldout": comp["rmse"]["settings"]["mpi_operating"]["heldout"],
         "table4_80hz": {
             obj: {
                 amp: {

@@ -86,8 +86,8 @@ SEED2_TABLE4 = {
 def steady_sine(
     freq: float, amplitude: float, offset: float, fs: float, variable: bool = False, warm: float = 1.0
 ) -> tuple[FloatArray, int]:
-    """``warm`` s of constant-amplitude sine from the bottom, then two evaluated periods
-    (constant, or under a decaying envelope).
+    """``warm`` s of constant-amplitude sine from the bottom (to within a sample), then two
+    evaluated periods (constant, or under a decaying envelope), continuous on the sample grid.
 
     Parameters
     ----------
@@ -121,7 +121,13 @@ def steady_sine(
     ((1450,), 1050, 0.0, 1.0, 2.0)
     """
     n_warm = round(fs * (warm + 1 / (4 * freq)))
-    _, w = sine(freq, amplitude, n_warm / fs, fs, offset=offset)
+    # the warm-up is the same sine run backwards from the evaluated periods' first sample, so
+    # the reference is continuous there on the sample grid: built from the bottom instead, a
+    # quarter period that is not a whole number of samples (80 Hz at 10 kHz: 31.25) put a
+    # phase jump of a fraction of a sample at the junction (a 0.1 µm step in an 8 µm, 80 Hz
+    # sine), which a feedforward with velocity and acceleration leads turned into a kick of the
+    # stage's resonance right where the metrics start
+    w = offset + amplitude * np.sin(2 * np.pi * freq * (np.arange(n_warm) - n_warm) / fs)
     if variable:
         _, tail = variable_amplitude_sine(freq, amplitude, 2 / freq, fs, offset=offset)
     else:
