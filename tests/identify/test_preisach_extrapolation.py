@@ -41,7 +41,7 @@ def test_training_range_unchanged_and_outer_slope_continues():
     span = float(np.ptp(y[n:]))
     err = 100 * np.sqrt(np.mean((sim[n:] - y[n:]) ** 2)) / span
     err_flat = 100 * np.sqrt(np.mean((flat[n:] - y[n:]) ** 2)) / span
-    assert err < 0.6 * err_flat, (err, err_flat)  # 2.38 % against 4.62 %
+    assert err < 0.65 * err_flat, (err, err_flat)  # 2.69 % against 4.62 %
 
 
 def test_extrapolated_checks_cells():
