@@ -149,3 +149,23 @@ def test_the_delayed_gram_is_the_normal_equations_of_the_shifted_rows():
     raw = _core.regressors(pi.family, list(pi.dims), pi.to_row(), v)
     shifted = _DelayedGram(raw, np.zeros(raw.shape[1], dtype=bool), y).rows(5, 0, v.size)
     assert np.array_equal(shifted, _core.regressors(pi.family, list(pi.dims), pi.to_row(), delayed(v, 5)))
+
+
+def test_residual_lag_checks_the_chosen_delay():
+    """The training residual's coefficient on the fitted slope: ~0 at the chosen delay, the
+    delay's sign and a good part of its size when the delay is withheld (the loop width takes
+    the rest); and the function itself on a known shift."""
+    from piezohyst.identify.structure import decide_structure, residual_lag
+
+    v = np.sin(np.linspace(0, 60, 6000)) * np.linspace(1, 0.4, 6000)
+    r = np.arange(1, 6) * np.ptp(v) / 12  # the template's thresholds: the fit can be exact
+    y = ph.PI(r, [0.6, 0.3, 0.2, 0.1, 0.1], p0=1.0).simulate(np.concatenate([np.full(6, v[0]), v[:-6]]))
+    chosen = decide_structure(v, y, "pi", fs=1000.0, operators=5, drift="none")
+    withheld = decide_structure(v, y, "pi", fs=1000.0, operators=5, drift="none", delay=0)
+    assert chosen.delay == 6 and abs(chosen.residual_lag) < 0.05, chosen.residual_lag
+    assert withheld.residual_lag > 1.0, withheld.residual_lag  # 1.09: the loop width takes the rest
+    assert chosen.to_dict()["residual_lag"] == chosen.residual_lag
+    s = np.sin(np.linspace(0, 20, 2000))
+    assert residual_lag(s[5:], s[:-5]) == pytest.approx(5.0, rel=0.02)  # fit 5 samples ahead
+    with pytest.raises(ParameterError, match="fitted has 3"):
+        residual_lag([1.0, 2.0, 3.0], [1.0, 2.0, 3.0, 4.0])

@@ -7,6 +7,7 @@ optimizers for Bouc–Wen, seed 1's CEMF stage model and the Bouc–Wen benchmar
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -23,6 +24,7 @@ from ..models.creep import Creep
 from ..models.differential import BoucWen
 from ..models.model import HysteresisModel
 from ..models.pi import PI, GeneralizedPI, ModifiedPI, RateDependentPI
+from ..models.preisach import Preisach
 from ..optimize.core import minimize
 from .boucwen_benchmark import identify_boucwen_benchmark
 from .core import (
@@ -69,6 +71,12 @@ _NO_OUTPUT_MAP = ("cemf", "boucwen-benchmark")
 
 #: Kinds that fit a drift term and start their cost later (fixed structure).
 _DRIFT_KINDS = ("pi", "gpi", "mpi", "rdpi", "preisach", "boucwen")
+
+#: How far beyond the training input's range a fitted Preisach grid continues its outermost
+#: cells (:meth:`~piezohyst.Preisach.extrapolated`), as a fraction of that range (rounded up to
+#: whole cells): a validation input a little beyond it (a 5 kHz lookalike record: 2.6 % of the
+#: samples) then follows the loop's outer slope instead of the reversible slope alone.
+PREISACH_EXTRAPOLATION = 0.25
 
 #: Keywords :func:`identify` passes on to :func:`piezohyst.varpro.identify_vp`.
 _VP_OPTIONS = ("envelope", "bounds", "polish", "starts")
@@ -723,7 +731,10 @@ def _fit_linear_kind(c: _Call, v: FloatArray, y: FloatArray) -> _Fitted:
         c.start,
         c.creep_horizon,
     )
-    return fit.model, "ls", dict(fit.history), False, fit.evaluations
+    model = fit.model
+    if isinstance(model, Preisach):  # its grid is the training input's range: continue it beyond
+        model = model.extrapolated(math.ceil(PREISACH_EXTRAPOLATION * model.levels))
+    return model, "ls", dict(fit.history), False, fit.evaluations
 
 
 @_free_run

@@ -59,6 +59,7 @@ __all__ = [
     "delayed",
     "drift_bases",
     "fit_start",
+    "residual_lag",
 ]
 
 
@@ -178,6 +179,11 @@ class StructureChoice:
         Effective samples of the internal score (autocorrelation discounted).
     start_rmse : dict of int to float
         Internal-split RMSE (output units) of each fit start weighed.
+    residual_lag : float, optional
+        The check of the delay: the training residual's least-squares coefficient on the
+        fitted output's slope (samples; :func:`residual_lag`). Near 0 when the delay is right
+        (the residual carries no phase lag left); ``+k``: the fit runs ``k`` samples ahead of
+        the data.
 
     Examples
     --------
@@ -199,6 +205,8 @@ class StructureChoice:
     n_eff: float | None = None
     #: Internal-split RMSE (output units) of each fit start weighed (the earliest and the wiped).
     start_rmse: dict[int, float] = field(default_factory=dict)
+    #: The training residual's coefficient on the fitted output's slope, samples.
+    residual_lag: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready: the decisions and their evidence (delays as string keys).
@@ -207,7 +215,7 @@ class StructureChoice:
         -------
         dict
             ``delay``, ``drift`` (:meth:`DriftBasis.to_dict`), ``fit_start``, ``delay_rmse``,
-            ``drift_rmse``, ``split``, ``n_eff`` and ``start_rmse``.
+            ``drift_rmse``, ``split``, ``n_eff``, ``start_rmse`` and ``residual_lag``.
 
         Examples
         --------
@@ -224,6 +232,7 @@ class StructureChoice:
             "split": self.split,
             "n_eff": self.n_eff,
             "start_rmse": {str(k): v for k, v in sorted(self.start_rmse.items())},
+            "residual_lag": self.residual_lag,
         }
 
 
@@ -430,6 +439,9 @@ def choose_structure(
                 break
             best = nxt
     rmse = {d: unit * math.sqrt(c / (n - s)) for d, c in costs.items()}
+    G, b, _, fr = gram.normal(best, s, n, nuisance)
+    fitted = np.concatenate([gram.rows(best, s, n), nuisance[s:]], axis=1) @ _solve(G, b, fr)
+    lag = residual_lag(fitted, gram.y[s:])
     chosen = DriftBasis()
     drift_rmse: dict[str, float] = {}
     m = s + int(frac * (n - s))
@@ -474,7 +486,43 @@ def choose_structure(
         split=m if drift_rmse or start_rmse else None,
         n_eff=n_eff,
         start_rmse=start_rmse,
+        residual_lag=lag,
     )
+
+
+def residual_lag(fitted: npt.ArrayLike, output: npt.ArrayLike) -> float:
+    """The phase lag a fit leaves in its residual, in samples: the least-squares coefficient
+    ``k`` of ``fitted - output`` on the fitted output's slope (``fitted - output ~ k dfitted/dk``:
+    the fit runs ``k`` samples ahead of the data). A check of a chosen input delay: near 0
+    when the delay is right; a lag the model's hysteresis imitates (a delay of the measurement
+    chain fitted as loop width) shows as a coefficient of the delay's sign.
+
+    Parameters
+    ----------
+    fitted, output : array_like
+        The fit's output and the measured output, equal lengths (at least 3 samples).
+
+    Returns
+    -------
+    float
+        Samples (0 when the fit is constant).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> y = np.sin(np.linspace(0, 20, 2000))
+    >>> round(residual_lag(np.roll(y, -3)[:-10], y[:-10]), 2)  # the fit 3 samples ahead
+    3.0
+    >>> residual_lag(y, y)
+    0.0
+    """
+    f = as_record(fitted, "fitted", min_length=3)
+    y = as_record(output, "output", min_length=3)
+    if y.size != f.size:
+        raise ParameterError(f"output has {y.size} samples, fitted has {f.size}; they must match")
+    slope = np.gradient(f)
+    ss = float(slope @ slope)
+    return float((f - y) @ slope) / ss if ss > 0 else 0.0
 
 
 def drift_bases(n: int, spec: tuple[tuple[str, float | None], ...] = DRIFT_BASES) -> tuple[DriftBasis, ...]:
