@@ -29,6 +29,36 @@ fn mat<'a>(a: &'a PyReadonlyArray2<'_, f64>, name: &str, rows: usize, cols: usiz
     a.as_slice().map_err(|_| bad_arg(format!("{name} must be a C-contiguous float64 array")))
 }
 
+/// The LFR model of the ten matrices `[A, B, C, D, E, F, G, H, thresholds, weights]` (its
+/// dimensions read from A, B, C, G and the thresholds), each shape checked, validated.
+fn lfr_model<'a>(m: [&'a PyReadonlyArray2<'_, f64>; 10]) -> PyResult<Lfr<'a>> {
+    let nx = m[0].shape()[0];
+    let nu = m[1].shape()[1];
+    let ny = m[2].shape()[0];
+    let nw = m[6].shape()[0];
+    let nr = m[8].shape()[1];
+    Lfr {
+        nx,
+        nu,
+        ny,
+        nw,
+        nr,
+        a: mat(m[0], "A", nx, nx)?,
+        b: mat(m[1], "B", nx, nu)?,
+        c: mat(m[2], "C", ny, nx)?,
+        d: mat(m[3], "D", ny, nu)?,
+        e: mat(m[4], "E", nx, nw)?,
+        f: mat(m[5], "F", ny, nw)?,
+        g: mat(m[6], "G", nw, nx)?,
+        h: mat(m[7], "H", nw, nu)?,
+        thresholds: mat(m[8], "thresholds", nw, nr)?,
+        weights: mat(m[9], "weights", nw, nr)?,
+        modal: false,
+    }
+    .validated()
+    .map_err(err)
+}
+
 /// Simulate the LFR model on `R` records at once: `u` `(R, N, nu)`, `state` `(R, nx + nw*nr)`
 /// → `(y (R, N, ny), z (R, N, nw), final state (R, nx + nw*nr))`. Matrices as in the core's
 /// module docs; `thresholds`, `weights` `(nw, nr)`. A record whose state diverges raises.
@@ -50,31 +80,8 @@ fn lfr_simulate<'py>(
     state: PyReadonlyArray2<'py, f64>,
 ) -> PyResult<SimOut<'py>> {
     guarded(|| {
-        let nx = a.shape()[0];
-        let nu = b.shape()[1];
-        let ny = c.shape()[0];
-        let nw = g.shape()[0];
-        let nr = thresholds.shape()[1];
-        let model = Lfr {
-            nx,
-            nu,
-            ny,
-            nw,
-            nr,
-            a: mat(&a, "A", nx, nx)?,
-            b: mat(&b, "B", nx, nu)?,
-            c: mat(&c, "C", ny, nx)?,
-            d: mat(&d, "D", ny, nu)?,
-            e: mat(&e, "E", nx, nw)?,
-            f: mat(&f, "F", ny, nw)?,
-            g: mat(&g, "G", nw, nx)?,
-            h: mat(&h, "H", nw, nu)?,
-            thresholds: mat(&thresholds, "thresholds", nw, nr)?,
-            weights: mat(&weights, "weights", nw, nr)?,
-            modal: false,
-        }
-        .validated()
-        .map_err(err)?;
+        let model = lfr_model([&a, &b, &c, &d, &e, &f, &g, &h, &thresholds, &weights])?;
+        let (nu, ny, nw) = (model.nu, model.ny, model.nw);
         let us = u.shape();
         let (r, n) = (us[0], us[1]);
         if us[2] != nu {
@@ -152,31 +159,8 @@ fn lfr_loss_grad<'py>(
     record_weights: PyReadonlyArray1<'py, f64>,
 ) -> PyResult<GradOut<'py>> {
     guarded(|| {
-        let nx = a.shape()[0];
-        let nu = b.shape()[1];
-        let ny = c.shape()[0];
-        let nw = g.shape()[0];
-        let nr = thresholds.shape()[1];
-        let model = Lfr {
-            nx,
-            nu,
-            ny,
-            nw,
-            nr,
-            a: mat(&a, "A", nx, nx)?,
-            b: mat(&b, "B", nx, nu)?,
-            c: mat(&c, "C", ny, nx)?,
-            d: mat(&d, "D", ny, nu)?,
-            e: mat(&e, "E", nx, nw)?,
-            f: mat(&f, "F", ny, nw)?,
-            g: mat(&g, "G", nw, nx)?,
-            h: mat(&h, "H", nw, nu)?,
-            thresholds: mat(&thresholds, "thresholds", nw, nr)?,
-            weights: mat(&weights, "weights", nw, nr)?,
-            modal: false,
-        }
-        .validated()
-        .map_err(err)?;
+        let model = lfr_model([&a, &b, &c, &d, &e, &f, &g, &h, &thresholds, &weights])?;
+        let (nu, ny) = (model.nu, model.ny);
         let us = u.shape();
         let (r, n) = (us[0], us[1]);
         if us[2] != nu {
