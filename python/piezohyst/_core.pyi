@@ -13,6 +13,7 @@ __all__ = [
     "STAGE_STATE_LEN",
     "Controller",
     "Model",
+    "MultiAxisPlant",
     "Scenario",
     "Stage",
     "__version__",
