@@ -58,9 +58,10 @@ def test_an_npz_with_channels_is_multichannel_data(tmp_path):
     assert "realizations" in err  # routed to the MIMO identification, which needs nu realizations
 
 
-def test_a_folder_identifies_and_its_model_simulates(tmp_path):
+def _write_folder(tmp_path):
     """A linear 3x3 system (modes at 640/790 Hz) measured with random-phase multisines at two
-    levels, 6 realizations x 2 periods: the identified model reproduces a new record."""
+    levels, 6 realizations x 2 periods, written as u_/y_*.npy; returns the system, the
+    multisine generator and the noise generator."""
     a, b, c, d = resonant_mimo()
     rng = np.random.default_rng(0)
     n = 512
@@ -80,6 +81,12 @@ def test_a_folder_identifies_and_its_model_simulates(tmp_path):
             y[:, :, r, :] = periodic_response(a, b, c, d, ur)[:, :, None] + 1e-9 * rng.standard_normal((n, 3, 2))
         np.save(tmp_path / f"u_{level * 1000:.0f}mV_train.npy", u)
         np.save(tmp_path / f"y_{level * 1000:.0f}mV_train.npy", y)
+    return (a, b, c, d), multisine
+
+
+def test_a_folder_identifies_and_its_model_simulates(tmp_path):
+    """The identified model of :func:`_write_folder`'s records reproduces a new record."""
+    (a, b, c, d), multisine = _write_folder(tmp_path)
     out = run("identify", ".", "--model", "mimo-linear", "--fs", "6400", "--out", "m.json", "--json", cwd=tmp_path)
     assert out.returncode == 0, out.stderr
     report = json.loads(out.stdout)
@@ -93,3 +100,18 @@ def test_a_folder_identifies_and_its_model_simulates(tmp_path):
     yhat = np.load(tmp_path / "YHAT.npy")
     rel = np.sqrt(np.mean((yhat[100:] - truth[100:]) ** 2)) / np.sqrt(np.mean(truth**2))
     assert rel < 0.01, rel  # a new record within 1 % (noise 1e-9 m on outputs of ~1e-6 m)
+
+
+def test_the_summary_says_which_model_each_figure_is_of(tmp_path):
+    """``auto``'s held-out figures are the candidates' before the output-error refinement, and a
+    refined kind reports the refinement: neither passes for the saved model's validation."""
+    _write_folder(tmp_path)
+    out = run("identify", ".", "--model", "auto", "--fs", "6400", "--out", "a.json", "--json", cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    report = json.loads(out.stdout)
+    assert "before the output-error refinement" in report["validation"]["model"]
+    out = run("identify", ".", "--model", "mimo-hammerstein", "--fs", "6400", "--out", "h.json", cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert "output-error refinement:" in out.stdout and "iterations in" in out.stdout
+    summary = json.loads((tmp_path / "h.json").read_text())["fit"]["output_error"]
+    assert summary["stopped"] in out.stdout and summary["best_validation_score"] <= summary["validation_score"]

@@ -99,6 +99,17 @@ def test_subspace_recovers_the_poles() -> None:
     assert np.abs(g2 - g).max() < 1e-6 * np.abs(g).max()
 
 
+@pytest.mark.parametrize(("pole", "want"), [(0.99995, 0.9999), (1.02, 0.9999 / 1.02), (0.5, 0.5)])
+def test_subspace_keeps_every_pole_within_the_radius(pole: float, want: float) -> None:
+    """A pole between ``radius`` and 1 goes onto ``radius`` (reflecting it would leave it at
+    ``radius / |p| > radius``, which the output-error refinement refused); an unstable one is
+    reflected; a pole inside is kept."""
+    m = MimoModel.linear(A=[[pole]], B=[[1.0]], C=[[1.0]], D=[[0.0]], fs=FS)
+    k = np.arange(1, 200)
+    a, _, _, _ = subspace(m.frequency_response(k * FS / N), k / N, order=1, radius=0.9999)
+    assert abs(abs(np.linalg.eigvals(a)[0]) - want) < 1e-6
+
+
 def _two_levels(m: MimoModel) -> MimoRecords:
     sets = []
     for i, rms in enumerate((0.5, 1.5)):

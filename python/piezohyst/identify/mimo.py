@@ -356,12 +356,22 @@ def subspace(
     return a, b, c, d
 
 
+def _inside(ev: ComplexArray, radius: float) -> ComplexArray:
+    """Poles outside ``radius`` brought inside it: an unstable pole reflected (``1/conj``, times
+    ``radius``), a stable one between ``radius`` and 1 moved onto ``radius`` (a reflection alone
+    would leave it there: ``radius / |p| > radius`` when ``|p| < 1``)."""
+    bad = np.abs(ev) > radius
+    ev = ev.copy()
+    mag = np.abs(ev[bad])
+    ev[bad] = ev[bad] / mag * radius * np.minimum(1.0, 1.0 / mag)
+    return ev
+
+
 def _stabilize(a: FloatArray, radius: float) -> FloatArray:
     ev, v = np.linalg.eig(a)
-    bad = np.abs(ev) > radius
-    if not bad.any():
+    if not (np.abs(ev) > radius).any():
         return a
-    ev[bad] = ev[bad] / np.abs(ev[bad]) ** 2 * radius
+    ev = _inside(ev, radius)
     return np.asarray(np.real(v @ np.diag(ev) @ np.linalg.inv(v)), dtype=np.float64)
 
 
@@ -554,8 +564,7 @@ def relocate_poles(
         ca, cb = c[nr_ : nr_ + nc], c[nr_ + nc :]
         res = np.concatenate([c[:nr_], ca + 1j * cb, ca - 1j * cb])
         zeros = np.linalg.eigvals(np.diag(poles) - np.outer(np.ones(poles.size), res))
-        big = np.abs(zeros) > radius
-        zeros[big] = zeros[big] / np.abs(zeros[big]) ** 2 * radius
+        zeros = _inside(zeros, radius)
         real = np.sort(zeros[np.abs(zeros.imag) <= 1e-9].real).astype(np.float64)
         cplx = zeros[zeros.imag > 1e-9]
         cplx = cplx[np.argsort(np.angle(cplx))].astype(np.complex128)
