@@ -11,7 +11,7 @@ $(BIN)/python:
 	$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "Python >= 3.11 is required"'
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
-	$(BIN)/python -m pip install -q "maturin>=1.7,<2" "numpy>=1.26" "scipy>=1.11" "matplotlib>=3.8" "pyarrow>=14" "control>=0.10.1" "threadpoolctl>=3.1" "tqdm>=4.66" "dask[distributed]>=2024.8" "pytest>=8" "hypothesis>=6.100" "h5py>=3.10" "numpydoc==1.11.0" "slycot>=0.6"
+	$(BIN)/python -m pip install -q "maturin>=1.7,<2" "numpy>=1.26" "scipy>=1.11" "matplotlib>=3.8" "pyarrow>=14" "control>=0.10.1" "threadpoolctl>=3.1" "tqdm>=4.66" "dask[distributed]>=2024.8" "pytest>=8" "hypothesis>=6.100" "h5py>=3.10" "numpydoc==1.11.0" "slycot>=0.6" "pandas>=2.1"
 
 # The extension is rebuilt (release, LTO) whenever a Rust source changes.
 $(BUILT): $(BIN)/python $(RUST_SOURCES) pyproject.toml

@@ -93,13 +93,15 @@ class RunReport(DataclassMatFile):
 
     def to_pandas(self) -> pd.DataFrame:
         """The per-iteration history as a ``pandas.DataFrame`` indexed by iteration (needs
-        pandas: without it an ``ImportError`` says ``pip install pandas``); no rows for a
-        method that does not iterate.
+        pandas: without it an ``ImportError`` says ``pip install pandas``); for a method that
+        does not iterate (a linear fit), one row of its headline numbers (what :meth:`plot`
+        draws), in a row labelled ``"final"``.
 
         Returns
         -------
         pandas.DataFrame
-            One column per history series (a candidate per iteration split into ``name[j]``).
+            One column per history series (a candidate per iteration split into ``name[j]``),
+            or one column per headline number.
 
         Examples
         --------
@@ -114,7 +116,9 @@ class RunReport(DataclassMatFile):
         """
         pd = require_pandas(type(self).__name__)
         cols = self._history_columns()
-        n = next(iter(cols.values())).size if cols else 0
+        if not cols:
+            return pd.DataFrame([self._scores()], index=pd.Index(["final"], name="result"))
+        n = next(iter(cols.values())).size
         return pd.DataFrame(cols, index=pd.RangeIndex(1, n + 1, name="iteration"))
 
     def plot(self, *, ax: Any = None) -> Figure:
