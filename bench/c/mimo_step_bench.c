@@ -86,7 +86,7 @@ static double *make_row(size_t nx, size_t nw, size_t nr, size_t *len) {
 static void bench(const char *name, size_t nx, size_t nw, size_t nr, int first) {
     size_t len, n_state, n_work, i, t;
     double *row = make_row(nx, nw, nr, &len);
-    PhsMimoSpec spec = {nx, NU, 3, nw, nr, row, len};
+    PhsMimoSpec spec = {nx, NU, 3, nw, nr, 0, row, len};
     PhsMimo m;
     double best = 1e300, y[3], sink = 0.0;
     double *state, *work;

@@ -309,6 +309,7 @@ class MultiAxisPlant:
         limits: list[tuple[float, float]],
         sensors: list[tuple[float, float, int]],
         ts: float,
+        nt: int = 0,
     ) -> MultiAxisPlant: ...
     @property
     def axes(self) -> int: ...
@@ -435,8 +436,10 @@ def lfr_simulate(
     weights: _Array2,
     u: _Array3,
     state: _Array2,
+    nt: int = 0,
 ) -> tuple[_Array3, _Array3, _Array2]:
-    """MIMO LFR with play-operator feedback on ``R`` records ``u (R, N, nu)``: ``(y, z, final state)``."""
+    """MIMO LFR with play-operator feedback on ``R`` records ``u (R, N, nu)``: ``(y, z, final state)``;
+    the last ``nt`` channels static saturations."""
 
 def lfr_loss_grad(
     a: _Array2,
@@ -454,6 +457,7 @@ def lfr_loss_grad(
     state: _Array2,
     skip: int,
     record_weights: _Array1,
+    nt: int = 0,
 ) -> tuple[_Array1, _Array1]:
     """Squared output error of the LFR on ``R`` records (``u (R, N, nu)`` against ``y (R, N, ny)``
     from ``state``, the first ``skip`` samples not counted, each record weighted) and its gradient

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import shutil
 import subprocess
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -79,8 +80,13 @@ def test_row_layout_and_exact_literals(tmp_path):
     assert "#define PIEZOHYST_MIMO_NW 3" in (tmp_path / "c" / "piezohyst_mimo.h").read_text()
 
 
-def test_c_runtime_is_bit_exact_with_python_over_a_long_record(tmp_path, capsys, c_library):
+@pytest.mark.parametrize("static", [False, True])
+def test_c_runtime_is_bit_exact_with_python_over_a_long_record(tmp_path, capsys, c_library, static):
     m = lfr_model()
+    if static:  # the last channel a static saturation (r tanh(z / r))
+        th = m.thresholds.copy()
+        th[-1] = np.linspace(0.05, 0.3, th.shape[1])
+        m = replace(m, thresholds=th, static_channels=1)
     m.save(tmp_path / "m.json")
     assert main(["export-c", str(tmp_path / "m.json"), "--out", str(tmp_path / "c")]) == 0
     assert "phs_mimo_*" in capsys.readouterr().out
@@ -96,6 +102,7 @@ def test_c_runtime_is_bit_exact_with_python_over_a_long_record(tmp_path, capsys,
     y_c = np.array([[float.fromhex(x) for x in line.split()] for line in r.stdout.splitlines()])
     y_py, _, _ = m.run(u, np.zeros((1, m.state_len)))
     assert y_c.shape == (n, 3)
+    assert f"#define PIEZOHYST_MIMO_NT {int(static)}" in (tmp_path / "c" / "piezohyst_mimo.h").read_text()
     assert np.array_equal(y_c, y_py[0])  # bit for bit
     assert np.max(np.abs(y_c)) > 1e-7  # and not trivially zero
     # the example without a file runs the built-in triangle

@@ -17,7 +17,7 @@ from piezohyst.models.mimo import MimoModel
 FS = 1000.0
 
 
-def _random_lfr(rng: np.random.Generator, modal: bool) -> MimoModel:
+def _random_lfr(rng: np.random.Generator, modal: bool, static: bool = False) -> MimoModel:
     nx, nu, ny, nw, nr = 5, 2, 2, 2, 3
     if modal:
         a = np.zeros((nx, nx))
@@ -30,14 +30,16 @@ def _random_lfr(rng: np.random.Generator, modal: bool) -> MimoModel:
     m = lambda r, c: 0.5 * rng.standard_normal((r, c))  # noqa: E731
     return MimoModel(
         a, m(nx, nu), m(ny, nx), m(ny, nu), m(nx, nw), m(ny, nw), m(nw, nx), m(nw, nu),
-        thresholds=np.tile([0.0, 0.1, 0.3], (nw, 1)), weights=m(nw, nr), fs=FS,
+        thresholds=np.array([[0.0, 0.1, 0.3], [0.2, 0.5, 1.0] if static else [0.0, 0.1, 0.3]]),
+        weights=m(nw, nr), fs=FS, static_channels=int(static),
     )  # fmt: skip
 
 
-@pytest.mark.parametrize("modal", [True, False])
-def test_gradient_matches_finite_differences(modal: bool) -> None:
+@pytest.mark.parametrize(("modal", "static"), [(True, False), (False, False), (True, True)])
+def test_gradient_matches_finite_differences(modal: bool, static: bool) -> None:
+    """Every entry, the last channel a play bank or (``static``) a static saturation."""
     rng = np.random.default_rng(3 if modal else 4)
-    model = _random_lfr(rng, modal)
+    model = _random_lfr(rng, modal, static)
     r, n = 3, 150
     u = rng.standard_normal((r, n, model.nu))
     y = 0.3 * rng.standard_normal((r, n, model.ny))

@@ -3,6 +3,7 @@ the state estimate from measured outputs, the model file and the linear exports.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -10,7 +11,7 @@ import pytest
 
 from piezohyst.errors import DataError, ParameterError
 from piezohyst.models import load_model
-from piezohyst.models.mimo import MimoModel, load_mimo_model
+from piezohyst.models.mimo import MimoModel, load_mimo_model, mimo_from_dict
 
 
 def _modal(rng: np.random.Generator, pairs: int) -> np.ndarray:
@@ -51,18 +52,31 @@ def _reference(m: MimoModel, u: np.ndarray) -> np.ndarray:
     x = np.zeros(m.nx)
     plays = np.zeros(m.thresholds.shape)
     out = np.empty((u.shape[0], m.ny))
+    first_static = m.nw - m.static_channels
     for t in range(u.shape[0]):
         z = m.G @ x + m.H @ u[t]
         plays = np.minimum(np.maximum(plays, z[:, None] - m.thresholds), z[:, None] + m.thresholds)
+        r = m.thresholds[first_static:]
+        plays[first_static:] = r * np.tanh(z[first_static:, None] / r)
         w = (m.weights * plays).sum(axis=1)
         out[t] = m.C @ x + m.D @ u[t] + m.F @ w
         x = m.A @ x + m.B @ u[t] + m.E @ w
     return out
 
 
-@pytest.mark.parametrize("dense", [False, True])
-def test_rust_simulation_equals_the_equations(dense: bool) -> None:
+def _with_static(m: MimoModel) -> MimoModel:
+    """The model with its last channel a static saturation (scales 0.2, 0.5, 1)."""
+    th = m.thresholds.copy()
+    th[-1] = [0.2, 0.5, 1.0]
+    return replace(m, thresholds=th, static_channels=1)
+
+
+@pytest.mark.parametrize(("dense", "static"), [(False, False), (True, False), (False, True), (True, True)])
+def test_rust_simulation_equals_the_equations(dense: bool, static: bool) -> None:
     m = _lfr(dense=dense)
+    if static:
+        m = _with_static(m)
+        assert m.static_channels == 1 and "static_channels=1" in repr(m)
     u = np.random.default_rng(1).standard_normal((300, 2))
     y = m.simulate(u, init="rest")
     np.testing.assert_allclose(y, _reference(m, u), rtol=1e-11, atol=1e-11)
@@ -101,6 +115,15 @@ def test_file_round_trip(tmp_path: Path) -> None:
     u = np.random.default_rng(4).standard_normal((100, 2))
     np.testing.assert_array_equal(back.simulate(u), m.simulate(u))
     assert back.to_dict() == m.to_dict()
+    # static channels are in the file; a file without dims.nt has none
+    ms = _with_static(m)
+    back = load_mimo_model(ms.save(tmp_path / "s.json"))
+    assert back.static_channels == 1
+    np.testing.assert_array_equal(back.simulate(u), ms.simulate(u))
+    assert np.abs(ms.simulate(u) - m.simulate(u)).max() > 1e-3  # the channel is not a play
+    d = m.to_dict()
+    del d["dims"]["nt"]
+    assert mimo_from_dict(d).static_channels == 0
     with pytest.raises(DataError, match="load_mimo_model"):  # load_model points to the MIMO loader
         load_model(p)
     (tmp_path / "bad.json").write_text('{"kind": "mimo", "schema_version": 1, "dims": {}}')
@@ -145,3 +168,13 @@ def test_linear_exports_agree() -> None:
     np.testing.assert_allclose(bd, lin.B, atol=1e-9)
     assert lin.to_scipy().dt == pytest.approx(1e-3)
     assert isinstance(control.ss(lin.A, lin.B, lin.C, lin.D, 1e-3), type(sys))
+
+
+def test_static_channels_are_checked() -> None:
+    m = _lfr()
+    with pytest.raises(ParameterError, match=r"thresholds\[1, 0\] = 0.0 \(a static channel's scale\) must be > 0"):
+        replace(m, thresholds=np.array([[0.0, 0.3, 0.8], [0.0, 0.5, 1.0]]), static_channels=1)
+    with pytest.raises(ParameterError, match=r"static_channels = 3 must be an integer in \[0, nw = 2\]"):
+        replace(m, static_channels=3)
+    with pytest.raises(ParameterError, match="static_channels = 1.0"):
+        replace(m, static_channels=1.0)  # type: ignore[arg-type]

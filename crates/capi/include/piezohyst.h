@@ -272,7 +272,8 @@ typedef struct PhsIlcSpec {
 //
 // ```text
 // z[t]   = G x[t] + H u[t]                                (nw feedback channels)
-// w_i[t] = sum_j weights[i, j] * play(z_i[t]; thresholds[i, j])
+// w_i[t] = sum_j weights[i, j] * play(z_i[t]; thresholds[i, j])       (i < nw - nt)
+// w_i[t] = sum_j weights[i, j] * r tanh(z_i[t] / r), r = thresholds[i, j] (the last nt: static)
 // y[t]   = C x[t] + D u[t] + F w[t]
 // x[t+1] = A x[t] + B u[t] + E w[t]
 // ```
@@ -292,6 +293,8 @@ typedef struct PhsMimoSpec {
   size_t nw;
   // Play operators per feedback channel.
   size_t nr;
+  // The last `nt` feedback channels are static saturations (`r tanh(z / r)`, thresholds > 0).
+  size_t nt;
   // The parameter row; `phs_mimo_init` borrows it: it must stay valid and unchanged while
   // the model is used.
   const double *params;
@@ -304,8 +307,8 @@ typedef struct PhsMimoSpec {
 typedef struct PhsMimo {
   // `PHS_MIMO_MAGIC` once initialized.
   uint64_t magic;
-  // The dimensions `nx, nu, ny, nw, nr`.
-  size_t dims[5];
+  // The dimensions `nx, nu, ny, nw, nr, nt`.
+  size_t dims[6];
   // `PHS_MIMO_FLAG_MODAL` when `A` is block diagonal with blocks of 1 or 2 states (found by
   // `phs_mimo_init`): a step then reads only the blocks, as the core does.
   uint64_t flags;
@@ -499,7 +502,8 @@ PhsStatus phs_mimo_sizes(const struct PhsMimoSpec *spec,
                          size_t *n_state,
                          size_t *n_work);
 
-// Validate `spec` (lengths, every parameter finite, thresholds >= 0; the message names the
+// Validate `spec` (lengths, every parameter finite, thresholds >= 0 (> 0 on static channels),
+// `nt <= nw`; the message names the
 // matrix and the flat index) and fill `*model`. Nothing is allocated or copied: the model
 // borrows `spec->params`. On failure `model->magic` is 0.
 //

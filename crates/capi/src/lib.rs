@@ -1230,7 +1230,8 @@ pub const PHS_MIMO_MAGIC: u64 = 0x4F4D_494D_5348_5048; // "PHSHMIMO"
 ///
 /// ```text
 /// z[t]   = G x[t] + H u[t]                                (nw feedback channels)
-/// w_i[t] = sum_j weights[i, j] * play(z_i[t]; thresholds[i, j])
+/// w_i[t] = sum_j weights[i, j] * play(z_i[t]; thresholds[i, j])       (i < nw - nt)
+/// w_i[t] = sum_j weights[i, j] * r tanh(z_i[t] / r), r = thresholds[i, j] (the last nt: static)
 /// y[t]   = C x[t] + D u[t] + F w[t]
 /// x[t+1] = A x[t] + B u[t] + E w[t]
 /// ```
@@ -1252,6 +1253,8 @@ pub struct PhsMimoSpec {
     pub nw: usize,
     /// Play operators per feedback channel.
     pub nr: usize,
+    /// The last `nt` feedback channels are static saturations (`r tanh(z / r)`, thresholds > 0).
+    pub nt: usize,
     /// The parameter row; `phs_mimo_init` borrows it: it must stay valid and unchanged while
     /// the model is used.
     pub params: *const f64,
@@ -1266,8 +1269,8 @@ pub struct PhsMimoSpec {
 pub struct PhsMimo {
     /// `PHS_MIMO_MAGIC` once initialized.
     pub magic: u64,
-    /// The dimensions `nx, nu, ny, nw, nr`.
-    pub dims: [usize; 5],
+    /// The dimensions `nx, nu, ny, nw, nr, nt`.
+    pub dims: [usize; 6],
     /// `PHS_MIMO_FLAG_MODAL` when `A` is block diagonal with blocks of 1 or 2 states (found by
     /// `phs_mimo_init`): a step then reads only the blocks, as the core does.
     pub flags: u64,
@@ -1286,9 +1289,9 @@ pub const PHS_MIMO_FLAG_MODAL: u64 = 1;
 
 const MIMO_DIM_MAX: usize = 1 << 20;
 
-fn mimo_param_len(d: &[usize; 5]) -> Result<usize, Why> {
-    let [nx, nu, ny, nw, nr] = *d;
-    for (name, v) in [("nx", nx), ("nu", nu), ("ny", ny), ("nw", nw), ("nr", nr)] {
+fn mimo_param_len(d: &[usize; 6]) -> Result<usize, Why> {
+    let [nx, nu, ny, nw, nr, nt] = *d;
+    for (name, v) in [("nx", nx), ("nu", nu), ("ny", ny), ("nw", nw), ("nr", nr), ("nt", nt)] {
         if v > MIMO_DIM_MAX {
             return Err(Why::Length(name, v, MIMO_DIM_MAX));
         }
@@ -1302,8 +1305,8 @@ fn mimo_param_len(d: &[usize; 5]) -> Result<usize, Why> {
 
 /// The core model over a row of the right length (checked by the caller); `modal` as
 /// `Lfr::validated` found it.
-fn mimo_view<'a>(d: &[usize; 5], row: &'a [f64], modal: bool) -> piezohyst_core::lfr::Lfr<'a> {
-    let [nx, nu, ny, nw, nr] = *d;
+fn mimo_view<'a>(d: &[usize; 6], row: &'a [f64], modal: bool) -> piezohyst_core::lfr::Lfr<'a> {
+    let [nx, nu, ny, nw, nr, nt] = *d;
     let mut rest = row;
     let mut take = |n: usize| {
         let (a, b) = rest.split_at(n);
@@ -1326,12 +1329,13 @@ fn mimo_view<'a>(d: &[usize; 5], row: &'a [f64], modal: bool) -> piezohyst_core:
         h: take(nw * nu),
         thresholds: take(nw * nr),
         weights: take(nw * nr),
+        nt,
         modal,
     }
 }
 
-fn mimo_dims(spec: &PhsMimoSpec) -> [usize; 5] {
-    [spec.nx, spec.nu, spec.ny, spec.nw, spec.nr]
+fn mimo_dims(spec: &PhsMimoSpec) -> [usize; 6] {
+    [spec.nx, spec.nu, spec.ny, spec.nw, spec.nr, spec.nt]
 }
 
 /// Sizes of a MIMO model with these dims (`spec->params` is not read and may be NULL):
@@ -1361,7 +1365,8 @@ pub unsafe extern "C" fn phs_mimo_sizes(
     })
 }
 
-/// Validate `spec` (lengths, every parameter finite, thresholds >= 0; the message names the
+/// Validate `spec` (lengths, every parameter finite, thresholds >= 0 (> 0 on static channels),
+/// `nt <= nw`; the message names the
 /// matrix and the flat index) and fill `*model`. Nothing is allocated or copied: the model
 /// borrows `spec->params`. On failure `model->magic` is 0.
 ///

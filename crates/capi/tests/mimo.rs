@@ -23,9 +23,10 @@ impl Rng {
 }
 
 /// An FSM-sized LFR: 3 inputs, 3 outputs, 12 states (two modes per output and a fast pole),
-/// 3 feedback channels of 8 plays each; `A` stable (spectral radius < 0.98).
-fn fsm_like(seed: u64) -> ([usize; 5], Vec<f64>) {
-    let (nx, nu, ny, nw, nr) = (12, 3, 3, 3, 8);
+/// 3 feedback channels of 8 operators each, the last a static saturation; `A` stable
+/// (spectral radius < 0.98).
+fn fsm_like(seed: u64) -> ([usize; 6], Vec<f64>) {
+    let (nx, nu, ny, nw, nr, nt) = (12, 3, 3, 3, 8, 1);
     let mut rng = Rng(seed);
     let mut a = vec![0.0; nx * nx];
     for k in 0..nx / 2 {
@@ -51,14 +52,24 @@ fn fsm_like(seed: u64) -> ([usize; 5], Vec<f64>) {
     fill(nw * nx, 0.1, &mut row); // G
     fill(nw * nu, 1.0, &mut row); // H
     for i in 0..nw * nr {
-        row.push(0.02 * (i % nr) as f64); // thresholds, 0 .. 0.14
+        // thresholds 0 .. 0.14 (plays), 0.05 .. 0.19 (the static channel's scales)
+        row.push(0.02 * (i % nr) as f64 + if i / nr >= nw - nt { 0.05 } else { 0.0 });
     }
     fill(nw * nr, 0.3, &mut row); // weights
-    ([nx, nu, ny, nw, nr], row)
+    ([nx, nu, ny, nw, nr, nt], row)
 }
 
-fn spec(d: [usize; 5], row: &[f64]) -> PhsMimoSpec {
-    PhsMimoSpec { nx: d[0], nu: d[1], ny: d[2], nw: d[3], nr: d[4], params: row.as_ptr(), n_params: row.len() }
+fn spec(d: [usize; 6], row: &[f64]) -> PhsMimoSpec {
+    PhsMimoSpec {
+        nx: d[0],
+        nu: d[1],
+        ny: d[2],
+        nw: d[3],
+        nr: d[4],
+        nt: d[5],
+        params: row.as_ptr(),
+        n_params: row.len(),
+    }
 }
 
 fn message() -> String {
@@ -66,7 +77,7 @@ fn message() -> String {
 }
 
 fn empty() -> PhsMimo {
-    PhsMimo { magic: 0, dims: [0; 5], flags: 0, params: ptr::null(), n_params: 0, state_len: 0, work_len: 0 }
+    PhsMimo { magic: 0, dims: [0; 6], flags: 0, params: ptr::null(), n_params: 0, state_len: 0, work_len: 0 }
 }
 
 #[test]
@@ -106,6 +117,7 @@ fn c_steps_are_bit_identical_to_the_core_simulation() {
         h: take(nw * nu),
         thresholds: take(nw * nr),
         weights: take(nw * nr),
+        nt: d[5],
         modal: false,
     }
     .validated()
@@ -152,10 +164,10 @@ fn bad_arguments_are_named() {
     assert_eq!(unsafe { phs_mimo_init(&mut m, &s) }, PHS_ERR_BAD_LENGTH);
     assert!(message().contains("spec->n_params"), "{}", message());
     assert_eq!(m.magic, 0);
-    s = spec([4, 0, 3, 0, 0], &row);
+    s = spec([4, 0, 3, 0, 0, 0], &row);
     assert_eq!(unsafe { phs_mimo_init(&mut m, &s) }, PHS_ERR_BAD_LENGTH);
     assert!(message().contains("nu"), "{}", message());
-    s = spec([1 << 21, 1, 1, 0, 0], &row);
+    s = spec([1 << 21, 1, 1, 0, 0, 0], &row);
     assert_eq!(unsafe { phs_mimo_sizes(&s, ptr::null_mut(), ptr::null_mut(), ptr::null_mut()) }, PHS_ERR_BAD_LENGTH);
     // a NaN in B, a negative threshold: the matrix named
     let b0 = 12 * 12 + 4;
@@ -168,6 +180,18 @@ fn bad_arguments_are_named() {
     assert_eq!(unsafe { phs_mimo_init(&mut m, &spec(d, &row)) }, PHS_ERR_INVALID_PARAMETER);
     assert!(message().contains("thresholds") && message().contains("-0.1"), "{}", message());
     row[th0] = 0.1;
+    // a static channel's scale must be > 0; at most nw static channels
+    let last = row.len() - 24 - 1;
+    let keep = row[last];
+    row[last] = 0.0;
+    assert_eq!(unsafe { phs_mimo_init(&mut m, &spec(d, &row)) }, PHS_ERR_INVALID_PARAMETER);
+    assert!(message().contains("static-channel thresholds[23] = 0"), "{}", message());
+    row[last] = keep;
+    let mut too_many = d;
+    too_many[5] = 4;
+    assert_ne!(unsafe { phs_mimo_init(&mut m, &spec(too_many, &row)) }, PHS_OK);
+    assert!(message().contains("nt (static channels, at most nw) = 4"), "{}", message());
+    assert_eq!(unsafe { phs_mimo_init(&mut m, &spec(d, &row)) }, PHS_OK, "{}", message());
     // NULLs, uninitialized, wrong buffer lengths, NaN input, NaN state
     assert_eq!(unsafe { phs_mimo_init(ptr::null_mut(), &spec(d, &row)) }, PHS_ERR_NULL_POINTER);
     assert_eq!(unsafe { phs_mimo_init(&mut m, ptr::null()) }, PHS_ERR_NULL_POINTER);
@@ -211,7 +235,7 @@ fn a_linear_model_without_feedback_channels() {
     // nw = 0: x+ = 0.5 x + u, y = x (1 state, 1 input, 1 output)
     let row = [0.5, 1.0, 1.0, 0.0];
     let mut m = empty();
-    assert_eq!(unsafe { phs_mimo_init(&mut m, &spec([1, 1, 1, 0, 0], &row)) }, PHS_OK, "{}", message());
+    assert_eq!(unsafe { phs_mimo_init(&mut m, &spec([1, 1, 1, 0, 0, 0], &row)) }, PHS_OK, "{}", message());
     let (mut st, mut work, mut y) = ([0.0], [0.0], [0.0]);
     let mut out = vec![];
     for u in [1.0, 0.0, 0.0] {

@@ -237,9 +237,9 @@ fn the_mimo_model_never_allocates() {
     row.extend([1.0, 0.0, 0.0, 1.0]); // H
     row.extend([0.0, 0.1, 0.0, 0.1]); // thresholds
     row.extend([0.5, 0.2, 0.5, 0.2]); // weights
-    let spec = PhsMimoSpec { nx: 2, nu: 2, ny: 2, nw: 2, nr: 2, params: row.as_ptr(), n_params: row.len() };
+    let spec = PhsMimoSpec { nx: 2, nu: 2, ny: 2, nw: 2, nr: 2, nt: 0, params: row.as_ptr(), n_params: row.len() };
     let mut m =
-        PhsMimo { magic: 0, dims: [0; 5], flags: 0, params: ptr::null(), n_params: 0, state_len: 0, work_len: 0 };
+        PhsMimo { magic: 0, dims: [0; 6], flags: 0, params: ptr::null(), n_params: 0, state_len: 0, work_len: 0 };
     let (mut st, mut work, mut y) = ([0.0; 6], [0.0; 6], [0.0; 2]);
     let init = allocations(|| {
         assert_eq!(unsafe { phs_mimo_init(&mut m, &spec) }, PHS_OK);

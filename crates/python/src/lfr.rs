@@ -30,8 +30,9 @@ fn mat<'a>(a: &'a PyReadonlyArray2<'_, f64>, name: &str, rows: usize, cols: usiz
 }
 
 /// The LFR model of the ten matrices `[A, B, C, D, E, F, G, H, thresholds, weights]` (its
-/// dimensions read from A, B, C, G and the thresholds), each shape checked, validated.
-fn lfr_model<'a>(m: [&'a PyReadonlyArray2<'_, f64>; 10]) -> PyResult<Lfr<'a>> {
+/// dimensions read from A, B, C, G and the thresholds; the last `nt` channels static), each
+/// shape checked, validated.
+fn lfr_model<'a>(m: [&'a PyReadonlyArray2<'_, f64>; 10], nt: usize) -> PyResult<Lfr<'a>> {
     let nx = m[0].shape()[0];
     let nu = m[1].shape()[1];
     let ny = m[2].shape()[0];
@@ -53,6 +54,7 @@ fn lfr_model<'a>(m: [&'a PyReadonlyArray2<'_, f64>; 10]) -> PyResult<Lfr<'a>> {
         h: mat(m[7], "H", nw, nu)?,
         thresholds: mat(m[8], "thresholds", nw, nr)?,
         weights: mat(m[9], "weights", nw, nr)?,
+        nt,
         modal: false,
     }
     .validated()
@@ -61,8 +63,10 @@ fn lfr_model<'a>(m: [&'a PyReadonlyArray2<'_, f64>; 10]) -> PyResult<Lfr<'a>> {
 
 /// Simulate the LFR model on `R` records at once: `u` `(R, N, nu)`, `state` `(R, nx + nw*nr)`
 /// → `(y (R, N, ny), z (R, N, nw), final state (R, nx + nw*nr))`. Matrices as in the core's
-/// module docs; `thresholds`, `weights` `(nw, nr)`. A record whose state diverges raises.
+/// module docs; `thresholds`, `weights` `(nw, nr)`; the last `nt` channels static saturations.
+/// A record whose state diverges raises.
 #[pyfunction]
+#[pyo3(signature = (a, b, c, d, e, f, g, h, thresholds, weights, u, state, nt = 0))]
 #[allow(clippy::too_many_arguments)]
 fn lfr_simulate<'py>(
     py: Python<'py>,
@@ -78,9 +82,10 @@ fn lfr_simulate<'py>(
     weights: PyReadonlyArray2<'py, f64>,
     u: PyReadonlyArray3<'py, f64>,
     state: PyReadonlyArray2<'py, f64>,
+    nt: usize,
 ) -> PyResult<SimOut<'py>> {
     guarded(|| {
-        let model = lfr_model([&a, &b, &c, &d, &e, &f, &g, &h, &thresholds, &weights])?;
+        let model = lfr_model([&a, &b, &c, &d, &e, &f, &g, &h, &thresholds, &weights], nt)?;
         let (nu, ny, nw) = (model.nu, model.ny, model.nw);
         let us = u.shape();
         let (r, n) = (us[0], us[1]);
@@ -139,6 +144,7 @@ fn lfr_simulate<'py>(
 /// `A, B, C, D, E, F, G, H, thresholds, weights` (each row-major). A record whose
 /// simulation diverges has the loss `inf` (and adds nothing to the gradient).
 #[pyfunction]
+#[pyo3(signature = (a, b, c, d, e, f, g, h, thresholds, weights, u, y, state, skip, record_weights, nt = 0))]
 #[allow(clippy::too_many_arguments)]
 fn lfr_loss_grad<'py>(
     py: Python<'py>,
@@ -157,9 +163,10 @@ fn lfr_loss_grad<'py>(
     state: PyReadonlyArray2<'py, f64>,
     skip: usize,
     record_weights: PyReadonlyArray1<'py, f64>,
+    nt: usize,
 ) -> PyResult<GradOut<'py>> {
     guarded(|| {
-        let model = lfr_model([&a, &b, &c, &d, &e, &f, &g, &h, &thresholds, &weights])?;
+        let model = lfr_model([&a, &b, &c, &d, &e, &f, &g, &h, &thresholds, &weights], nt)?;
         let (nu, ny) = (model.nu, model.ny);
         let us = u.shape();
         let (r, n) = (us[0], us[1]);

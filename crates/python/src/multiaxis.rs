@@ -70,6 +70,8 @@ impl Extra for AxisExtra<'_> {
 #[derive(Debug, Clone)]
 struct LfrSpec {
     dims: [usize; 5],
+    /// The last `nt` feedback channels are static saturations.
+    nt: usize,
     mats: [Vec<f64>; 10],
     laws: Vec<Option<(Family, Vec<f64>)>>,
     limits: Vec<[f64; 2]>,
@@ -95,6 +97,7 @@ impl LfrSpec {
             h: &m[7],
             thresholds: &m[8],
             weights: &m[9],
+            nt: self.nt,
             modal: false,
         }
     }
@@ -390,6 +393,7 @@ impl MultiAxisPlant {
     /// actuator (`None` or `(family, dims, row)`), the actuators' voltage limits `(lo, hi)`
     /// and a sensor `(quantization, noise, delay)` per output; `ts` the model's sample time.
     #[staticmethod]
+    #[pyo3(signature = (a, b, c, d, e, f, g, h, thresholds, weights, hysteresis, limits, sensors, ts, nt = 0))]
     #[allow(clippy::too_many_arguments)]
     fn lfr(
         a: PyReadonlyArray2<'_, f64>,
@@ -406,6 +410,7 @@ impl MultiAxisPlant {
         limits: Vec<(f64, f64)>,
         sensors: Vec<(f64, f64, usize)>,
         ts: f64,
+        nt: usize,
     ) -> PyResult<Self> {
         guarded(|| {
             let (nx, nu, ny, nw, nr) = (a.shape()[0], b.shape()[1], c.shape()[0], g.shape()[0], thresholds.shape()[1]);
@@ -454,7 +459,7 @@ impl MultiAxisPlant {
             if !(ts > 0.0 && ts.is_finite()) {
                 return Err(bad_arg(format!("ts = {ts} must be a positive number of seconds")));
             }
-            let spec = LfrSpec { dims: spec_dims, mats, laws, limits };
+            let spec = LfrSpec { dims: spec_dims, nt, mats, laws, limits };
             spec.model().validated().map_err(err)?;
             Ok(MultiAxisPlant { kind: Kind::Lfr(Box::new(spec)), sensors, ts })
         })

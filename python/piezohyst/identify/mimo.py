@@ -748,6 +748,9 @@ class MimoSettings:
     oe_balance : float
         Its level weighting (records by their set's mean square output to the power
         ``-oe_balance``).
+    static_scales : tuple of float
+        Scales of the LFR's static feedback channels (fractions of each output's RMS); empty:
+        none.
 
     Examples
     --------
@@ -776,6 +779,9 @@ class MimoSettings:
     oe_seconds: float = 240.0
     #: its level weighting: each record by its set's mean square output to the power ``-oe_balance``
     oe_balance: float = 1.0
+    #: the LFR's static (saturating) feedback channels ``r tanh(z / r)`` on each output, ``r``
+    #: these fractions of the output's RMS (after the play channels); empty: none
+    static_scales: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -886,10 +892,17 @@ def _fit_kind(
     both = structure == "lfr" and settings.input_plays  # plays of the inputs too (a Hammerstein part)
     th_u = np.sqrt((u**2).mean(axis=(0, 2)))[:, None] * rel[None, :]
     w_u = play_features(u, th_u) if both else None
+    # static channels (LFR only): r tanh(z / r) of each output at each scale, channel-major
+    th_s = rms[:, None] * np.asarray(settings.static_scales, dtype=np.float64)[None, :] if structure == "lfr" else None
+    ns = 0 if th_s is None else th_s.size
     for it in range(settings.iterations + 1 if structure == "lfr" else 1):
         w = play_features(z, th)
         if w_u is not None:
             w = np.concatenate([w, w_u], axis=1)
+        if ns:
+            assert th_s is not None
+            ths = th_s.reshape(1, ns, 1)
+            w = np.concatenate([w, ths * np.tanh(np.repeat(z, th_s.shape[1], axis=1) / ths)], axis=1)
         if it == 0 and settings.relocations:
             real, cplx = relocate_poles(u, ys, real, cplx, w, iterations=settings.relocations, record_weights=rw)
         if it > 0 and settings.oe_relocations:
@@ -910,9 +923,15 @@ def _fit_kind(
             h = np.vstack([h, np.repeat(np.eye(rec.nu), nr, axis=0)])
             thr = np.vstack([thr, th_u.reshape(nwu, 1)])
             nw += nwu
+        if ns:
+            assert th_s is not None
+            g = np.vstack([g, np.repeat(c, th_s.shape[1], axis=0)])
+            h = np.vstack([h, np.repeat(d, th_s.shape[1], axis=0)])
+            thr = np.vstack([thr, th_s.reshape(ns, 1)])
+            nw += ns
         model = MimoModel(
             aa, b, c / yscale, d / yscale, e, np.zeros((c.shape[0], nw)), g, h,
-            thr, np.ones((nw, 1)), rec.fs, structure,
+            thr, np.ones((nw, 1)), rec.fs, structure, static_channels=ns,
         )  # fmt: skip
         if log is not None:
             log(f"{kind}: iteration {it}, {aa.shape[0]} states")

@@ -74,7 +74,7 @@ def _core_loss_grad(
     model: MimoModel, u: FloatArray, y: FloatArray, state: FloatArray, skip: int, weights: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
     a, b, c, d, e, f, g, h, th, w = _mats(model)
-    return _core.lfr_loss_grad(a, b, c, d, e, f, g, h, th, w, u, y, state, skip, weights)
+    return _core.lfr_loss_grad(a, b, c, d, e, f, g, h, th, w, u, y, state, skip, weights, model.static_channels)
 
 
 def loss_gradient(

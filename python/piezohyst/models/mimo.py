@@ -4,9 +4,15 @@ path (a linear fractional representation, LFR), its simulation, initial state an
 The model (sample rate ``fs``; matrices of a :class:`MimoModel`)::
 
     z[t]   = G x[t] + H u[t]                                 (nw feedback channels)
-    w_i[t] = sum_j weights[i, j] * play(z_i[t]; thresholds[i, j])
+    w_i[t] = sum_j weights[i, j] * play(z_i[t]; thresholds[i, j])          (i < nw - nt)
+    w_i[t] = sum_j weights[i, j] * r tanh(z_i[t] / r),  r = thresholds[i, j]  (the last nt)
     y[t]   = C x[t] + D u[t] + F w[t]
     x[t+1] = A x[t] + B u[t] + E w[t]
+
+The last ``nt = static_channels`` feedback channels are static saturations (a smooth, odd,
+saturating stiffness without memory; with ``G``, ``E``, ``F`` free they form a one-hidden-layer
+network in the feedback path, the nonlinear LFR of the system-identification literature), the
+others hysteretic (play operators).
 
 ``structure`` says which special case it is: ``"linear"`` (``nw = 0``), ``"hammerstein"``
 (``z = u``: a bank of play operators per actuator ahead of the dynamics) or ``"lfr"`` (``z``
@@ -58,7 +64,7 @@ FloatArray = NDArray[np.float64]
 
 #: ``kind`` of a MIMO model file.
 MIMO_KIND = "mimo"
-#: The file format's version.
+#: The file format's version (``dims.nt``, the static channels, is optional: 0 when absent).
 MIMO_SCHEMA_VERSION = 1
 
 Structure = Literal["linear", "hammerstein", "lfr"]
@@ -104,11 +110,14 @@ class MimoModel:
     G, H : array_like
         The feedback signal ``z = G x + H u``: ``G`` ``(nw, nx)``, ``H`` ``(nw, nu)``.
     thresholds, weights : array_like
-        The play operators of each feedback channel, ``(nw, nr)``; thresholds ``>= 0``.
+        The operators of each feedback channel, ``(nw, nr)``; thresholds ``>= 0`` (the scales
+        ``r`` of a static channel: ``> 0``).
     fs : float
         Sample rate (Hz).
     structure : {"lfr", "hammerstein", "linear"}
         Which special case the model is (see the module docstring).
+    static_channels : int
+        The last ``static_channels`` feedback channels are static saturations (default 0).
     input_unit, output_unit : str
         Units of the inputs (default ``"V"``) and outputs (default ``"m"``).
     init : Mapping
@@ -143,6 +152,8 @@ class MimoModel:
     weights: FloatArray
     fs: float
     structure: Structure = "lfr"
+    #: the last ``static_channels`` feedback channels are static saturations ``r tanh(z / r)``
+    static_channels: int = 0
     input_unit: str = "V"
     output_unit: str = "m"
     #: How :meth:`simulate` sets the initial state by default: ``method`` (``periodic``: the
@@ -179,6 +190,14 @@ class MimoModel:
         if (th < 0).any():
             i, j = (int(k) for k in np.argwhere(th < 0)[0])
             raise ParameterError(f"thresholds[{i}, {j}] = {th[i, j]} must be >= 0")
+        nt = self.static_channels
+        if type(nt) is not int or not 0 <= nt <= nw:
+            raise ParameterError(f"static_channels = {nt!r} must be an integer in [0, nw = {nw}]")
+        if nt and (th[nw - nt :] <= 0).any():
+            i, j = (int(k) for k in np.argwhere(th[nw - nt :] <= 0)[0])
+            raise ParameterError(
+                f"thresholds[{nw - nt + i}, {j}] = {th[nw - nt + i, j]} (a static channel's scale) must be > 0"
+            )
         for k, v in mats.items():
             object.__setattr__(self, k, v)
         fs = float(self.fs)
@@ -307,7 +326,7 @@ class MimoModel:
         c = np.ascontiguousarray
         y, z, st = _core.lfr_simulate(
             c(self.A), c(self.B), c(self.C), c(self.D), c(self.E), c(self.F), c(self.G), c(self.H),
-            c(self.thresholds), c(self.weights), uu, c(s),
+            c(self.thresholds), c(self.weights), uu, c(s), self.static_channels,
         )  # fmt: skip
         return y, z, st
 
@@ -646,7 +665,7 @@ class MimoModel:
         >>> m = MimoModel.linear(A=[[0.5]], B=[[1.0, 0.0]], C=[[1.0], [2.0]], D=np.zeros((2, 2)), fs=100.0)
         >>> d = m.to_dict()
         >>> d["kind"], d["dims"]
-        ('mimo', {'nx': 1, 'nu': 2, 'ny': 2, 'nw': 0, 'nr': 0})
+        ('mimo', {'nx': 1, 'nu': 2, 'ny': 2, 'nw': 0, 'nr': 0, 'nt': 0})
         """
         return {
             "schema_version": MIMO_SCHEMA_VERSION,
@@ -659,6 +678,7 @@ class MimoModel:
                 "ny": self.ny,
                 "nw": self.nw,
                 "nr": int(self.thresholds.shape[1]),
+                "nt": self.static_channels,
             },
             "units": {"input": self.input_unit, "output": self.output_unit},
             "matrices": {k: getattr(self, k).tolist() for k in _MATRICES},
@@ -743,7 +763,9 @@ class MimoModel:
     def __repr__(self) -> str:
         return (
             f"MimoModel(structure={self.structure!r}, nx={self.nx}, nu={self.nu}, ny={self.ny}, nw={self.nw}, "
-            f"nr={self.thresholds.shape[1]}, fs={self.fs:g})"
+            f"nr={self.thresholds.shape[1]}, "
+            + (f"static_channels={self.static_channels}, " if self.static_channels else "")
+            + f"fs={self.fs:g})"
         )
 
 
@@ -792,6 +814,7 @@ def mimo_from_dict(d: Any) -> MimoModel:
         raise ParameterError(f"schema_version = {v!r} is not supported (this version reads {MIMO_SCHEMA_VERSION})")
     dims = d["dims"]
     nx, nu, ny, nw, nr = (int(dims[k]) for k in ("nx", "nu", "ny", "nw", "nr"))
+    nt = dims.get("nt", 0)
     shapes = _dims_of(nx, nu, ny, nw, nr)
     mats = {k: _matrix(d["matrices"][k], f"matrices.{k}", *shapes[k]) for k in _MATRICES}
     units = d.get("units", {})
@@ -801,6 +824,7 @@ def mimo_from_dict(d: Any) -> MimoModel:
         weights=_matrix(d["weights"], "weights", nw, nr),
         fs=float(d["fs"]),
         structure=d.get("structure", "lfr"),
+        static_channels=nt,
         input_unit=str(units.get("input", "V")),
         output_unit=str(units.get("output", "m")),
         init=dict(d.get("init", {})),

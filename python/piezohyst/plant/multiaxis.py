@@ -388,6 +388,7 @@ class MultiAxisStage:
             [(v.amplifier.v_min, v.amplifier.v_max) for v in self.views],
             [(v.sensor.quantization, v.sensor.noise_std, v.sensor.delay) for v in self.views],
             self.sample_time,
+            m.static_channels,
         )
 
     def with_sensors(self, sensors: Sequence[Sensor] | Sensor) -> MultiAxisStage:

@@ -3,16 +3,23 @@
 //!
 //! ```text
 //! z[t]   = G x[t] + H u[t]                    (nw feedback channels)
-//! w_i[t] = sum_j weights[i, j] * play(z_i[t]; thresholds[i, j])
+//! w_i[t] = sum_j weights[i, j] * play(z_i[t]; thresholds[i, j])          (i < nw - nt)
+//! w_i[t] = sum_j weights[i, j] * r_ij tanh(z_i[t] / r_ij), r_ij = thresholds[i, j]   (the last nt)
 //! y[t]   = C x[t] + D u[t] + F w[t]
 //! x[t+1] = A x[t] + B u[t] + E w[t]
 //! ```
+//!
+//! The last `nt` channels are static saturations (no memory: a smooth, odd, saturating
+//! stiffness — with `G`, `E`, `F` free, a one-hidden-layer network in the feedback path);
+//! the others are hysteretic (play operators). A static channel's slot in the state holds its
+//! last output, so the state layout does not depend on `nt`.
 //!
 //! With `nw = 0` it is the plain linear MIMO state space; with `G = 0`, `H = I` a Hammerstein
 //! model (hysteresis per actuator ahead of the dynamics). Matrices are row-major. The state is
 //! `x` (`nx`) followed by the play operators' outputs (`nw * nr`, channel-major). A step
 //! allocates nothing: the caller gives a scratch buffer of [`Lfr::scratch_len`].
 use crate::error::{check_finite, ModelError};
+use crate::num::math::tanh;
 
 /// The dimensions and matrices of an LFR model, borrowed (see the module docs).
 #[derive(Clone, Copy, Debug)]
@@ -27,6 +34,8 @@ pub struct Lfr<'a> {
     pub nw: usize,
     /// Play operators per feedback channel.
     pub nr: usize,
+    /// The last `nt` channels are static saturations (`r tanh(z / r)`), not plays.
+    pub nt: usize,
     /// `nx * nx`.
     pub a: &'a [f64],
     /// `nx * nu`.
@@ -78,6 +87,14 @@ impl<'a> Lfr<'a> {
         if let Some(k) = self.thresholds.iter().position(|&r| r < 0.0) {
             return Err(ModelError::Negative("thresholds", k, self.thresholds[k]));
         }
+        if self.nt > nw {
+            return Err(ModelError::Structure("nt (static channels, at most nw)", self.nt));
+        }
+        let first_static = (nw - self.nt) * nr;
+        if let Some(k) = self.thresholds[first_static..].iter().position(|&r| r <= 0.0) {
+            let k = first_static + k;
+            return Err(ModelError::NotPositive("static-channel thresholds", k, self.thresholds[k]));
+        }
         let mut out = self;
         out.modal = is_modal(self.a, nx);
         Ok(out)
@@ -106,6 +123,17 @@ impl<'a> Lfr<'a> {
             }
             z[i] = zi;
             let mut wi = 0.0;
+            if i >= nw - self.nt {
+                for j in 0..nr {
+                    let k = i * nr + j;
+                    let r = self.thresholds[k];
+                    let p = r * tanh(zi / r);
+                    plays[k] = p;
+                    wi += self.weights[k] * p;
+                }
+                w[i] = wi;
+                continue;
+            }
             for j in 0..nr {
                 let k = i * nr + j;
                 let r = self.thresholds[k];
@@ -231,6 +259,7 @@ mod tests {
             h: &[],
             thresholds: &[],
             weights: &[],
+            nt: 0,
             modal: false,
         }
         .validated()
@@ -255,6 +284,7 @@ mod tests {
             h: &[0.0],
             thresholds: &[0.0],
             weights: &[1.0],
+            nt: 0,
             modal: false,
         }
         .validated()
@@ -294,6 +324,7 @@ mod tests {
             h: &[],
             thresholds: &[],
             weights: &[],
+            nt: 0,
             modal: false,
         };
         let fast = m.validated().unwrap();
@@ -328,6 +359,7 @@ mod tests {
             h: &[],
             thresholds: &[],
             weights: &[],
+            nt: 0,
             modal: false,
         }
         .validated()

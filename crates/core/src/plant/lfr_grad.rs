@@ -17,11 +17,14 @@
 //!
 //! and the parameter gradients are the outer products (`dA += lam[t+1] x[t]'`, `dC += gy x[t]'`,
 //! `dG += gz x[t]'`, ...), `d weights_k += gw_i p_k[t]`, `d thresholds_k -= gp_k` when the play
-//! moved up (`p = z - r`), `+= gp_k` when it moved down. Nothing is allocated: the caller
+//! moved up (`p = z - r`), `+= gp_k` when it moved down. A static channel (the last `nt`:
+//! `p = r tanh(z / r)`, no memory) passes `gz_i += gp_k (1 - (p / r)^2)` and
+//! `d thresholds_k += gp_k (p / r - (z / r) (1 - (p / r)^2))`, its `mu_k = 0`. Nothing is allocated: the caller
 //! gives one work buffer per record ([`work_len`]) for the trajectory and the adjoint. For a modal `A` (see
 //! [`Lfr::validated`]) only the entries inside its diagonal blocks get a gradient (the
 //! others stay 0: a modal parameterization keeps them 0).
 use crate::lfr::Lfr;
+use crate::num::math::tanh;
 
 /// Offsets of each parameter's gradient in the flat gradient vector, in the order
 /// `A, B, C, D, E, F, G, H, thresholds, weights` (each row-major, shapes as in [`Lfr`]).
@@ -113,6 +116,12 @@ pub fn loss_grad(
             for j in 0..nr {
                 let k = i * nr + j;
                 let r = m.thresholds[k];
+                if i >= nw - m.nt {
+                    // a static channel: its slope dp/dz
+                    let th = tanh(zi / r);
+                    mv[t * np + k] = 1.0 - th * th;
+                    continue;
+                }
                 mv[t * np + k] = if r == 0.0 || prev[k] < zi - r {
                     1.0
                 } else if prev[k] > zi + r {
@@ -202,6 +211,23 @@ pub fn loss_grad(
         // the plays
         for i in 0..nw {
             let mut s = 0.0;
+            if i >= nw - m.nt {
+                let zi = dot(&m.g[i * nx..(i + 1) * nx], x) + dot(&m.h[i * nu..(i + 1) * nu], ut);
+                for j in 0..nr {
+                    let k = i * nr + j;
+                    let (r, p, slope) = (m.thresholds[k], ps[t * np + k], mv[t * np + k]);
+                    let gp = m.weights[k] * gw[i];
+                    gwt[k] += gw[i] * p;
+                    s += gp * slope;
+                    gth[k] += gp * (p / r - zi / r * slope);
+                }
+                gz[i] = s;
+                if s != 0.0 {
+                    axpy(&mut gg[i * nx..(i + 1) * nx], s, x);
+                    axpy(&mut gh[i * nu..(i + 1) * nu], s, ut);
+                }
+                continue;
+            }
             for j in 0..nr {
                 let k = i * nr + j;
                 let gp = m.weights[k] * gw[i] + mu[k];
@@ -275,12 +301,13 @@ mod tests {
         ny: usize,
         nw: usize,
         nr: usize,
+        nt: usize,
         p: Vec<f64>, // flat, in the gradient's layout
     }
 
     impl Owned {
         fn lfr(&self) -> Lfr<'_> {
-            let (nx, nu, ny, nw, nr) = (self.nx, self.nu, self.ny, self.nw, self.nr);
+            let (nx, nu, ny, nw, nr, nt) = (self.nx, self.nu, self.ny, self.nw, self.nr, self.nt);
             let shell = Lfr {
                 nx,
                 nu,
@@ -297,6 +324,7 @@ mod tests {
                 h: &[],
                 thresholds: &[],
                 weights: &[],
+                nt,
                 modal: false,
             };
             let o = grad_offsets(&shell);
@@ -319,7 +347,8 @@ mod tests {
         }
     }
 
-    fn model(seed: &mut u64, modal: bool) -> Owned {
+    /// A random model; `nt` of its 2 channels static (their thresholds 0.2, 0.5, 1).
+    fn model(seed: &mut u64, modal: bool, nt: usize) -> Owned {
         let (nx, nu, ny, nw, nr) = (4, 2, 2, 2, 3);
         let shell = Lfr {
             nx,
@@ -337,6 +366,7 @@ mod tests {
             h: &[],
             thresholds: &[],
             weights: &[],
+            nt,
             modal: false,
         };
         let o = grad_offsets(&shell);
@@ -358,9 +388,9 @@ mod tests {
             }
         }
         for (k, th) in p[o[8]..o[9]].iter_mut().enumerate() {
-            *th = [0.0, 0.1, 0.3][k % 3];
+            *th = if k / nr >= nw - nt { [0.2, 0.5, 1.0][k % 3] } else { [0.0, 0.1, 0.3][k % 3] };
         }
-        Owned { nx, nu, ny, nw, nr, p }
+        Owned { nx, nu, ny, nw, nr, nt, p }
     }
 
     fn loss_of(m: &Owned, u: &[f64], y: &[f64], s0: &[f64], skip: usize) -> f64 {
@@ -372,8 +402,8 @@ mod tests {
     #[test]
     fn gradient_matches_finite_differences() {
         let mut seed = 7u64;
-        for modal in [true, false] {
-            let m = model(&mut seed, modal);
+        for (modal, nt) in [(true, 0), (false, 0), (true, 1), (false, 2)] {
+            let m = model(&mut seed, modal, nt);
             let n = 200;
             let u: Vec<f64> = (0..n * m.nu).map(|_| rand(&mut seed)).collect();
             let y: Vec<f64> = (0..n * m.ny).map(|_| 0.3 * rand(&mut seed)).collect();
@@ -402,7 +432,7 @@ mod tests {
                 let lm = loss_of(&mp, &u, &y, &s0, skip);
                 let fd = (lp - lm) / (2.0 * h);
                 let rel = (fd - gk).abs() / (fd.abs().max(gk.abs()).max(1e-3 * l0));
-                assert!(rel < 1e-5, "modal {modal}, parameter {k}: fd {fd} vs adjoint {}", gk);
+                assert!(rel < 1e-5, "modal {modal}, nt {nt}, parameter {k}: fd {fd} vs adjoint {}", gk);
                 checked += 1;
             }
             assert!(checked > 50);
@@ -412,7 +442,7 @@ mod tests {
     #[test]
     fn zero_error_has_zero_gradient_and_divergence_is_none() {
         let mut seed = 3u64;
-        let m = model(&mut seed, true);
+        let m = model(&mut seed, true, 1);
         let lfr = m.lfr();
         let n = 50;
         let u: Vec<f64> = (0..n * m.nu).map(|_| rand(&mut seed)).collect();
