@@ -938,7 +938,9 @@ def _fit_kind(
         if structure == "lfr" and it < settings.iterations:
             st = model.periodic_state(np.moveaxis(u, 2, 0))
             _, zs, _ = model.run(np.ascontiguousarray(np.moveaxis(u, 2, 0)), st)
-            z = np.ascontiguousarray(np.moveaxis(zs[:, :, : m * nr : nr], 0, 2))
+            # the simulated outputs: the first channel of each output's group (plays, else static)
+            first = slice(0, m * nr, nr) if nr else slice(nw - ns, nw, max(ns // m, 1))
+            z = np.ascontiguousarray(np.moveaxis(zs[:, :, first], 0, 2))
     assert model is not None
     if settings.oe_iterations > 0:
         model = _refine(rec, model, settings, log)

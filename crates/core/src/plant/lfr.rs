@@ -342,6 +342,44 @@ mod tests {
     }
 
     #[test]
+    fn a_static_channel_is_a_saturation_without_memory() {
+        // y = w = 0.5 tanh(z / 0.5), z = u: the same input gives the same output whatever came before
+        let (a, b, c, d) = ([0.0], [0.0], [0.0], [0.0]);
+        let m = Lfr {
+            nx: 1,
+            nu: 1,
+            ny: 1,
+            nw: 1,
+            nr: 1,
+            a: &a,
+            b: &b,
+            c: &c,
+            d: &d,
+            e: &[0.0],
+            f: &[1.0],
+            g: &[0.0],
+            h: &[1.0],
+            thresholds: &[0.5],
+            weights: &[1.0],
+            nt: 1,
+            modal: false,
+        }
+        .validated()
+        .unwrap();
+        let u = [0.2, 3.0, 0.2, -3.0, 0.2];
+        let (mut st, mut sc, mut y, mut z) = ([0.0, 0.0], [0.0, 0.0], [0.0; 5], [0.0; 5]);
+        assert!(m.simulate(&u, &mut st, &mut sc, &mut y, &mut z, &|| false));
+        assert_eq!(y[0], 0.5 * tanh(0.4));
+        assert_eq!((y[2], y[4]), (y[0], y[0]));
+        assert!((y[1] - 0.5).abs() < 1e-4 && (y[3] + 0.5).abs() < 1e-4);
+        // its scale must be > 0 (a play's threshold may be 0), and nt <= nw
+        let zero = Lfr { thresholds: &[0.0], ..m }.validated().unwrap_err();
+        assert!(zero == ModelError::NotPositive("static-channel thresholds", 0, 0.0));
+        assert!(Lfr { thresholds: &[0.0], nt: 0, ..m }.validated().is_ok());
+        assert!(Lfr { nt: 2, ..m }.validated().is_err());
+    }
+
+    #[test]
     fn wrong_length_is_named() {
         let e = Lfr {
             nx: 2,
