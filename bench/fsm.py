@@ -11,8 +11,10 @@ Each scored record is one period of one realization, simulated alone: its first 
 outputs set the initial state (after a periodic pre-run of its input), the RMSE per output from
 sample 100 on, averaged over outputs, realizations, periods and directions, in µm, per level.
 
-Models: ``mimo-lfr`` (the hysteretic LFR at its defaults, what ``--model auto`` chooses on this
-data: the frequency-domain fit, then the output-error refinement of
+Models: ``mimo-lfr`` (the hysteretic LFR at its defaults; ``+ static channels``: with static
+saturating feedback channels beside the plays, ``MimoSettings.static_scales``; ``--model auto``
+chooses among the two and the linear model by held-out realizations): the frequency-domain
+fit, then the output-error refinement of
 :func:`piezohyst.identify.mimo_oe.refine_output_error`, fitted on realizations 1-2 of the
 fit group of each level and early-stopped on the third; its summary under ``output_error``) against the baseline
 ``mimo-linear`` of order 28 (the published linear model's order)
@@ -57,6 +59,7 @@ def run(data: Path, quick: bool) -> dict[str, Any]:
     folds = rec.folds()
     kinds = {
         "mimo-lfr": ("mimo-lfr", MimoSettings()),
+        "mimo-lfr + static channels": ("mimo-lfr", MimoSettings(static_scales=(0.5, 1.0, 2.0))),
         "mimo-linear (order 28)": ("mimo-linear", MimoSettings(order=28)),
     }
     directions = []
@@ -104,7 +107,12 @@ def run(data: Path, quick: bool) -> dict[str, Any]:
     if not quick:
         t0 = time.perf_counter()
         res = identify_mimo(rec, "auto")
-        out["auto"] = {"wall_s": time.perf_counter() - t0, "chosen": res.kind, "holdout": res.holdout}
+        out["auto"] = {
+            "wall_s": time.perf_counter() - t0,
+            "chosen": res.kind,
+            "static_scales": list(res.settings.static_scales),
+            "holdout": res.holdout,
+        }
     return out
 
 
