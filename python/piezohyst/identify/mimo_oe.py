@@ -486,11 +486,15 @@ def refine_output_error(
         losses, g = loss_gradient(m, uw, yw, state, skip=k, record_weights=rw)
         track["evals"] += 1
         f = float(np.sum(losses)) / loss0
-        if not np.isfinite(f):
+        with np.errstate(over="ignore", invalid="ignore"):
+            grad = p.grad_of(xx, g) / loss0
+        # a trial point of the line search near instability: a finite loss, an overflowing
+        # gradient; refused like a diverged simulation
+        if not (np.isfinite(f) and np.isfinite(grad).all()):
             return 1e10, np.zeros_like(xx)
         if f < track["f"]:
             track["f"], track["x"] = f, xx.copy()
-        return f, p.grad_of(xx, g) / loss0
+        return f, grad
 
     it = 0
     bad = 0
