@@ -132,9 +132,9 @@ def _identify_options(i: argparse.ArgumentParser) -> None:
         required=True,
         choices=_KindsOrAuto(_KINDS),
         help=f"model to identify: {', '.join(_KINDS)} (required). Or auto: it fits pi, gpi, mpi, rdpi, "
-        "preisach and boucwen (the PI family and preisach with and without --creep 2, mpi also with --creep 4 and "
-        "mpi and preisach with --creep 4 --creep-horizon 10), each with its input delay, drift term and fit start chosen "
-        "on the training range (--lag auto, --drift auto), ranks them by validation "
+        "preisach and boucwen (the PI family and preisach with and without --creep 2, mpi also with --creep 4, "
+        "mpi and preisach with --creep 4 --creep-horizon 10), each with its input delay, drift term and fit "
+        "start chosen on the training range (--lag auto, --drift auto), ranks them by validation "
         "error (state carried) and saves the winner: the simplest model within one standard error "
         "of the best (without --validate: by BIC on the training range); the league table is printed "
         'and put under "league" in --json. pi/gpi/mpi/rdpi/preisach: least '
@@ -225,7 +225,11 @@ def _identify_options(i: argparse.ArgumentParser) -> None:
         "time constants) by variable projection: --optimizer over them, least squares inside",
     )
     i.add_argument(
-        "--creep", metavar="M", type=_count_arg, default=0, help="pi/gpi/mpi/rdpi/preisach: add M creep lags (default 0)"
+        "--creep",
+        metavar="M",
+        type=_count_arg,
+        default=0,
+        help="pi/gpi/mpi/rdpi/preisach: add M creep lags (default 0)",
     )
     i.add_argument(
         "--creep-horizon",
