@@ -56,14 +56,16 @@ const fn rep(name: &'static str, count: Count) -> Slot {
 }
 
 impl Slot {
-    /// Number of values for these dims.
+    /// Number of values for these dims (a dim left out counts as 0: a Preisach row of two
+    /// dims, written before its creep tail existed, has no tail).
     pub fn len(&self, dims: &[usize]) -> usize {
+        let dim = |i: usize| dims.get(i).copied().unwrap_or(0);
         match self.count {
             Count::One => 1,
-            Count::IfPositive(i) => usize::from(dims[i] > 0),
+            Count::IfPositive(i) => usize::from(dim(i) > 0),
             Count::Fixed(k) => k,
-            Count::Dim(i) => dims[i],
-            Count::Triangle(i) => dims[i] * (dims[i] + 1) / 2,
+            Count::Dim(i) => dim(i),
+            Count::Triangle(i) => dim(i) * (dim(i) + 1) / 2,
         }
     }
     /// Whether the slot is a scalar (named without an index).
