@@ -22,7 +22,8 @@ FAMILY_DIMS = [
     ("gpi", [3, 1, 2, 1]),
     ("rdpi", [2, 1]),
     ("creep", [2]),
-    ("preisach", [3, 4]),
+    ("preisach", [3, 4]),  # a row of two dims, from before the creep tail: no tail
+    ("preisach", [3, 4, 2]),
     ("boucwen", []),
     ("duhem", []),
     ("dahl", []),
@@ -74,6 +75,7 @@ def test_controller_names_and_codes_are_the_table():
         ph.PI([0.0, 0.2, 0.5], [1.0, 0.3, 0.1], p0=0.5),
         ph.RateDependentPI([0.0, 0.3], [0.5, 0.2], 1e-3, 1.0, 0.1, [0.0, 0.0], 0.0),
         ph.Preisach(3, (0.0, 1.0), np.full(6, 0.1), 0.0, 1.0),
+        ph.Preisach(3, (0.0, 1.0), np.full(6, 0.1), 0.0, 1.0, creep=ph.Creep(1e-3, [0.01, 0.1], [0.02, 0.01])),
         ph.PI([0.0, 0.2], [1.0, 0.3], p0=0.1, creep=ph.Creep(1e-3, [0.01, 0.1], [0.02, 0.01])),
         ph.papers.mpi_seed2(),
     ],
@@ -182,7 +184,14 @@ def test_example_input_range_of_gpi_reads_the_table_groups():
 
 @pytest.mark.parametrize(
     ("family", "dims", "scratch"),
-    [("pi", [3, 2], 2), ("gpi", [3, 1, 1, 0], 0), ("rdpi", [2, 1], 1), ("creep", [3], 3), ("preisach", [4, 8], 10)],
+    [
+        ("pi", [3, 2], 2),
+        ("gpi", [3, 1, 1, 0], 0),
+        ("rdpi", [2, 1], 1),
+        ("creep", [3], 3),
+        ("preisach", [4, 8], 10),
+        ("preisach", [4, 8, 2], 12),
+    ],
 )
 def test_scratch_len_is_the_c_librarys(family, dims, scratch):
     # Preisach: n (n + 1) / 2 prefix sums; creep lags: one gain each (what phs_model_sizes reports)

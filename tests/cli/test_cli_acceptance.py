@@ -47,11 +47,12 @@ def acceptance(cwd: Path, path: Path, inp: str, out: str, fs: float, train: str,
 @pytest.mark.skipif(not YAN9A.exists(), reason="shared data not present")
 @pytest.mark.parametrize(
     ("train", "validate", "measured"),
-    [("3152:3352", "3352:4152", 0.184), ("3152:4152", "4152:5152", 0.185), ("3152:4152", "4152:8027", 0.240)],
+    [("3152:3352", "3352:4152", 0.184), ("3152:4152", "4152:5152", 0.185), ("3152:4152", "4152:8027", 0.192)],
 )
 def test_yan9a(tmp_path, train, validate, measured):
     report = acceptance(tmp_path, YAN9A, "0", "4", 200.0, train, validate)
-    # before the model held its input delay and drift: 0.256 %, 0.281 %, 0.366 %
+    # before the model held its input delay and drift: 0.256 %, 0.281 %, 0.366 %; the third 0.240 %
+    # before the Preisach candidates with a creep bank
     assert report["validation"]["rmse_percent"] <= 0.3
     assert report["validation"]["rmse_percent"] == pytest.approx(measured, abs=0.01)
     assert report["input_delay"]["mode"] == "auto" and report["input_delay"]["samples"] in (3, 4)
@@ -69,8 +70,10 @@ def test_5khz_record_with_a_time_column_and_a_lead_in(tmp_path, seed, span, meas
         assert report["structure"]["fit_start"] >= 0.9 * rec.meta["lead_in"]
 
 
-@pytest.mark.parametrize(("seed", "span", "measured"), [(0, 1, 0.188)])
+@pytest.mark.parametrize(("seed", "span", "measured"), [(0, 1, 0.188), (4, 0, 0.402)])
 def test_10khz_two_column_record_with_drift(tmp_path, seed, span, measured):
+    # seed 4: a Preisach truth with a three-lag creep bank; 1.002 % (gpi+creep2, a 21-sample input
+    # delay standing in for the 50 ms lag) before the Preisach candidates with a creep bank
     rec = piezo_10khz(seed)
     path = write_10khz(rec, tmp_path / "daq.dat")
     train, validate = spans(rec)[span]

@@ -295,9 +295,16 @@ def pi_of(mpi):
     return ph.PI(mpi.thresholds, np.abs(mpi.weights) + 1e-3, p0=0.05)
 
 
-@pytest.mark.parametrize(("family", "mapped"), [("mpi", False), ("mpi", True), ("pi", True)])
+def preisach_creep():
+    """A Preisach grid with a creep bank (issue 14): the row's creep tail in C too."""
+    w = np.linspace(0.2e-6, 1e-6, 15) / 15
+    return ph.Preisach(5, (0.0, 150.0), w, slope=2e-8, creep=ph.Creep(1e-4, [0.002, 0.05], [1e-9, 2e-9]))
+
+
+@pytest.mark.parametrize(("family", "mapped"), [("mpi", False), ("mpi", True), ("pi", True), ("preisach+creep", True)])
 def test_exported_model_example_runs(tmp_path, capsys, mpi, c_library, family, mapped):
-    mpi = with_map(mpi if family == "mpi" else pi_of(mpi), mapped)
+    base = mpi if family == "mpi" else pi_of(mpi) if family == "pi" else preisach_creep()
+    mpi = with_map(base, mapped)
     mpath = tmp_path / "mpi.json"
     mpi.save(mpath)
     out = tmp_path / "c"

@@ -106,7 +106,7 @@ typedef int32_t PhsStatus;
 // | GPI | 2 | n, rising_kind, falling_kind, creep_terms | range_lo, range_hi, poly[4], rising[4], falling[4], r[n], b[n], creep_ts (if creep_terms > 0), creep_tau[creep_terms], creep_c[creep_terms] |
 // | RDPI | 3 | n, creep_terms | ts, p0, beta, filter_tau, r[n], w[n], c[n], creep_ts (if creep_terms > 0), creep_tau[creep_terms], creep_c[creep_terms] |
 // | CREEP | 4 | terms | creep_ts, creep_tau[terms], creep_c[terms] |
-// | PREISACH | 5 | levels, memory | lo, hi, offset, slope, w[levels(levels+1)/2] |
+// | PREISACH | 5 | levels, memory, creep_terms | lo, hi, offset, slope, w[levels(levels+1)/2], creep_ts (if creep_terms > 0), creep_tau[creep_terms], creep_c[creep_terms] |
 // | BOUCWEN | 6 | (none) | a, beta, gamma, n, d |
 // | DUHEM | 7 | (none) | alpha, f[4], g[4] |
 // | DAHL | 8 | (none) | sigma, h_c, a |

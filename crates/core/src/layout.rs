@@ -56,14 +56,16 @@ const fn rep(name: &'static str, count: Count) -> Slot {
 }
 
 impl Slot {
-    /// Number of values for these dims.
+    /// Number of values for these dims (a dim left out counts as 0: a Preisach row of two
+    /// dims, written before its creep tail existed, has no tail).
     pub fn len(&self, dims: &[usize]) -> usize {
+        let dim = |i: usize| dims.get(i).copied().unwrap_or(0);
         match self.count {
             Count::One => 1,
-            Count::IfPositive(i) => usize::from(dims[i] > 0),
+            Count::IfPositive(i) => usize::from(dim(i) > 0),
             Count::Fixed(k) => k,
-            Count::Dim(i) => dims[i],
-            Count::Triangle(i) => dims[i] * (dims[i] + 1) / 2,
+            Count::Dim(i) => dim(i),
+            Count::Triangle(i) => dim(i) * (dim(i) + 1) / 2,
         }
     }
     /// Whether the slot is a scalar (named without an index).
@@ -131,7 +133,7 @@ fn decode_preisach(d: &[usize]) -> Result<Family, ModelError> {
     if levels == 0 || levels > MAX_LEVELS {
         return Err(ModelError::OutOfRange("levels", usize::MAX, levels as f64, 1.0, MAX_LEVELS as f64));
     }
-    Ok(Family::Preisach { levels, memory: dim(d, 1, "memory")? })
+    Ok(Family::Preisach { levels, memory: dim(d, 1, "memory")?, creep: dim(d, 2, "creep_terms")? })
 }
 
 /// Every model family, in `PhsFamily` code order.
@@ -209,10 +211,19 @@ pub const FAMILIES: &[FamilyLayout] = &[
         name: "preisach",
         code: 5,
         label: "PREISACH",
-        dims: &["levels", "memory"],
-        slots: &[one("lo"), one("hi"), one("offset"), one("slope"), rep("w", Count::Triangle(0))],
-        linear: &["offset", "slope", "w"],
-        nonnegative: &["slope", "w"],
+        dims: &["levels", "memory", "creep_terms"],
+        slots: &[
+            one("lo"),
+            one("hi"),
+            one("offset"),
+            one("slope"),
+            rep("w", Count::Triangle(0)),
+            rep(CREEP_TS, Count::IfPositive(2)),
+            rep(CREEP_TAU, Count::Dim(2)),
+            rep(CREEP_C, Count::Dim(2)),
+        ],
+        linear: &["offset", "slope", "w", CREEP_C],
+        nonnegative: &["slope", "w", CREEP_C],
         decode: decode_preisach,
     },
     FamilyLayout {
@@ -257,7 +268,13 @@ impl FamilyLayout {
         FAMILIES.iter().find(|f| f.code == code)
     }
     /// Check the dims' count and decode them.
+    ///
+    /// A Preisach row written before its creep tail existed gives two dims (`levels, memory`):
+    /// it is read with `creep_terms = 0` (the same row, the same model).
     pub fn family(&self, dims: &[usize]) -> Result<Family, ModelError> {
+        if self.name == "preisach" && dims.len() == 2 {
+            return (self.decode)(&[dims[0], dims[1], 0]);
+        }
         if dims.len() != self.dims.len() {
             return Err(ModelError::Length("dims", self.dims.len(), dims.len()));
         }

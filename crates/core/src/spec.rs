@@ -25,8 +25,8 @@ pub enum Family {
     Rdpi { n: usize, creep: usize },
     /// Creep alone.
     Creep { terms: usize },
-    /// Discretized Preisach.
-    Preisach { levels: usize, memory: usize },
+    /// Discretized Preisach (with an optional creep bank, as the PI family).
+    Preisach { levels: usize, memory: usize, creep: usize },
     /// Bouc–Wen.
     BoucWen,
     /// Generalized Duhem.
@@ -65,14 +65,17 @@ impl Family {
             Family::Pi { n, creep } | Family::Rdpi { n, creep } => ([n, creep, 0, 0], 2),
             Family::Gpi { n, rising, falling, creep } => ([n, rising, falling, creep], 4),
             Family::Creep { terms } => ([terms, 0, 0, 0], 1),
-            Family::Preisach { levels, memory } => ([levels, memory, 0, 0], 2),
+            Family::Preisach { levels, memory, creep } => ([levels, memory, creep, 0], 3),
             Family::BoucWen | Family::Duhem | Family::Dahl => ([0; 4], 0),
         }
     }
 
     fn creep_terms(&self) -> usize {
         match *self {
-            Family::Pi { creep, .. } | Family::Gpi { creep, .. } | Family::Rdpi { creep, .. } => creep,
+            Family::Pi { creep, .. }
+            | Family::Gpi { creep, .. }
+            | Family::Rdpi { creep, .. }
+            | Family::Preisach { creep, .. } => creep,
             Family::Creep { terms } => terms,
             _ => 0,
         }
@@ -158,7 +161,7 @@ impl Family {
                 &head[4 + 2 * n..],
             )?),
             Family::Creep { .. } => Base::Nothing,
-            Family::Preisach { levels, memory } => {
+            Family::Preisach { levels, memory, .. } => {
                 let w = &head[4..];
                 crate::error::check_finite("weights", w)?;
                 row_prefix(levels, w, pre_scratch);

@@ -573,8 +573,17 @@ def _layout(model: LinearModel) -> tuple[FloatArray, FloatArray, Callable[[Float
     else:
 
         def build(t: FloatArray) -> LinearModel:
-            offset, slope, w = parts(t)
-            return Preisach(model.levels, model.input_range, w, offset[0], slope[0], model.memory, units=model.units)
+            offset, slope, w, creep_c = parts(t)
+            return Preisach(
+                model.levels,
+                model.input_range,
+                w,
+                offset[0],
+                slope[0],
+                model.memory,
+                creep=with_creep(creep_c),
+                units=model.units,
+            )
 
     return lb, np.full(lb.size, inf), build
 
@@ -910,8 +919,9 @@ def _fit_preisach(
     (``smoothing``)."""
     lb, _, build = _layout(model)
     A = _core.regressors(model.family, list(model.dims), model.to_row(), v)[start:]
-    head = A.shape[1] - model.weights.size  # offset and slope, then one column per cell
-    cells = A[:, head:]
+    m = 0 if model.creep is None else model.creep.terms
+    head = A.shape[1] - model.weights.size - m  # offset and slope, one column per cell, the creep lags
+    cells = A[:, head : A.shape[1] - m]
     # distinct relay patterns: the columns as packed bits (a relay is 0 or 1)
     bits = np.packbits(cells.T > 0.5, axis=1)
     patterns, first, group = np.unique(bits, axis=0, return_index=True, return_inverse=True)
@@ -926,15 +936,17 @@ def _fit_preisach(
     norm = np.maximum(np.sqrt(np.einsum("ij,ij->j", C, C) / n), 1e-300)
     C /= norm
     head_scale = np.maximum(np.sqrt(np.mean(A[:, :head] ** 2, axis=0)), 1e-300)
-    # a drift basis: free columns after the cells', equilibrated like them
+    # the creep lags (non-negative) and a drift basis (free): columns after the cells',
+    # equilibrated like them
     extra = 0 if drift is None else drift.size
     T = np.zeros((n, 0)) if drift is None else drift.columns(v.size)[start:]
+    T = np.concatenate([A[:, A.shape[1] - m :], T], axis=1)
     drift_scale = np.maximum(np.sqrt(np.mean(T**2, axis=0)), 1e-300)
     B = np.concatenate([A[:, :head] / head_scale, C, T / drift_scale], axis=1)
     del C, T
     # B's columns are the regressors / scale
     scale = np.concatenate([head_scale, counts[kept] * norm, drift_scale])
-    blb = np.concatenate([lb[:head], lb[head:][first[kept]], np.full(extra, -np.inf)])
+    blb = np.concatenate([lb[:head], lb[head : lb.size - m][first[kept]], lb[lb.size - m :], np.full(extra, -np.inf)])
     cells_end = head + kept.size  # the cells' unknowns are B's columns head:cells_end
     unit_penalty = None  # the prior of strength 1 per sample of the data term
     if kept.size > 1 and (smoothing is None or smoothing > 0):
@@ -1006,10 +1018,10 @@ def _fit_preisach(
     zb[0] += centre
     per_cell = np.zeros(patterns.shape[0])
     per_cell[kept] = zb[head:cells_end]
-    theta = np.concatenate([zb[:head], per_cell[group]])
+    theta = np.concatenate([zb[:head], per_cell[group], zb[cells_end : cells_end + m]])
     fitted = build(theta)
     if drift is not None and not drift.empty:
-        fitted = fitted.with_drift(drift.drift(zb[cells_end:]))
+        fitted = fitted.with_drift(drift.drift(zb[cells_end + m :]))
     return FitResult(fitted, _fit_metrics(fitted.simulate(v), y), time.perf_counter() - t0, solves, history)
 
 
@@ -1388,10 +1400,12 @@ def identify_preisach(
     return _fit_output(model, v, output, name, delta, t0, offset, smoothing)
 
 
-def _preisach_template(v: FloatArray, levels: int, input_range: tuple[float, float] | None, memory: int) -> Preisach:
+def _preisach_template(
+    v: FloatArray, levels: int, input_range: tuple[float, float] | None, memory: int, creep: Creep | None = None
+) -> Preisach:
     lo, hi = (float(v.min()), float(v.max())) if input_range is None else input_range
     n = as_int(levels, "levels", minimum=1)
-    return Preisach(n, (lo, hi), np.zeros(n * (n + 1) // 2), memory=memory)
+    return Preisach(n, (lo, hi), np.zeros(n * (n + 1) // 2), memory=memory, creep=creep)
 
 
 @dataclass(frozen=True)

@@ -211,7 +211,7 @@ def identify(
         free-run RMSE; then a Gauss–Newton polish. Options ``envelope``, ``bounds``,
         ``polish``, ``starts`` of :func:`piezohyst.varpro.identify_vp` are accepted then.
     creep : int
-        PI family only: number of creep lags added to the model (needs ``fs``). Fixed
+        PI family and ``preisach``: number of creep lags added to the model (needs ``fs``). Fixed
         structure: time constants log-spaced over ``[2 Ts, creep_horizon T]`` (``T`` the
         record's duration), one in the middle of each of ``creep`` equal decade bands; ``structure="fit"`` searches
         each within its band.
@@ -350,9 +350,9 @@ def identify(
     d = as_int(input_delay, "input_delay", minimum=0)
     start = as_int(fit_start, "fit_start", minimum=0)
     horizon = as_scalar(creep_horizon, "creep_horizon", positive=True)
-    if horizon != 1.0 and (structure == "fit" or model not in ("pi", "gpi", "mpi", "rdpi")):
+    if horizon != 1.0 and (structure == "fit" or model not in ("pi", "gpi", "mpi", "rdpi", "preisach")):
         raise ParameterError(
-            f"creep_horizon applies to the PI family with a fixed structure, not to model = {model!r}"
+            f"creep_horizon applies to the PI family and preisach with a fixed structure, not to model = {model!r}"
             f"{' with structure = fit' if structure == 'fit' else ''}"
         )
     if drift is not None and not isinstance(drift, DriftBasis):
@@ -472,9 +472,10 @@ def _identify(
             f"structure = 'fit' applies to model = {' / '.join(repr(k) for k in _VP_KINDS)}; "
             f"{model!r} has no fixed structure to fit (use structure = 'fixed')"
         )
-    if creep and not kind.structure:
+    if creep and not kind.structure and model != "preisach":
         raise ParameterError(
-            f"creep = {creep} applies to model = {' / '.join(repr(k) for k in _VP_KINDS)}, not to {model!r}"
+            f"creep = {creep} applies to model = {' / '.join(repr(k) for k in (*_VP_KINDS, 'preisach'))}, "
+            f"not to {model!r}"
         )
     if isinstance(validate, tuple) and len(validate) == 3 and model != "boucwen-benchmark":
         raise ParameterError(
@@ -791,7 +792,7 @@ def _linear_template(
         r = _default_thresholds(v, as_int(operators, "operators", minimum=1))
         template = _mpi_template(v, r, None, None, lags)
     elif model == "preisach":
-        template = _preisach_template(v, levels, None, PREISACH_MEMORY)
+        template = _preisach_template(v, levels, None, PREISACH_MEMORY, lags)
     else:
         if fs is None:
             raise ParameterError("fs is required for model = 'rdpi' (the rate needs the sample time)")

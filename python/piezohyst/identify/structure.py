@@ -322,10 +322,11 @@ def _reduced_design(template: LinearModel, v: FloatArray) -> tuple[FloatArray, n
     non-constant columns plus one constant column, equilibrated: ``(A, free)``."""
     A, lb, _, _ = _design(template, v, True)
     if isinstance(template, Preisach):  # 0/1 relay columns: many cells switch together
-        head = A.shape[1] - template.weights.size
-        bits = np.packbits(A[:, head:].T > 0.5, axis=1)
+        m = 0 if template.creep is None else template.creep.terms
+        head = A.shape[1] - template.weights.size - m
+        bits = np.packbits(A[:, head : A.shape[1] - m].T > 0.5, axis=1)
         _, first = np.unique(bits, axis=0, return_index=True)
-        keep = np.concatenate([np.arange(head), head + np.sort(first)])
+        keep = np.concatenate([np.arange(head), head + np.sort(first), np.arange(A.shape[1] - m, A.shape[1])])
         A, lb = A[:, keep], lb[keep]
     constant = np.all(A == A[:1], axis=0)
     keep_cols = np.flatnonzero(~constant)

@@ -512,7 +512,7 @@ def plot_validation(
 
 def parameter_count(model: object) -> int:
     """Parameters a fit adjusts: the linear families' regressor columns (their structure is
-    fixed; a Preisach grid's offset, slope and cells above 0: the cells
+    fixed; a Preisach grid's offset, slope, creep lags and cells above 0: the cells
     :meth:`~piezohyst.Preisach.extrapolated` adds beyond the training range are fixed zeros or
     copies, and cells the record cannot tell apart share one weight), Bouc–Wen's four (``a``,
     ``beta``, ``gamma``, ``d``; ``n = 1``), else the model's row length; plus one for an input
@@ -544,7 +544,8 @@ def parameter_count(model: object) -> int:
     if drift is not None:
         extra += len(drift.taus) + int(drift.slope != 0.0)
     if isinstance(model, Preisach):
-        return 2 + int(np.count_nonzero(model.weights)) + extra
+        lags = 0 if model.creep is None else model.creep.terms
+        return 2 + int(np.count_nonzero(model.weights)) + lags + extra
     if isinstance(model, (PI, GeneralizedPI, RateDependentPI)):
         return int(_layout(model)[0].size) + extra
     if isinstance(model, BoucWen):

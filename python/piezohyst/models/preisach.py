@@ -10,12 +10,14 @@ up``, computed exactly from the memory of dominant input extrema, so it is conti
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import Any, Self
 
 import numpy as np
 import numpy.typing as npt
 
 from .._validate import as_int, as_interval, as_scalar, as_vector
 from ..errors import ParameterError, ParameterTypeError
+from .creep import Creep, creep_from, creep_parts
 from .model import FloatArray, HysteresisModel, JSONDict, _register
 
 __all__ = ["Preisach"]
@@ -39,6 +41,10 @@ class Preisach(HysteresisModel):
     memory : int
         Dominant extrema remembered (2..256). Beyond, the adjacent pair of extrema closest in
         value (the smallest nested minor loop) is forgotten.
+    creep : Creep, optional
+        A creep bank added to the output (``y = ... + creep[v]``), as in the PI family
+        (Kuhnen's modified PI): the slow response to the input's level that a
+        rate-independent grid cannot hold. Its weights are linear parameters like the cells'.
     units : mapping, optional
         ``{"input": ..., "output": ...}`` unit names, kept in model files.
 
@@ -64,6 +70,7 @@ class Preisach(HysteresisModel):
         slope: float = 0.0,
         memory: int = 64,
         *,
+        creep: Creep | None = None,
         units: Mapping[str, str] | None = None,
     ) -> None:
         self.levels = as_int(levels, "levels", minimum=1)
@@ -89,8 +96,14 @@ class Preisach(HysteresisModel):
         self.offset = as_scalar(offset, "offset")
         self.slope = as_scalar(slope, "slope", nonnegative=True)
         self.memory = as_int(memory, "memory", minimum=2)
-        row = np.concatenate([[lo, hi, self.offset, self.slope], self.weights])
-        super().__init__([self.levels, self.memory], row, units=units)
+        self.creep = creep
+        m, tail = creep_parts(creep)
+        row = np.concatenate([[lo, hi, self.offset, self.slope], self.weights, tail])
+        super().__init__([self.levels, self.memory, m], row, units=units)
+
+    @classmethod
+    def _from_parameters(cls, p: JSONDict, units: Any) -> Self:
+        return cls(**{**p, "creep": creep_from(p.get("creep"))}, units=units)
 
     def _fold_map(self, offset: float, gain: float, input_range: tuple[float, float] | None) -> HysteresisModel | None:
         return Preisach(
@@ -100,6 +113,7 @@ class Preisach(HysteresisModel):
             gain * self.offset + offset,
             gain * self.slope,
             self.memory,
+            creep=None if self.creep is None else Creep(self.creep.ts, self.creep.taus, gain * self.creep.weights),
             units=self.units,
         )
 
@@ -179,6 +193,7 @@ class Preisach(HysteresisModel):
             self.offset - k * bottom,
             self.slope,
             self.memory,
+            creep=self.creep,
             units=self.units,
         )
         return new.with_output_map(self.output_map).with_input_delay(self.input_delay).with_drift(self.drift)
@@ -202,8 +217,9 @@ class Preisach(HysteresisModel):
 
     @property
     def parameters(self) -> JSONDict:
-        """Named parameters (JSON-ready): levels, input range, weights, offset, slope, memory."""
-        return {
+        """Named parameters (JSON-ready): levels, input range, weights, offset, slope, memory
+        and creep (when set)."""
+        d: JSONDict = {
             "levels": self.levels,
             "input_range": list(self.input_range),
             "weights": self.weights.tolist(),
@@ -211,3 +227,6 @@ class Preisach(HysteresisModel):
             "slope": self.slope,
             "memory": self.memory,
         }
+        if self.creep is not None:
+            d["creep"] = self.creep.parameters
+        return d
