@@ -34,6 +34,7 @@ fn table_lengths_are_what_the_builders_consume() {
         ("rdpi", &[2, 2]),
         ("creep", &[3]),
         ("preisach", &[4, 8]),
+        ("preisach", &[4, 8, 2]),
         ("boucwen", &[]),
         ("duhem", &[]),
         ("dahl", &[]),
@@ -45,7 +46,10 @@ fn table_lengths_are_what_the_builders_consume() {
         assert_eq!(fam.param_len(), n, "{name} {dims:?}");
         assert_eq!(fam.layout().name, name);
         let (d, k) = fam.dims();
-        assert_eq!(&d[..k], dims);
+        // a two-dims Preisach row (written before its creep tail) reads with creep_terms = 0
+        let want: Vec<usize> =
+            if name == "preisach" && dims.len() == 2 { [dims, &[0]].concat() } else { dims.to_vec() };
+        assert_eq!(&d[..k], &want[..], "{name} {dims:?}");
         let total: usize = layout.ranges(dims).map(|(_, _, len)| len).sum();
         assert_eq!(total, n);
         let mut scratch = vec![0.0; fam.scratch_len()];
