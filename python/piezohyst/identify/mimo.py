@@ -901,16 +901,16 @@ def _fit_kind(
     th_u = np.sqrt((u**2).mean(axis=(0, 2)))[:, None] * rel[None, :]
     w_u = play_features(u, th_u) if both else None
     # static channels (LFR only): r tanh(z / r) of each output at each scale, channel-major
-    th_s = rms[:, None] * np.asarray(settings.static_scales, dtype=np.float64)[None, :] if structure == "lfr" else None
-    ns = 0 if th_s is None else th_s.size
+    scales = np.asarray(settings.static_scales if structure == "lfr" else (), dtype=np.float64)
+    th_s = rms[:, None] * scales[None, :]  # (m, scales)
+    ns, per = th_s.size, scales.size
     for it in range(settings.iterations + 1 if structure == "lfr" else 1):
         w = play_features(z, th)
         if w_u is not None:
             w = np.concatenate([w, w_u], axis=1)
         if ns:
-            assert th_s is not None
             ths = th_s.reshape(1, ns, 1)
-            w = np.concatenate([w, ths * np.tanh(np.repeat(z, th_s.shape[1], axis=1) / ths)], axis=1)
+            w = np.concatenate([w, ths * np.tanh(np.repeat(z, per, axis=1) / ths)], axis=1)
         if it == 0 and settings.relocations:
             real, cplx = relocate_poles(u, ys, real, cplx, w, iterations=settings.relocations, record_weights=rw)
         if it > 0 and settings.oe_relocations:
@@ -932,9 +932,8 @@ def _fit_kind(
             thr = np.vstack([thr, th_u.reshape(nwu, 1)])
             nw += nwu
         if ns:
-            assert th_s is not None
-            g = np.vstack([g, np.repeat(c, th_s.shape[1], axis=0)])
-            h = np.vstack([h, np.repeat(d, th_s.shape[1], axis=0)])
+            g = np.vstack([g, np.repeat(c, per, axis=0)])
+            h = np.vstack([h, np.repeat(d, per, axis=0)])
             thr = np.vstack([thr, th_s.reshape(ns, 1)])
             nw += ns
         model = MimoModel(
@@ -947,7 +946,7 @@ def _fit_kind(
             st = model.periodic_state(np.moveaxis(u, 2, 0))
             _, zs, _ = model.run(np.ascontiguousarray(np.moveaxis(u, 2, 0)), st)
             # the simulated outputs: the first channel of each output's group (plays, else static)
-            first = slice(0, m * nr, nr) if nr else slice(nw - ns, nw, max(ns // m, 1))
+            first = slice(0, m * nr, nr) if nr else slice(nw - ns, nw, max(per, 1))
             z = np.ascontiguousarray(np.moveaxis(zs[:, :, first], 0, 2))
     assert model is not None
     if settings.oe_iterations > 0:

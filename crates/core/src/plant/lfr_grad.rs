@@ -305,28 +305,34 @@ mod tests {
         p: Vec<f64>, // flat, in the gradient's layout
     }
 
+    /// The dimensions `nx, nu, ny, nw, nr, nt` of a model without its matrices (for
+    /// [`grad_offsets`]).
+    fn shell(d: [usize; 6]) -> Lfr<'static> {
+        let [nx, nu, ny, nw, nr, nt] = d;
+        Lfr {
+            nx,
+            nu,
+            ny,
+            nw,
+            nr,
+            a: &[],
+            b: &[],
+            c: &[],
+            d: &[],
+            e: &[],
+            f: &[],
+            g: &[],
+            h: &[],
+            thresholds: &[],
+            weights: &[],
+            nt,
+            modal: false,
+        }
+    }
+
     impl Owned {
         fn lfr(&self) -> Lfr<'_> {
-            let (nx, nu, ny, nw, nr, nt) = (self.nx, self.nu, self.ny, self.nw, self.nr, self.nt);
-            let shell = Lfr {
-                nx,
-                nu,
-                ny,
-                nw,
-                nr,
-                a: &[],
-                b: &[],
-                c: &[],
-                d: &[],
-                e: &[],
-                f: &[],
-                g: &[],
-                h: &[],
-                thresholds: &[],
-                weights: &[],
-                nt,
-                modal: false,
-            };
+            let shell = shell([self.nx, self.nu, self.ny, self.nw, self.nr, self.nt]);
             let o = grad_offsets(&shell);
             let p = &self.p;
             Lfr {
@@ -350,25 +356,7 @@ mod tests {
     /// A random model; `nt` of its 2 channels static (their thresholds 0.2, 0.5, 1).
     fn model(seed: &mut u64, modal: bool, nt: usize) -> Owned {
         let (nx, nu, ny, nw, nr) = (4, 2, 2, 2, 3);
-        let shell = Lfr {
-            nx,
-            nu,
-            ny,
-            nw,
-            nr,
-            a: &[],
-            b: &[],
-            c: &[],
-            d: &[],
-            e: &[],
-            f: &[],
-            g: &[],
-            h: &[],
-            thresholds: &[],
-            weights: &[],
-            nt,
-            modal: false,
-        };
+        let shell = shell([nx, nu, ny, nw, nr, nt]);
         let o = grad_offsets(&shell);
         let mut p: Vec<f64> = (0..o[10]).map(|_| 0.5 * rand(seed)).collect();
         // A: a stable modal form (a 2x2 rotation block, two real poles) or a small dense matrix
