@@ -144,6 +144,60 @@ def test_refinement_recovers_a_perturbed_truth() -> None:
     assert np.abs(np.linalg.eigvals(res.model.A) - np.linalg.eigvals(true.A)).max() < 2e-3
 
 
+@pytest.mark.parametrize("what", ["thresholds", "F"])
+def test_free_thresholds_and_feedthrough_are_fitted(what: str) -> None:
+    """A truth whose play thresholds differ from the start's by 40 % (or whose feedback has a
+    feedthrough ``F`` the start lacks) is recovered only when ``free`` names that part."""
+    base = _true_lfr()
+    if what == "thresholds":
+        true, start = base, replace(base, thresholds=base.thresholds * 1.4)
+    else:
+        true = replace(base, F=np.array([[0.02, 0.0, -0.03, 0.0], [0.0, 0.04, 0.0, 0.01]]))
+        start = base
+    rec = _levels(true, n=512, realizations=4)
+    folds = rec.folds()
+    fit, test = rec.select(folds[0]), rec.select(folds[1])
+    kw = {"validation": test, "maxiter": 80, "warmup": 256}
+    fixed = refine_output_error(start, fit, **kw)
+    free = refine_output_error(start, fit, free=(what,), **kw)
+    e_fixed = protocol_rmse(fixed.model, test.u, test.y).mean()
+    e_free = protocol_rmse(free.model, test.u, test.y).mean()
+    e_true = protocol_rmse(true, test.u, test.y).mean()  # the noise: 1e-3
+    # measured: thresholds 0.021 fixed, 0.0053 free (start 0.067); F 0.025 fixed, 0.0018 free
+    # (start 0.18)
+    assert e_free < 0.3 * e_fixed, (e_fixed, e_free)
+    if what == "thresholds":
+        # every threshold moves toward the truth; their mean error (0.4 at the start) more
+        # than halves (measured 0.17: the small play, whose feedback is weak, moves least)
+        err = np.abs(free.model.thresholds / true.thresholds - 1)
+        assert (err < 0.4).all() and err.mean() < 0.2, err
+        assert np.array_equal(fixed.model.thresholds, start.thresholds)  # not free: untouched
+    else:
+        assert e_free < 3 * e_true, (e_true, e_free)
+        assert not fixed.model.F.any()  # a zero F stays zero unless named
+
+
+def test_one_lbfgs_run_per_warmup_state_with_checks_inside() -> None:
+    """Checks every ``check_every`` iterations inside one L-BFGS run of ``chunk`` iterations;
+    the run stops after ``patience`` checks without a better validation score."""
+    true = _true_lfr()
+    rec = _levels(true, n=256, realizations=4)
+    folds = rec.folds()
+    start = replace(true, A=true.A * 0.995)
+    res = refine_output_error(
+        start, rec.select(folds[0]), validation=rec.select(folds[1]), maxiter=40, chunk=1000, check_every=10
+    )
+    assert [h["iteration"] for h in res.history] == [0, 10, 20, 30, 40]
+    assert res.stopped == "maxiter"
+    assert res.history[-1]["validation_score"] < 0.5
+    # a validation set the model cannot improve on stops it by patience
+    worse = refine_output_error(
+        start, rec.select(folds[0]), validation=rec.select(folds[1]), maxiter=400, check_every=1, patience=1,
+        callback=lambda h: None,
+    )  # fmt: skip
+    assert worse.stopped in ("patience", "converged") and worse.best_iteration <= worse.history[-1]["iteration"]
+
+
 def test_callback_and_time_budget_stop_the_run() -> None:
     rec = _levels(_true_lfr(), n=256, realizations=2)
     start = identify_mimo(rec, "mimo-lfr", settings=MimoSettings(order=4, iterations=0, oe_iterations=0)).model
@@ -167,6 +221,10 @@ def test_bad_input_is_a_parameter_error() -> None:
         refine_output_error(m, rec, maxiter=-1)
     with pytest.raises(ParameterError, match="time_budget"):
         refine_output_error(m, rec, time_budget=float("nan"))
+    with pytest.raises(ParameterError, match=r"free = \['gains'\]: \['gains'\] not among"):
+        refine_output_error(m, rec, free=("gains",))
+    with pytest.raises(ParameterError, match="check_every = 0"):
+        refine_output_error(m, rec, check_every=0)
     u = np.zeros((1, 10, 2))
     with pytest.raises(ParameterError, match="y has shape"):
         loss_gradient(m, u, np.zeros((1, 9, 2)))
