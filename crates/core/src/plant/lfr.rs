@@ -19,6 +19,7 @@
 //! `x` (`nx`) followed by the play operators' outputs (`nw * nr`, channel-major). A step
 //! allocates nothing: the caller gives a scratch buffer of [`Lfr::scratch_len`].
 use crate::error::{check_finite, ModelError};
+use crate::num::linalg::dot;
 use crate::num::math::tanh;
 
 /// The dimensions and matrices of an LFR model, borrowed (see the module docs).
@@ -228,11 +229,6 @@ fn is_modal(a: &[f64], n: usize) -> bool {
         s += size;
     }
     true
-}
-
-#[inline]
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(p, q)| p * q).sum()
 }
 
 #[cfg(test)]

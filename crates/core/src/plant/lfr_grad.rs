@@ -24,6 +24,7 @@
 //! [`Lfr::validated`]) only the entries inside its diagonal blocks get a gradient (the
 //! others stay 0: a modal parameterization keeps them 0).
 use crate::lfr::Lfr;
+use crate::num::linalg::dot;
 use crate::num::math::tanh;
 
 /// Offsets of each parameter's gradient in the flat gradient vector, in the order
@@ -108,11 +109,14 @@ pub fn loss_grad(
             return None;
         }
         xs[t * nx..(t + 1) * nx].copy_from_slice(&state[..nx]);
-        let prev = &state[nx..];
         let ut = &u[t * nu..(t + 1) * nu];
-        // which plays move: from the feedback signal before the step
-        for i in 0..nw {
-            let zi = dot(&m.g[i * nx..(i + 1) * nx], &state[..nx]) + dot(&m.h[i * nu..(i + 1) * nu], ut);
+        let yt = &mut es[t * ny..(t + 1) * ny];
+        m.step(ut, state, scratch, yt, z);
+        ws[t * nw..(t + 1) * nw].copy_from_slice(&scratch[nx..nx + nw]);
+        // which plays moved: from the feedback signal the step computed (z) and the plays
+        // before it (the previous sample's, stored)
+        let prev = if t == 0 { &state0[nx..] } else { &ps[(t - 1) * np..t * np] };
+        for (i, &zi) in z.iter().enumerate() {
             for j in 0..nr {
                 let k = i * nr + j;
                 let r = m.thresholds[k];
@@ -131,9 +135,6 @@ pub fn loss_grad(
                 };
             }
         }
-        let yt = &mut es[t * ny..(t + 1) * ny];
-        m.step(ut, state, scratch, yt, z);
-        ws[t * nw..(t + 1) * nw].copy_from_slice(&scratch[nx..nx + nw]);
         ps[t * np..(t + 1) * np].copy_from_slice(&state[nx..]);
         for (o, e) in yt.iter_mut().enumerate() {
             *e -= y_meas[t * ny + o];
@@ -271,11 +272,6 @@ pub fn loss_grad(
         lam.copy_from_slice(lam_new);
     }
     Some(loss)
-}
-
-#[inline]
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(p, q)| p * q).sum()
 }
 
 #[inline]

@@ -16,6 +16,7 @@
 //! ahead of it and the actuators' voltage limits).
 use crate::control::{Controller, Output, Reference, MAX_TERMS};
 use crate::hysteresis::Hysteresis;
+use crate::num::linalg::dot;
 use crate::plant::closed_loop::{Sample, Tracking};
 use crate::plant::lfr::Lfr;
 use crate::plant::sensor::{Sensor, SensorState};
@@ -110,10 +111,6 @@ pub struct LfrPlant<'a, H> {
     pub z: &'a mut [f64],
     /// Output scratch of the model's step (`N`).
     pub y: &'a mut [f64],
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 impl<H: Hysteresis> Coupled for LfrPlant<'_, H> {
