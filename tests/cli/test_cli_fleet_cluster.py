@@ -136,16 +136,22 @@ def test_a_worker_killed_mid_run_loses_no_record_and_duplicates_none(tmp_path, c
         text=True,
         env=_env(),
     )
+    from distributed import Client
+
     try:
         done_at_kill = None
         deadline = time.monotonic() + 300
-        while time.monotonic() < deadline and fleet.poll() is None:
-            done = len(list(out.glob("part*.json"))) if out.is_dir() else 0
-            if done >= 2:
-                _kill(workers[0])
-                done_at_kill = done
-                break
-            time.sleep(0.02)
+        with Client(address, timeout="30s") as client:
+            name_of = {a: w["name"] for a, w in client.scheduler_info()["workers"].items()}
+            while time.monotonic() < deadline and fleet.poll() is None:
+                done = len(list(out.glob("part*.json"))) if out.is_dir() else 0
+                # killed while it runs a record: that task is lost with it and must run again
+                busy = {name_of.get(a) for a, keys in client.processing().items() if keys}
+                if done >= 2 and "w0" in busy:
+                    _kill(workers[0])
+                    done_at_kill = done
+                    break
+                time.sleep(0.02)
         stdout, stderr = fleet.communicate(timeout=300)
     finally:
         if fleet.poll() is None:
@@ -160,7 +166,9 @@ def test_a_worker_killed_mid_run_loses_no_record_and_duplicates_none(tmp_path, c
         rows = list(csv.DictReader(f))
     assert sorted(r["record"] for r in rows) == sorted(r.stem for r in recs)  # each once
     ran = [int(r["worker"].rpartition(":")[2]) for r in rows]
-    assert set(ran) == {workers[0].pid, workers[1].pid}  # both worked; the survivor finished the rest
+    # the survivor finished the rest; the killed worker may or may not have finished a record
+    # before (the scheduler decides who runs the first ones)
+    assert set(ran) <= {workers[0].pid, workers[1].pid} and workers[1].pid in ran
     assert ran.count(workers[1].pid) >= len(recs) - done_at_kill
     assert sorted(p.name for p in out.glob("*.json")) == sorted(f"{r.stem}.json" for r in recs)
     assert not list(out.glob(".*.tmp"))

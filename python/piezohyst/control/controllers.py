@@ -25,6 +25,7 @@ from .. import _core
 from .._validate import as_int, as_scalar
 from ..errors import ParameterError, ParameterTypeError
 from ..signals.lti import (
+    TRIM_RTOL,
     polynomial_tf,
     require_control,
     scipy_state_space,
@@ -901,7 +902,14 @@ class FilteredPID:
 
 def _pid_gains(num: FloatArray, den: FloatArray, dt: float | None) -> tuple[float, float, float, float | None]:
     """``(kp, ki, kd, tau_d or None)`` of a feedback transfer function of PID form
-    (``num``/``den`` highest power first, ``den`` monic; ``dt`` the sample time or ``None``)."""
+    (``num``/``den`` highest power first, ``den`` monic; ``dt`` the sample time or ``None``).
+
+    The gains come in closed form (partial fractions), the numerator summed exactly and the
+    filter's pole read from ``den``'s coefficients. A discrete PID's poles lie close together
+    (1 and ``a = tau_d / (tau_d + Ts)``) and its numerator nearly vanishes at 1
+    (``ki Ts (1 - a)`` from coefficients near ``kd / Ts``): the eigenvalue solver's 1e-14 on such
+    a pair cost ``ki`` 1e-9 of itself, and a least-squares solve gave a gain of 0 back as a
+    rounding residue (9e-20)."""
     form = (
         "kp + ki / s + kd s / (tau_d s + 1)"
         if dt is None
@@ -917,52 +925,64 @@ def _pid_gains(num: FloatArray, den: FloatArray, dt: float | None) -> tuple[floa
     if np.any(roots.imag != 0):
         raise refuse(f"complex poles {roots.tolist()}")
     poles = sorted(roots.real.tolist(), reverse=True)
+    # the integrator's pole, and the zero of the derivative's term: s = 0, z = 1
     p_int = 0.0 if dt is None else 1.0
-    size = max([1.0, *(abs(r) for r in poles)])
+    size = max([1.0, *(abs(p) for p in poles)])
     integrator = bool(poles) and abs(poles[0] - p_int) <= 1e-9 * size
     rest = poles[1:] if integrator else poles
     if len(rest) > 1:
         raise refuse(f"poles {poles}")
-    filt = rest[0] if rest else None
+    # the filter's pole from the coefficients (the roots of the monic den sum to -den[1]),
+    # not the eigenvalue solver's
+    filt = -float(den[1]) - (p_int if integrator else 0.0) if rest else None
     if filt is not None and not ((filt < 0) if dt is None else (0 < filt < 1)):
         raise refuse(f"the derivative filter's pole {filt} must be {'< 0' if dt is None else 'in (0, 1)'}")
-    # the exact denominator, and the numerator of each term over it, powers ascending
-    poly = np.polynomial.polynomial
-    d_int = [-p_int, 1.0] if integrator else [1.0]
-    d_filt = [-filt, 1.0] if filt is not None else [1.0]
-    columns = [poly.polymul(d_int, d_filt)]  # kp
-    if integrator:  # ki / s -> (s - p_f); ki Ts z / (z - 1) -> z (z - a)
-        columns.append(poly.polymul(d_filt, [0.0, 1.0]) if dt is not None else np.asarray(d_filt, dtype=float))
-    if filt is not None:  # kd s / (tau s + 1) = (kd / tau) s / (s + 1 / tau); g (z - 1) / (z - a)
-        columns.append(poly.polymul([0.0, 1.0] if dt is None else [-1.0, 1.0], d_int))
-    n = den.size
-    mat = np.zeros((n, len(columns)))
-    for j, col in enumerate(columns):
-        mat[: len(col), j] = col
-    rhs = np.zeros(n)
-    rhs[: num.size] = num[::-1]
-    # compare on the system's frequency scale: s -> w s (the filter pole's magnitude)
-    w = abs(filt) if (dt is None and filt is not None) else 1.0
-    weights = w ** np.arange(n, dtype=np.float64)
-    sol, *_ = np.linalg.lstsq(mat * weights[:, None], rhs * weights, rcond=None)
-    resid = (mat @ sol - rhs) * weights
-    if np.max(np.abs(resid)) > 1e-9 * max(float(np.max(np.abs(rhs * weights))), 1e-300):
-        raise refuse("its numerator is not a combination of the PID's terms over its denominator")
-    kp, k = float(sol[0]), 1
-    ki = 0.0
-    if integrator:
-        ki = float(sol[k]) / (1.0 if dt is None else dt)
-        k += 1
+    n = np.zeros(den.size)  # the numerator, powers ascending, as long as den
+    n[: num.size] = num[::-1]
+
+    def at(x: float) -> float:
+        """The numerator at ``x``, its terms summed exactly."""
+        return math.fsum(float(c) * x**k for k, c in enumerate(n))
+
+    # C = kp + r I + h D, I = 1 / s or z / (z - 1) (r = ki or ki Ts), D = s / (s - f) or
+    # (z - 1) / (z - a) (h = kd / tau_d or kd / (tau_d + Ts)): each gain from the coefficient
+    # it alone sets, a residue at its pole or the numerator where the other terms vanish
+    kp = r = h = 0.0
+    if integrator and filt is not None:
+        if dt is None:  # n = [-f ki, -f kp + ki, kp + h]
+            r = float(n[0]) / -filt
+            kp = (float(n[1]) - r) / -filt
+            h = float(n[2]) - kp
+            terms = (abs(float(n[1])) + abs(r)) / -filt
+        else:  # residues at 1 and a; kp what is left at infinity, n[2] = kp + ki Ts + h
+            r = at(1.0) / (1.0 - filt)
+            h = at(filt) / (filt - 1.0) ** 2
+            kp = float(n[2]) - r - h
+            terms = abs(float(n[2])) + abs(r) + abs(h)
+        # kp is a difference here: below TRIM_RTOL of the terms it is taken from, it is their
+        # rounding residue (a PID without kp), as a leading coefficient is in siso_polynomials
+        if abs(kp) <= TRIM_RTOL * terms:
+            kp = 0.0
+    elif integrator:  # n = [ki, kp] or [-kp, kp + ki Ts]
+        r = at(p_int)
+        kp = float(n[1]) if dt is None else -float(n[0])
+    elif filt is not None:  # D vanishes at p_int; n[1] = kp + h
+        kp = at(p_int) / (p_int - filt)
+        h = float(n[1]) - kp
+    else:
+        kp = float(n[0])
+    ki = r / (1.0 if dt is None else dt)
     tau: float | None = None
     kd = 0.0
     if filt is not None:
         tau = -1.0 / filt if dt is None else filt * dt / (1.0 - filt)
-        kd = float(sol[k]) * (tau if dt is None else tau + dt)
+        kd = h * (tau if dt is None else tau + dt)
     largest = max(abs(kp), abs(ki), abs(kd))
     for name, value in (("kp", kp), ("ki", ki), ("kd", kd)):
         if value < -1e-9 * largest:
             raise ParameterError(f"sys gives {name} = {value:.6g}: the PID's gains are non-negative")
-    return max(kp, 0.0), max(ki, 0.0), max(kd, 0.0), tau
+    # a residue within the tolerance above, or -0.0, is a gain of 0
+    return kp if kp > 0 else 0.0, ki if ki > 0 else 0.0, kd if kd > 0 else 0.0, tau
 
 
 def _check_sliding(kp: float, kv: float, alpha: float) -> None:

@@ -1600,11 +1600,43 @@ class IdentificationResult(RunReport):
         return fig
 
 
+def _huber_location(residuals: FloatArray, delta: npt.ArrayLike) -> FloatArray:
+    """The constant ``c`` that minimizes ``huber_cost(r - c, delta)``, per row.
+
+    Safeguarded Newton steps from the median on the cost's derivative (piecewise linear, so
+    a step that keeps the inlier set is exact), bisection when a step leaves the bracket.
+    Unlike the median, ``c`` moves smoothly with the residuals: the profiled cost stays
+    differentiable for the gradient polish, and with Gaussian residuals ``c`` is as efficient
+    as the mean (95 % at ``delta = 1.345 sigma``; the median: 64 %)."""
+    r = np.asarray(residuals, dtype=np.float64)
+    d = np.asarray(delta, dtype=np.float64)
+    d = np.expand_dims(d, -1) if np.ndim(d) else d
+    lo, hi = r.min(axis=-1, keepdims=True), r.max(axis=-1, keepdims=True)
+    c = np.median(r, axis=-1, keepdims=True)
+    tol = 1e-14 * np.maximum(np.abs(lo), np.abs(hi))
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        for _ in range(100):
+            e = r - c
+            slope = np.clip(e, -d, d).sum(axis=-1, keepdims=True)  # -d cost / d c, up to a factor
+            lo, hi = np.where(slope > 0, c, lo), np.where(slope < 0, c, hi)
+            inside = (np.abs(e) < d).sum(axis=-1, keepdims=True)
+            step = slope / inside
+            new = np.where((inside > 0) & (c + step > lo) & (c + step < hi), c + step, 0.5 * (lo + hi))
+            new = np.where(slope == 0, c, new)
+            done = np.abs(new - c) <= tol
+            c = new
+            if np.all(done | ~np.isfinite(c)):
+                break
+    return np.asarray(c[..., 0], dtype=np.float64)
+
+
 def minimize_huber(
     simulate: Callable[[FloatArray], FloatArray],
     target: FloatArray,
     bounds: Sequence[tuple[float, float]],
     delta: float | None = None,
+    *,
+    offset: bool = False,
     **search: Any,
 ) -> OptimizeResult:
     """Minimize the Huber cost of ``simulate(X) - target`` over a box with a population
@@ -1633,6 +1665,10 @@ def minimize_huber(
         The search box.
     delta : float, optional
         A fixed Huber threshold (default: the two-stage search above).
+    offset : bool
+        Score every candidate with its best constant output offset for the threshold in use
+        (the Huber location M-estimate, projected out: the search runs over the shape alone);
+        ``history["offset"]`` holds the best candidate's.
     **search
         Options of :func:`piezohyst.optimize.minimize`.
 
@@ -1657,26 +1693,37 @@ def minimize_huber(
 
     from ..optimize.core import minimize, polish_lbfgsb
 
+    def residuals(X: FloatArray, threshold: float | None) -> FloatArray:
+        r = simulate(X) - target
+        if offset:
+            scale = default_huber_delta(r) if threshold is None else threshold
+            r = r - _huber_location(r, scale)[..., None]
+        return r
+
     def fixed(X: FloatArray) -> FloatArray:
-        return huber_cost(simulate(X) - target, delta)
+        return huber_cost(residuals(X, delta), delta)
+
+    def best_offset(x: FloatArray, threshold: float) -> float:
+        r = simulate(x[None, :])[0] - target
+        return -float(_huber_location(r, threshold)) if offset else 0.0
 
     if delta is not None:
         res = minimize(fixed, bounds, polish=True, **search)
-        return replace(res, history={**res.history, "huber_delta": float(delta)})
-    res = minimize(lambda X: huber_cost(simulate(X) - target), bounds, **search)
+        found = {"huber_delta": float(delta), "offset": best_offset(np.asarray(res.x, dtype=np.float64), delta)}
+        return replace(res, history={**res.history, **found})
+    res = minimize(lambda X: huber_cost(residuals(X, None)), bounds, **search)
     x0 = np.array(res.x, dtype=np.float64)
-    r0 = simulate(x0[None, :])[0] - target
+    r0 = residuals(x0[None, :], None)[0]
     if res.message == "interrupted" or not np.all(np.isfinite(r0)):
-        return replace(res, history={**res.history, "huber_delta": float("nan")})
+        return replace(res, history={**res.history, "huber_delta": float("nan"), "offset": float("nan")})
     tiny = 1e-15 * (float(np.max(np.abs(target))) or 1.0)  # an exact majority leaves MAD = 0
     threshold = max(float(default_huber_delta(r0)), tiny)
     delta = threshold
     lower, upper = np.array(bounds, dtype=np.float64).T
     x, f, n = polish_lbfgsb(fixed, x0, float(fixed(x0[None, :])[0]), lower, upper, {})
     message = f"{res.message}; Huber threshold {threshold:.6g} from the MAD, then L-BFGS-B to {f:.6g}"
-    return replace(
-        res, x=x, fun=f, nfev=res.nfev + n + 1, message=message, history={**res.history, "huber_delta": threshold}
-    )
+    found = {"huber_delta": threshold, "offset": best_offset(x, threshold)}
+    return replace(res, x=x, fun=f, nfev=res.nfev + n + 1, message=message, history={**res.history, **found})
 
 
 #: Parameters searched by :func:`identify_cemf`, in seed 1's normalized form.

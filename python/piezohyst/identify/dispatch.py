@@ -829,7 +829,9 @@ def _identify_boucwen(
 
     With ``offset`` the output offset is projected out of every candidate (variable
     projection): each simulated output is scored with its best offset — the mean residual
-    for the RMSE, the median for the Huber cost — so the search runs over the shape alone
+    for the RMSE, the Huber location at the threshold in use for the Huber cost (smooth in
+    the parameters, unlike the median, which stalled the gradient polish: validation RMSE
+    1.5x the least-squares fit's on a glitch-free record) — so the search runs over the shape alone
     and an offset in the record cannot bend the loop; the fitted model carries the offset
     in its output map. Bouc–Wen scales with ``a`` and ``d``: no gain is fitted. A ``drift``
     basis (squared loss) is projected out with the offset (the least-squares drift of each
@@ -845,23 +847,26 @@ def _identify_boucwen(
     check_samples(v.size, sum(lo < hi for lo, hi in bounds) + bool(offset), "a Bouc-Wen model")
 
     # the rows stay inside the box, where every Bouc-Wen row is valid (n = 1, finite)
-    # the offset that is best for the loss: mean (squared), median (huber), mid-range (linf)
+    # the offset that is best for the loss: mean (squared), mid-range (linf); huber's depends
+    # on the threshold, minimize_huber projects it out
     def centre(r: FloatArray) -> FloatArray:
-        if loss == "huber":
-            return np.asarray(np.median(r, axis=-1, keepdims=True), dtype=np.float64)
         if loss == "linf":
             return np.asarray(0.5 * (r.max(axis=-1, keepdims=True) + r.min(axis=-1, keepdims=True)), dtype=np.float64)
         return np.asarray(np.mean(r, axis=-1, keepdims=True), dtype=np.float64)
 
-    def simulate(rows: FloatArray) -> FloatArray:
+    def raw(rows: FloatArray) -> FloatArray:
         out: FloatArray = _core.batch_simulate(family, [], np.ascontiguousarray(rows), v)
+        return out
+
+    def simulate(rows: FloatArray) -> FloatArray:
+        out = raw(rows)
         if offset:
             with np.errstate(invalid="ignore", over="ignore"):
                 out += centre(y - out)
         return out
 
     if loss == "huber":
-        res = minimize_huber(simulate, y, bounds, delta, method=method, **search)
+        res = minimize_huber(raw, y, bounds, delta, offset=offset, method=method, **search)
     elif loss == "linf":
 
         def worst(rows: FloatArray) -> FloatArray:
@@ -888,7 +893,8 @@ def _identify_boucwen(
         res = minimize(cost, bounds, method=method, polish=True, **search)
     fitted = BoucWen(*np.asarray(res.x, dtype=np.float64))
     if offset:
-        fitted = fitted.with_output_map(offset=float(centre(y - fitted.simulate(v))[0]))
+        best = res.history["offset"] if loss == "huber" else float(centre(y - fitted.simulate(v))[0])
+        fitted = fitted.with_output_map(offset=best)
     return fitted, method, dict(res.history), res.interrupted, int(res.nfev)
 
 

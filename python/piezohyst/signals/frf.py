@@ -17,8 +17,8 @@ Examples
 >>> u = rng.standard_normal((64, 2, 4, 2)); u[..., 1] = u[..., 0]
 >>> y = np.stack([2 * u[:, 0] - u[:, 1], u[:, 1]], axis=1)       # a static 2x2 system
 >>> bla = estimate_bla(u, y, fs=64.0)
->>> np.round(bla.G[5].real, 6).tolist()
-[[2.0, -1.0], [0.0, 1.0]]
+>>> np.round(bla.G[5].real, 6).tolist() == [[2.0, -1.0], [0.0, 1.0]]      # -0.0 == 0.0
+True
 """
 
 from __future__ import annotations
