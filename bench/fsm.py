@@ -73,8 +73,36 @@ def _per_level(err: np.ndarray, labels: tuple[str, ...]) -> dict[str, float]:
     return {k: float(np.mean(v)) for k, v in per.items()}
 
 
+def _fit_and_score(train: Any, test: Any, kind: str, settings: Any) -> tuple[dict[str, Any], Any]:
+    """One model fitted on ``train`` and scored on ``test`` by the protocol: its summary and the model."""
+    from piezohyst.identify.mimo import identify_mimo, protocol_rmse
+
+    t0 = time.perf_counter()
+    res = identify_mimo(train, kind, settings=settings)  # type: ignore[arg-type]
+    fit_s = time.perf_counter() - t0
+    report = res.report()
+    summary = {
+        "rmse_um": _per_level(protocol_rmse(res.model, test.u, test.y) * 1e6, test.labels),
+        "fit_s": fit_s,
+        "states": res.model.nx,
+        **({"output_error": report["output_error"]} if "output_error" in report else {}),
+    }
+    return summary, res.model
+
+
+def _mean_per_level(runs: list[dict[str, Any]], labels: Any) -> dict[str, dict[str, float]]:
+    """Each model's RMSE per level, averaged over ``runs`` (each with ``models[label]["rmse_um"]``)."""
+    return {
+        label: {
+            lev: float(np.mean([r["models"][label]["rmse_um"][lev] for r in runs]))
+            for lev in runs[0]["models"][label]["rmse_um"]
+        }
+        for label in labels
+    }
+
+
 def run(data: Path, quick: bool, directions: int = 1, loo: tuple[int, ...] = (1, 4)) -> dict[str, Any]:
-    from piezohyst.identify.mimo import MimoSettings, identify_mimo, protocol_rmse, read_multisine_folder
+    from piezohyst.identify.mimo import MimoSettings, read_multisine_folder
 
     rec = read_multisine_folder(data, 6400.0)
     folds = rec.folds()
@@ -89,32 +117,16 @@ def run(data: Path, quick: bool, directions: int = 1, loo: tuple[int, ...] = (1,
         train, test = rec.select(folds[fit_f]), rec.select(folds[test_f])
         models: dict[str, Any] = {}
         for label, (kind, settings) in kinds.items():
-            t0 = time.perf_counter()
-            res = identify_mimo(train, kind, settings=settings)  # type: ignore[arg-type]
-            fit_s = time.perf_counter() - t0
-            err = protocol_rmse(res.model, test.u, test.y) * 1e6
-            models[label] = {
-                "rmse_um": _per_level(err, test.labels),
-                "fit_s": fit_s,
-                "states": res.model.nx,
-                **({"output_error": res.report()["output_error"]} if "output_error" in res.report() else {}),
-            }
+            models[label], model = _fit_and_score(train, test, kind, settings)
             print(label, f"fit {sorted(set(folds[fit_f]))[:3]}", models[label], flush=True)
             if kind == "mimo-lfr" and simulate_s is None:  # the LFR's simulate call, timed
                 u1 = test.u[:, :, 0, 0]
                 y1 = test.y[:100, :, 0, 0]
                 t1 = time.perf_counter()
-                res.model.simulate(u1, init_output=y1)
+                model.simulate(u1, init_output=y1)
                 simulate_s = time.perf_counter() - t1
         names = "{1,2,3}" if fit_f == 0 else "{4,5,6}"
         split.append({"fit": names, "score": "{4,5,6}" if fit_f == 0 else "{1,2,3}", "models": models})
-    mean = {
-        label: {
-            lev: float(np.mean([d["models"][label]["rmse_um"][lev] for d in split]))
-            for lev in split[0]["models"][label]["rmse_um"]
-        }
-        for label in kinds
-    }
     # leave one realization out: the LFR with static channels, as --model auto fits it, and
     # the linear baseline on the same split
     loo_runs = []
@@ -125,35 +137,14 @@ def run(data: Path, quick: bool, directions: int = 1, loo: tuple[int, ...] = (1,
         test = rec.select(test_idx)
         entry: dict[str, Any] = {"held_out": k, "models": {}}
         for label, (kind, settings) in kinds.items():
-            t0 = time.perf_counter()
-            res = identify_mimo(rec.select(train_idx), kind, settings=settings)  # type: ignore[arg-type]
-            entry["models"][label] = {
-                "rmse_um": _per_level(protocol_rmse(res.model, test.u, test.y) * 1e6, test.labels),
-                "fit_s": time.perf_counter() - t0,
-                **({"output_error": res.report()["output_error"]} if "output_error" in res.report() else {}),
-            }
+            entry["models"][label], _ = _fit_and_score(rec.select(train_idx), test, kind, settings)
             print(f"leave-one-out {k}", label, entry["models"][label], flush=True)
         loo_runs.append(entry)
     out: dict[str, Any] = {
         "directions": split,
-        "mean_rmse_um": mean,
+        "mean_rmse_um": _mean_per_level(split, kinds),
         "simulate_s": simulate_s,
-        **(
-            {
-                "leave_one_out": {
-                    "runs": loo_runs,
-                    "mean_rmse_um": {
-                        label: {
-                            lev: float(np.mean([r["models"][label]["rmse_um"][lev] for r in loo_runs]))
-                            for lev in loo_runs[0]["models"][label]["rmse_um"]
-                        }
-                        for label in kinds
-                    },
-                }
-            }
-            if loo_runs
-            else {}
-        ),
+        **({"leave_one_out": {"runs": loo_runs, "mean_rmse_um": _mean_per_level(loo_runs, kinds)}} if loo_runs else {}),
         "published": PUBLISHED,
     }
     if not quick:
