@@ -462,7 +462,8 @@ def lfr_loss_grad(
     """Squared output error of the LFR on ``R`` records (``u (R, N, nu)`` against ``y (R, N, ny)``
     from ``state``, the first ``skip`` samples not counted, each record weighted) and its gradient
     (reverse mode): ``(losses (R,), flat gradient in the order A, B, C, D, E, F, G, H, thresholds,
-    weights)``."""
+    weights)``; records in batches of 4 stepped in lockstep, a batch with a diverged simulation
+    ``inf`` for each of its records."""
 
 def play_bank(x: _Array3, thresholds: _Array2, state: _Array2) -> tuple[_Array3, _Array2]:
     """Play operators on every channel of ``x (R, N, m)``: ``(outputs (R, N, m*nr), final state)``."""

@@ -21,6 +21,8 @@ use pyo3::prelude::*;
 
 use crate::control::{with_controller, ControllerSpec};
 use crate::models::Model;
+#[cfg(target_arch = "x86_64")]
+use crate::util::use_avx2;
 use crate::util::{check_alloc, check_finite, err, guarded, interruptible, slice};
 use pyo3::types::{PyDict, PyTuple};
 use rayon::prelude::*;
@@ -954,14 +956,6 @@ unsafe fn record_run_avx2<C: CoreController + ?Sized, E: Extra>(
     extra: &mut E,
 ) -> Signals {
     record_run(stage, sensor, c, sc, init, extra)
-}
-
-/// Whether runs take the AVX2 path: the CPU has AVX2 and `PIEZOHYST_NO_AVX2` is not set
-/// (read once; the benchmark sets it to check that both paths give the same bits).
-#[cfg(target_arch = "x86_64")]
-fn use_avx2() -> bool {
-    static USE: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *USE.get_or_init(|| std::is_x86_feature_detected!("avx2") && std::env::var_os("PIEZOHYST_NO_AVX2").is_none())
 }
 
 fn record_run_dispatch<C: CoreController + ?Sized, E: Extra>(

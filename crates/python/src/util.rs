@@ -208,3 +208,11 @@ pub fn interruptible<T: Send>(py: Python<'_>, work: impl FnOnce(&Stop) -> T + Se
 /// Work (in model steps x state slots) above which a single-threaded call goes through
 /// [`interruptible`]; below it, the thread hand-off would cost more than the call.
 pub const INTERRUPTIBLE_WORK: usize = 1 << 22;
+
+/// Whether the hot loops take their AVX2 path: the CPU has AVX2 and `PIEZOHYST_NO_AVX2` is not
+/// set (read once; the benchmark sets it to check that both paths give the same bits).
+#[cfg(target_arch = "x86_64")]
+pub fn use_avx2() -> bool {
+    static USE: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *USE.get_or_init(|| std::is_x86_feature_detected!("avx2") && std::env::var_os("PIEZOHYST_NO_AVX2").is_none())
+}

@@ -5,7 +5,10 @@ gradients through the Rust simulator.
 The gradient (:func:`loss_gradient`) is computed by reverse mode in Rust
 (``piezohyst_core::lfr_grad``: a forward pass storing the trajectory, the adjoint run
 backwards; a play operator passes the derivative 1 when it moves, 0 when stuck), records in
-parallel. :func:`refine_output_error` starts from a fitted model (e.g. the frequency-domain
+batches of four stepped in lockstep (each matrix entry loaded once for four records, the
+lanes in one AVX2 register), batches in parallel: on the 15 FSM records of a
+``--model auto`` run (120 states, 33 feedback channels) 0.28 s per gradient, 0.77 s
+record by record. :func:`refine_output_error` starts from a fitted model (e.g. the frequency-domain
 fit of :func:`piezohyst.identify.mimo.identify_mimo`) and runs L-BFGS-B on:
 
 - the parameters: ``A`` by its modal blocks (a real pole ``a``; a complex pair
@@ -88,7 +91,8 @@ def loss_gradient(
     """The squared output error of ``model`` simulated on records ``u`` ``(R, N, nu)``
     against ``y`` ``(R, N, ny)`` from ``state`` ``(R, state_len)`` (rest if ``None``), each
     record's ``weight * sum_{t >= skip} |y_hat[t] - y[t]|^2``, and the gradient of their sum
-    with respect to every matrix (reverse mode in Rust, records in parallel). For a modal
+    with respect to every matrix (reverse mode in Rust, records in batches of four stepped in
+    lockstep, batches in parallel). For a modal
     ``A`` only the entries inside its diagonal blocks get a gradient (the others are 0).
 
     Parameters
@@ -107,7 +111,8 @@ def loss_gradient(
     Returns
     -------
     losses : numpy.ndarray
-        Per record ``(R,)`` (``inf`` for a record whose simulation diverged).
+        Per record ``(R,)`` (``inf`` for a record whose simulation diverged, and for the
+        records of its batch of four).
     gradient : dict of str to numpy.ndarray
         Per matrix (``A`` ... ``H``, ``thresholds``, ``weights``), shaped like it.
 

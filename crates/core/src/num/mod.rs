@@ -1,5 +1,7 @@
 //! Numerics the models share: elementary functions through libm (bit-identical with and
-//! without `std`), small dense matrices, and the deterministic random generator.
+//! without `std`), small dense matrices, lane vectors (records stepped in lockstep) and the
+//! deterministic random generator.
+pub mod lanes;
 pub mod linalg;
 pub(crate) mod math;
 pub mod rng;

@@ -19,7 +19,7 @@
 //! `x` (`nx`) followed by the play operators' outputs (`nw * nr`, channel-major). A step
 //! allocates nothing: the caller gives a scratch buffer of [`Lfr::scratch_len`].
 use crate::error::{check_finite, ModelError};
-use crate::num::linalg::dot;
+use crate::num::lanes::{one_lane, one_lane_mut, rows_times, Lanes};
 use crate::num::math::tanh;
 
 /// The dimensions and matrices of an LFR model, borrowed (see the module docs).
@@ -111,55 +111,99 @@ impl<'a> Lfr<'a> {
         self.nx + self.nw
     }
 
-    /// One sample: reads `u` (`nu`), writes `y` (`ny`) and `z` (`nw`), advances `state`.
+    /// One sample: reads `u` (`nu`), writes `y` (`ny`) and `z` (`nw`), advances `state`
+    /// (`[x, plays]`, [`Lfr::state_len`]) with `scratch` ([`Lfr::scratch_len`]): [`Lfr::step_lanes`]
+    /// for one record.
     #[inline]
     pub fn step(&self, u: &[f64], state: &mut [f64], scratch: &mut [f64], y: &mut [f64], z: &mut [f64]) {
-        let (nx, nu, nw, nr) = (self.nx, self.nu, self.nw, self.nr);
-        let (x, plays) = state.split_at_mut(nx);
-        let (xn, w) = scratch.split_at_mut(nx);
-        for i in 0..nw {
-            let mut zi = dot(&self.g[i * nx..(i + 1) * nx], x) + dot(&self.h[i * nu..(i + 1) * nu], u);
-            if !zi.is_finite() {
-                zi = f64::NAN;
-            }
-            z[i] = zi;
-            let mut wi = 0.0;
-            if i >= nw - self.nt {
-                for j in 0..nr {
-                    let k = i * nr + j;
-                    let r = self.thresholds[k];
-                    let p = r * tanh(zi / r);
-                    plays[k] = p;
-                    wi += self.weights[k] * p;
+        let (x, plays) = one_lane_mut(state).split_at_mut(self.nx);
+        let (xn, w) = one_lane_mut(scratch).split_at_mut(self.nx);
+        self.step_lanes(one_lane(u), x, plays, xn, w, one_lane_mut(y), one_lane_mut(z), None);
+    }
+
+    /// One sample of `L` records in lockstep ([`crate::num::lanes`]): reads `u` (`nu`),
+    /// writes `y` (`ny`), the feedback signals `z` and outputs `w` (`nw` each), advances the
+    /// states `x` (`nx`) and `plays` (`nw * nr`) through `xn` (`nx`, scratch). `slopes`
+    /// (`nw * nr`), when given, gets each play's move (0 stuck, 1 up: `p = z - r`, 2 down:
+    /// `p = z + r`) and each static channel's `dp/dz`, for the adjoint.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub fn step_lanes<const L: usize>(
+        &self,
+        u: &[Lanes<L>],
+        x: &mut [Lanes<L>],
+        plays: &mut [Lanes<L>],
+        xn: &mut [Lanes<L>],
+        w: &mut [Lanes<L>],
+        y: &mut [Lanes<L>],
+        z: &mut [Lanes<L>],
+        mut slopes: Option<&mut [Lanes<L>]>,
+    ) {
+        let (nx, nw, nr) = (self.nx, self.nw, self.nr);
+        let first_static = nw - self.nt;
+        rows_times(z, self.g, x, false);
+        rows_times(z, self.h, u, true);
+        for (i, zi) in z.iter_mut().enumerate() {
+            // an overflowed feedback signal is NaN, not a clipped infinity: the divergence shows
+            for v in zi.iter_mut() {
+                if !v.is_finite() {
+                    *v = f64::NAN;
                 }
-                w[i] = wi;
-                continue;
             }
+            let mut wi = [0.0; L];
             for j in 0..nr {
                 let k = i * nr + j;
-                let r = self.thresholds[k];
-                let p = plays[k].max(zi - r).min(zi + r);
-                plays[k] = p;
-                wi += self.weights[k] * p;
+                let (r, wk) = (self.thresholds[k], self.weights[k]);
+                let p = &mut plays[k];
+                if i >= first_static {
+                    for l in 0..L {
+                        let th = tanh(zi[l] / r);
+                        p[l] = r * th;
+                        if let Some(sl) = slopes.as_deref_mut() {
+                            sl[k][l] = 1.0 - th * th;
+                        }
+                    }
+                } else {
+                    if let Some(sl) = slopes.as_deref_mut() {
+                        for l in 0..L {
+                            sl[k][l] = if r == 0.0 || p[l] < zi[l] - r {
+                                1.0
+                            } else if p[l] > zi[l] + r {
+                                2.0
+                            } else {
+                                0.0
+                            };
+                        }
+                    }
+                    for l in 0..L {
+                        p[l] = p[l].max(zi[l] - r).min(zi[l] + r);
+                    }
+                }
+                for l in 0..L {
+                    wi[l] += wk * p[l];
+                }
             }
             w[i] = wi;
         }
-        for (o, yo) in y.iter_mut().enumerate() {
-            *yo = dot(&self.c[o * nx..(o + 1) * nx], x)
-                + dot(&self.d[o * nu..(o + 1) * nu], u)
-                + dot(&self.f[o * nw..(o + 1) * nw], w);
-        }
-        for (s, xs) in xn.iter_mut().enumerate() {
-            let ax = if self.modal {
+        rows_times(y, self.c, x, false);
+        rows_times(y, self.d, u, true);
+        rows_times(y, self.f, w, true);
+        if self.modal {
+            for (s, xs) in xn.iter_mut().enumerate() {
                 let row = &self.a[s * nx..(s + 1) * nx];
-                let lo = s.saturating_sub(1);
-                let hi = (s + 2).min(nx);
-                dot(&row[lo..hi], &x[lo..hi])
-            } else {
-                dot(&self.a[s * nx..(s + 1) * nx], x)
-            };
-            *xs = ax + dot(&self.b[s * nu..(s + 1) * nu], u) + dot(&self.e[s * nw..(s + 1) * nw], w);
+                let mut acc = [0.0; L];
+                for c in s.saturating_sub(1)..(s + 2).min(nx) {
+                    for l in 0..L {
+                        acc[l] += row[c] * x[c][l];
+                    }
+                }
+                *xs = acc;
+            }
+        } else {
+            rows_times(xn, self.a, x, false);
         }
+        rows_times(xn, self.b, u, true);
+        rows_times(xn, self.e, w, true);
         x.copy_from_slice(xn);
     }
 

@@ -1,10 +1,10 @@
 //! The gradient of an LFR simulation's squared output error with respect to every parameter
-//! ([`crate::lfr::Lfr`]): reverse mode (backpropagation through time).
+//! ([`crate::lfr::Lfr`]): reverse mode (backpropagation through time), `L` records at once.
 //!
 //! The loss of one record is `weight * sum_{t >= skip} |y[t] - y_meas[t]|^2`. The forward
 //! pass runs the model from the given state and stores the trajectory (states, feedback
-//! outputs, play outputs and whether each play moved); the backward pass runs the adjoint
-//! from the last sample to the first:
+//! signals and outputs, play outputs and whether each play moved); the backward pass runs the
+//! adjoint from the last sample to the first:
 //!
 //! ```text
 //! gy      = 2 weight (y[t] - y_meas[t])            (0 for t < skip)
@@ -19,13 +19,23 @@
 //! `dG += gz x[t]'`, ...), `d weights_k += gw_i p_k[t]`, `d thresholds_k -= gp_k` when the play
 //! moved up (`p = z - r`), `+= gp_k` when it moved down. A static channel (the last `nt`:
 //! `p = r tanh(z / r)`, no memory) passes `gz_i += gp_k (1 - (p / r)^2)` and
-//! `d thresholds_k += gp_k (p / r - (z / r) (1 - (p / r)^2))`, its `mu_k = 0`. Nothing is allocated: the caller
-//! gives one work buffer per record ([`work_len`]) for the trajectory and the adjoint. For a modal `A` (see
-//! [`Lfr::validated`]) only the entries inside its diagonal blocks get a gradient (the
-//! others stay 0: a modal parameterization keeps them 0).
+//! `d thresholds_k += gp_k (p / r - (z / r) (1 - (p / r)^2))`, its `mu_k = 0`.
+//!
+//! Why `L` records in lockstep: one record's step is a string of matrix-vector products whose
+//! every matrix entry is loaded for one multiply; `L` records stepped together
+//! (lane-interleaved vectors, [`Lanes`]) load it once for `L` multiplies, and the inner loops
+//! over lanes carry no reduction, so they vectorize. The outer products are deferred: the
+//! adjoint vectors of [`CHUNK`] steps are kept and added as one blocked product (its
+//! accumulators in registers), not as a rank-one update of the whole gradient per step.
+//! Nothing is allocated: the caller gives one work buffer per batch ([`work_len`]). For a
+//! modal `A` (see [`Lfr::validated`]) only the entries inside its diagonal blocks get a
+//! gradient (the others stay 0: a modal parameterization keeps them 0).
 use crate::lfr::Lfr;
-use crate::num::linalg::dot;
-use crate::num::math::tanh;
+use crate::num::lanes::{cols_times_add, outer_add, Lanes};
+
+/// Backward steps between two additions of the deferred outer products (their adjoint
+/// vectors and the trajectory they multiply stay in the L2 cache).
+pub const CHUNK: usize = 64;
 
 /// Offsets of each parameter's gradient in the flat gradient vector, in the order
 /// `A, B, C, D, E, F, G, H, thresholds, weights` (each row-major, shapes as in [`Lfr`]).
@@ -59,91 +69,106 @@ fn block_at(m: &Lfr<'_>, s: usize) -> usize {
     }
 }
 
-/// Length of the work buffer [`loss_grad`] needs for a record of `n` samples: the stored
-/// trajectory (`n * (nx + nw + 2 nw nr + ny)`) and the adjoint's buffers.
+/// Length, in lane vectors, of the work buffer [`loss_grad`] needs for records of `n`
+/// samples: the stored trajectory (`n * (2 nx + 2 nw + 2 nw nr + ny + nu)`: states, feedback
+/// signals and outputs, plays and their slopes, errors, inputs), the deferred adjoint vectors
+/// and the step's vectors.
 pub fn work_len(m: &Lfr<'_>, n: usize) -> usize {
-    let np = m.nw * m.nr;
-    n * (m.nx + m.nw + 2 * np + m.ny) + m.state_len() + m.scratch_len() + 3 * m.nw + 2 * m.nx + np + m.ny
+    let (nx, nu, ny, nw) = (m.nx, m.nu, m.ny, m.nw);
+    let np = nw * m.nr;
+    n * (nx + 2 * nw + 2 * np + ny + nu) + CHUNK * (nx + ny + nw) + 6 * nx + 4 * np + 4 * nw + 2 * ny
 }
 
-/// The loss of one record (see the module docs) and its gradient added to `grad`
-/// ([`grad_len`], layout of [`grad_offsets`]). `u` (`n * nu`), `y_meas` (`n * ny`),
-/// `state0` ([`Lfr::state_len`]), `work` at least [`work_len`] (the caller's: the core never
-/// allocates). Returns `None` when the simulation diverges (a state not
-/// finite) or `stop` says so (checked every 1024 samples); `grad` is then left partly
-/// updated.
+/// The losses of `L` records of the same length (see the module docs) and the gradient of
+/// their sum added to `grad` ([`grad_len`], layout of [`grad_offsets`]). Record `l`:
+/// `u[l]` (`n * nu`), `y_meas[l]` (`n * ny`), `state0[l]` ([`Lfr::state_len`]), `weight[l]`;
+/// `work` at least [`work_len`] lane vectors (the caller's: the core never allocates). A
+/// record of weight 0 adds nothing (a batch's padding). Returns `None` when a simulation
+/// diverges (a state not finite) or `stop` says so (checked every 1024 samples); `grad` is
+/// then left partly updated.
 #[allow(clippy::too_many_arguments)]
-pub fn loss_grad(
+#[inline(always)]
+pub fn loss_grad<const L: usize>(
     m: &Lfr<'_>,
-    u: &[f64],
-    y_meas: &[f64],
-    state0: &[f64],
+    u: [&[f64]; L],
+    y_meas: [&[f64]; L],
+    state0: [&[f64]; L],
     skip: usize,
-    weight: f64,
+    weight: [f64; L],
     grad: &mut [f64],
-    work: &mut [f64],
+    work: &mut [Lanes<L>],
     stop: &dyn Fn() -> bool,
-) -> Option<f64> {
+) -> Option<[f64; L]> {
     let (nx, nu, ny, nw, nr) = (m.nx, m.nu, m.ny, m.nw, m.nr);
     let np = nw * nr;
-    let n = u.len().checked_div(nu).unwrap_or(y_meas.len().checked_div(ny).unwrap_or(0));
-    // the forward pass: the trajectory the backward pass reads
+    let n = u[0].len().checked_div(nu).unwrap_or(y_meas[0].len().checked_div(ny).unwrap_or(0));
     let (xs, work) = work.split_at_mut(n * nx);
     let (ws, work) = work.split_at_mut(n * nw);
+    let (zs, work) = work.split_at_mut(n * nw);
     let (ps, work) = work.split_at_mut(n * np);
-    let (mv, work) = work.split_at_mut(n * np); // 0 stuck, 1 moved up (p = z - r), 2 down (p = z + r)
+    // a play: 0 stuck, 1 moved up (p = z - r), 2 down (p = z + r); a static channel: dp/dz
+    let (mv, work) = work.split_at_mut(n * np);
     let (es, work) = work.split_at_mut(n * ny);
-    let (state, work) = work.split_at_mut(m.state_len());
-    let (scratch, work) = work.split_at_mut(m.scratch_len());
+    let (us, work) = work.split_at_mut(n * nu);
+    let (lamc, work) = work.split_at_mut(CHUNK * nx); // lam[t+1] of the chunk's steps
+    let (gyc, work) = work.split_at_mut(CHUNK * ny);
+    let (gzc, work) = work.split_at_mut(CHUNK * nw);
+    let (x, work) = work.split_at_mut(nx);
+    let (xn, work) = work.split_at_mut(nx);
+    let (plays, work) = work.split_at_mut(np);
     let (z, work) = work.split_at_mut(nw);
+    let (w, work) = work.split_at_mut(nw);
+    let (yv, work) = work.split_at_mut(ny);
     let (lam, work) = work.split_at_mut(nx); // dL/dx[t+1]
     let (lam_new, work) = work.split_at_mut(nx);
     let (mu, work) = work.split_at_mut(np); // dL/dp[t] through p[t+1]
     let (gy, work) = work.split_at_mut(ny);
     let (gw, work) = work.split_at_mut(nw);
-    let (gz, _) = work.split_at_mut(nw);
-    state.copy_from_slice(state0);
-    let mut loss = 0.0;
+    let (gz, work) = work.split_at_mut(nw);
+    let (ga_l, work) = work.split_at_mut(2 * nx); // a modal A's blocks, per lane
+    let (gth_l, work) = work.split_at_mut(np);
+    let (gwt_l, _) = work.split_at_mut(np);
     for t in 0..n {
-        if t % 1024 == 0 && (stop() || !state.iter().all(|s| s.is_finite())) {
-            return None;
-        }
-        xs[t * nx..(t + 1) * nx].copy_from_slice(&state[..nx]);
-        let ut = &u[t * nu..(t + 1) * nu];
-        let yt = &mut es[t * ny..(t + 1) * ny];
-        m.step(ut, state, scratch, yt, z);
-        ws[t * nw..(t + 1) * nw].copy_from_slice(&scratch[nx..nx + nw]);
-        // which plays moved: from the feedback signal the step computed (z) and the plays
-        // before it (the previous sample's, stored)
-        let prev = if t == 0 { &state0[nx..] } else { &ps[(t - 1) * np..t * np] };
-        for (i, &zi) in z.iter().enumerate() {
-            for j in 0..nr {
-                let k = i * nr + j;
-                let r = m.thresholds[k];
-                if i >= nw - m.nt {
-                    // a static channel: its slope dp/dz
-                    let th = tanh(zi / r);
-                    mv[t * np + k] = 1.0 - th * th;
-                    continue;
-                }
-                mv[t * np + k] = if r == 0.0 || prev[k] < zi - r {
-                    1.0
-                } else if prev[k] > zi + r {
-                    2.0
-                } else {
-                    0.0
-                };
-            }
-        }
-        ps[t * np..(t + 1) * np].copy_from_slice(&state[nx..]);
-        for (o, e) in yt.iter_mut().enumerate() {
-            *e -= y_meas[t * ny + o];
-            if t >= skip {
-                loss += weight * *e * *e;
+        for j in 0..nu {
+            for l in 0..L {
+                us[t * nu + j][l] = u[l][t * nu + j];
             }
         }
     }
-    if !(loss.is_finite() && state.iter().all(|s| s.is_finite())) {
+    for l in 0..L {
+        for s in 0..nx {
+            x[s][l] = state0[l][s];
+        }
+        for k in 0..np {
+            plays[k][l] = state0[l][nx + k];
+        }
+    }
+    let finite =
+        |x: &[Lanes<L>], plays: &[Lanes<L>]| x.iter().chain(plays.iter()).all(|v| v.iter().all(|s| s.is_finite()));
+    let first_static = nw - m.nt;
+    let mut loss = [0.0; L];
+    // the forward pass: the trajectory the backward pass reads
+    for t in 0..n {
+        if t % 1024 == 0 && (stop() || !finite(x, plays)) {
+            return None;
+        }
+        xs[t * nx..(t + 1) * nx].copy_from_slice(x);
+        let ut = &us[t * nu..(t + 1) * nu];
+        m.step_lanes(ut, x, plays, xn, w, yv, z, Some(&mut mv[t * np..(t + 1) * np]));
+        zs[t * nw..(t + 1) * nw].copy_from_slice(z);
+        ws[t * nw..(t + 1) * nw].copy_from_slice(w);
+        ps[t * np..(t + 1) * np].copy_from_slice(plays);
+        for (o, yo) in yv.iter().enumerate() {
+            let e = &mut es[t * ny + o];
+            for l in 0..L {
+                e[l] = yo[l] - y_meas[l][t * ny + o];
+                if t >= skip {
+                    loss[l] += weight[l] * e[l] * e[l];
+                }
+            }
+        }
+    }
+    if !(loss.iter().all(|l| l.is_finite()) && finite(x, plays)) {
         return None;
     }
     // the backward pass
@@ -157,128 +182,134 @@ pub fn loss_grad(
     let (gg, rest) = rest.split_at_mut(off[7] - off[6]);
     let (gh, rest) = rest.split_at_mut(off[8] - off[7]);
     let (gth, gwt) = rest.split_at_mut(off[9] - off[8]);
-    lam.fill(0.0);
-    mu.fill(0.0);
+    for v in [&mut *lam, &mut *mu, &mut *ga_l, &mut *gth_l, &mut *gwt_l] {
+        v.fill([0.0; L]);
+    }
     for t in (0..n).rev() {
         if t % 1024 == 0 && stop() {
             return None;
         }
-        let x = &xs[t * nx..(t + 1) * nx];
-        let ut = &u[t * nu..(t + 1) * nu];
-        let wt = &ws[t * nw..(t + 1) * nw];
+        let c = t % CHUNK; // the step's place in its chunk
+        let xt = &xs[t * nx..(t + 1) * nx];
         for (o, g) in gy.iter_mut().enumerate() {
-            *g = if t >= skip { 2.0 * weight * es[t * ny + o] } else { 0.0 };
-        }
-        // gw = F' gy + E' lam (row by row: contiguous reads)
-        gw.fill(0.0);
-        for (o, &g) in gy.iter().enumerate() {
-            if g != 0.0 {
-                axpy(gw, g, &m.f[o * nw..(o + 1) * nw]);
+            for l in 0..L {
+                g[l] = if t >= skip { 2.0 * weight[l] * es[t * ny + o][l] } else { 0.0 };
             }
         }
-        for (r, &l) in lam.iter().enumerate() {
-            if l != 0.0 {
-                axpy(gw, l, &m.e[r * nw..(r + 1) * nw]);
-            }
-        }
-        // outputs: C, D, F
-        for o in 0..ny {
-            let g = gy[o];
-            if g != 0.0 {
-                axpy(&mut gc[o * nx..(o + 1) * nx], g, x);
-                axpy(&mut gd[o * nu..(o + 1) * nu], g, ut);
-                axpy(&mut gf[o * nw..(o + 1) * nw], g, wt);
-            }
-        }
-        // states: A (blocks), B, E
-        let mut s0 = 0;
-        while s0 < nx {
-            let size = block_at(m, s0);
-            for r in s0..s0 + size {
-                let l = lam[r];
-                for c in s0..s0 + size {
-                    ga[r * nx + c] += l * x[c];
+        gyc[c * ny..(c + 1) * ny].copy_from_slice(gy);
+        lamc[c * nx..(c + 1) * nx].copy_from_slice(lam);
+        gw.fill([0.0; L]);
+        cols_times_add(gw, m.f, gy);
+        cols_times_add(gw, m.e, lam);
+        if m.modal {
+            let mut s0 = 0;
+            while s0 < nx {
+                let size = block_at(m, s0);
+                for r in s0..s0 + size {
+                    let (gr, lr) = (&mut ga_l[2 * r..2 * r + size], lam[r]);
+                    for (g, xq) in gr.iter_mut().zip(&xt[s0..s0 + size]) {
+                        for l in 0..L {
+                            g[l] += lr[l] * xq[l];
+                        }
+                    }
                 }
-            }
-            s0 += size;
-        }
-        for r in 0..nx {
-            let l = lam[r];
-            if l != 0.0 {
-                axpy(&mut gb[r * nu..(r + 1) * nu], l, ut);
-                axpy(&mut ge[r * nw..(r + 1) * nw], l, wt);
+                s0 += size;
             }
         }
         // the plays
+        let (pt, mvt, zt) = (&ps[t * np..(t + 1) * np], &mv[t * np..(t + 1) * np], &zs[t * nw..(t + 1) * nw]);
         for i in 0..nw {
-            let mut s = 0.0;
-            if i >= nw - m.nt {
-                let zi = dot(&m.g[i * nx..(i + 1) * nx], x) + dot(&m.h[i * nu..(i + 1) * nu], ut);
-                for j in 0..nr {
-                    let k = i * nr + j;
-                    let (r, p, slope) = (m.thresholds[k], ps[t * np + k], mv[t * np + k]);
-                    let gp = m.weights[k] * gw[i];
-                    gwt[k] += gw[i] * p;
-                    s += gp * slope;
-                    gth[k] += gp * (p / r - zi / r * slope);
-                }
-                gz[i] = s;
-                if s != 0.0 {
-                    axpy(&mut gg[i * nx..(i + 1) * nx], s, x);
-                    axpy(&mut gh[i * nu..(i + 1) * nu], s, ut);
-                }
-                continue;
-            }
+            let mut s = [0.0; L];
             for j in 0..nr {
                 let k = i * nr + j;
-                let gp = m.weights[k] * gw[i] + mu[k];
-                gwt[k] += gw[i] * ps[t * np + k];
-                let dir = mv[t * np + k];
-                if dir == 0.0 {
-                    mu[k] = gp;
-                } else {
-                    s += gp;
-                    mu[k] = 0.0;
-                    if m.thresholds[k] > 0.0 {
-                        gth[k] += if dir == 1.0 { -gp } else { gp };
+                let (r, wk) = (m.thresholds[k], m.weights[k]);
+                let (p, sl, g) = (pt[k], mvt[k], gw[i]);
+                for l in 0..L {
+                    gwt_l[k][l] += g[l] * p[l];
+                }
+                if i >= first_static {
+                    let zi = zt[i];
+                    for l in 0..L {
+                        let gp = wk * g[l];
+                        s[l] += gp * sl[l];
+                        gth_l[k][l] += gp * (p[l] / r - zi[l] / r * sl[l]);
+                    }
+                    continue;
+                }
+                // selects, not branches, so that the lanes vectorize: a play that moved passes
+                // its worth to z (and to its threshold), a stuck one carries it to the sample before
+                for l in 0..L {
+                    let gp = wk * g[l] + mu[k][l];
+                    let moved = sl[l] != 0.0;
+                    s[l] += if moved { gp } else { 0.0 };
+                    mu[k][l] = if moved { 0.0 } else { gp };
+                    if r > 0.0 {
+                        gth_l[k][l] += if sl[l] == 1.0 {
+                            -gp
+                        } else if sl[l] == 2.0 {
+                            gp
+                        } else {
+                            0.0
+                        };
                     }
                 }
             }
             gz[i] = s;
-            if s != 0.0 {
-                axpy(&mut gg[i * nx..(i + 1) * nx], s, x);
-                axpy(&mut gh[i * nu..(i + 1) * nu], s, ut);
-            }
         }
+        gzc[c * nw..(c + 1) * nw].copy_from_slice(gz);
         // lam[t] = A' lam[t+1] + C' gy + G' gz
+        if m.modal {
+            for (q, ln) in lam_new.iter_mut().enumerate() {
+                let mut acc = [0.0; L];
+                let lo = q.saturating_sub(1);
+                for (r, lr) in lam.iter().enumerate().take((q + 2).min(nx)).skip(lo) {
+                    let a = m.a[r * nx + q];
+                    for l in 0..L {
+                        acc[l] += a * lr[l];
+                    }
+                }
+                *ln = acc;
+            }
+        } else {
+            lam_new.fill([0.0; L]);
+            cols_times_add(lam_new, m.a, lam);
+        }
+        cols_times_add(lam_new, m.c, gy);
+        cols_times_add(lam_new, m.g, gz);
+        lam.copy_from_slice(lam_new);
+        if c == 0 {
+            // the chunk's outer products, from its first sample `t`
+            let k = CHUNK.min(n - t);
+            let (xc, wc, uc) = (&xs[t * nx..], &ws[t * nw..], &us[t * nu..]);
+            if !m.modal {
+                outer_add(ga, lamc, nx, xc, nx, k);
+            }
+            outer_add(gb, lamc, nx, uc, nu, k);
+            outer_add(gc, gyc, ny, xc, nx, k);
+            outer_add(gd, gyc, ny, uc, nu, k);
+            outer_add(ge, lamc, nx, wc, nw, k);
+            outer_add(gf, gyc, ny, wc, nw, k);
+            outer_add(gg, gzc, nw, xc, nx, k);
+            outer_add(gh, gzc, nw, uc, nu, k);
+        }
+    }
+    if m.modal {
         let mut s0 = 0;
         while s0 < nx {
             let size = block_at(m, s0);
-            for (c, ln) in lam_new.iter_mut().enumerate().skip(s0).take(size) {
-                *ln = lam.iter().enumerate().skip(s0).take(size).map(|(r, l)| m.a[r * nx + c] * l).sum();
+            for r in s0..s0 + size {
+                for q in s0..s0 + size {
+                    ga[r * nx + q] += ga_l[2 * r + q - s0].iter().sum::<f64>();
+                }
             }
             s0 += size;
         }
-        for (o, &g) in gy.iter().enumerate() {
-            if g != 0.0 {
-                axpy(lam_new, g, &m.c[o * nx..(o + 1) * nx]);
-            }
-        }
-        for (i, &g) in gz.iter().enumerate() {
-            if g != 0.0 {
-                axpy(lam_new, g, &m.g[i * nx..(i + 1) * nx]);
-            }
-        }
-        lam.copy_from_slice(lam_new);
+    }
+    for k in 0..np {
+        gth[k] += gth_l[k].iter().sum::<f64>();
+        gwt[k] += gwt_l[k].iter().sum::<f64>();
     }
     Some(loss)
-}
-
-#[inline]
-fn axpy(y: &mut [f64], a: f64, x: &[f64]) {
-    for (yi, xi) in y.iter_mut().zip(x) {
-        *yi += a * xi;
-    }
 }
 
 #[cfg(test)]
@@ -379,8 +410,8 @@ mod tests {
 
     fn loss_of(m: &Owned, u: &[f64], y: &[f64], s0: &[f64], skip: usize) -> f64 {
         let mut g = vec![0.0; m.p.len()];
-        let mut w = vec![0.0; work_len(&m.lfr(), u.len() / m.nu)];
-        loss_grad(&m.lfr(), u, y, s0, skip, 0.7, &mut g, &mut w, &|| false).unwrap()
+        let mut w = vec![[0.0]; work_len(&m.lfr(), u.len() / m.nu)];
+        loss_grad(&m.lfr(), [u], [y], [s0], skip, [0.7], &mut g, &mut w, &|| false).unwrap()[0]
     }
 
     #[test]
@@ -396,8 +427,8 @@ mod tests {
             let lfr = m.lfr();
             assert_eq!(lfr.modal, modal);
             let mut g = vec![0.0; m.p.len()];
-            let mut w = vec![0.0; work_len(&lfr, n)];
-            let l0 = loss_grad(&lfr, &u, &y, &s0, skip, 0.7, &mut g, &mut w, &|| false).unwrap();
+            let mut w = vec![[0.0]; work_len(&lfr, n)];
+            let l0 = loss_grad(&lfr, [&u], [&y], [&s0], skip, [0.7], &mut g, &mut w, &|| false).unwrap()[0];
             assert!(l0 > 0.0);
             let off = grad_offsets(&lfr);
             let mut checked = 0;
@@ -424,6 +455,56 @@ mod tests {
     }
 
     #[test]
+    fn records_in_lockstep_equal_records_alone() {
+        // three records and a padding lane of weight 0 in one batch of 4: the same losses and
+        // the same summed gradient as each record alone (up to the order of the sums)
+        let mut seed = 11u64;
+        for (modal, nt) in [(true, 1), (false, 0)] {
+            let m = model(&mut seed, modal, nt);
+            let lfr = m.lfr();
+            let n = 150;
+            let rec = |seed: &mut u64| -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+                let u = (0..n * m.nu).map(|_| rand(seed)).collect();
+                let y = (0..n * m.ny).map(|_| 0.3 * rand(seed)).collect();
+                let s0 = (0..lfr.state_len()).map(|_| 0.1 * rand(seed)).collect();
+                (u, y, s0)
+            };
+            let recs: Vec<_> = (0..3).map(|_| rec(&mut seed)).collect();
+            let weights = [0.7, 1.3, 0.4];
+            let mut alone = vec![0.0; m.p.len()];
+            let mut losses = [0.0; 3];
+            for (i, (u, y, s0)) in recs.iter().enumerate() {
+                let mut w = vec![[0.0]; work_len(&lfr, n)];
+                losses[i] =
+                    loss_grad(&lfr, [u], [y], [s0], 13, [weights[i]], &mut alone, &mut w, &|| false).unwrap()[0];
+            }
+            let (r0, r1, r2) = (&recs[0], &recs[1], &recs[2]);
+            let mut batch = vec![0.0; m.p.len()];
+            let mut w = vec![[0.0; 4]; work_len(&lfr, n)];
+            let l = loss_grad(
+                &lfr,
+                [&r0.0, &r1.0, &r2.0, &r0.0],
+                [&r0.1, &r1.1, &r2.1, &r1.1],
+                [&r0.2, &r1.2, &r2.2, &r2.2],
+                13,
+                [weights[0], weights[1], weights[2], 0.0],
+                &mut batch,
+                &mut w,
+                &|| false,
+            )
+            .unwrap();
+            for i in 0..3 {
+                assert!((l[i] - losses[i]).abs() <= 1e-12 * losses[i], "loss {i}: {} vs {}", l[i], losses[i]);
+            }
+            let scale = alone.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            for (k, (a, b)) in alone.iter().zip(&batch).enumerate() {
+                assert!((a - b).abs() <= 1e-11 * scale, "modal {modal}, parameter {k}: {a} alone, {b} in the batch");
+            }
+            assert!(alone.iter().filter(|v| **v != 0.0).count() > 50);
+        }
+    }
+
+    #[test]
     fn zero_error_has_zero_gradient_and_divergence_is_none() {
         let mut seed = 3u64;
         let m = model(&mut seed, true, 1);
@@ -436,8 +517,8 @@ mod tests {
         let (mut st, mut sc) = (s0.clone(), vec![0.0; lfr.scratch_len()]);
         assert!(lfr.simulate(&u, &mut st, &mut sc, &mut y, &mut z, &|| false));
         let mut g = vec![0.0; m.p.len()];
-        let mut w = vec![0.0; work_len(&lfr, n)];
-        let l = loss_grad(&lfr, &u, &y, &s0, 0, 1.0, &mut g, &mut w, &|| false).unwrap();
+        let mut w = vec![[0.0]; work_len(&lfr, n)];
+        let l = loss_grad(&lfr, [&u], [&y], [&s0], 0, [1.0], &mut g, &mut w, &|| false).unwrap()[0];
         assert_eq!(l, 0.0);
         assert!(g.iter().all(|v| *v == 0.0));
         // an unstable model diverges: None
@@ -446,7 +527,7 @@ mod tests {
         let long: Vec<f64> = (0..3000 * bad.nu).map(|_| 1.0).collect();
         let yl = vec![0.0; 3000 * bad.ny];
         let mut g = vec![0.0; bad.p.len()];
-        let mut w = vec![0.0; work_len(&bad.lfr(), 3000)];
-        assert!(loss_grad(&bad.lfr(), &long, &yl, &s0, 0, 1.0, &mut g, &mut w, &|| false).is_none());
+        let mut w = vec![[0.0]; work_len(&bad.lfr(), 3000)];
+        assert!(loss_grad(&bad.lfr(), [&long], [&yl], [&s0], 0, [1.0], &mut g, &mut w, &|| false).is_none());
     }
 }
