@@ -28,10 +28,24 @@ pub fn one_lane_mut(s: &mut [f64]) -> &mut [Lanes<1>] {
 /// four rows at a time: four independent sums per entry of `v` loaded.
 #[inline(always)]
 pub fn rows_times<const L: usize>(out: &mut [Lanes<L>], m: &[f64], v: &[Lanes<L>], add: bool) {
+    rows_times_skipping(out, m, v, add, 0);
+}
+
+/// [`rows_times`] skipping the blocks of four rows that [`zero_row_blocks`] found all zero
+/// (`skip`; their rows of `out` are 0, or unchanged when `add`).
+#[inline(always)]
+pub fn rows_times_skipping<const L: usize>(out: &mut [Lanes<L>], m: &[f64], v: &[Lanes<L>], add: bool, skip: u64) {
     let cols = v.len();
     let rows = out.len();
     let mut r = 0;
     while r + 4 <= rows {
+        if r / 4 < 64 && skip >> (r / 4) & 1 == 1 {
+            if !add {
+                out[r..r + 4].fill([0.0; L]);
+            }
+            r += 4;
+            continue;
+        }
         let (m0, m1) = (&m[r * cols..(r + 1) * cols], &m[(r + 1) * cols..(r + 2) * cols]);
         let (m2, m3) = (&m[(r + 2) * cols..(r + 3) * cols], &m[(r + 3) * cols..(r + 4) * cols]);
         let mut acc = [[0.0; L]; 4];
@@ -70,10 +84,21 @@ pub fn rows_times<const L: usize>(out: &mut [Lanes<L>], m: &[f64], v: &[Lanes<L>
 /// multiplies.
 #[inline(always)]
 pub fn cols_times_add<const L: usize>(out: &mut [Lanes<L>], m: &[f64], v: &[Lanes<L>]) {
+    cols_times_add_skipping(out, m, v, 0);
+}
+
+/// [`cols_times_add`] skipping the blocks of four rows of `m` that [`zero_row_blocks`] found
+/// all zero (`skip`).
+#[inline(always)]
+pub fn cols_times_add_skipping<const L: usize>(out: &mut [Lanes<L>], m: &[f64], v: &[Lanes<L>], skip: u64) {
     let cols = out.len();
     let rows = v.len();
     let mut r = 0;
     while r + 4 <= rows {
+        if r / 4 < 64 && skip >> (r / 4) & 1 == 1 {
+            r += 4;
+            continue;
+        }
         let (m0, m1) = (&m[r * cols..(r + 1) * cols], &m[(r + 1) * cols..(r + 2) * cols]);
         let (m2, m3) = (&m[(r + 2) * cols..(r + 3) * cols], &m[(r + 3) * cols..(r + 4) * cols]);
         let (v0, v1, v2, v3) = (v[r], v[r + 1], v[r + 2], v[r + 3]);
@@ -162,4 +187,18 @@ pub fn outer_add<const L: usize>(
         }
         i += 1;
     }
+}
+
+/// Bit `b` set when rows `4b .. 4b + 4` of `m` (row-major, `cols` columns) are all zero, for
+/// the first 64 blocks: the products above skip them (an LFR's input-play channels have zero
+/// rows in `G`: 12 of the 33 rows of the FSM model).
+pub fn zero_row_blocks(m: &[f64], cols: usize) -> u64 {
+    let rows = m.len().checked_div(cols).unwrap_or(0);
+    let mut bits = 0;
+    for b in 0..(rows / 4).min(64) {
+        if m[4 * b * cols..4 * (b + 1) * cols].iter().all(|v| *v == 0.0) {
+            bits |= 1 << b;
+        }
+    }
+    bits
 }

@@ -19,7 +19,9 @@
 //! `x` (`nx`) followed by the play operators' outputs (`nw * nr`, channel-major). A step
 //! allocates nothing: the caller gives a scratch buffer of [`Lfr::scratch_len`].
 use crate::error::{check_finite, ModelError};
-use crate::num::lanes::{one_lane, one_lane_mut, rows_times, Lanes};
+#[cfg(doc)]
+use crate::num::lanes::zero_row_blocks;
+use crate::num::lanes::{one_lane, one_lane_mut, rows_times, rows_times_skipping, Lanes};
 use crate::num::math::tanh;
 
 /// The dimensions and matrices of an LFR model, borrowed (see the module docs).
@@ -118,14 +120,15 @@ impl<'a> Lfr<'a> {
     pub fn step(&self, u: &[f64], state: &mut [f64], scratch: &mut [f64], y: &mut [f64], z: &mut [f64]) {
         let (x, plays) = one_lane_mut(state).split_at_mut(self.nx);
         let (xn, w) = one_lane_mut(scratch).split_at_mut(self.nx);
-        self.step_lanes(one_lane(u), x, plays, xn, w, one_lane_mut(y), one_lane_mut(z), None);
+        self.step_lanes(one_lane(u), x, plays, xn, w, one_lane_mut(y), one_lane_mut(z), None, 0);
     }
 
     /// One sample of `L` records in lockstep ([`crate::num::lanes`]): reads `u` (`nu`),
     /// writes `y` (`ny`), the feedback signals `z` and outputs `w` (`nw` each), advances the
     /// states `x` (`nx`) and `plays` (`nw * nr`) through `xn` (`nx`, scratch). `slopes`
     /// (`nw * nr`), when given, gets each play's move (0 stuck, 1 up: `p = z - r`, 2 down:
-    /// `p = z + r`) and each static channel's `dp/dz`, for the adjoint.
+    /// `p = z + r`) and each static channel's `dp/dz`, for the adjoint. `g_zero`: the blocks
+    /// of four rows of `G` known to be zero ([`zero_row_blocks`]; 0: none skipped).
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     pub fn step_lanes<const L: usize>(
@@ -138,10 +141,11 @@ impl<'a> Lfr<'a> {
         y: &mut [Lanes<L>],
         z: &mut [Lanes<L>],
         mut slopes: Option<&mut [Lanes<L>]>,
+        g_zero: u64,
     ) {
         let (nx, nw, nr) = (self.nx, self.nw, self.nr);
         let first_static = nw - self.nt;
-        rows_times(z, self.g, x, false);
+        rows_times_skipping(z, self.g, x, false, g_zero);
         rows_times(z, self.h, u, true);
         for (i, zi) in z.iter_mut().enumerate() {
             // an overflowed feedback signal is NaN, not a clipped infinity: the divergence shows

@@ -31,7 +31,7 @@
 //! modal `A` (see [`Lfr::validated`]) only the entries inside its diagonal blocks get a
 //! gradient (the others stay 0: a modal parameterization keeps them 0).
 use crate::lfr::Lfr;
-use crate::num::lanes::{cols_times_add, outer_add, Lanes};
+use crate::num::lanes::{cols_times_add, cols_times_add_skipping, outer_add, zero_row_blocks, Lanes};
 
 /// Backward steps between two additions of the deferred outer products (their adjoint
 /// vectors and the trajectory they multiply stay in the L2 cache).
@@ -146,6 +146,7 @@ pub fn loss_grad<const L: usize>(
     let finite =
         |x: &[Lanes<L>], plays: &[Lanes<L>]| x.iter().chain(plays.iter()).all(|v| v.iter().all(|s| s.is_finite()));
     let first_static = nw - m.nt;
+    let g_zero = zero_row_blocks(m.g, nx);
     let mut loss = [0.0; L];
     // the forward pass: the trajectory the backward pass reads
     for t in 0..n {
@@ -154,7 +155,7 @@ pub fn loss_grad<const L: usize>(
         }
         xs[t * nx..(t + 1) * nx].copy_from_slice(x);
         let ut = &us[t * nu..(t + 1) * nu];
-        m.step_lanes(ut, x, plays, xn, w, yv, z, Some(&mut mv[t * np..(t + 1) * np]));
+        m.step_lanes(ut, x, plays, xn, w, yv, z, Some(&mut mv[t * np..(t + 1) * np]), g_zero);
         zs[t * nw..(t + 1) * nw].copy_from_slice(z);
         ws[t * nw..(t + 1) * nw].copy_from_slice(w);
         ps[t * np..(t + 1) * np].copy_from_slice(plays);
@@ -275,7 +276,7 @@ pub fn loss_grad<const L: usize>(
             cols_times_add(lam_new, m.a, lam);
         }
         cols_times_add(lam_new, m.c, gy);
-        cols_times_add(lam_new, m.g, gz);
+        cols_times_add_skipping(lam_new, m.g, gz, g_zero);
         lam.copy_from_slice(lam_new);
         if c == 0 {
             // the chunk's outer products, from its first sample `t`
@@ -382,7 +383,13 @@ mod tests {
 
     /// A random model; `nt` of its 2 channels static (their thresholds 0.2, 0.5, 1).
     fn model(seed: &mut u64, modal: bool, nt: usize) -> Owned {
-        let (nx, nu, ny, nw, nr) = (4, 2, 2, 2, 3);
+        model_nw(seed, modal, nt, 2)
+    }
+
+    /// [`model`] with `nw` channels; with 8 or more, rows 4..8 of `G` are 0 (channels fed by
+    /// the inputs only, as an LFR's input plays: the products skip that block).
+    fn model_nw(seed: &mut u64, modal: bool, nt: usize, nw: usize) -> Owned {
+        let (nx, nu, ny, nr) = (4, 2, 2, 3);
         let shell = shell([nx, nu, ny, nw, nr, nt]);
         let o = grad_offsets(&shell);
         let mut p: Vec<f64> = (0..o[10]).map(|_| 0.5 * rand(seed)).collect();
@@ -405,6 +412,9 @@ mod tests {
         for (k, th) in p[o[8]..o[9]].iter_mut().enumerate() {
             *th = if k / nr >= nw - nt { [0.2, 0.5, 1.0][k % 3] } else { [0.0, 0.1, 0.3][k % 3] };
         }
+        if nw >= 8 {
+            p[o[6] + 4 * nx..o[6] + 8 * nx].fill(0.0);
+        }
         Owned { nx, nu, ny, nw, nr, nt, p }
     }
 
@@ -417,8 +427,10 @@ mod tests {
     #[test]
     fn gradient_matches_finite_differences() {
         let mut seed = 7u64;
-        for (modal, nt) in [(true, 0), (false, 0), (true, 1), (false, 2)] {
-            let m = model(&mut seed, modal, nt);
+        for (modal, nt, nw) in [(true, 0, 2), (false, 0, 2), (true, 1, 2), (false, 2, 2), (true, 1, 9)] {
+            let m = model_nw(&mut seed, modal, nt, nw);
+            let g_zero = zero_row_blocks(&m.p[grad_offsets(&m.lfr())[6]..grad_offsets(&m.lfr())[7]], m.nx);
+            assert_eq!(g_zero, if nw == 9 { 0b10 } else { 0 });
             let n = 200;
             let u: Vec<f64> = (0..n * m.nu).map(|_| rand(&mut seed)).collect();
             let y: Vec<f64> = (0..n * m.ny).map(|_| 0.3 * rand(&mut seed)).collect();
