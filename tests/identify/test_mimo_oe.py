@@ -179,7 +179,9 @@ def test_free_thresholds_and_feedthrough_are_fitted(what: str) -> None:
     rec = _levels(true, n=512, realizations=4)
     folds = rec.folds()
     fit, test = rec.select(folds[0]), rec.select(folds[1])
-    kw = {"validation": test, "maxiter": 80, "warmup": 256}
+    # L-BFGS memory 20, at which these were measured: with the default 100 the fixed fit
+    # compensates the thresholds better (0.013) and the free one still reaches 0.0046
+    kw = {"validation": test, "maxiter": 80, "warmup": 256, "memory": 20}
     fixed = refine_output_error(start, fit, **kw)
     free = refine_output_error(start, fit, free=(what,), **kw)
     e_fixed = protocol_rmse(fixed.model, test.u, test.y).mean()
@@ -247,6 +249,10 @@ def test_bad_input_is_a_parameter_error() -> None:
         refine_output_error(m, rec, free=("gains",))
     with pytest.raises(ParameterError, match="check_every = 0"):
         refine_output_error(m, rec, check_every=0)
+    with pytest.raises(ParameterError, match="memory = 0"):
+        refine_output_error(m, rec, memory=0)
+    with pytest.raises(ParameterError, match="time_budget = -1 must be a number of seconds > 0"):
+        identify_mimo(rec, "mimo-linear", time_budget=-1)
     u = np.zeros((1, 10, 2))
     with pytest.raises(ParameterError, match="y has shape"):
         loss_gradient(m, u, np.zeros((1, 9, 2)))

@@ -381,6 +381,7 @@ def refine_output_error(
     patience: int = 5,
     radius: float = 0.9999,
     free: Sequence[str] = (),
+    memory: int = 100,
     callback: Callable[[dict[str, Any]], bool | None] | None = None,
     log: Callable[[str], None] | None = None,
 ) -> OutputErrorRefinement:
@@ -416,6 +417,13 @@ def refine_output_error(
         Parameters fitted beyond the default set: ``"thresholds"`` (each play's threshold,
         bounded below by 5 % of its start; a static channel's scale) and ``"F"`` (the
         feedback channels' direct feedthrough to the outputs, from its start, even when 0).
+    memory : int
+        Correction pairs L-BFGS-B keeps (its ``maxcor``). The loss is ill-conditioned (lightly
+        damped poles beside 7,500 other parameters), and a long memory pays: FSM records,
+        realizations 1-4 fitted, 5 early-stopping, 6 held out, 400 iterations (the same time
+        for each): memory 20 gave a training loss of 0.61 and held-out 0.0732 / 0.145 / 0.213
+        µm, 50 gave 0.54, 100 gave 0.46 and 0.0644 / 0.125 / 0.196 (what memory 20 reached in
+        1600 iterations).
     callback : callable, optional
         Called with each history entry; returning ``True`` stops the run.
     log : callable, optional
@@ -454,6 +462,7 @@ def refine_output_error(
         ("chunk", chunk, 1),
         ("check_every", check_every, 1),
         ("patience", patience, 1),
+        ("memory", memory, 1),
     ):
         if int(v) != v or v < low:
             raise ParameterError(f"{name} = {v} must be an integer >= {low}")
@@ -582,7 +591,7 @@ def refine_output_error(
         try:
             res = minimize(
                 fun, x, jac=True, method="L-BFGS-B", bounds=p.bounds, callback=on_iteration,
-                options={"maxiter": min(chunk, maxiter - it), "maxcor": 20, "ftol": 1e-12, "gtol": 1e-10},
+                options={"maxiter": min(chunk, maxiter - it), "maxcor": int(memory), "ftol": 1e-12, "gtol": 1e-10},
             )  # fmt: skip
             x = np.asarray(res.x)
             converged = res.status == 0 and it - start_it < min(chunk, maxiter - start_it) and stopped == "maxiter"
