@@ -6,9 +6,9 @@ The gradient (:func:`loss_gradient`) is computed by reverse mode in Rust
 (``piezohyst_core::lfr_grad``: a forward pass storing the trajectory, the adjoint run
 backwards; a play operator passes the derivative 1 when it moves, 0 when stuck), records in
 batches of four stepped in lockstep (each matrix entry loaded once for four records, the
-lanes in one AVX2 register), batches in parallel: on the 15 FSM records of a
-``--model auto`` run (120 states, 33 feedback channels) 0.28 s per gradient, 0.77 s
-record by record. :func:`refine_output_error` starts from a fitted model (e.g. the frequency-domain
+lanes in one AVX2 register), batches in parallel. What that buys is measured where it counts,
+in ``bench/fsm.py``: the output-error iterations one identification gets in its budget.
+:func:`refine_output_error` starts from a fitted model (e.g. the frequency-domain
 fit of :func:`piezohyst.identify.mimo.identify_mimo`) and runs L-BFGS-B on:
 
 - the parameters: ``A`` by its modal blocks (a real pole ``a``; a complex pair
