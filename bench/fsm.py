@@ -20,8 +20,9 @@ Models: ``mimo-lfr + static channels`` (the hysteretic LFR with static saturatin
 channels beside the plays, ``MimoSettings.static_scales``: the candidate ``--model auto`` has
 chosen on these records, by held-out realizations, over the plain LFR and the linear model): the
 frequency-domain fit, then the output-error refinement of
-:func:`piezohyst.identify.mimo_oe.refine_output_error`, fitted on all but the last realization of
-each level and early-stopped on that one; its summary under ``output_error``) against the baseline
+:func:`piezohyst.identify.mimo_oe.refine_output_error`, watched on the last realization of each
+level for ``MimoSettings.oe_watch`` of its budget, then, the held-back error still falling, fitted
+on all of them; its summary under ``output_error``) against the baseline
 ``mimo-linear`` of order 28 (the published linear model's order)
 fitted the same way, on the same split; the targets are the best published model's test RMSE
 (LFR with a neural network: 0.0866 / 0.131 / 0.169 µm). Also: the wall time of each fit, of one

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from piezohyst.errors import ParameterError
-from piezohyst.identify.mimo import MimoRecords, MimoSettings, identify_mimo, protocol_rmse
+from piezohyst.identify.mimo import MimoRecords, MimoSettings, _refine, identify_mimo, protocol_rmse
 from piezohyst.identify.mimo_oe import MATRICES, loss_gradient, refine_output_error
 from piezohyst.models.mimo import MimoModel
 
@@ -222,6 +222,39 @@ def test_one_lbfgs_run_per_warmup_state_with_checks_inside() -> None:
     assert worse.stopped in ("patience", "converged") and worse.best_iteration <= worse.history[-1]["iteration"]
 
 
+def test_held_back_realizations_join_the_fit_when_the_watch_has_not_fired() -> None:
+    """``oe_watch``: early-stopped on the last realization of each level for its share; if the
+    held-back error was still falling then, those realizations join the fit for the rest."""
+    rec = _levels(_true_lfr(), n=1024, realizations=4)
+    hold = [i for i, lab in enumerate(rec.labels) if lab not in rec.labels[i + 1 :]]
+    held = rec.select(hold)
+    # its held-back error rises for 40 iterations, then falls (0.86 of the start's at 80)
+    s = MimoSettings(order=4, iterations=1, oe_iterations=160, oe_seconds=300.0)
+    runs = {w: identify_mimo(rec, "mimo-lfr", settings=replace(s, oe_watch=w)).model for w in (1.0, 0.5, 0.0)}
+    watched, both, none = (runs[w].fit["output_error"] for w in (1.0, 0.5, 0.0))
+    # 160 iterations all watched; 80 watched, the held-back error still falling, then 80 on all
+    assert watched["watched_iterations"] == 160 and watched["stopped"] == "maxiter", watched
+    assert both["watched_iterations"] == 80 and both["all_records_iterations"] == 80, both
+    assert both["iterations"] == 160 and both["best_validation_score"] < 1, both
+    assert none["watched_iterations"] == 0 and none["validation_score"] is None, none
+    assert none["iterations"] == none["all_records_iterations"] == 160, none
+    assert watched["all_records_iterations"] == 0, watched
+    # fitted on the held-back realizations: closer to them than the model that never saw them
+    e = {w: float(protocol_rmse(m, held.u, held.y).mean()) for w, m in runs.items()}
+    assert e[0.5] < 0.95 * e[1.0] and e[0.0] < 0.9 * e[1.0], e  # 0.0200, 0.0181 against 0.0223
+
+
+def test_the_watch_ends_the_refinement_when_the_held_back_error_stops_falling() -> None:
+    """Started from the truth, the fit can only learn the noise of the fitted realizations: the
+    held-back error does not fall, and the watch returns its best without the second phase."""
+    true = _true_lfr()
+    rec = _levels(true, n=256, realizations=3)
+    s = MimoSettings(order=4, iterations=0, oe_iterations=400, oe_seconds=300.0, oe_watch=0.5)
+    oe = _refine(rec, true, s, None).fit["output_error"]
+    assert oe["stopped"] in ("patience", "converged"), oe
+    assert oe["iterations"] < oe["watched_iterations"] < 200 and oe["all_records_iterations"] == 0, oe
+
+
 def test_callback_and_time_budget_stop_the_run() -> None:
     rec = _levels(_true_lfr(), n=256, realizations=2)
     start = identify_mimo(rec, "mimo-lfr", settings=MimoSettings(order=4, iterations=0, oe_iterations=0)).model
@@ -251,6 +284,9 @@ def test_bad_input_is_a_parameter_error() -> None:
         refine_output_error(m, rec, check_every=0)
     with pytest.raises(ParameterError, match="memory = 0"):
         refine_output_error(m, rec, memory=0)
+    for watch in (-0.1, 1.5, float("nan"), True):
+        with pytest.raises(ParameterError, match=rf"oe_watch = {watch!r} must be a share in \[0, 1\]"):
+            MimoSettings(oe_watch=watch)
     with pytest.raises(ParameterError, match="time_budget = -1 must be a number of seconds > 0"):
         identify_mimo(rec, "mimo-linear", time_budget=-1)
     u = np.zeros((1, 10, 2))

@@ -99,5 +99,10 @@ def _identify_mimo(args: argparse.Namespace) -> int:
             print(f"  held out {key} (before refinement): " + ", ".join(f"{k} {v:.4g}" for k, v in h.items()))
         oe = res.model.fit.get("output_error")
         if oe:
-            print(f"  output-error refinement: {oe['iterations']} iterations in {oe['seconds']} s ({oe['stopped']})")
+            watched, joined = oe.get("watched_iterations", 0), oe.get("all_records_iterations", 0)
+            how = f", {watched} watched on held-back realizations" if watched else ""
+            how += f", {joined} on all realizations" if joined and watched else ""
+            print(
+                f"  output-error refinement: {oe['iterations']} iterations in {oe['seconds']} s{how} ({oe['stopped']})"
+            )
     return 0
