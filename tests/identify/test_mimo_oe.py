@@ -5,6 +5,7 @@ and bad input is refused with a ParameterError."""
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -220,6 +221,29 @@ def test_one_lbfgs_run_per_warmup_state_with_checks_inside() -> None:
         callback=lambda h: None,
     )  # fmt: skip
     assert worse.stopped in ("patience", "converged") and worse.best_iteration <= worse.history[-1]["iteration"]
+
+
+def test_a_restart_that_converges_at_once_does_not_end_the_refinement(monkeypatch: pytest.MonkeyPatch) -> None:
+    """L-BFGS-B's relative-decrease test can fire on the first step of a run restarted without
+    its curvature: the refinement ends only when two runs in a row converge."""
+    import scipy.optimize
+
+    real = scipy.optimize.minimize
+    calls: list[int] = []
+
+    def flaky(fun: Any, x0: Any, **kw: Any) -> Any:
+        calls.append(len(calls))
+        if len(calls) == 2:  # the first restart: one iteration, then "converged"
+            res = real(fun, x0, **{**kw, "options": {**kw["options"], "maxiter": 1}})
+            res.status = 0
+            return res
+        return real(fun, x0, **kw)
+
+    monkeypatch.setattr(scipy.optimize, "minimize", flaky)
+    true = _true_lfr()
+    rec = _levels(true, n=256, realizations=2)
+    res = refine_output_error(replace(true, A=true.A * 0.995), rec, maxiter=45, chunk=20, check_every=5)
+    assert len(calls) == 4 and res.stopped == "maxiter" and res.best_iteration == 45, (calls, res.stopped)
 
 
 def test_held_back_realizations_join_the_fit_when_the_watch_has_not_fired() -> None:

@@ -29,7 +29,7 @@ fit of :func:`piezohyst.identify.mimo.identify_mimo`) and runs L-BFGS-B on:
   records (never fitted): the RMSE of its periodic steady-state simulation per set, relative
   to the starting model's; the best model on them is returned, and the run stops after
   ``patience`` checks without improvement, at ``maxiter`` iterations, at ``time_budget``
-  seconds or when ``callback`` returns ``True``.
+  seconds, when ``callback`` returns ``True`` or when two L-BFGS runs in a row converge.
 
 Examples
 --------
@@ -582,6 +582,7 @@ def refine_output_error(
 
     from scipy.optimize import minimize  # imported on use: 0.27 s of every CLI start
 
+    converged_before = False
     while it < maxiter and stopped == "maxiter":
         # one L-BFGS run per warm-up state: a restart forgets the curvature it learned, which
         # cost more than the stale warm-up state (FSM records: 200 iterations in runs of 20
@@ -605,9 +606,14 @@ def refine_output_error(
         chk["since"] = 0
         if stopped != "maxiter":
             break
-        if converged or it == start_it:
+        # L-BFGS-B declares convergence on a relative decrease below ``ftol``, which a run
+        # restarted without its curvature can meet on its first steps (FSM records: a run
+        # "converged" after 1 iteration with most of its budget left): converged twice in a
+        # row, or not one iteration, ends the refinement
+        if it == start_it or (converged and converged_before):
             stopped = "converged"
             break
+        converged_before = converged
         state = start_state(p.model_of(x))
     out = p.model_of(best[1] if val is not None else x)
     return OutputErrorRefinement(out, history, best[2] if val is not None else it, stopped, time.perf_counter() - t0)
