@@ -1019,8 +1019,9 @@ def _refine(
     summary: dict[str, Any] = {
         "validation_score": None, "best_validation_score": None, "watched_iterations": 0, "all_records_iterations": 0,
     }  # fmt: skip
-    done = 0
-    if hold and settings.oe_watch > 0:
+    done, watching = 0, bool(hold) and settings.oe_watch > 0
+    join = True
+    if watching:
         watch = refine_output_error(
             model, rec.select(fit), validation=rec.select(hold),
             maxiter=max(1, round(settings.oe_iterations * settings.oe_watch)),
@@ -1037,11 +1038,10 @@ def _refine(
         # still falling: the best score at one of the last two checks (the last one often comes
         # a few iterations after the one before, when the time ran out: within the noise)
         recent = watch.history[-2]["iteration"] if len(watch.history) > 1 else 0
-        if watch.stopped not in ("time_budget", "maxiter") or watch.best_iteration < recent:
-            return model.with_fit({**dict(model.fit), "output_error": {**summary, "seconds": round(watch.seconds, 2)}})
+        join = watch.stopped in ("time_budget", "maxiter") and watch.best_iteration >= recent
     left = budget - (time.perf_counter() - t0)
-    if settings.oe_iterations - done > 0 and left > 1.0:
-        if log is not None and hold and settings.oe_watch > 0:
+    if join and settings.oe_iterations - done > 0 and left > 1.0:
+        if log is not None and watching:
             log("output error: the held-back error still falling; the held-back realizations join the fit")
         res = refine_output_error(
             model, rec, maxiter=settings.oe_iterations - done, time_budget=left, **common
