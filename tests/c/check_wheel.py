@@ -42,6 +42,8 @@ def check(wheel_dir: Path) -> None:
         sizes = {i.filename: i.file_size for i in z.infolist()}
         missing = [n for n in NEEDED if n not in sizes]
         assert not missing, f"{wheel.name} lacks {missing}"
+        bytecode = [n for n in sizes if n.endswith(".pyc") or "__pycache__/" in n]
+        assert not bytecode, f"{wheel.name} holds the source tree's bytecode: {bytecode[:3]}"
         print(f"{wheel.name}: {wheel.stat().st_size / 1e6:.1f} MB")
         for n in NEEDED[:3]:
             print(f"  {n}: {sizes[n] / 1e3:.0f} kB")
