@@ -225,7 +225,7 @@ def test_one_lbfgs_run_per_warmup_state_with_checks_inside() -> None:
 
 def test_a_restart_that_converges_at_once_does_not_end_the_refinement(monkeypatch: pytest.MonkeyPatch) -> None:
     """L-BFGS-B's relative-decrease test can fire on the first step of a run restarted without
-    its curvature: the refinement ends only when two runs in a row converge."""
+    its curvature: that run is tried again, and the refinement runs on."""
     import scipy.optimize
 
     real = scipy.optimize.minimize
@@ -244,6 +244,34 @@ def test_a_restart_that_converges_at_once_does_not_end_the_refinement(monkeypatc
     rec = _levels(true, n=256, realizations=2)
     res = refine_output_error(replace(true, A=true.A * 0.995), rec, maxiter=45, chunk=20, check_every=5)
     assert len(calls) == 4 and res.stopped == "maxiter" and res.best_iteration == 45, (calls, res.stopped)
+
+
+def test_runs_that_converge_at_once_are_retried_with_shorter_first_steps(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A run that "converges" within two iterations is tried again from where it ended with a
+    first step 100 times shorter (L-BFGS-B's first step has length 1 in the run's variables
+    ``x / scale``), three times, before the refinement counts as converged; a run that makes
+    its iterations puts the scale back to 1."""
+    import scipy.optimize
+
+    real = scipy.optimize.minimize
+    scales: list[float] = []
+
+    def stuck(fun: Any, x0: Any, **kw: Any) -> Any:
+        scales.append(kw["options"]["gtol"] / 1e-10)  # the run's gtol is 1e-10 * scale
+        if len(scales) in (1, 3):  # the first run and the first retry make their iterations
+            return real(fun, x0, **kw)
+        res = real(fun, x0, **{**kw, "options": {**kw["options"], "maxiter": 1}})
+        res.status = 0  # "converged" after one iteration
+        return res
+
+    monkeypatch.setattr(scipy.optimize, "minimize", stuck)
+    true = _true_lfr()
+    rec = _levels(true, n=256, realizations=2)
+    res = refine_output_error(replace(true, A=true.A * 0.995), rec, maxiter=100, chunk=20, check_every=5)
+    assert res.stopped == "converged", res.stopped
+    # run (20 iterations), restart stuck, retry at 0.01 (20), restart at 1 stuck, 3 retries stuck
+    assert scales == pytest.approx([1.0, 1.0, 1e-2, 1.0, 1e-2, 1e-4, 1e-6], rel=1e-12), scales
+    assert res.history[-1]["iteration"] == 20 + 1 + 20 + 4
 
 
 def test_held_back_realizations_join_the_fit_when_the_watch_has_not_fired() -> None:
