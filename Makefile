@@ -20,8 +20,9 @@ $(BUILT): $(BIN)/python $(RUST_SOURCES) pyproject.toml
 
 # The package's bytecode, compiled again when a source changes. An editable install writes none, and
 # a shell with PYTHONDONTWRITEBYTECODE=1 never does: every command would then compile the package's
-# modules at start (piezohyst simulate of an FSM test record with its 120-state model, by hand: 0.63-0.69 s without, 0.36-0.40 s with).
-# compileall writes them whatever that variable says; imports read them either way.
+# modules at start (piezohyst simulate of an FSM test record with its 120-state model, by hand:
+# 0.63-0.69 s without, 0.36-0.40 s with). compileall writes them whatever that variable says;
+# imports read them either way.
 BYTECODE   := $(VENV)/.bytecode
 PY_PACKAGE := $(shell find python/piezohyst -name '*.py')
 $(BYTECODE): $(BUILT) $(PY_PACKAGE)

@@ -595,10 +595,9 @@ def refine_output_error(
         nonlocal it
         it += 1
         chk["since"] += 1
-        xk = scale * np.asarray(intermediate_result.x)
         if chk["since"] >= check_every:
             chk["since"] = 0
-            if check(xk, float(intermediate_result.fun)):
+            if check(scale * np.asarray(intermediate_result.x), float(intermediate_result.fun)):
                 raise StopIteration
 
     from scipy.optimize import minimize  # imported on use: 0.27 s of every CLI start
@@ -611,14 +610,15 @@ def refine_output_error(
         # reached a held-out RMSE 6 % above runs of 100)
         track["f"] = np.inf
         start_it = it
-        sc = scale
         try:
             res = minimize(
-                partial(_scaled, fun, sc), x / sc, jac=True, method="L-BFGS-B",
-                bounds=[(lo / sc, hi / sc) for lo, hi in p.bounds], callback=on_iteration,
-                options={"maxiter": min(chunk, maxiter - it), "maxcor": int(memory), "ftol": 1e-12, "gtol": 1e-10 * sc},
+                partial(_scaled, fun, scale), x / scale, jac=True, method="L-BFGS-B",
+                bounds=[(lo / scale, hi / scale) for lo, hi in p.bounds], callback=on_iteration,
+                options={
+                    "maxiter": min(chunk, maxiter - it), "maxcor": int(memory), "ftol": 1e-12, "gtol": 1e-10 * scale,
+                },
             )  # fmt: skip
-            x = sc * np.asarray(res.x)
+            x = scale * np.asarray(res.x)
             converged = res.status == 0 and it - start_it < min(chunk, maxiter - start_it) and stopped == "maxiter"
         except _Stop as e:
             x, converged = np.asarray(track["x"]), False
@@ -643,7 +643,7 @@ def refine_output_error(
             if retries > _RETRIES:
                 stopped = "converged"
                 break
-            scale = sc / 100.0
+            scale /= 100.0
             continue  # x barely moved: the same warm-up state
         retries, scale = 0, 1.0
         if it == start_it or (converged and converged_before):
