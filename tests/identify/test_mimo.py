@@ -12,9 +12,12 @@ import numpy as np
 import pytest
 
 from piezohyst.cli.main import main
+from piezohyst.errors import ParameterError
 from piezohyst.identify.mimo import (
+    INIT_RIDGES,
     MimoRecords,
     MimoSettings,
+    choose_init_ridge,
     identify_mimo,
     protocol_rmse,
     read_multisine_folder,
@@ -170,3 +173,49 @@ def test_cli_identify_auto_on_a_folder(tmp_path: Path, capsys: pytest.CaptureFix
     assert "does not fit multi-channel DATA" in capsys.readouterr().err
     assert main(["identify", str(d), "--model", "mimo-lfr", "--out", str(tmp_path / "y.json")]) == 2
     assert "--fs" in capsys.readouterr().err
+
+
+def test_init_ridge_trusts_the_outputs_when_the_records_start_off_the_periodic_state() -> None:
+    """Records that start in a transient (not the periodic steady state the model assumes):
+    only the measured outputs tell the state, and the smallest ridge wins; the same records
+    in steady state with noise: the periodic state wins, the largest ridge."""
+    rng = np.random.default_rng(5)
+    # two slow modes (radius 0.998: a state error lasts a third of the record)
+    a = np.zeros((4, 4))
+    for i, ang in enumerate((0.2, 0.5)):
+        a[2 * i : 2 * i + 2, 2 * i : 2 * i + 2] = 0.998 * np.array(
+            [[np.cos(ang), -np.sin(ang)], [np.sin(ang), np.cos(ang)]]
+        )
+    m = MimoModel.linear(a, 0.1 * rng.standard_normal((4, 3)), rng.standard_normal((3, 4)), np.zeros((3, 3)), fs=FS)
+    u = _multisine(rng, 3, 1.0)  # (N, 3, R)
+    ur = np.ascontiguousarray(np.moveaxis(u, 2, 0))
+    st = m.periodic_state(ur) + 3.0 * rng.standard_normal((3, m.state_len))
+    y_off, _, _ = m.run(ur, st)  # every record from a state away from the periodic one
+    y_ss = m.simulate(ur, init="periodic") + 0.05 * rng.standard_normal((3, N, 3))
+
+    def recs(y: np.ndarray) -> MimoRecords:
+        four = lambda a: np.stack([np.moveaxis(a, 0, 2)] * 2, axis=3)  # noqa: E731
+        return MimoRecords.from_sets([("1V", four(ur), four(y))], fs=FS)
+
+    # few outputs per state (4 samples of 3 outputs, 4 states): their noise is easily fitted
+    off, off_scores = choose_init_ridge(m, recs(y_off), skip=4)
+    ss, ss_scores = choose_init_ridge(m, recs(y_ss), skip=4)
+    assert off.init["ridge"] == INIT_RIDGES[0] and ss.init["ridge"] == INIT_RIDGES[-1], (off_scores, ss_scores)
+    assert off_scores["1"] > 3 * off_scores["0.0001"], off_scores
+    assert ss_scores["0.0001"] > 1.05 * ss_scores["1"], ss_scores
+    assert m.init["ridge"] == 1e-3  # the model given is not changed
+    with pytest.raises(ParameterError, match=r"ridges = \[0\.0\]"):
+        choose_init_ridge(m, recs(y_ss), ridges=[0.0])
+
+
+@pytest.mark.parametrize(("init", "match"), [
+    ({"ridge": 0.0}, "init.ridge = 0.0 must be a finite number > 0"),
+    ({"ridge": float("nan")}, "init.ridge = nan"),
+    ({"ridge": "1e-3"}, "init.ridge = '1e-3'"),
+    ({"periods": -1}, "init.periods = -1 must be an integer >= 0"),
+    ({"periods": 1.5}, "init.periods = 1.5"),
+])  # fmt: skip
+def test_init_settings_are_checked(init: dict[str, object], match: str) -> None:
+    m = _system()
+    with pytest.raises(ParameterError, match=match):
+        MimoModel.linear(m.A, m.B, m.C, m.D, fs=FS, init={"method": "periodic", **init})

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from piezohyst.errors import ParameterError
-from piezohyst.identify.mimo import MimoRecords, MimoSettings, _refine, identify_mimo, protocol_rmse
+from piezohyst.identify.mimo import INIT_RIDGES, MimoRecords, MimoSettings, _refine, identify_mimo, protocol_rmse
 from piezohyst.identify.mimo_oe import MATRICES, loss_gradient, refine_output_error
 from piezohyst.models.mimo import MimoModel
 
@@ -291,6 +291,12 @@ def test_held_back_realizations_join_the_fit_when_the_watch_has_not_fired() -> N
     assert none["watched_iterations"] == 0 and none["validation_score"] is None, none
     assert none["iterations"] == none["all_records_iterations"] == 160, none
     assert watched["all_records_iterations"] == 0, watched
+    # the weight of the state correction: chosen on the held-back realizations when watched
+    for w, oe in ((1.0, watched), (0.5, both)):
+        best = min(oe["init_ridge_scores"], key=oe["init_ridge_scores"].get)
+        assert runs[w].init["ridge"] == oe["init_ridge"] == float(best), oe
+        assert len(oe["init_ridge_scores"]) == len(INIT_RIDGES), oe
+    assert "init_ridge" not in none and runs[0.0].init["ridge"] == 1e-3, none
     # fitted on the held-back realizations: closer to them than the model that never saw them
     e = {w: float(protocol_rmse(m, held.u, held.y).mean()) for w, m in runs.items()}
     assert e[0.5] < 0.95 * e[1.0] and e[0.0] < 0.9 * e[1.0], e  # 0.0200, 0.0181 against 0.0223

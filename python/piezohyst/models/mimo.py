@@ -209,6 +209,12 @@ class MimoModel:
         method = self.init.get("method", "periodic")
         if method not in ("periodic", "rest"):
             raise ParameterError(f"init.method = {method!r} is not one of ['periodic', 'rest']")
+        ridge = self.init.get("ridge", 1e-3)
+        if isinstance(ridge, bool) or not (isinstance(ridge, (int, float)) and math.isfinite(ridge) and ridge > 0):
+            raise ParameterError(f"init.ridge = {ridge!r} must be a finite number > 0")
+        periods = self.init.get("periods", 2)
+        if isinstance(periods, bool) or not (isinstance(periods, int) and periods >= 0):
+            raise ParameterError(f"init.periods = {periods!r} must be an integer >= 0")
 
     # -- construction ---------------------------------------------------------------------
     @classmethod
