@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from piezohyst.errors import ParameterError
+from piezohyst.identify import mimo_oe
 from piezohyst.identify.mimo import INIT_RIDGES, MimoRecords, MimoSettings, _refine, identify_mimo, protocol_rmse
 from piezohyst.identify.mimo_oe import MATRICES, loss_gradient, refine_output_error
 from piezohyst.models.mimo import MimoModel
@@ -356,3 +357,63 @@ def test_bad_input_is_a_parameter_error() -> None:
         loss_gradient(m, u, np.zeros((1, 10, 2)), skip=10)
     with pytest.raises(ParameterError, match="record_weights"):
         loss_gradient(m, u, np.zeros((1, 10, 2)), record_weights=[-1.0])
+
+
+def test_probes_are_new_realizations_of_each_sets_multisine() -> None:
+    rec = _levels(_true_lfr(), n=256, realizations=3)
+    u = np.ascontiguousarray(np.moveaxis(rec.u.mean(axis=3), 2, 0))  # (R, N, nu)
+    labels = list(rec.labels)
+    probes = mimo_oe._probe_inputs(u, labels, 2, np.random.default_rng(4))
+    assert probes.shape == (4, 256, 2)
+    for s, lab in enumerate(dict.fromkeys(labels)):
+        first = np.abs(np.fft.rfft(u[labels.index(lab)], axis=0))
+        for k in range(2):
+            spec = np.fft.rfft(probes[2 * s + k], axis=0)
+            np.testing.assert_allclose(np.abs(spec), first, atol=1e-9 * first.max())
+            assert np.std(probes[2 * s + k] - u[labels.index(lab)]) > np.std(u[labels.index(lab)])  # new phases
+    # a feedback loop with a gain above 1 (0.5 + 0.8 through an identity play) diverges
+    loop = MimoModel(
+        [[0.5]], [[1.0, 0.0]], [[1.0]], [[0.0, 0.0]], E=[[0.8]], F=[[0.0]], G=[[1.0]], H=[[0.0, 0.0]],
+        thresholds=[[0.0]], weights=[[1.0]], fs=FS, structure="lfr",
+    )  # fmt: skip
+    assert np.all(mimo_oe._probe_rms(loop, probes) > 1e30)  # grows by 1.3 a sample
+    assert np.all(np.isfinite(mimo_oe._probe_rms(_true_lfr(), probes)))
+
+
+def test_a_model_unstable_on_the_probes_is_never_returned(monkeypatch: pytest.MonkeyPatch) -> None:
+    """From the third check on every check finds the model unstable: each time the fit starts
+    again from the second check's model, and after three restarts it stops with that model,
+    the same as a run stopped there."""
+    true = _true_lfr()
+    rec = _levels(true, n=256, realizations=2)
+    start = replace(true, A=true.A * 0.995)
+    real_probe = mimo_oe._probe_rms
+    checks: list[int] = []
+
+    def probe(m: MimoModel, u: np.ndarray) -> np.ndarray:
+        checks.append(1)
+        return real_probe(m, u) * (1e6 if len(checks) >= 3 else 1.0)
+
+    import scipy.optimize
+
+    starts: list[np.ndarray] = []
+    real_min = scipy.optimize.minimize
+
+    def minimize(fun: Any, x0: np.ndarray, **kw: Any) -> Any:
+        starts.append(np.array(x0, copy=True))
+        return real_min(fun, x0, **kw)
+
+    monkeypatch.setattr(mimo_oe, "_probe_rms", probe)
+    monkeypatch.setattr(scipy.optimize, "minimize", minimize)
+    res = refine_output_error(start, rec, maxiter=200, chunk=50, check_every=10)
+    assert res.stopped == "unstable", res.stopped
+    assert [h["stable"] for h in res.history[1:]] == [True, True, False, False, False, False], res.history
+    assert res.best_iteration == 20
+    # the three restarts begin where the second check was: the same point each time
+    assert len(starts) == 4 and all(np.array_equal(s, starts[1]) for s in starts[2:])
+    assert not np.array_equal(starts[1], starts[0])
+    monkeypatch.setattr(mimo_oe, "_probe_rms", real_probe)
+    there = refine_output_error(start, rec, maxiter=20, chunk=50, check_every=10)
+    assert there.stopped == "maxiter" and all(h["stable"] for h in there.history[1:])
+    for k in MATRICES:
+        np.testing.assert_array_equal(getattr(res.model, k), getattr(there.model, k), err_msg=k)

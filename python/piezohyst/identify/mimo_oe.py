@@ -29,7 +29,10 @@ fit of :func:`piezohyst.identify.mimo.identify_mimo`) and runs L-BFGS-B on:
   records (never fitted): the RMSE of its periodic steady-state simulation per set, relative
   to the starting model's; the best model on them is returned, and the run stops after
   ``patience`` checks without improvement, at ``maxiter`` iterations, at ``time_budget``
-  seconds, when ``callback`` returns ``True`` or when two L-BFGS runs in a row converge.
+  seconds, when ``callback`` returns ``True`` or when two L-BFGS runs in a row converge;
+- stability: every check also simulates new realizations of each set's multisine (the
+  ``probes``); a model whose outputs on them diverge is never returned, and the fit restarts
+  from the last stable check.
 
 Examples
 --------
@@ -301,12 +304,13 @@ class _Params:
 # -- the refinement ---------------------------------------------------------------------------
 @dataclass(frozen=True)
 class OutputErrorRefinement:
-    """What :func:`refine_output_error` returns: the ``model`` (the best on the validation
-    records, or the last one without them), ``history`` (one entry per check: ``iteration``,
+    """What :func:`refine_output_error` returns: the ``model`` (the best stable one on the
+    validation records, or the last stable one without them), ``history`` (one entry per check: ``iteration``,
     ``evaluations``, ``seconds``, ``train_loss`` (relative to the start), ``validation_rmse``
     (per set) and ``validation_score`` (their mean relative to the start's)),
     ``best_iteration``, ``stopped`` (why: ``maxiter``, ``converged``, ``patience``,
-    ``time_budget``, ``callback``) and ``seconds``.
+    ``time_budget``, ``callback``, ``unstable``) and ``seconds``. Each history entry also says
+    whether the model was ``stable`` on the probes.
 
     Parameters
     ----------
@@ -368,6 +372,33 @@ def _periodic_rmse(model: MimoModel, u: FloatArray, y: FloatArray) -> FloatArray
     return np.asarray(np.sqrt(((yh - y) ** 2).mean(axis=1)).mean(axis=1), dtype=np.float64)
 
 
+def _probe_inputs(u: FloatArray, labels: Sequence[str], per_set: int, rng: np.random.Generator) -> FloatArray:
+    """``per_set`` new periodic inputs per set ``(R', N, nu)``: the amplitude spectrum of the
+    set's first record with random phases (another realization of the same multisine)."""
+    out = []
+    for lab in dict.fromkeys(labels):
+        spec = np.abs(np.fft.rfft(u[labels.index(lab)], axis=0))  # (K, nu)
+        for _ in range(per_set):
+            phase = np.exp(2j * np.pi * rng.random(spec.shape))
+            phase[0] = 1.0  # the mean stays real
+            out.append(np.fft.irfft(spec * phase, n=u.shape[1], axis=0))
+    return np.ascontiguousarray(np.asarray(out, dtype=np.float64))
+
+
+def _probe_rms(model: MimoModel, u: FloatArray) -> FloatArray:
+    """RMS of the periodic steady-state outputs per probe record (``inf`` when not finite)."""
+    yh, _, _ = model.run(u, model.periodic_state(u))
+    with np.errstate(over="ignore", invalid="ignore"):
+        r = np.sqrt((yh**2).mean(axis=(1, 2)))
+    return np.asarray(np.where(np.isfinite(r), r, np.inf), dtype=np.float64)
+
+
+#: How far the output RMS of a probe (a new realization of a set's multisine) may exceed the
+#: set's measured output RMS before the model counts as unstable on it.
+_PROBE_LIMIT = 2.0
+#: Restarts from the last stable model before the refinement stops as ``unstable``.
+_UNSTABLE_RESTARTS = 3
+
 #: Retries of a run that "converged" within two iterations, each with a first step 100 times
 #: shorter, before the refinement counts as converged.
 _RETRIES = 3
@@ -398,6 +429,8 @@ def refine_output_error(
     memory: int = 100,
     callback: Callable[[dict[str, Any]], bool | None] | None = None,
     log: Callable[[str], None] | None = None,
+    probes: int = 2,
+    rng: np.random.Generator | int | None = 0,
 ) -> OutputErrorRefinement:
     """Refine ``model`` by output error on ``records`` (all sets jointly), early-stopped on
     ``validation`` (see the module docstring).
@@ -444,6 +477,16 @@ def refine_output_error(
         Called with each history entry; returning ``True`` stops the run.
     log : callable, optional
         Called with one line of progress per check.
+    probes : int
+        New realizations per set of its multisine (the amplitude spectrum of its first record,
+        random phases) simulated at every check (``0``: none). A fit can make the feedback
+        loop unstable for inputs it does not fit while its training loss still falls (its
+        records start from a warm-up state, not from rest): a check whose probe outputs are
+        not finite or exceed twice the set's measured output RMS is *unstable*; it is never
+        the model returned, and the refinement restarts from the last stable check (three
+        times at most, then it stops as ``unstable``).
+    rng : numpy.random.Generator or int, optional
+        The probes' phases (a seed gives the same probes each run).
 
     Returns
     -------
@@ -503,6 +546,18 @@ def refine_output_error(
     val = _records(validation, "validation") if validation is not None else None
     if val is not None and (val[0].shape[2] != model.nu or val[1].shape[2] != model.ny):
         raise ParameterError("validation records have other channels than the model")
+    if isinstance(probes, bool) or int(probes) != probes or probes < 0:
+        raise ParameterError(f"probes = {probes!r} must be an integer >= 0")
+    probe: tuple[FloatArray, FloatArray] | None = None  # the probe inputs and their output RMS limits
+    if probes:
+        set_rms = [
+            np.sqrt(np.mean([np.mean(y[i] ** 2) for i, li in enumerate(labels) if li == lab]))
+            for lab in dict.fromkeys(labels)
+        ]
+        probe = (
+            _probe_inputs(u, labels, int(probes), np.random.default_rng(rng)),
+            _PROBE_LIMIT * np.repeat(np.asarray(set_rms, dtype=np.float64), int(probes)),
+        )
     unknown = sorted(set(free) - {"thresholds", "F"})
     if unknown:
         raise ParameterError(f"free = {list(free)!r}: {unknown} not among ['thresholds', 'F']")
@@ -563,21 +618,30 @@ def refine_output_error(
     it = 0
     bad = 0
     chk = {"since": 0}
+    lost = False  # a check found the model unstable: the run restarts from ``best``
 
     def check(xk: FloatArray, f_now: float) -> bool:
         """One history entry at iteration ``it``; ``True``: the run stops."""
-        nonlocal best, bad, stopped
+        nonlocal best, bad, stopped, lost
         m = p.model_of(xk)
-        vr = val_rmse(m) if val is not None else {}
+        stable = probe is None or bool(np.all(_probe_rms(m, probe[0]) <= probe[1]))
+        vr = val_rmse(m) if val is not None and stable else {}
         score = float(np.mean([vr[lab] / v0[lab] for lab in vr])) if vr else None
         entry = {
             "iteration": it, "evaluations": track["evals"], "seconds": time.perf_counter() - t0,
-            "train_loss": float(f_now), "validation_rmse": vr, "validation_score": score,
+            "train_loss": float(f_now), "validation_rmse": vr, "validation_score": score, "stable": stable,
         }  # fmt: skip
         history.append(entry)
         if log is not None:
-            log(f"output error: iteration {it}, train {entry['train_loss']:.4g}, validation {score}")
-        if score is None or score < best[0]:
+            log(
+                f"output error: iteration {it}, train {entry['train_loss']:.4g}, validation {score}"
+                + ("" if stable else ", unstable on a probe: back to the last stable model")
+            )
+        if not stable:
+            lost = True
+            bad += val is not None
+        elif score is None or score < best[0]:
+            # without validation records the best is the last stable model
             best, bad = (score if score is not None else best[0], xk.copy(), it), 0
         else:
             bad += 1
@@ -585,7 +649,7 @@ def refine_output_error(
             stopped = "callback"
         elif bad >= patience:
             stopped = "patience"
-        return stopped != "maxiter"
+        return stopped != "maxiter" or lost
 
     # each run minimizes over x / scale, 1 unless a retry shortened it (below): L-BFGS-B's
     # first trial step has length 1 in its own variables, its later steps do not depend on it
@@ -604,6 +668,7 @@ def refine_output_error(
 
     converged_before = False
     retries = 0
+    restarts = 0
     while it < maxiter and stopped == "maxiter":
         # one L-BFGS run per warm-up state: a restart forgets the curvature it learned, which
         # cost more than the stale warm-up state (FSM records: 200 iterations in runs of 20
@@ -625,11 +690,21 @@ def refine_output_error(
             if chk["since"] and np.isfinite(track["f"]):
                 check(x, float(track["f"]))  # the last iterations are scored too
             stopped = str(e)
-        if stopped == "maxiter" and chk["since"] and check(x, float(track["f"])):
-            break
+        if stopped == "maxiter" and chk["since"]:
+            check(x, float(track["f"]))  # the run's last iterations
         chk["since"] = 0
         if stopped != "maxiter":
             break
+        if lost:
+            # the fit left the stable models: start again from the last stable one, with a new
+            # warm-up state (the stale one hid the instability) and a new curvature memory
+            restarts += 1
+            if restarts > _UNSTABLE_RESTARTS:
+                stopped = "unstable"
+                break
+            x, lost, retries, scale, converged_before = best[1].copy(), False, 0, 1.0, False
+            state = start_state(p.model_of(x))
+            continue
         # L-BFGS-B declares convergence on a relative decrease below ``ftol``, which the first
         # step of a run restarted without its curvature can meet: near the optimum its unit
         # step makes the model diverge (refused: 1e10, zero gradient), the line search
@@ -651,5 +726,5 @@ def refine_output_error(
             break
         converged_before = converged
         state = start_state(p.model_of(x))
-    out = p.model_of(best[1] if val is not None else x)
-    return OutputErrorRefinement(out, history, best[2] if val is not None else it, stopped, time.perf_counter() - t0)
+    out = p.model_of(best[1])  # without validation records: the last stable check
+    return OutputErrorRefinement(out, history, best[2], stopped, time.perf_counter() - t0)
