@@ -556,7 +556,8 @@ def refine_output_error(
         ]
         probe = (
             _probe_inputs(u, labels, int(probes), np.random.default_rng(rng)),
-            _PROBE_LIMIT * np.repeat(np.asarray(set_rms, dtype=np.float64), int(probes)),
+            # a set measured all 0 limits nothing but finiteness
+            np.repeat(np.where(np.asarray(set_rms) > 0, _PROBE_LIMIT * np.asarray(set_rms), np.inf), int(probes)),
         )
     unknown = sorted(set(free) - {"thresholds", "F"})
     if unknown:
