@@ -298,6 +298,7 @@ def test_held_back_realizations_join_the_fit_when_the_watch_has_not_fired() -> N
         assert runs[w].init["ridge"] == oe["init_ridge"] == float(best), oe
         assert len(oe["init_ridge_scores"]) == len(INIT_RIDGES), oe
     assert "init_ridge" not in none and runs[0.0].init["ridge"] == 1e-3, none
+    assert watched["unstable_checks"] == both["unstable_checks"] == none["unstable_checks"] == 0
     # fitted on the held-back realizations: closer to them than the model that never saw them
     e = {w: float(protocol_rmse(m, held.u, held.y).mean()) for w, m in runs.items()}
     assert e[0.5] < 0.95 * e[1.0] and e[0.0] < 0.9 * e[1.0], e  # 0.0200, 0.0181 against 0.0223

@@ -1101,6 +1101,7 @@ def _refine(
         "validation_score": None, "best_validation_score": None, "watched_iterations": 0, "all_records_iterations": 0,
     }  # fmt: skip
     done, watching = 0, bool(hold) and settings.oe_watch > 0
+    unstable = 0  # checks whose model diverged on the probes (refine_output_error)
     join = True
     if watching:
         watch = refine_output_error(
@@ -1109,6 +1110,7 @@ def _refine(
             time_budget=max(budget * settings.oe_watch, 1.0), **common,
         )  # fmt: skip
         model, done, watched = watch.model, watch.best_iteration, watch.history[-1]["iteration"]
+        unstable += sum(not h.get("stable", True) for h in watch.history)
         summary.update(
             iterations=done,
             stopped=watch.stopped,
@@ -1132,8 +1134,10 @@ def _refine(
             model, rec, maxiter=settings.oe_iterations - done, time_budget=left, **common
         )  # fmt: skip
         model = res.model
+        unstable += sum(not h.get("stable", True) for h in res.history)
         summary.update(iterations=done + res.best_iteration, stopped=res.stopped)
         summary["all_records_iterations"] = res.best_iteration
+    summary["unstable_checks"] = unstable
     summary["seconds"] = round(time.perf_counter() - t0, 2)
     return model.with_fit({**dict(model.fit), "output_error": summary})
 
