@@ -418,3 +418,22 @@ def test_a_model_unstable_on_the_probes_is_never_returned(monkeypatch: pytest.Mo
     assert there.stopped == "maxiter" and all(h["stable"] for h in there.history[1:])
     for k in MATRICES:
         np.testing.assert_array_equal(getattr(res.model, k), getattr(there.model, k), err_msg=k)
+
+
+def test_the_watched_refinement_reports_unstable_checks(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A probe alarm in the watched phase (the third check): that check has no validation
+    score, the summary still gives the best one and counts the alarm."""
+    rec = _levels(_true_lfr(), n=256, realizations=3)
+    real_probe = mimo_oe._probe_rms
+    calls: list[int] = []
+
+    def probe(m: MimoModel, u: np.ndarray) -> np.ndarray:
+        calls.append(1)
+        return real_probe(m, u) * (1e6 if len(calls) == 3 else 1.0)
+
+    monkeypatch.setattr(mimo_oe, "_probe_rms", probe)
+    s = MimoSettings(order=4, iterations=0, oe_iterations=200, oe_seconds=300.0, oe_watch=0.5)
+    start = replace(_true_lfr(), A=_true_lfr().A * 0.995)
+    oe = _refine(rec, start, s, None).fit["output_error"]
+    assert oe["unstable_checks"] == 1, oe
+    assert isinstance(oe["best_validation_score"], float) and oe["best_validation_score"] < 1, oe

@@ -1115,7 +1115,10 @@ def _refine(
             iterations=done,
             stopped=watch.stopped,
             validation_score=watch.history[-1]["validation_score"],
-            best_validation_score=min(h["validation_score"] for h in watch.history),
+            # an unstable check has no score
+            best_validation_score=min(
+                h["validation_score"] for h in watch.history if h["validation_score"] is not None
+            ),
             watched_iterations=watched,
         )
         # the watched model has not seen the held-back realizations: they choose how far the
