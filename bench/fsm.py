@@ -68,15 +68,9 @@ def default_data() -> Path:
     return Path(env) if env else HERE.parent.parent / "shared" / "data" / "fsm"
 
 
-def _per_level(err: np.ndarray, labels: tuple[str, ...]) -> dict[str, float]:
-    per: dict[str, list[float]] = {}
-    for i, lab in enumerate(labels):
-        per.setdefault(lab, []).extend(err[i].tolist())
-    return {k: float(np.mean(v)) for k, v in per.items()}
-
-
 def _fit_and_score(train: Any, test: Any, kind: str, settings: Any) -> tuple[dict[str, Any], Any]:
     """One model fitted on ``train`` and scored on ``test`` by the protocol: its summary and the model."""
+    from piezohyst.identify._sets import set_means
     from piezohyst.identify.mimo import identify_mimo, protocol_rmse
 
     t0 = time.perf_counter()
@@ -84,7 +78,7 @@ def _fit_and_score(train: Any, test: Any, kind: str, settings: Any) -> tuple[dic
     fit_s = time.perf_counter() - t0
     report = res.report()
     summary = {
-        "rmse_um": _per_level(protocol_rmse(res.model, test.u, test.y) * 1e6, test.labels),
+        "rmse_um": set_means(protocol_rmse(res.model, test.u, test.y) * 1e6, test.labels),
         "fit_s": fit_s,
         "states": res.model.nx,
         **({"output_error": report["output_error"]} if "output_error" in report else {}),

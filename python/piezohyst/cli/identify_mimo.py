@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import PiezohystError
+from ..identify._sets import set_means
 from ..identify.mimo import MIMO_KINDS, MimoRecords, identify_mimo, protocol_rmse
 from ..outputs import write_atomic
 from .common import _check_fs, _Fail, _writable
@@ -57,12 +58,8 @@ def _identify_mimo(args: argparse.Namespace) -> int:
         res = identify_mimo(rec, kind, log=log)
     except PiezohystError as e:
         raise _Fail(str(e)) from None
-    train_err = protocol_rmse(res.model, rec.u, rec.y)
-    per_set: dict[str, list[float]] = {}
-    for i, lab in enumerate(rec.labels):
-        per_set.setdefault(lab, []).extend(train_err[i].tolist())
+    train_rmse = set_means(protocol_rmse(res.model, rec.u, rec.y), rec.labels)
     rms_y = float(np.sqrt((rec.y**2).mean()))
-    train_rmse = {k: float(np.mean(v)) for k, v in per_set.items()}
     fit: dict[str, Any] = dict(res.report())
     fit["data"] = {
         "train": {

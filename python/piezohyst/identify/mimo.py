@@ -49,6 +49,7 @@ from .._io import PathLike
 from ..errors import DataError, ParameterError
 from ..models.mimo import MimoModel, Structure
 from ..signals.frf import estimate_bla, multisine_records
+from ._sets import set_means
 from .mimo_oe import refine_output_error
 
 __all__ = [
@@ -773,12 +774,7 @@ def choose_init_ridge(
     err = []
     for v in r:
         e = protocol_rmse(replace(model, init={**model.init, "ridge": v}), records.u, records.y, skip=skip)
-        err.append(
-            [
-                float(e[[i for i, li in enumerate(records.labels) if li == lab]].mean())
-                for lab in dict.fromkeys(records.labels)
-            ]
-        )
+        err.append(list(set_means(e, records.labels).values()))
     rel = np.asarray(err) / np.maximum(np.asarray(err[0]), 1e-300)
     score = rel.mean(axis=1)
     best = r[int(np.argmin(score))]
@@ -1147,7 +1143,7 @@ def _refine(
 
 def _holdout(rec: MimoRecords, kind: str, settings: MimoSettings, folds: int) -> dict[str, float]:
     parts = rec.folds()
-    scores: dict[str, list[float]] = {}
+    errs, labels = [], []
     for f in range(min(folds, len(parts))):
         test = parts[f]
         train = [i for i in range(len(rec.labels)) if i not in test]
@@ -1155,10 +1151,9 @@ def _holdout(rec: MimoRecords, kind: str, settings: MimoSettings, folds: int) ->
         # runs once, on the chosen kind, watched on its own held-back realizations
         model = _fit_kind(rec.select(train), kind, replace(settings, oe_iterations=0))
         t = rec.select(test)
-        err = protocol_rmse(model, t.u, t.y)
-        for i, lab in enumerate(t.labels):
-            scores.setdefault(lab, []).extend(err[i].tolist())
-    return {lab: float(np.mean(v)) for lab, v in scores.items()}
+        errs.append(protocol_rmse(model, t.u, t.y))
+        labels += t.labels
+    return set_means(np.concatenate(errs), labels)
 
 
 def identify_mimo(

@@ -60,6 +60,7 @@ from numpy.typing import ArrayLike, NDArray
 from .. import _core
 from ..errors import ParameterError
 from ..models.mimo import MimoModel
+from ._sets import set_means
 
 if TYPE_CHECKING:
     from .mimo import MimoRecords
@@ -360,7 +361,7 @@ def _records(rec: MimoRecords, name: str) -> tuple[FloatArray, FloatArray, tuple
 
 
 def _level_weights(y: FloatArray, labels: Sequence[str], balance: float) -> FloatArray:
-    ms = {lab: float(np.mean([np.mean(y[i] ** 2) for i, li in enumerate(labels) if li == lab])) for lab in set(labels)}
+    ms = set_means((y**2).mean(axis=(1, 2)), labels)
     w = np.array([ms[lab] ** (-balance) for lab in labels])
     return np.asarray(w / np.mean([ms[lab] ** (1 - balance) for lab in labels]), dtype=np.float64)
 
@@ -550,10 +551,7 @@ def refine_output_error(
         raise ParameterError(f"probes = {probes!r} must be an integer >= 0")
     probe: tuple[FloatArray, FloatArray] | None = None  # the probe inputs and their output RMS limits
     if probes:
-        set_rms = [
-            np.sqrt(np.mean([np.mean(y[i] ** 2) for i, li in enumerate(labels) if li == lab]))
-            for lab in dict.fromkeys(labels)
-        ]
+        set_rms = np.sqrt(list(set_means((y**2).mean(axis=(1, 2)), labels).values()))
         probe = (
             _probe_inputs(u, labels, int(probes), np.random.default_rng(rng)),
             # a set measured all 0 limits nothing but finiteness
@@ -582,10 +580,7 @@ def refine_output_error(
 
     def val_rmse(m: MimoModel) -> dict[str, float]:
         assert val is not None
-        e = _periodic_rmse(m, val[0], val[1])
-        return {
-            lab: float(np.mean([e[i] for i, li in enumerate(val[2]) if li == lab])) for lab in dict.fromkeys(val[2])
-        }
+        return set_means(_periodic_rmse(m, val[0], val[1]), val[2])
 
     state = start_state(model)
     loss0 = float(np.sum(_core_loss_grad(model, uw, yw, state, k, rw)[0])) or 1.0
