@@ -869,16 +869,11 @@ class MimoSettings:
     #: binds first on the FSM records (the frequency-domain fits before it take about 40 s)
     oe_seconds: float = 600.0
     #: its level weighting: each record by its set's mean square output to the power
-    #: ``-oe_balance``; 0, every record alike, is the plain squared output error, where the
-    #: largest level counts most. FSM records, the default kind fitted on realizations 1-5 (2000
-    #: iterations) and scored on 6, µm at 100 / 200 / 300 mV: 0 gave 0.0631 / 0.116 / 0.167,
-    #: 0.25 gave 0.0598 / 0.116 / 0.171, 0.5 gave 0.0594 / 0.119 / 0.174 (realization 3 held
-    #: out, 0.25: 0.0939 / 0.112 / 0.167, 0.5 at 1380 iterations 0.0918 / 0.113 / 0.173). The
-    #: largest level, furthest from its target (0.169 µm, 0.0866 at 100 mV), gains what the
-    #: smallest, well within its own, gives up. Earlier, shorter fits: 360 s, 0.5 gave 0.0754 /
-    #: 0.149 / 0.218 µm, 1 gave 0.0689 / 0.148 / 0.227; 400 iterations, 0.5 gave 0.0732 / 0.145 /
-    #: 0.213, 0 gave 0.0815 / 0.149 / 0.207
-    oe_balance: float = 0.0
+    #: ``-oe_balance`` (FSM records, realization 6 held out, 360 s: 0.5 gave 0.0754 / 0.149 /
+    #: 0.218 µm, 1 gave 0.0689 / 0.148 / 0.227: the largest level, furthest from its target,
+    #: gains what the smallest, well within its own, gives up; 400 iterations: 0.5 gave 0.0732 /
+    #: 0.145 / 0.213, 0 gave 0.0815 / 0.149 / 0.207)
+    oe_balance: float = 0.5
     #: the LFR's static (saturating) feedback channels ``r tanh(z / r)`` on each output, ``r``
     #: these fractions of the output's RMS (after the play channels); empty: none
     static_scales: tuple[float, ...] = ()
