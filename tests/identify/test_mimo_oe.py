@@ -406,7 +406,8 @@ def test_a_model_unstable_on_the_probes_is_never_returned(monkeypatch: pytest.Mo
 
     monkeypatch.setattr(mimo_oe, "_probe_rms", probe)
     monkeypatch.setattr(scipy.optimize, "minimize", minimize)
-    res = refine_output_error(start, rec, maxiter=200, chunk=50, check_every=10)
+    # screen=0: the checks alone (this probe would fail every screen)
+    res = refine_output_error(start, rec, maxiter=200, chunk=50, check_every=10, screen=0)
     assert res.stopped == "unstable", res.stopped
     assert [h["stable"] for h in res.history[1:]] == [True, True, False, False, False, False], res.history
     assert res.best_iteration == 20
@@ -414,7 +415,7 @@ def test_a_model_unstable_on_the_probes_is_never_returned(monkeypatch: pytest.Mo
     assert len(starts) == 4 and all(np.array_equal(s, starts[1]) for s in starts[2:])
     assert not np.array_equal(starts[1], starts[0])
     monkeypatch.setattr(mimo_oe, "_probe_rms", real_probe)
-    there = refine_output_error(start, rec, maxiter=20, chunk=50, check_every=10)
+    there = refine_output_error(start, rec, maxiter=20, chunk=50, check_every=10, screen=0)
     assert there.stopped == "maxiter" and all(h["stable"] for h in there.history[1:])
     for k in MATRICES:
         np.testing.assert_array_equal(getattr(res.model, k), getattr(there.model, k), err_msg=k)
@@ -435,5 +436,79 @@ def test_the_watched_refinement_reports_unstable_checks(monkeypatch: pytest.Monk
     s = MimoSettings(order=4, iterations=0, oe_iterations=200, oe_seconds=300.0, oe_watch=0.5)
     start = replace(_true_lfr(), A=_true_lfr().A * 0.995)
     oe = _refine(rec, start, s, None).fit["output_error"]
-    assert oe["unstable_checks"] == 1, oe
+    assert oe["unstable_checks"] == 1 and oe["screen_rejected"] == 0, oe
     assert isinstance(oe["best_validation_score"], float) and oe["best_validation_score"] < 1, oe
+
+
+def _screen_failing(monkeypatch: pytest.MonkeyPatch, screen_records: int, fails: int) -> list[int]:
+    """``_probe_rms`` whose first ``fails`` screens (calls on ``screen_records`` probe records:
+    the checks' probes are fewer) find the model diverging; returns the call log (1: failed)."""
+    real_probe = mimo_oe._probe_rms
+    screens: list[int] = []
+
+    def probe(m: MimoModel, u: np.ndarray) -> np.ndarray:
+        r = real_probe(m, u)
+        if u.shape[0] != screen_records:
+            return r
+        screens.append(int(len(screens) < fails))
+        return r * (1e6 if screens[-1] else 1.0)
+
+    monkeypatch.setattr(mimo_oe, "_probe_rms", probe)
+    return screens
+
+
+def test_a_model_that_fails_the_screen_is_not_returned(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without validation records the last stable check is returned; when it diverges on the
+    screen's realizations the check before it is, the same as a run stopped there; when every
+    check fails, the start model."""
+    true = _true_lfr()
+    rec = _levels(true, n=256, realizations=2)
+    start = replace(true, A=true.A * 0.995)
+    n_sets = len(dict.fromkeys(rec.labels))
+    screens = _screen_failing(monkeypatch, 5 * n_sets, fails=1)
+    res = refine_output_error(start, rec, maxiter=40, chunk=50, check_every=10, screen=5)
+    assert screens == [1, 0] and res.screen_rejected == 1, (screens, res.screen_rejected)
+    assert res.stopped == "maxiter" and [h["iteration"] for h in res.history] == [0, 10, 20, 30, 40]
+    assert res.best_iteration == 30
+    there = refine_output_error(start, rec, maxiter=30, chunk=50, check_every=10, screen=0)
+    assert there.best_iteration == 30
+    for k in MATRICES:
+        np.testing.assert_array_equal(getattr(res.model, k), getattr(there.model, k), err_msg=k)
+    # every check fails the screen: the start model (its parameters back from the scaled vector)
+    screens = _screen_failing(monkeypatch, 5 * n_sets, fails=100)
+    res = refine_output_error(start, rec, maxiter=40, chunk=50, check_every=10, screen=5)
+    assert screens == [1, 1, 1, 1] and res.screen_rejected == 4 and res.best_iteration == 0
+    for k in MATRICES:
+        np.testing.assert_allclose(getattr(res.model, k), getattr(start, k), rtol=1e-12, atol=1e-15, err_msg=k)
+
+
+def test_the_screen_tries_the_next_best_check_on_validation(monkeypatch: pytest.MonkeyPatch) -> None:
+    """With validation records the screen goes down the stable checks by their score: the
+    best fails, the second best is returned."""
+    true = _true_lfr()
+    rec = _levels(true, n=256, realizations=3)
+    fit, hold = rec.select([0, 1, 3, 4]), rec.select([2, 5])
+    assert set(hold.labels) == set(rec.labels)
+    start = replace(true, A=true.A * 0.995)
+    n_sets = len(dict.fromkeys(rec.labels))
+    screens = _screen_failing(monkeypatch, 4 * n_sets, fails=1)
+    res = refine_output_error(start, fit, validation=hold, maxiter=60, chunk=50, check_every=10, screen=4)
+    scored = sorted((h["validation_score"], h["iteration"]) for h in res.history[1:])
+    assert screens == [1, 0] and res.screen_rejected == 1
+    assert scored[0][0] < scored[1][0] < 1, scored  # the fit improved the held-back error
+    assert res.best_iteration == scored[1][1], (scored, res.best_iteration)
+
+
+def test_a_screen_refusal_does_not_stop_the_watched_fit_from_joining(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The watched phase's best check and the one before fail the screen and an earlier one is
+    its result; the held-back error was still falling, so the held-back realizations still join the fit (the
+    scores decide that, not which model the screen let through)."""
+    rec = _levels(_true_lfr(), n=1024, realizations=4)
+    s = MimoSettings(order=4, iterations=1, oe_iterations=160, oe_seconds=300.0, oe_watch=0.5)
+    screens = _screen_failing(monkeypatch, 16 * len(dict.fromkeys(rec.labels)), fails=2)
+    oe = identify_mimo(rec, "mimo-lfr", settings=s).model.fit["output_error"]
+    assert screens == [1, 1, 0, 0], screens  # the checks at 80 and 60 refused, 40 passes; the final passes
+    assert oe["screen_rejected"] == 2 and oe["watched_iterations"] == 80, oe
+    assert oe["best_validation_score"] == oe["validation_score"] < 1, oe  # the lowest at the last check
+    # the watched result is the check at 40: the fit on all records has the other 120 iterations
+    assert oe["all_records_iterations"] == 120 and oe["iterations"] == 160, oe

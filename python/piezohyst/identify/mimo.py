@@ -1098,6 +1098,7 @@ def _refine(
     }  # fmt: skip
     done, watching = 0, bool(hold) and settings.oe_watch > 0
     unstable = 0  # checks whose model diverged on the probes (refine_output_error)
+    rejected = 0  # models the final screen of a phase refused
     join = True
     if watching:
         watch = refine_output_error(
@@ -1107,6 +1108,7 @@ def _refine(
         )  # fmt: skip
         model, done, watched = watch.model, watch.best_iteration, watch.history[-1]["iteration"]
         unstable += sum(not h.get("stable", True) for h in watch.history)
+        rejected += watch.screen_rejected
         summary.update(
             iterations=done,
             stopped=watch.stopped,
@@ -1122,9 +1124,13 @@ def _refine(
         model, ridges = choose_init_ridge(model, rec.select(hold))
         summary.update(init_ridge=model.init["ridge"], init_ridge_scores=ridges)
         # still falling: the best score at one of the last two checks (the last one often comes
-        # a few iterations after the one before, when the time ran out: within the noise)
+        # a few iterations after the one before, when the time ran out: within the noise). The
+        # scores say so, not the model returned: the final screen may have refused the best
+        # check for diverging on new inputs, which says nothing of the held-back error's trend
         recent = watch.history[-2]["iteration"] if len(watch.history) > 1 else 0
-        join = watch.stopped in ("time_budget", "maxiter") and watch.best_iteration >= recent
+        scored = [h for h in watch.history if h["validation_score"] is not None]
+        lowest = min(scored, key=lambda h: h["validation_score"])["iteration"]
+        join = watch.stopped in ("time_budget", "maxiter") and lowest >= recent
     left = budget - (time.perf_counter() - t0)
     if join and settings.oe_iterations - done > 0 and left > 1.0:
         if log is not None and watching:
@@ -1134,9 +1140,11 @@ def _refine(
         )  # fmt: skip
         model = res.model
         unstable += sum(not h.get("stable", True) for h in res.history)
+        rejected += res.screen_rejected
         summary.update(iterations=done + res.best_iteration, stopped=res.stopped)
         summary["all_records_iterations"] = res.best_iteration
     summary["unstable_checks"] = unstable
+    summary["screen_rejected"] = rejected
     summary["seconds"] = round(time.perf_counter() - t0, 2)
     return model.with_fit({**dict(model.fit), "output_error": summary})
 
