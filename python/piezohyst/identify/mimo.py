@@ -1151,7 +1151,8 @@ def _refine(
 
 def _holdout(rec: MimoRecords, kind: str, settings: MimoSettings, folds: int) -> dict[str, float]:
     parts = rec.folds()
-    errs, labels = [], []
+    errs: list[FloatArray] = []
+    labels: list[str] = []
     for f in range(min(folds, len(parts))):
         test = parts[f]
         train = [i for i in range(len(rec.labels)) if i not in test]
