@@ -15,8 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import PiezohystError
-from ..identify._sets import set_means
-from ..identify.mimo import MIMO_KINDS, MimoRecords, identify_mimo, protocol_rmse
+from ..identify.mimo import MIMO_KINDS, MimoRecords, identify_mimo, protocol_rmse, set_means
 from ..outputs import write_atomic
 from .common import _check_fs, _Fail, _writable
 

@@ -14,6 +14,18 @@ def set_means(values: ArrayLike, labels: Sequence[str]) -> dict[str, float]:
     """The mean of ``values[i]`` (each a number or an array) over the records ``i`` of each
     set, the sets in their order of first appearance in ``labels``.
 
+    Parameters
+    ----------
+    values : array_like
+        One number or array per record (the first axis: the records).
+    labels : sequence of str
+        The set of each record.
+
+    Returns
+    -------
+    dict of str to float
+        Each set's mean.
+
     Examples
     --------
     >>> set_means([[1.0, 3.0], [5.0, 7.0], [0.0, 0.0]], ("a", "a", "b"))

@@ -64,6 +64,7 @@ __all__ = [
     "protocol_rmse",
     "read_multisine_folder",
     "realize",
+    "set_means",
     "subspace",
 ]
 
