@@ -399,6 +399,11 @@ def _probe_rms(model: MimoModel, u: FloatArray) -> FloatArray:
     return np.asarray(np.where(np.isfinite(r), r, np.inf), dtype=np.float64)
 
 
+def _stable_on(model: MimoModel, probe: tuple[FloatArray, FloatArray]) -> bool:
+    """Whether ``model``'s output RMS on each probe input stays within its limit."""
+    return bool(np.all(_probe_rms(model, probe[0]) <= probe[1]))
+
+
 #: How far the output RMS of a probe (a new realization of a set's multisine) may exceed the
 #: set's measured output RMS before the model counts as unstable on it.
 _PROBE_LIMIT = 2.0
@@ -638,7 +643,7 @@ def refine_output_error(
         """One history entry at iteration ``it``; ``True``: the run stops."""
         nonlocal best, bad, stopped, lost
         m = p.model_of(xk)
-        stable = probe is None or bool(np.all(_probe_rms(m, probe[0]) <= probe[1]))
+        stable = probe is None or _stable_on(m, probe)
         vr = val_rmse(m) if val is not None and stable else {}
         score = float(np.mean([vr[lab] / v0[lab] for lab in vr])) if vr else None
         entry = {
@@ -747,7 +752,7 @@ def refine_output_error(
     order = sorted(stable_checks, key=lambda c: (c[0], -c[2]) if val is not None else (-c[2],))
     chosen, rejected = (p.x0, 0), 0
     for _, xc, itc in [best, *[c for c in order if c[2] != best[2]][: _SCREEN_TRIES - 1]]:
-        if final is None or bool(np.all(_probe_rms(p.model_of(xc), final[0]) <= final[1])):
+        if final is None or _stable_on(p.model_of(xc), final):
             chosen = (xc, itc)
             break
         rejected += 1
