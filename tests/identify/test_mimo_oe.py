@@ -377,8 +377,70 @@ def test_probes_are_new_realizations_of_each_sets_multisine() -> None:
         [[0.5]], [[1.0, 0.0]], [[1.0]], [[0.0, 0.0]], E=[[0.8]], F=[[0.0]], G=[[1.0]], H=[[0.0, 0.0]],
         thresholds=[[0.0]], weights=[[1.0]], fs=FS, structure="lfr",
     )  # fmt: skip
-    assert np.all(mimo_oe._probe_rms(loop, probes) > 1e30)  # grows by 1.3 a sample
-    assert np.all(np.isfinite(mimo_oe._probe_rms(_true_lfr(), probes)))
+    assert np.all(mimo_oe._probe_response(loop, probes)[0] > 1e30)  # grows by 1.3 a sample
+    assert np.all(np.isfinite(mimo_oe._probe_response(_true_lfr(), probes)[0]))
+
+
+def test_a_model_that_oscillates_by_itself_is_unstable_on_the_probes() -> None:
+    """An undamped mode at a frequency that is not a harmonic of the period: the output of its
+    "periodic steady state" changes from one period to the next though it stays bounded; the
+    same mode damped settles, and its next period repeats the last."""
+    rec = _levels(_true_lfr(), n=256, realizations=2)
+    u = np.ascontiguousarray(np.moveaxis(rec.u.mean(axis=3), 2, 0))
+    probes = mimo_oe._probe_inputs(u, list(rec.labels), 2, np.random.default_rng(4))
+    turn = 2 * np.pi * 10.3 / 256  # 10.3 cycles a period
+
+    def mode(radius: float) -> MimoModel:
+        rot = radius * np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]])
+        return MimoModel.linear(A=rot, B=0.05 * np.ones((2, 2)), C=np.eye(2), D=np.zeros((2, 2)), fs=FS)
+
+    out_rms = np.full(len(probes), 10.0)  # the RMS limit (20) does not bind
+    rms, change = mimo_oe._probe_response(mode(1.0), probes)
+    assert np.all(rms < 5.0) and np.all(change > 0.5 * rms), (rms, change)  # bounded, not periodic
+    assert not mimo_oe._stable_on(mode(1.0), (probes, out_rms))
+    rms, change = mimo_oe._probe_response(mode(0.9), probes)
+    assert np.all(rms > 0.01) and np.all(change < 1e-12 * rms), (rms, change)
+    assert mimo_oe._stable_on(mode(0.9), (probes, out_rms))
+    # the RMS limit alone: twice the set's output RMS
+    assert not mimo_oe._stable_on(mode(0.9), (probes, 0.4 * rms))
+    assert mimo_oe._stable_on(mode(0.9), (probes, 0.6 * rms))
+
+
+def test_a_jump_of_the_validation_error_restarts_from_the_best_check(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The third check's validation RMSE of one set 10 % of its output RMS above the best
+    check's (an excursion, the probes within their limits): that check is unstable and the fit
+    starts again from the second check's model; a rise of 4 % is an ordinary worse check."""
+    true = _true_lfr()
+    rec = _levels(true, n=256, realizations=3)
+    last = {lab: i for i, lab in enumerate(rec.labels)}
+    hold = sorted(last.values())
+    fit, val = rec.select([i for i in range(len(rec.labels)) if i not in hold]), rec.select(hold)
+    y_rms = np.sqrt((val.y.mean(axis=3) ** 2).mean(axis=(0, 1)))  # per held-back record
+    start = replace(true, A=true.A * 0.995)
+    real = mimo_oe._periodic_rmse
+
+    def run(rise: float) -> Any:
+        calls: list[int] = []
+
+        def rmse(m: MimoModel, u: np.ndarray, y: np.ndarray) -> np.ndarray:
+            r = real(m, u, y)
+            calls.append(1)
+            if len(calls) == 4 and u.shape[0] == len(hold):  # the start, then checks 1, 2, 3
+                r = r + rise * y_rms * (np.arange(len(r)) == 1)
+            return r
+
+        monkeypatch.setattr(mimo_oe, "_periodic_rmse", rmse)
+        return refine_output_error(start, fit, validation=val, maxiter=60, chunk=50, check_every=10, screen=0)
+
+    res = run(0.10)
+    third = res.history[3]
+    assert third["excursion"] == [val.labels[1]] and not third["stable"], third
+    assert third["validation_score"] > res.history[2]["validation_score"]
+    assert [h["stable"] for h in res.history[1:]].count(False) == 1, res.history
+    assert res.best_iteration != 30
+    calm = run(0.04)
+    assert calm.history[3]["excursion"] == [] and calm.history[3]["stable"], calm.history[3]
+    assert all(h["stable"] for h in calm.history[1:])
 
 
 def test_a_model_unstable_on_the_probes_is_never_returned(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -388,12 +450,13 @@ def test_a_model_unstable_on_the_probes_is_never_returned(monkeypatch: pytest.Mo
     true = _true_lfr()
     rec = _levels(true, n=256, realizations=2)
     start = replace(true, A=true.A * 0.995)
-    real_probe = mimo_oe._probe_rms
+    real_probe = mimo_oe._probe_response
     checks: list[int] = []
 
-    def probe(m: MimoModel, u: np.ndarray) -> np.ndarray:
+    def probe(m: MimoModel, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         checks.append(1)
-        return real_probe(m, u) * (1e6 if len(checks) >= 3 else 1.0)
+        rms, change = real_probe(m, u)
+        return rms * (1e6 if len(checks) >= 3 else 1.0), change
 
     import scipy.optimize
 
@@ -404,7 +467,7 @@ def test_a_model_unstable_on_the_probes_is_never_returned(monkeypatch: pytest.Mo
         starts.append(np.array(x0, copy=True))
         return real_min(fun, x0, **kw)
 
-    monkeypatch.setattr(mimo_oe, "_probe_rms", probe)
+    monkeypatch.setattr(mimo_oe, "_probe_response", probe)
     monkeypatch.setattr(scipy.optimize, "minimize", minimize)
     # screen=0: the checks alone (this probe would fail every screen)
     res = refine_output_error(start, rec, maxiter=200, chunk=50, check_every=10, screen=0)
@@ -414,7 +477,7 @@ def test_a_model_unstable_on_the_probes_is_never_returned(monkeypatch: pytest.Mo
     # the three restarts begin where the second check was: the same point each time
     assert len(starts) == 4 and all(np.array_equal(s, starts[1]) for s in starts[2:])
     assert not np.array_equal(starts[1], starts[0])
-    monkeypatch.setattr(mimo_oe, "_probe_rms", real_probe)
+    monkeypatch.setattr(mimo_oe, "_probe_response", real_probe)
     there = refine_output_error(start, rec, maxiter=20, chunk=50, check_every=10, screen=0)
     assert there.stopped == "maxiter" and all(h["stable"] for h in there.history[1:])
     for k in MATRICES:
@@ -425,14 +488,15 @@ def test_the_watched_refinement_reports_unstable_checks(monkeypatch: pytest.Monk
     """A probe alarm in the watched phase (the third check): that check has no validation
     score, the summary still gives the best one and counts the alarm."""
     rec = _levels(_true_lfr(), n=256, realizations=3)
-    real_probe = mimo_oe._probe_rms
+    real_probe = mimo_oe._probe_response
     calls: list[int] = []
 
-    def probe(m: MimoModel, u: np.ndarray) -> np.ndarray:
+    def probe(m: MimoModel, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         calls.append(1)
-        return real_probe(m, u) * (1e6 if len(calls) == 3 else 1.0)
+        rms, change = real_probe(m, u)
+        return rms * (1e6 if len(calls) == 3 else 1.0), change
 
-    monkeypatch.setattr(mimo_oe, "_probe_rms", probe)
+    monkeypatch.setattr(mimo_oe, "_probe_response", probe)
     s = MimoSettings(order=4, iterations=0, oe_iterations=200, oe_seconds=300.0, oe_watch=0.5)
     start = replace(_true_lfr(), A=_true_lfr().A * 0.995)
     oe = _refine(rec, start, s, None).fit["output_error"]
@@ -441,19 +505,19 @@ def test_the_watched_refinement_reports_unstable_checks(monkeypatch: pytest.Monk
 
 
 def _screen_failing(monkeypatch: pytest.MonkeyPatch, screen_records: int, fails: int) -> list[int]:
-    """``_probe_rms`` whose first ``fails`` screens (calls on ``screen_records`` probe records:
+    """``_probe_response`` whose first ``fails`` screens (calls on ``screen_records`` probe records:
     the checks' probes are fewer) find the model diverging; returns the call log (1: failed)."""
-    real_probe = mimo_oe._probe_rms
+    real_probe = mimo_oe._probe_response
     screens: list[int] = []
 
-    def probe(m: MimoModel, u: np.ndarray) -> np.ndarray:
-        r = real_probe(m, u)
+    def probe(m: MimoModel, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        rms, change = real_probe(m, u)
         if u.shape[0] != screen_records:
-            return r
+            return rms, change
         screens.append(int(len(screens) < fails))
-        return r * (1e6 if screens[-1] else 1.0)
+        return rms * (1e6 if screens[-1] else 1.0), change
 
-    monkeypatch.setattr(mimo_oe, "_probe_rms", probe)
+    monkeypatch.setattr(mimo_oe, "_probe_response", probe)
     return screens
 
 
