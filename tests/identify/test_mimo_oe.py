@@ -315,6 +315,39 @@ def test_the_watch_ends_the_refinement_when_the_held_back_error_stops_falling() 
     assert oe["iterations"] < oe["watched_iterations"] < 200 and oe["all_records_iterations"] == 0, oe
 
 
+@pytest.mark.parametrize(("rise", "joins"), [(0.0, True), (0.005, True), (0.03, False)])
+def test_a_plateau_joins_the_fit_and_a_rise_does_not(monkeypatch: pytest.MonkeyPatch, rise: float, joins: bool) -> None:
+    """The watched phase's held-back error levels off after its first check (flat, or 0.5 %
+    above the best: a plateau) or rises 3 % (overfitting); the patience stops the phase at
+    the sixth check either way. A plateau is not overfitting: the held-back realizations join
+    the fit; a rise keeps the watched best."""
+    rec = _levels(_true_lfr(), n=256, realizations=3)
+    real = mimo_oe._periodic_rmse
+    calls: list[int] = []
+
+    def rmse(m: MimoModel, u: np.ndarray, y: np.ndarray) -> np.ndarray:
+        calls.append(1)
+        if len(calls) == 1:  # the start
+            return real(m, u, y)
+        # every check from the first: 0.9 of the start's error, then the rise
+        return first[0] * (1.0 if len(calls) == 2 else 1.0 + rise)
+
+    first: list[np.ndarray] = []
+    start = replace(_true_lfr(), A=_true_lfr().A * 0.995)
+    held = rec.select([i for i, lab in enumerate(rec.labels) if lab not in rec.labels[i + 1 :]])
+    u = np.ascontiguousarray(np.moveaxis(held.u.mean(axis=3), 2, 0))
+    y = np.ascontiguousarray(np.moveaxis(held.y.mean(axis=3), 2, 0))
+    first.append(0.9 * real(start, u, y))
+    monkeypatch.setattr(mimo_oe, "_periodic_rmse", rmse)
+    s = MimoSettings(order=4, iterations=0, oe_iterations=400, oe_seconds=300.0, oe_watch=0.5)
+    oe = _refine(rec, start, s, None).fit["output_error"]
+    assert oe["watched_iterations"] == 120 and oe["best_validation_score"] == pytest.approx(0.9), oe
+    if joins:
+        assert oe["all_records_iterations"] > 0 and oe["iterations"] > 120, oe
+    else:
+        assert oe["all_records_iterations"] == 0 and oe["iterations"] == 20 and oe["stopped"] == "patience", oe
+
+
 def test_callback_and_time_budget_stop_the_run() -> None:
     rec = _levels(_true_lfr(), n=256, realizations=2)
     start = identify_mimo(rec, "mimo-lfr", settings=MimoSettings(order=4, iterations=0, oe_iterations=0)).model
