@@ -556,15 +556,17 @@ def _screen_failing(monkeypatch: pytest.MonkeyPatch, screen_records: int, fails:
 
 def test_a_model_that_fails_the_screen_is_not_returned(monkeypatch: pytest.MonkeyPatch) -> None:
     """Without validation records the last stable check is returned; when it diverges on the
-    screen's realizations the check before it is, the same as a run stopped there; when every
-    check fails, the start model."""
+    screen's realizations the latest check that passes is (found by bisection towards the
+    start: here the one before, the same as a run stopped there); when every check fails, the
+    start model."""
     true = _true_lfr()
     rec = _levels(true, n=256, realizations=2)
     start = replace(true, A=true.A * 0.995)
     n_sets = len(dict.fromkeys(rec.labels))
     screens = _screen_failing(monkeypatch, 5 * n_sets, fails=1)
     res = refine_output_error(start, rec, maxiter=40, chunk=50, check_every=10, screen=5)
-    assert screens == [1, 0] and res.screen_rejected == 1, (screens, res.screen_rejected)
+    # 40 refused; 20 passes, then 30
+    assert screens == [1, 0, 0] and res.screen_rejected == 1, (screens, res.screen_rejected)
     assert res.stopped == "maxiter" and [h["iteration"] for h in res.history] == [0, 10, 20, 30, 40]
     assert res.best_iteration == 30
     there = refine_output_error(start, rec, maxiter=30, chunk=50, check_every=10, screen=0)
@@ -574,9 +576,26 @@ def test_a_model_that_fails_the_screen_is_not_returned(monkeypatch: pytest.Monke
     # every check fails the screen: the start model (its parameters back from the scaled vector)
     screens = _screen_failing(monkeypatch, 5 * n_sets, fails=100)
     res = refine_output_error(start, rec, maxiter=40, chunk=50, check_every=10, screen=5)
-    assert screens == [1, 1, 1, 1] and res.screen_rejected == 4 and res.best_iteration == 0
+    # 40, 20 and 10 refused: 30 lies between two refused checks and is not screened
+    assert screens == [1, 1, 1] and res.screen_rejected == 3 and res.best_iteration == 0
     for k in MATRICES:
         np.testing.assert_allclose(getattr(res.model, k), getattr(start, k), rtol=1e-12, atol=1e-15, err_msg=k)
+
+
+def test_the_screen_bisects_back_to_the_latest_check_that_passes(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Eight checks without validation records, the first two screens refused: the last check
+    (80) and the middle one (40) fail, 20 passes, then 30: the latest that passes between the
+    refused 40 and the passing 20 is returned, four screens in all."""
+    true = _true_lfr()
+    rec = _levels(true, n=256, realizations=2)
+    start = replace(true, A=true.A * 0.995)
+    screens = _screen_failing(monkeypatch, 5 * len(dict.fromkeys(rec.labels)), fails=2)
+    lines: list[str] = []
+    res = refine_output_error(start, rec, maxiter=80, chunk=100, check_every=10, screen=5, log=lines.append)
+    assert [h["iteration"] for h in res.history] == list(range(0, 90, 10))
+    refused = [int(line.split("iteration ")[1].split()[0]) for line in lines if "fails on new" in line]
+    assert refused == [80, 40] and screens == [1, 1, 0, 0], (refused, screens)
+    assert res.best_iteration == 30 and res.screen_rejected == 2
 
 
 def test_the_screen_tries_the_next_best_check_on_validation(monkeypatch: pytest.MonkeyPatch) -> None:
