@@ -374,6 +374,11 @@ def _level_weights(y: FloatArray, labels: Sequence[str], balance: float) -> Floa
     return np.asarray(w / np.mean([ms[lab] ** (1 - balance) for lab in labels]), dtype=np.float64)
 
 
+def _set_rms(y: FloatArray, labels: Sequence[str]) -> dict[str, float]:
+    """The output RMS of each set of records ``(R, N, ny)`` (the probes' and the excursions' unit)."""
+    return {lab: float(np.sqrt(v)) for lab, v in set_means((y**2).mean(axis=(1, 2)), labels).items()}
+
+
 def _periodic_rmse(model: MimoModel, u: FloatArray, y: FloatArray) -> FloatArray:
     """RMSE per record (mean over outputs) of the periodic steady-state simulation."""
     st = model.periodic_state(u)
@@ -614,7 +619,7 @@ def refine_output_error(
         if isinstance(v, bool) or int(v) != v or v < 0:
             raise ParameterError(f"{name} = {v!r} must be an integer >= 0")
     gen = np.random.default_rng(rng)
-    set_rms = np.sqrt(list(set_means((y**2).mean(axis=(1, 2)), labels).values()))
+    set_rms = np.array(list(_set_rms(y, labels).values()))
     # a set measured all 0 limits nothing but finiteness
     set_scale = np.where(set_rms > 0, set_rms, np.inf)
     # the probe inputs and their set's output RMS (the limits' unit): at every check, and for
@@ -649,10 +654,7 @@ def refine_output_error(
     # a set's largest rise of its validation RMSE above the best check's (more: an excursion;
     # a set measured all 0 has no scale)
     val_rise = (
-        {
-            lab: _EXCURSION * np.sqrt(v) if v > 0 else np.inf
-            for lab, v in set_means((val[1] ** 2).mean(axis=(1, 2)), val[2]).items()
-        }
+        {lab: _EXCURSION * r if r > 0 else np.inf for lab, r in _set_rms(val[1], val[2]).items()}
         if val is not None
         else {}
     )
