@@ -537,6 +537,32 @@ def test_the_watched_refinement_reports_unstable_checks(monkeypatch: pytest.Monk
     assert isinstance(oe["best_validation_score"], float) and oe["best_validation_score"] < 1, oe
 
 
+def test_a_watched_phase_stopped_unstable_still_joins(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every check of the watched phase after the second raises a probe alarm: it restarts from
+    the check at 40 three times and stops as unstable at the fourth alarm. The held-back error
+    had not risen (its best is the last stable check), so the held-back realizations join the
+    fit from that check; the fit on all records has no alarm."""
+    rec = _levels(_true_lfr(), n=256, realizations=3)
+    real_probe = mimo_oe._probe_response
+    checks: list[int] = []
+    n_sets = len(dict.fromkeys(rec.labels))
+
+    def probe(m: MimoModel, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        rms, change = real_probe(m, u)
+        if u.shape[0] != 2 * n_sets:  # the final screen
+            return rms, change
+        checks.append(1)
+        return rms * (1e6 if 3 <= len(checks) <= 6 else 1.0), change
+
+    monkeypatch.setattr(mimo_oe, "_probe_response", probe)
+    s = MimoSettings(order=4, iterations=0, oe_iterations=400, oe_seconds=300.0, oe_watch=0.5)
+    start = replace(_true_lfr(), A=_true_lfr().A * 0.995)
+    oe = _refine(rec, start, s, None).fit["output_error"]
+    assert oe["unstable_checks"] == 4 and oe["watched_iterations"] == 120, oe
+    assert oe["all_records_iterations"] > 0 and oe["iterations"] == 40 + oe["all_records_iterations"], oe
+    assert oe["stopped"] != "unstable", oe
+
+
 def _screen_failing(monkeypatch: pytest.MonkeyPatch, screen_records: int, fails: int) -> list[int]:
     """``_probe_response`` whose first ``fails`` screens (calls on ``screen_records`` probe records:
     the checks' probes are fewer) find the model diverging; returns the call log (1: failed)."""

@@ -1085,13 +1085,19 @@ def _refine(
     1. *watched*: fitted on all but the last realization of each set and early-stopped on
        those, for the share ``settings.oe_watch`` of the time and iterations. If the held-back
        error rose (the lower of the last two stable checks' scores more than
-       ``_JOIN_TOLERANCE`` above the best: overfitting) or the phase stopped as unstable, the
-       phase's best model is the result.
+       ``_JOIN_TOLERANCE`` above the best: overfitting), the phase's best model is the result.
     2. *all records*: otherwise the held-back error was still falling or had levelled off
-       (the share ran out, or the patience stopped a plateau): that is the budget or the data
-       binding, not overfitting, and one more realization per set is worth more than a watch
-       that has not fired: the held-back realizations join the fit, which goes on from the
-       watched phase's best model, without early stopping, for the rest. FSM records,
+       (the share ran out, the patience stopped a plateau, or the phase stopped as unstable):
+       that is the budget or the data binding, not overfitting, and one more realization per
+       set is worth more than a watch that has not fired: the held-back realizations join the
+       fit, which goes on from the watched phase's best model, without early stopping, for
+       the rest (with the same probes, restarts and final screen). A phase stopped as
+       unstable says that the fit on those realizations kept reaching models that diverge or
+       oscillate on new inputs, not that the held-back error rose: FSM records, all six
+       realizations, the last held back (the acceptance run of ``identify --model auto``),
+       the watched phase stopped as unstable at 900 iterations (four alarms; its best, 840,
+       scored 0.7096, the check after it 0.7097) with 255 s of the 540-s budget left, and the
+       held-back realizations did not join. FSM records,
        realization 1 held out of the six, the others fitted (at 1.6 times the speed the
        budget was set on): the watch stopped a plateau by patience at 720 iterations (best
        620, the held-back score 0.7149 against 0.7143) and, no realization joining, scored
@@ -1143,11 +1149,12 @@ def _refine(
         # score (the last one often comes a few iterations after the one before, when the
         # time ran out). The scores say so, not the model returned: the final screen may have
         # refused the best check for diverging on new inputs, which says nothing of the
-        # held-back error's trend; an unstable check (a probe alarm, an excursion) neither
+        # held-back error's trend; an unstable check (a probe alarm, an excursion), or the
+        # phase stopping as unstable, neither
         scores = [
             h["validation_score"] for h in watch.history if h.get("stable", True) and h["validation_score"] is not None
         ]
-        join = watch.stopped != "unstable" and min(scores[-2:]) <= (1 + _JOIN_TOLERANCE) * min(scores)
+        join = min(scores[-2:]) <= (1 + _JOIN_TOLERANCE) * min(scores)
     left = budget - (time.perf_counter() - t0)
     if join and settings.oe_iterations - done > 0 and left > 1.0:
         if log is not None and watching:
