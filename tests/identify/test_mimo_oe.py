@@ -403,7 +403,7 @@ def test_probes_are_new_realizations_of_each_sets_multisine() -> None:
         first = np.abs(np.fft.rfft(u[labels.index(lab)], axis=0))
         for k in range(2):
             spec = np.fft.rfft(probes[2 * s + k], axis=0)
-            np.testing.assert_allclose(np.abs(spec), first, atol=1e-9 * first.max())
+            np.testing.assert_allclose(np.abs(spec), 1.1 * first, atol=1e-9 * first.max())
             assert np.std(probes[2 * s + k] - u[labels.index(lab)]) > np.std(u[labels.index(lab)])  # new phases
     # a feedback loop with a gain above 1 (0.5 + 0.8 through an identity play) diverges
     loop = MimoModel(
@@ -412,6 +412,32 @@ def test_probes_are_new_realizations_of_each_sets_multisine() -> None:
     )  # fmt: skip
     assert np.all(mimo_oe._probe_response(loop, probes)[0] > 1e30)  # grows by 1.3 a sample
     assert np.all(np.isfinite(mimo_oe._probe_response(_true_lfr(), probes)[0]))
+
+
+def test_a_model_without_margin_beyond_the_fitted_amplitude_is_unstable_on_the_probes() -> None:
+    """A loop of gain 0.5 through a stuck play, 1.3 while the play slides: the play's threshold
+    between the largest state the set's own amplitude reaches and the one 1.1 times it reaches.
+    At the set's amplitude the play never slides and the model is stable; the probes, 10 %
+    stronger, make it slide and diverge."""
+    rec = _levels(_true_lfr(), n=256, realizations=2)
+    u = np.ascontiguousarray(np.moveaxis(rec.u.mean(axis=3), 2, 0))
+    labels = list(rec.labels)
+    probes = mimo_oe._probe_inputs(u, labels, 2, np.random.default_rng(4))
+
+    def loop(threshold: float) -> MimoModel:
+        return MimoModel(
+            [[0.5]], [[1.0, 0.0]], [[1.0]], [[0.0, 0.0]], E=[[0.8]], F=[[0.0]], G=[[1.0]], H=[[0.0, 0.0]],
+            thresholds=[[threshold]], weights=[[1.0]], fs=FS, structure="lfr",
+        )  # fmt: skip
+
+    stuck = loop(1e9)  # the linear loop of gain 0.5: its largest state at the set's amplitude
+    _, z, _ = stuck.run(probes / 1.1, stuck.periodic_state(probes / 1.1))
+    peak = float(np.abs(z).max())
+    model = loop(1.05 * peak)
+    out_rms = np.full(len(probes), 1e9)  # the RMS limit binds only a divergence
+    assert mimo_oe._stable_on(model, (probes / 1.1, out_rms))
+    assert not mimo_oe._stable_on(model, (probes, out_rms))
+    assert np.all(np.isfinite(mimo_oe._probe_response(model, probes / 1.1)[0]))
 
 
 def test_a_model_that_oscillates_by_itself_is_unstable_on_the_probes() -> None:
