@@ -35,6 +35,9 @@ to a temporary directory::
     piezohyst simulate fsm.json U.npy --init-output Y0.npy --out YHAT.npy          (target ≤ 1 s)
 
 the second once per level (one period of realization 1), timed from process start to exit.
+For every hysteretic model (the folds' and the acceptance command's), ``new_realization_failures``:
+of 50 new realizations per level (random phases, the level's amplitude spectrum), how many the
+model diverges or oscillates by itself on, at the level's amplitude and 10 % above it.
 """
 
 from __future__ import annotations
@@ -82,8 +85,25 @@ def _fit_and_score(train: Any, test: Any, kind: str, settings: Any) -> tuple[dic
         "fit_s": fit_s,
         "states": res.model.nx,
         **({"output_error": report["output_error"]} if "output_error" in report else {}),
+        **({"new_realization_failures": robustness(res.model, train)} if res.model.nw else {}),
     }
     return summary, res.model
+
+
+#: New realizations per level the robustness count simulates (other phases than the fit's
+#: probes and screen), at the levels' own amplitude and 10 % above
+ROBUSTNESS_REALIZATIONS = 50
+
+
+def robustness(model: Any, records: Any) -> dict[str, dict[str, int]]:
+    """Of ``ROBUSTNESS_REALIZATIONS`` new realizations per level, how many the model diverges
+    or oscillates by itself on (``new_realization_failures``), at 1 and 1.1 times the level."""
+    from piezohyst.identify.mimo_oe import new_realization_failures
+
+    return {
+        f"x{a:g}": new_realization_failures(model, records, per_set=ROBUSTNESS_REALIZATIONS, amplitude=a, rng=2026)
+        for a in (1.0, 1.1)
+    }
 
 
 def _mean_per_level(runs: list[dict[str, Any]], labels: Any) -> dict[str, dict[str, float]]:
@@ -184,7 +204,9 @@ def acceptance_commands(data: Path, rec: Any) -> dict[str, Any]:
             got = np.load(yhat)
             if got.shape != (rec.u.shape[0], rec.y.shape[1]) or not np.all(np.isfinite(got)):
                 raise SystemExit(f"piezohyst simulate wrote {got.shape}, finite: {np.all(np.isfinite(got))}")
-        static = load_mimo_model(model).static_channels
+        fitted = load_mimo_model(model)
+        static = fitted.static_channels
+        failures = robustness(fitted, rec)
     return {
         "wall_s": wall,
         "chosen": doc["kind"],
@@ -192,6 +214,7 @@ def acceptance_commands(data: Path, rec: Any) -> dict[str, Any]:
         "holdout": doc.get("holdout_rmse"),
         "output_error": doc.get("output_error"),
         "simulate_cli_s": simulate,
+        "new_realization_failures": failures,
     }
 
 

@@ -13,7 +13,7 @@ import pytest
 from piezohyst.errors import ParameterError
 from piezohyst.identify import mimo_oe
 from piezohyst.identify.mimo import INIT_RIDGES, MimoRecords, MimoSettings, _refine, identify_mimo, protocol_rmse
-from piezohyst.identify.mimo_oe import MATRICES, loss_gradient, refine_output_error
+from piezohyst.identify.mimo_oe import MATRICES, loss_gradient, new_realization_failures, refine_output_error
 from piezohyst.models.mimo import MimoModel
 
 FS = 1000.0
@@ -438,6 +438,20 @@ def test_a_model_without_margin_beyond_the_fitted_amplitude_is_unstable_on_the_p
     assert mimo_oe._stable_on(model, (probes / 1.1, out_rms))
     assert not mimo_oe._stable_on(model, (probes, out_rms))
     assert np.all(np.isfinite(mimo_oe._probe_response(model, probes / 1.1)[0]))
+
+
+def test_new_realization_failures_counts_per_set() -> None:
+    rec = _levels(_true_lfr(), n=256, realizations=2)
+    sets = list(dict.fromkeys(rec.labels))
+    assert new_realization_failures(_true_lfr(), rec, per_set=5) == dict.fromkeys(sets, 0)
+    loop = MimoModel(
+        [[0.5]], [[1.0, 0.0]], [[1.0], [0.0]], np.zeros((2, 2)), E=[[0.8]], F=[[0.0], [0.0]], G=[[1.0]],
+        H=[[0.0, 0.0]], thresholds=[[0.0]], weights=[[1.0]], fs=FS, structure="lfr",
+    )  # fmt: skip
+    assert new_realization_failures(loop, rec, per_set=5, amplitude=0.5) == dict.fromkeys(sets, 5)
+    for kw, msg in (({"per_set": 0}, "per_set = 0"), ({"amplitude": -1.0}, "amplitude = -1.0")):
+        with pytest.raises(ParameterError, match=msg):
+            new_realization_failures(loop, rec, **kw)  # type: ignore[arg-type]
 
 
 def test_a_model_that_oscillates_by_itself_is_unstable_on_the_probes() -> None:

@@ -69,7 +69,7 @@ from ._sets import set_means
 if TYPE_CHECKING:
     from .mimo import MimoRecords
 
-__all__ = ["OutputErrorRefinement", "loss_gradient", "refine_output_error"]
+__all__ = ["OutputErrorRefinement", "loss_gradient", "new_realization_failures", "refine_output_error"]
 
 FloatArray = NDArray[np.float64]
 
@@ -419,16 +419,76 @@ def _probe_response(model: MimoModel, u: FloatArray) -> tuple[FloatArray, FloatA
     )
 
 
-def _stable_on(model: MimoModel, probe: tuple[FloatArray, FloatArray]) -> bool:
-    """Whether ``model``'s outputs on each probe input (``probe``: the inputs and their set's
-    measured output RMS) stay within the limits: their RMS, and their change from one period
-    to the next."""
+def _failed(model: MimoModel, probe: tuple[FloatArray, FloatArray]) -> NDArray[np.bool_]:
+    """Per probe input (``probe``: the inputs and their set's measured output RMS), whether
+    ``model``'s output leaves the limits: its RMS, or its change from one period to the next."""
     rms, change = _probe_response(model, probe[0])
-    return bool(
-        np.isfinite(rms).all()
-        and np.all(rms <= _PROBE_LIMIT * probe[1])
-        and np.all(change <= _PERIODIC_LIMIT * probe[1])
+    return np.asarray(
+        ~(np.isfinite(rms) & (rms <= _PROBE_LIMIT * probe[1]) & (change <= _PERIODIC_LIMIT * probe[1])), dtype=bool
     )
+
+
+def _stable_on(model: MimoModel, probe: tuple[FloatArray, FloatArray]) -> bool:
+    """Whether ``model``'s outputs on every probe input stay within the limits (``_failed``)."""
+    return not bool(_failed(model, probe).any())
+
+
+def new_realization_failures(
+    model: MimoModel,
+    records: MimoRecords,
+    *,
+    per_set: int = 32,
+    amplitude: float = 1.0,
+    rng: np.random.Generator | int | None = 0,
+) -> dict[str, int]:
+    """How many new realizations of each set's multisine ``model`` fails on: its periodic
+    steady-state output not finite, above twice the set's measured output RMS, or changing
+    from one period to the next by more than 1 % of it (an oscillation of its own). The
+    limits of :func:`refine_output_error`'s probes, at any ``amplitude``.
+
+    Parameters
+    ----------
+    model : MimoModel
+        The model.
+    records : MimoRecords
+        The measured periodic records (each set's first record gives the amplitude spectrum).
+    per_set : int
+        New realizations per set (``>= 1``).
+    amplitude : float
+        Their amplitude relative to the set's (``> 0``).
+    rng : numpy.random.Generator or int, optional
+        The phases.
+
+    Returns
+    -------
+    dict of str to int
+        Failures per set label.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from piezohyst.models.mimo import MimoModel
+    >>> from piezohyst.identify.mimo import MimoRecords
+    >>> from piezohyst.identify.mimo_oe import new_realization_failures
+    >>> m = MimoModel.linear(A=[[0.8]], B=[[1.0]], C=[[0.5]], D=[[0.1]], fs=100.0)
+    >>> u = np.random.default_rng(0).standard_normal((64, 1, 1, 2))
+    >>> recs = MimoRecords.from_sets([("1V", u, np.zeros_like(u) + 1.0)], fs=100.0)
+    >>> new_realization_failures(m, recs, per_set=4)
+    {'1V': 0}
+    """
+    if isinstance(per_set, bool) or int(per_set) != per_set or per_set < 1:
+        raise ParameterError(f"per_set = {per_set!r} must be an integer >= 1")
+    if not (np.isfinite(amplitude) and amplitude > 0):
+        raise ParameterError(f"amplitude = {amplitude!r} must be > 0")
+    u, y, labels = _records(records, "records")
+    if u.shape[2] != model.nu or y.shape[2] != model.ny:
+        raise ParameterError(
+            f"records have {u.shape[2]} inputs and {y.shape[2]} outputs; the model {model.nu} and {model.ny}"
+        )
+    inputs = _probe_inputs(u, labels, int(per_set), np.random.default_rng(rng)) * (amplitude / _PROBE_AMPLITUDE)
+    rms = _set_rms(y, labels)
+    failed = _failed(model, (inputs, np.repeat(list(rms.values()), int(per_set))))
+    return {lab: int(failed[s * int(per_set) : (s + 1) * int(per_set)].sum()) for s, lab in enumerate(rms)}
 
 
 #: The probes' (and the final screen's) amplitude, relative to their set's: a model must stay
