@@ -387,13 +387,27 @@ def _periodic_rmse(model: MimoModel, u: FloatArray, y: FloatArray) -> FloatArray
     return np.asarray(np.sqrt(((yh - y) ** 2).mean(axis=1)).mean(axis=1), dtype=np.float64)
 
 
-def _probe_inputs(u: FloatArray, labels: Sequence[str], per_set: int, rng: np.random.Generator) -> FloatArray:
+#: The probes' (and the final screen's) amplitude, relative to their set's: a model must stay
+#: bounded and periodic a little beyond the levels it was fitted on, or a new realization at
+#: the same level can tip it over. FSM records, all six realizations, the last held back
+#: (the acceptance run of ``identify --model auto``), the watched phase's checks tried on 20
+#: new 300-mV realizations at 1, 1.1 and 1.2 times the amplitude: up to iteration 440 none
+#: diverged or oscillated at any of them (held-back 300-mV RMSE 0.1768 um); from 520 on 2 to
+#: 19 of 20 failed at 1.1 and, from 560 on, 1 or 2 of 20 at 1 (the model the phase returned,
+#: 840: 0.1767 um, 1 of 50 at 1, 22 of 50 at 1.1). The models of the leave-one-out folds
+#: that had no alarm failed none of 20-30 at 1.1 and 1.2.
+_PROBE_AMPLITUDE = 1.1
+
+
+def _probe_inputs(
+    u: FloatArray, labels: Sequence[str], per_set: int, rng: np.random.Generator, amplitude: float = _PROBE_AMPLITUDE
+) -> FloatArray:
     """``per_set`` new periodic inputs per set ``(R', N, nu)``: the amplitude spectrum of the
-    set's first record, :data:`_PROBE_AMPLITUDE` times larger, with random phases (another
-    realization of the same multisine, a little stronger)."""
+    set's first record times ``amplitude``, with random phases (another realization of the
+    same multisine)."""
     out = []
     for lab in dict.fromkeys(labels):
-        spec = _PROBE_AMPLITUDE * np.abs(np.fft.rfft(u[labels.index(lab)], axis=0))  # (K, nu)
+        spec = amplitude * np.abs(np.fft.rfft(u[labels.index(lab)], axis=0))  # (K, nu)
         for _ in range(per_set):
             phase = np.exp(2j * np.pi * rng.random(spec.shape))
             phase[0] = 1.0  # the mean stays real
@@ -485,22 +499,12 @@ def new_realization_failures(
         raise ParameterError(
             f"records have {u.shape[2]} inputs and {y.shape[2]} outputs; the model {model.nu} and {model.ny}"
         )
-    inputs = _probe_inputs(u, labels, int(per_set), np.random.default_rng(rng)) * (amplitude / _PROBE_AMPLITUDE)
+    inputs = _probe_inputs(u, labels, int(per_set), np.random.default_rng(rng), float(amplitude))
     rms = _set_rms(y, labels)
     failed = _failed(model, (inputs, np.repeat(list(rms.values()), int(per_set))))
     return {lab: int(failed[s * int(per_set) : (s + 1) * int(per_set)].sum()) for s, lab in enumerate(rms)}
 
 
-#: The probes' (and the final screen's) amplitude, relative to their set's: a model must stay
-#: bounded and periodic a little beyond the levels it was fitted on, or a new realization at
-#: the same level can tip it over. FSM records, all six realizations, the last held back
-#: (the acceptance run of ``identify --model auto``), the watched phase's checks tried on 20
-#: new 300-mV realizations at 1, 1.1 and 1.2 times the amplitude: up to iteration 440 none
-#: diverged or oscillated at any of them (held-back 300-mV RMSE 0.1768 um); from 520 on 2 to
-#: 19 of 20 failed at 1.1 and, from 560 on, 1 or 2 of 20 at 1 (the model the phase returned,
-#: 840: 0.1767 um, 1 of 50 at 1, 22 of 50 at 1.1). The models of the leave-one-out folds
-#: that had no alarm failed none of 20-30 at 1.1 and 1.2.
-_PROBE_AMPLITUDE = 1.1
 #: How far the output RMS of a probe (a new realization of a set's multisine) may exceed the
 #: set's measured output RMS before the model counts as unstable on it.
 _PROBE_LIMIT = 2.0
