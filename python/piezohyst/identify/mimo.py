@@ -1096,8 +1096,8 @@ def _refine(
        oscillate on new inputs, not that the held-back error rose: FSM records, all six
        realizations, the last held back (the acceptance run of ``identify --model auto``),
        the watched phase stopped as unstable at 900 iterations (four alarms; its best, 840,
-       scored 0.7096, the check after it 0.7097) with 255 s of the 540-s budget left, and the
-       held-back realizations did not join. FSM records,
+       scored 0.7096, the check after it 0.7097) with 255 s of the 540-s budget left, and
+       under the former rule the held-back realizations did not join. FSM records,
        realization 1 held out of the six, the others fitted (at 1.6 times the speed the
        budget was set on): the watch stopped a plateau by patience at 720 iterations (best
        620, the held-back score 0.7149 against 0.7143) and, no realization joining, scored

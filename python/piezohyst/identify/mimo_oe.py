@@ -415,6 +415,21 @@ def _probe_inputs(
     return np.ascontiguousarray(np.asarray(out, dtype=np.float64))
 
 
+def _probe_set(
+    u: FloatArray,
+    y: FloatArray,
+    labels: Sequence[str],
+    per_set: int,
+    rng: np.random.Generator,
+    amplitude: float = _PROBE_AMPLITUDE,
+) -> tuple[FloatArray, FloatArray]:
+    """The probe inputs (``_probe_inputs``) and, per input, its set's measured output RMS: the
+    unit of the limits (``inf`` for a set measured all 0: it limits nothing but finiteness)."""
+    rms = np.array(list(_set_rms(y, labels).values()))
+    scale = np.repeat(np.where(rms > 0, rms, np.inf), per_set)
+    return _probe_inputs(u, labels, per_set, rng, amplitude), scale
+
+
 def _probe_response(model: MimoModel, u: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Per probe record: the RMS of the periodic steady-state outputs over one period, and the
     RMS of their change from the period after it to the next (both ``inf`` when not finite).
@@ -499,10 +514,10 @@ def new_realization_failures(
         raise ParameterError(
             f"records have {u.shape[2]} inputs and {y.shape[2]} outputs; the model {model.nu} and {model.ny}"
         )
-    inputs = _probe_inputs(u, labels, int(per_set), np.random.default_rng(rng), float(amplitude))
-    rms = _set_rms(y, labels)
-    failed = _failed(model, (inputs, np.repeat(list(rms.values()), int(per_set))))
-    return {lab: int(failed[s * int(per_set) : (s + 1) * int(per_set)].sum()) for s, lab in enumerate(rms)}
+    failed = _failed(model, _probe_set(u, y, labels, int(per_set), np.random.default_rng(rng), float(amplitude)))
+    return {
+        lab: int(failed[s * int(per_set) : (s + 1) * int(per_set)].sum()) for s, lab in enumerate(dict.fromkeys(labels))
+    }
 
 
 #: How far the output RMS of a probe (a new realization of a set's multisine) may exceed the
@@ -695,13 +710,9 @@ def refine_output_error(
         if isinstance(v, bool) or int(v) != v or v < 0:
             raise ParameterError(f"{name} = {v!r} must be an integer >= 0")
     gen = np.random.default_rng(rng)
-    set_rms = np.array(list(_set_rms(y, labels).values()))
-    # a set measured all 0 limits nothing but finiteness
-    set_scale = np.where(set_rms > 0, set_rms, np.inf)
-    # the probe inputs and their set's output RMS (the limits' unit): at every check, and for
-    # the returned model
-    probe = (_probe_inputs(u, labels, int(probes), gen), np.repeat(set_scale, int(probes))) if probes else None
-    final = (_probe_inputs(u, labels, int(screen), gen), np.repeat(set_scale, int(screen))) if screen else None
+    # the probe inputs and their limits: at every check, and for the returned model
+    probe = _probe_set(u, y, labels, int(probes), gen) if probes else None
+    final = _probe_set(u, y, labels, int(screen), gen) if screen else None
     unknown = sorted(set(free) - {"thresholds", "F"})
     if unknown:
         raise ParameterError(f"free = {list(free)!r}: {unknown} not among ['thresholds', 'F']")
