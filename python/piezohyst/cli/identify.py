@@ -256,8 +256,8 @@ def _identify_options(i: argparse.ArgumentParser) -> None:
         metavar="none|auto|remove[:K]",
         default=None,
         help="'auto': a drift term of the model (an exponential settling of the output with the training "
-        "range's duration as time constant, counted from its start, in the model file) fitted when an internal split "
-        "of the training range says it predicts better (pi, gpi, mpi, rdpi, preisach, boucwen; "
+        "range's duration or three times it as time constant, counted from its start, in the model file) fitted "
+        "when an internal split of the training range says it predicts better (pi, gpi, mpi, rdpi, preisach, boucwen; "
         "fixed structure). 'remove': a slow polynomial drift (degree K, default 1) removed from the "
         "record before the fit, fitted together with a rate-independent function of the input. "
         "Creep is modelled by --creep (default: none; --model auto: auto)",
