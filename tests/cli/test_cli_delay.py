@@ -115,11 +115,13 @@ def test_drift_auto_is_in_the_model_and_the_file_reproduces(capsys, tmp_path, re
     _, report, _ = identify(capsys, path, out, *flags)
     drift = report["drift"]
     assert drift["mode"] == "auto" and drift["time_origin"] == "the training range's first sample"
-    assert set(report["structure"]["drift_rmse"]) == {"none", f"exp({float(B - A):g})"}
+    # the settlings offered: tau = the training span T and 3 T
+    assert set(report["structure"]["drift_rmse"]) == {"none", f"exp({float(B - A):g})", f"exp({3.0 * (B - A):g})"}
     model = ph.load_model(out)
     assert (model.drift is None) == (drift["term"] is None)
     if model.drift is not None:
-        assert drift["term"] == model.drift.to_dict() and model.drift.taus == (float(B - A),)
+        assert drift["term"] == model.drift.to_dict() and model.drift.taus in ((float(B - A),), (3.0 * (B - A),))
+        assert report["structure"]["drift"]["name"] == f"exp({model.drift.taus[0]:g})"
     assert abs(reproduced(out, v, y, report)) <= 1e-6
 
 
