@@ -275,41 +275,6 @@ def test_runs_that_converge_at_once_are_retried_with_shorter_first_steps(monkeyp
     assert res.history[-1]["iteration"] == 20 + 1 + 20 + 4
 
 
-@pytest.mark.parametrize("origin", ["periodic", "rest"])
-def test_the_warmup_starts_from_the_periodic_state_or_from_rest(monkeypatch: pytest.MonkeyPatch, origin: str) -> None:
-    """``warmup_from``: every record's warm-up (its ``warmup`` last samples run ahead of it)
-    starts from the model's periodic state there, or from rest; ``MimoSettings.oe_warmup`` /
-    ``oe_warmup_from`` reach the refinement through :func:`identify_mimo`."""
-    true = _true_lfr()
-    rec = _levels(true, n=256, realizations=2)
-    seen: list[tuple[int, np.ndarray]] = []
-    real = mimo_oe.loss_gradient
-
-    def spy(m: MimoModel, u: Any, y: Any, state: Any = None, **kw: Any) -> Any:
-        seen.append((np.asarray(u).shape[1], np.array(state)))
-        return real(m, u, y, state, **kw)
-
-    monkeypatch.setattr(mimo_oe, "loss_gradient", spy)
-    res = refine_output_error(replace(true, A=true.A * 0.995), rec, maxiter=3, warmup=48, warmup_from=origin)
-    assert res.history[-1]["iteration"] == 3
-    lengths, states = {k for k, _ in seen}, [st for _, st in seen]
-    assert lengths == {256 + 48}
-    if origin == "rest":
-        assert all(st.shape == (4, true.state_len) and not st.any() for st in states)
-    else:
-        # the start model's periodic state, 48 samples before the period's end
-        start = replace(true, A=true.A * 0.995)
-        u = np.ascontiguousarray(rec.u.mean(axis=3).transpose(2, 0, 1))  # (R, N, nu)
-        _, _, want = start.run(np.ascontiguousarray(u[:, : 256 - 48]), start.periodic_state(u))
-        assert np.abs(states[0]).max() > 0
-        assert np.allclose(states[0], want, rtol=1e-9, atol=1e-12)
-    seen.clear()
-    s = MimoSettings(order=4, iterations=1, oe_iterations=2, oe_warmup=32, oe_warmup_from=origin, oe_watch=0.0)
-    identify_mimo(rec, "mimo-lfr", settings=s)
-    assert {k for k, _ in seen} == {256 + 32}
-    assert all(not st.any() for _, st in seen) == (origin == "rest")
-
-
 def test_held_back_realizations_join_the_fit_when_the_watch_has_not_fired() -> None:
     """``oe_watch``: early-stopped on the last realization of each level for its share; if the
     held-back error was still falling then, those realizations join the fit for the rest."""
@@ -415,13 +380,6 @@ def test_bad_input_is_a_parameter_error() -> None:
     for watch in (-0.1, 1.5, float("nan"), True):
         with pytest.raises(ParameterError, match=rf"oe_watch = {watch!r} must be a share in \[0, 1\]"):
             MimoSettings(oe_watch=watch)
-    with pytest.raises(ParameterError, match=r"warmup_from = 'cold' is not one of \['periodic', 'rest'\]"):
-        refine_output_error(m, rec, warmup_from="cold")
-    with pytest.raises(ParameterError, match=r"oe_warmup_from = 'cold' is not one of"):
-        MimoSettings(oe_warmup_from="cold")
-    for k in (-1, 1.5, True):
-        with pytest.raises(ParameterError, match=rf"oe_warmup = {k!r} must be an integer >= 0"):
-            MimoSettings(oe_warmup=k)
     with pytest.raises(ParameterError, match="time_budget = -1 must be a number of seconds > 0"):
         identify_mimo(rec, "mimo-linear", time_budget=-1)
     u = np.zeros((1, 10, 2))

@@ -842,10 +842,6 @@ class MimoSettings:
     oe_watch : float
         The share (0 to 1) of the refinement's time and iterations early-stopped on held-back
         realizations before they join the fit (see :func:`identify_mimo`).
-    oe_warmup : int
-        Samples of warm-up ahead of each record in the refinement (its ``warmup``).
-    oe_warmup_from : {"periodic", "rest"}
-        The state the warm-up starts from (its ``warmup_from``).
 
     Examples
     --------
@@ -894,28 +890,13 @@ class MimoSettings:
     #: the budget binding: the held-back error was still falling); 0.5: 0.0610 / 0.120 / 0.179
     #: (588 watched, 505 on all); 0.25: 0.0607 / 0.119 / 0.179; all realizations from the
     #: start about 0.059 / 0.118 / 0.176 (its periodic steady state scored, 969 iterations).
-    #: At the whole budget (realizations 1-5 fitted, 6 held out, 540 s, the protocol): 0 gave
-    #: 0.0600 / 0.1222 / 0.1782 µm (1921 iterations; with the best initial-state ridge in
-    #: hindsight 0.0588 / 0.1198 / 0.1752), 0.5 gave 0.0594 / 0.1185 / 0.1740 (2000).
     #: 0.5 keeps a watch long enough to stop a refinement that overfits
     oe_watch: float = 0.5
-    #: the refinement's warm-up (samples of the period's end run ahead of each record, not
-    #: scored) and the state it starts from. From rest with 2048 samples the acceptance run
-    #: on the FSM records used its whole budget without a probe alarm (see
-    #: :func:`~piezohyst.identify.mimo_oe.refine_output_error`'s ``warmup_from``); not the
-    #: default until the leave-one-out benchmark (``bench/fsm.py``) has measured it
-    oe_warmup: int = 1024
-    oe_warmup_from: str = "periodic"
 
     def __post_init__(self) -> None:
         w = self.oe_watch
         if isinstance(w, bool) or not (isinstance(w, (int, float)) and 0.0 <= w <= 1.0):
             raise ParameterError(f"oe_watch = {self.oe_watch!r} must be a share in [0, 1]")
-        k = self.oe_warmup
-        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 0:
-            raise ParameterError(f"oe_warmup = {self.oe_warmup!r} must be an integer >= 0 (samples)")
-        if self.oe_warmup_from not in ("periodic", "rest"):
-            raise ParameterError(f"oe_warmup_from = {self.oe_warmup_from!r} is not one of ['periodic', 'rest']")
 
 
 @dataclass(frozen=True, eq=False)
@@ -1133,10 +1114,7 @@ def _refine(
     last = {lab: i for i, lab in enumerate(rec.labels)}
     hold = sorted(last.values()) if all(rec.labels.count(lab) > 1 for lab in last) else []
     fit = [i for i in range(len(rec.labels)) if i not in hold]
-    common: dict[str, Any] = {
-        "balance": settings.oe_balance, "free": settings.oe_free, "log": log,
-        "warmup": settings.oe_warmup, "warmup_from": settings.oe_warmup_from,
-    }  # fmt: skip
+    common: dict[str, Any] = {"balance": settings.oe_balance, "free": settings.oe_free, "log": log}
     summary: dict[str, Any] = {
         "validation_score": None, "best_validation_score": None, "watched_iterations": 0, "all_records_iterations": 0,
     }  # fmt: skip

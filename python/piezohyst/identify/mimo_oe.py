@@ -561,7 +561,6 @@ def refine_output_error(
     maxiter: int = 200,
     time_budget: float = 120.0,
     warmup: int = 1024,
-    warmup_from: str = "periodic",
     balance: float = 1.0,
     chunk: int = 200,
     check_every: int = 20,
@@ -593,18 +592,6 @@ def refine_output_error(
         Seconds at most (checked at every evaluation; the best model so far is kept).
     warmup : int
         Samples of the period's end run ahead of each record, their error not scored.
-    warmup_from : {"periodic", "rest"}
-        The state each record's warm-up starts from: ``"periodic"``, the state the current
-        model reaches there in periodic steady state (recomputed every ``chunk`` iterations);
-        ``"rest"``, zero, so that the fit pays for a model that settles slowly or oscillates
-        by itself (the warm-up must be long enough for the fitted dynamics to settle). FSM
-        records, all six realizations, the last held back (the acceptance run of
-        ``identify --model auto``, 540 s): periodic, warm-up 1024: a probe alarm at 540
-        iterations, stopped unstable at 660 with the model of 600 (held-back score 0.7129);
-        rest, warm-up 2048: no alarm, the watched phase's share used up (800 iterations,
-        best 0.7050), the held-back realizations joined for 784 more, no alarm, none of 50
-        new realizations per level failed. Realization 6 held out (fitted on 1-5): rest
-        0.0588 / 0.1194 / 0.1753 µm, periodic 0.0594 / 0.1185 / 0.1740 (no alarm in either).
     balance : float
         Each record weighted by its set's mean square output to the power ``-balance``.
     chunk : int
@@ -704,8 +691,6 @@ def refine_output_error(
         raise ParameterError(f"balance = {balance} must be in [0, 2]")
     if not 0 < radius < 1:
         raise ParameterError(f"radius = {radius} must be in (0, 1)")
-    if warmup_from not in ("periodic", "rest"):
-        raise ParameterError(f"warmup_from = {warmup_from!r} is not one of ['periodic', 'rest']")
     u, y, labels = _records(records, "records")
     if u.shape[2] != model.nu or y.shape[2] != model.ny:
         raise ParameterError(
@@ -743,8 +728,6 @@ def refine_output_error(
         raise ParameterError(f"the model has a pole outside radius = {radius}")
 
     def start_state(m: MimoModel) -> FloatArray:
-        if warmup_from == "rest":
-            return np.zeros((u.shape[0], m.state_len))
         st = m.periodic_state(u)
         if k == n:
             return st
