@@ -890,6 +890,9 @@ class MimoSettings:
     #: the budget binding: the held-back error was still falling); 0.5: 0.0610 / 0.120 / 0.179
     #: (588 watched, 505 on all); 0.25: 0.0607 / 0.119 / 0.179; all realizations from the
     #: start about 0.059 / 0.118 / 0.176 (its periodic steady state scored, 969 iterations).
+    #: At the whole budget (realizations 1-5 fitted, 6 held out, 540 s, the protocol): 0 gave
+    #: 0.0600 / 0.1222 / 0.1782 µm (1921 iterations; with the best initial-state ridge in
+    #: hindsight 0.0588 / 0.1198 / 0.1752), 0.5 gave 0.0594 / 0.1185 / 0.1740 (2000).
     #: 0.5 keeps a watch long enough to stop a refinement that overfits
     oe_watch: float = 0.5
 
