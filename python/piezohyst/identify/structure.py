@@ -67,18 +67,15 @@ __all__ = [
 #: span's length ``T``: an exponential settling with ``tau = T`` or with ``tau = 3 T``, the
 #: internal split choosing (or neither). A settling of ``tau = T`` has done 63 % of its change
 #: within the training span and can add at most 37 % more, so a drift fitted to what was creep
-#: or noise costs little; a slow sensor drift (a ramp, a long warm-up) it bends flat too early,
-#: and over a validation span two or three times the training span the error grows. ``3 T``
+#: or noise costs little; but a slow sensor drift (a long warm-up) it bends flat too early, and
+#: over a validation span two or three times the training span the error grows. ``3 T``
 #: follows such a drift (28 % done within the span) and still levels off, unlike a ramp, which
-#: extrapolates the trend without end (measured on the 10 kHz lookalikes of
-#: ``tests/lookalike_records.py`` by the acceptance command, state carried: a ramp offered as
-#: the second basis, seed 4's first span 0.40 -> 0.73 % of the range, seed 2's none of three
-#: spans within 0.5 %). ``tau = 3 T``
-#: beside ``T``, seeds 0-5 at the spans of ``bench/identify_auto.py``: 14 of 18 runs within
-#: 0.5 % against 13, the worst 0.60 % against 0.96 % (seed 2: 0.96, 0.83 -> 0.49, 0.52; seed 5:
-#: 0.40, 0.42 -> 0.20, 0.26); seeds 6-11, drawn after the choice: 16 of 18 against 15, four
-#: runs worse within the target (0.21 -> 0.32 % the most), three better; yan9a and the 5 kHz
-#: lookalikes unchanged.
+#: extrapolates the trend without end. Measured by the acceptance command (state carried) on
+#: the 10 kHz lookalikes of ``tests/lookalike_records.py``: ``bench/identify_auto.py`` (seeds
+#: 0-5) 14 of 18 runs within 0.5 % of the range against 13 with ``T`` alone, the worst 0.57 %
+#: against 0.96 %; seeds 6-11, drawn after the choice, 16 of 18 against 15 (four runs worse,
+#: within the target); yan9a and the 5 kHz lookalikes unchanged. A ramp as the second basis
+#: instead: seed 4's first span 0.40 -> 0.73 %.
 DRIFT_BASES: tuple[tuple[str, float | None], ...] = (("exp", 1.0), ("exp", 3.0))
 
 
