@@ -403,7 +403,7 @@ def test_probes_are_new_realizations_of_each_sets_multisine() -> None:
         first = np.abs(np.fft.rfft(u[labels.index(lab)], axis=0))
         for k in range(2):
             spec = np.fft.rfft(probes[2 * s + k], axis=0)
-            np.testing.assert_allclose(np.abs(spec), 1.1 * first, atol=1e-9 * first.max())
+            np.testing.assert_allclose(np.abs(spec), first, atol=1e-9 * first.max())
             assert np.std(probes[2 * s + k] - u[labels.index(lab)]) > np.std(u[labels.index(lab)])  # new phases
     # a feedback loop with a gain above 1 (0.5 + 0.8 through an identity play) diverges
     loop = MimoModel(
@@ -417,12 +417,13 @@ def test_probes_are_new_realizations_of_each_sets_multisine() -> None:
 def test_a_model_without_margin_beyond_the_fitted_amplitude_is_unstable_on_the_probes() -> None:
     """A loop of gain 0.5 through a stuck play, 1.3 while the play slides: the play's threshold
     between the largest state the set's own amplitude reaches and the one 1.1 times it reaches.
-    At the set's amplitude the play never slides and the model is stable; the probes, 10 %
-    stronger, make it slide and diverge."""
+    At the set's amplitude the play never slides and the model is stable; the screen's new
+    realizations, 10 % stronger, make it slide and diverge."""
     rec = _levels(_true_lfr(), n=256, realizations=2)
     u = np.ascontiguousarray(np.moveaxis(rec.u.mean(axis=3), 2, 0))
     labels = list(rec.labels)
-    probes = mimo_oe._probe_inputs(u, labels, 2, np.random.default_rng(4))
+    assert mimo_oe._SCREEN_AMPLITUDE == 1.1
+    probes = mimo_oe._probe_inputs(u, labels, 2, np.random.default_rng(4), mimo_oe._SCREEN_AMPLITUDE)
 
     def loop(threshold: float) -> MimoModel:
         return MimoModel(
@@ -438,6 +439,22 @@ def test_a_model_without_margin_beyond_the_fitted_amplitude_is_unstable_on_the_p
     assert mimo_oe._stable_on(model, (probes / 1.1, out_rms))
     assert not mimo_oe._stable_on(model, (probes, out_rms))
     assert np.all(np.isfinite(mimo_oe._probe_response(model, probes / 1.1)[0]))
+
+
+def test_the_probes_are_at_the_sets_amplitude_and_the_screen_beyond_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every check's probes at the fitted levels (an alarm there stops a fit), the final screen
+    of the model returned at 1.1 times them (the margin)."""
+    rec = _levels(_true_lfr(), n=256, realizations=2)
+    calls: list[tuple[int, float]] = []
+    real = mimo_oe._probe_set
+
+    def spy(u: Any, y: Any, labels: Any, per_set: int, rng: Any, amplitude: float = mimo_oe._PROBE_AMPLITUDE) -> Any:
+        calls.append((per_set, amplitude))
+        return real(u, y, labels, per_set, rng, amplitude)
+
+    monkeypatch.setattr(mimo_oe, "_probe_set", spy)
+    refine_output_error(_true_lfr(), rec, warmup=32, maxiter=2, probes=3, screen=5)
+    assert calls == [(3, 1.0), (5, 1.1)]
 
 
 def test_new_realization_failures_counts_per_set() -> None:

@@ -30,13 +30,13 @@ fit of :func:`piezohyst.identify.mimo.identify_mimo`) and runs L-BFGS-B on:
   to the starting model's; the best model on them is returned, and the run stops after
   ``patience`` checks without improvement, at ``maxiter`` iterations, at ``time_budget``
   seconds, when ``callback`` returns ``True`` or when two L-BFGS runs in a row converge;
-- stability: every check also simulates new realizations of each set's multisine at 1.1
-  times its amplitude (the ``probes``: a little beyond the fitted levels, so that the model
-  returned has a margin); a model whose outputs on them diverge or oscillate by themselves, or whose
-  validation error jumps (an *excursion*: a set's RMSE 5 % of its output RMS above the best
-  check's), is never returned, and the fit restarts from the last stable check. The model to
-  be returned is also simulated on more new realizations (the ``screen``); if it fails on
-  one, the next stable check is.
+- stability: every check also simulates new realizations of each set's multisine at its
+  amplitude (the ``probes``); a model whose outputs on them diverge or oscillate by
+  themselves, or whose validation error jumps (an *excursion*: a set's RMSE 5 % of its output
+  RMS above the best check's), is never returned, and the fit restarts from the last stable
+  check. The model to be returned is also simulated on more new realizations at 1.1 times
+  their set's amplitude (the ``screen``: a little beyond the fitted levels, so that the model
+  returned has a margin); if it fails on one, the next stable check is.
 
 Examples
 --------
@@ -387,16 +387,28 @@ def _periodic_rmse(model: MimoModel, u: FloatArray, y: FloatArray) -> FloatArray
     return np.asarray(np.sqrt(((yh - y) ** 2).mean(axis=1)).mean(axis=1), dtype=np.float64)
 
 
-#: The probes' (and the final screen's) amplitude, relative to their set's: a model must stay
-#: bounded and periodic a little beyond the levels it was fitted on, or a new realization at
-#: the same level can tip it over. FSM records, all six realizations, the last held back
-#: (the acceptance run of ``identify --model auto``), the watched phase's checks tried on 20
-#: new 300-mV realizations at 1, 1.1 and 1.2 times the amplitude: up to iteration 440 none
-#: diverged or oscillated at any of them (held-back 300-mV RMSE 0.1768 um); from 520 on 2 to
-#: 19 of 20 failed at 1.1 and, from 560 on, 1 or 2 of 20 at 1 (the model the phase returned,
-#: 840: 0.1767 um, 1 of 50 at 1, 22 of 50 at 1.1). The models of the leave-one-out folds
-#: that had no alarm failed none of 20-30 at 1.1 and 1.2.
-_PROBE_AMPLITUDE = 1.1
+#: The amplitude of the final screen's new realizations, relative to their set's: the model
+#: returned must stay bounded and periodic a little beyond the levels it was fitted on, or a
+#: new realization at the same level can tip it over. FSM records, all six realizations, the
+#: last held back (the acceptance run of ``identify --model auto``), with probes and screen at
+#: the set's amplitude: the watched phase's checks tried on 20 new 300-mV realizations at 1,
+#: 1.1 and 1.2 times the amplitude: up to iteration 440 none diverged or oscillated at any of
+#: them (held-back 300-mV RMSE 0.1768 um); from 520 on 2 to 19 of 20 failed at 1.1 and, from
+#: 560 on, 1 or 2 of 20 at 1 (the model the phase returned, 840: 0.1767 um, 1 of 50 at 1, 22
+#: of 50 at 1.1). The models of the leave-one-out folds that had no alarm failed none of 20-30
+#: at 1.1 and 1.2.
+_SCREEN_AMPLITUDE = 1.1
+#: The amplitude of the probes simulated at every check: the set's own. The margin is the
+#: screen's: probes at 1.1 raised alarms on models that passed the screen and stopped fits
+#: with half their budget left. FSM records, all six realizations, the last held back (540
+#: s): probes at 1.1, an alarm at 540 iterations, stopped as unstable at 660 with the model of
+#: 600 (held-back score 0.7129), the all-records phase unstable at once, 238 s of the budget
+#: used; probes at 1, no alarm, the watched phase used its share (938 iterations, best score
+#: 0.6956), the held-back realizations joined for 776 more, the screen at 1.1 refused none, 0
+#: of 50 new realizations per level failed at 1 and at 1.1. The leave-one-out folds whose
+#: fits had alarms at 1.1 had them at 1 too (realization 3 held out: the same checks, the same
+#: model, 0.0933 / 0.1166 / 0.1745 um).
+_PROBE_AMPLITUDE = 1.0
 
 
 def _probe_inputs(
@@ -620,8 +632,8 @@ def refine_output_error(
     log : callable, optional
         Called with one line of progress per check.
     probes : int
-        New realizations per set of its multisine (the amplitude spectrum of its first record
-        times 1.1, random phases) simulated at every check (``0``: none). A fit can make the feedback
+        New realizations per set of its multisine (the amplitude spectrum of its first record,
+        random phases) simulated at every check (``0``: none). A fit can make the feedback
         loop unstable for inputs it does not fit while its training loss still falls (its
         records start from a warm-up state, not from rest): a check whose probe outputs are
         not finite, exceed twice the set's measured output RMS or change from one period of
@@ -636,8 +648,9 @@ def refine_output_error(
         held-back error by about the noise level (started from the true model of a test
         system: 0.4 % of the output RMS), so an overfit ends by the patience, not by this.
     screen : int
-        New realizations per set (other phases than the probes', their amplitude) the model to be returned is
-        simulated on at the end, with the probes' limits (``0``: none). The probes are the same
+        New realizations per set (other phases than the probes', 1.1 times their amplitude: a
+        margin beyond the fitted levels) the model to be returned is simulated on at the end,
+        with the probes' limits (``0``: none). The probes are the same
         at every check, and a fit can find models stable on them alone: FSM records,
         realization 3 held out, ``balance=0``, 2000 iterations, the last check's model passed its
         two probes per level and diverged on 22 of 30 new 300-mV realizations (the held-out one
@@ -712,7 +725,7 @@ def refine_output_error(
     gen = np.random.default_rng(rng)
     # the probe inputs and their limits: at every check, and for the returned model
     probe = _probe_set(u, y, labels, int(probes), gen) if probes else None
-    final = _probe_set(u, y, labels, int(screen), gen) if screen else None
+    final = _probe_set(u, y, labels, int(screen), gen, _SCREEN_AMPLITUDE) if screen else None
     unknown = sorted(set(free) - {"thresholds", "F"})
     if unknown:
         raise ParameterError(f"free = {list(free)!r}: {unknown} not among ['thresholds', 'F']")
