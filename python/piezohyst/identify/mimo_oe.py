@@ -729,8 +729,9 @@ def refine_output_error(
         if isinstance(v, bool) or int(v) != v or v < 0:
             raise ParameterError(f"{name} = {v!r} must be an integer >= 0")
     gen = np.random.default_rng(rng)
-    # the probe inputs and their limits: at every check, and for the returned model
-    probe = _probe_set(u, y, labels, int(probes), gen) if probes else None
+    # the probe inputs and their limits: at every check (the fitted levels), and for the
+    # returned model (beyond them)
+    probe = _probe_set(u, y, labels, int(probes), gen, _PROBE_AMPLITUDE) if probes else None
     final = _probe_set(u, y, labels, int(screen), gen, _SCREEN_AMPLITUDE) if screen else None
     unknown = sorted(set(free) - {"thresholds", "F"})
     if unknown:
