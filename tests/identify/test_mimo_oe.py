@@ -681,9 +681,10 @@ def test_the_screen_bisects_back_to_the_latest_check_that_passes(monkeypatch: py
     assert res.best_iteration == 30 and res.screen_rejected == 2
 
 
-def test_the_screen_tries_the_next_best_check_on_validation(monkeypatch: pytest.MonkeyPatch) -> None:
-    """With validation records the screen goes down the stable checks by their score: the
-    best fails, the second best is returned."""
+def test_the_screen_returns_the_best_scored_check_up_to_the_latest_that_passes(monkeypatch: pytest.MonkeyPatch) -> None:
+    """With validation records the best check (60) is screened first; it fails, the bisection
+    towards the start finds 50 the latest that passes (30, then 50), and 40, scored better than
+    50 on the path up to it, is screened and returned."""
     true = _true_lfr()
     rec = _levels(true, n=256, realizations=3)
     fit, hold = rec.select([0, 1, 3, 4]), rec.select([2, 5])
@@ -691,23 +692,70 @@ def test_the_screen_tries_the_next_best_check_on_validation(monkeypatch: pytest.
     start = replace(true, A=true.A * 0.995)
     n_sets = len(dict.fromkeys(rec.labels))
     screens = _screen_failing(monkeypatch, 4 * n_sets, fails=1)
-    res = refine_output_error(start, fit, validation=hold, maxiter=60, chunk=50, check_every=10, screen=4)
-    scored = sorted((h["validation_score"], h["iteration"]) for h in res.history[1:])
-    assert screens == [1, 0] and res.screen_rejected == 1
-    assert scored[0][0] < scored[1][0] < 1, scored  # the fit improved the held-back error
-    assert res.best_iteration == scored[1][1], (scored, res.best_iteration)
+    lines: list[str] = []
+    res = refine_output_error(
+        start, fit, validation=hold, maxiter=60, chunk=50, check_every=10, screen=4, log=lines.append
+    )
+    score = {h["iteration"]: h["validation_score"] for h in res.history}
+    assert list(score) == [0, 10, 20, 30, 40, 50, 60]
+    # the case described: 60 the best, 40 better than 50
+    assert min(score, key=lambda i: score[i]) == 60 and score[40] < score[50] < 1, score
+    refused = [int(line.split("iteration ")[1].split()[0]) for line in lines if "fails on new" in line]
+    assert refused == [60] and screens == [1, 0, 0, 0], (refused, screens)
+    assert res.best_iteration == 40 and res.screen_rejected == 1
+
+
+def test_the_screen_follows_the_fits_path_through_a_restart(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A probe alarm at 50 sends the fit back to its best check (20): the checks at 30 and 40
+    are left off the path of the later best (80), and the screen's bisection from it (80
+    refused, then 60 and 20, then 10 passing) never tries them. The validation scores are
+    scripted (the start's error times a factor per check); the fit is real."""
+    true = _true_lfr()
+    rec = _levels(true, n=256, realizations=3)
+    fit, hold = rec.select([0, 1, 3, 4]), rec.select([2, 5])
+    start = replace(true, A=true.A * 0.995)
+    n_sets = len(dict.fromkeys(rec.labels))
+    real_rmse, real_probe = mimo_oe._periodic_rmse, mimo_oe._probe_response
+    # per validation call: the start, 10, 20, 30, 40, (50 unstable: none), 60, 70, 80
+    factors = iter([1.0, 0.5, 0.3, 0.4, 0.35, 0.29, 0.28, 0.25])
+    calls = {"probe": 0, "screen": 0}
+
+    def rmse(m: MimoModel, u: np.ndarray, y: np.ndarray) -> np.ndarray:
+        return np.asarray(real_rmse(start, u, y) * next(factors))
+
+    def probe(m: MimoModel, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        rms, change = real_probe(m, u)
+        kind = "probe" if u.shape[0] == 2 * n_sets else "screen"
+        calls[kind] += 1
+        failing = calls["probe"] == 5 if kind == "probe" else calls["screen"] <= 3
+        return rms * (1e6 if failing else 1.0), change
+
+    monkeypatch.setattr(mimo_oe, "_periodic_rmse", rmse)
+    monkeypatch.setattr(mimo_oe, "_probe_response", probe)
+    lines: list[str] = []
+    res = refine_output_error(
+        start, fit, validation=hold, maxiter=80, chunk=100, check_every=10, screen=4, log=lines.append
+    )
+    assert [(h["iteration"], h["stable"]) for h in res.history[1:]] == [
+        (10, True), (20, True), (30, True), (40, True), (50, False), (60, True), (70, True), (80, True)
+    ], res.history  # fmt: skip
+    refused = [int(line.split("iteration ")[1].split()[0]) for line in lines if "fails on new" in line]
+    # in the order of iterations, 80 refused, the bisection would have tried 40
+    assert refused == [80, 60, 20] and calls["screen"] == 4, (refused, calls)
+    assert res.best_iteration == 10 and res.screen_rejected == 3
 
 
 def test_a_screen_refusal_does_not_stop_the_watched_fit_from_joining(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The watched phase's best check and the one before fail the screen and an earlier one is
-    its result; the held-back error was still falling, so the held-back realizations still join the fit (the
-    scores decide that, not which model the screen let through)."""
+    """The watched phase's best check and the middle one of its path fail the screen and an
+    earlier one is its result; the held-back error was still falling, so the held-back
+    realizations still join the fit (the scores decide that, not which model the screen let
+    through)."""
     rec = _levels(_true_lfr(), n=1024, realizations=4)
     s = MimoSettings(order=4, iterations=1, oe_iterations=160, oe_seconds=300.0, oe_watch=0.5)
     screens = _screen_failing(monkeypatch, 16 * len(dict.fromkeys(rec.labels)), fails=2)
     oe = identify_mimo(rec, "mimo-lfr", settings=s).model.fit["output_error"]
-    assert screens == [1, 1, 0, 0], screens  # the checks at 80 and 60 refused, 40 passes; the final passes
+    assert screens == [1, 1, 0, 0], screens  # the checks at 80 and 40 refused, 20 passes; the final passes
     assert oe["screen_rejected"] == 2 and oe["watched_iterations"] == 80, oe
     assert oe["best_validation_score"] == oe["validation_score"] < 1, oe  # the lowest at the last check
-    # the watched result is the check at 40: the fit on all records has the other 120 iterations
-    assert oe["all_records_iterations"] == 120 and oe["iterations"] == 160, oe
+    # the watched result is the check at 20: the fit on all records has the other 140 iterations
+    assert oe["all_records_iterations"] == 140 and oe["iterations"] == 160, oe
