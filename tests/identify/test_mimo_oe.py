@@ -73,12 +73,14 @@ def test_gradient_matches_finite_differences(modal: bool, static: bool) -> None:
     assert checked > 60
 
 
-def test_batched_records_equal_records_alone() -> None:
-    """Six records run as a batch of four and a padded batch of two: each loss as computed
-    alone, the gradient the sum of the records' own; a diverged record makes its batch inf."""
+@pytest.mark.parametrize("r", [5, 6, 7])
+def test_batched_records_equal_records_alone(r: int) -> None:
+    """Five, six or seven records run as a batch of four and a batch of one, two or three (a
+    four padded with a record of weight 0): each loss as computed alone, the gradient the sum
+    of the records' own; a diverged record makes its batch inf."""
     rng = np.random.default_rng(8)
     model = _random_lfr(rng, True, True)
-    r, n = 6, 200
+    n = 200
     u = rng.standard_normal((r, n, model.nu))
     y = 0.3 * rng.standard_normal((r, n, model.ny))
     st = 0.1 * rng.standard_normal((r, model.state_len))
@@ -90,7 +92,7 @@ def test_batched_records_equal_records_alone() -> None:
     for name in MATRICES:
         np.testing.assert_allclose(grad[name], sum(a[1][name] for a in alone), rtol=1e-10, atol=1e-12)
     big = u.copy()
-    big[5, :, :] = 1e300  # record 5 overflows: the second batch (records 4, 5)
+    big[4, :, :] = 1e300  # record 4 overflows: the second batch (records 4 to r - 1)
     losses, _ = loss_gradient(model, big, y, st, skip=7, record_weights=w)
     assert np.isfinite(losses[:4]).all() and np.isinf(losses[4:]).all()
 

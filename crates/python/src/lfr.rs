@@ -147,7 +147,8 @@ fn lfr_simulate<'py>(
 /// of each record whose error is not counted (a warm-up), `record_weights` `(R,)` →
 /// `(losses (R,), gradient)`: the gradient of the summed loss, flat, in the order
 /// `A, B, C, D, E, F, G, H, thresholds, weights` (each row-major). Records run in batches of
-/// [`LANES`] stepped in lockstep, batches in parallel; a batch in which a simulation diverges
+/// [`LANES`] stepped in lockstep (one or two left over in a narrower one), batches in
+/// parallel; a batch in which a simulation diverges
 /// has the loss `inf` for each of its records (and adds nothing to the gradient).
 #[pyfunction]
 #[pyo3(signature = (a, b, c, d, e, f, g, h, thresholds, weights, u, y, state, skip, record_weights, nt = 0))]
@@ -212,35 +213,32 @@ fn lfr_loss_grad<'py>(
         let wl = work_len(&model, n);
         check_alloc("lfr_loss_grad: the stored trajectories of two batches", &[2, LANES, wl])?;
         let gl = grad_len(&model);
-        // batches of LANES records stepped in lockstep; the last one padded with its first
-        // record at weight 0 (it adds nothing)
-        let batches = r.div_ceil(LANES);
+        // batches of LANES records stepped in lockstep, the one or two left over in a narrower
+        // batch, three left over padded with a record of weight 0. A batch's time grows with
+        // its lanes, by less than their number, and three vectorize badly (FSM records, a model
+        // of 120 states and 33 feedback channels, 9216 samples, one thread: 1 record 0.074 s,
+        // 2 in lockstep 0.111, 3 0.214, 4 0.167); on two threads, in the same run, 9 records took 0.33 s
+        // padded to 12, 0.24 as 4 + 4 + 1; 17 0.49 and 0.41; 18 0.49 and 0.44 (8 and 16: the same)
+        let (full, left) = (r / LANES, r % LANES);
+        let mut batches: Vec<(usize, usize)> = (0..full).map(|b| (b * LANES, LANES)).collect();
+        if left > 0 {
+            batches.push((full * LANES, left));
+        }
+        let records = Records { u: uu, y: yy, state: s0, n, skip, weights: rw };
         let parts: Vec<(Vec<f64>, Vec<f64>)> = interruptible(py, |stop| {
-            (0..batches)
-                .into_par_iter()
-                .map(|b| {
-                    let idx: [usize; LANES] = core::array::from_fn(|l| (b * LANES + l).min(r - 1));
-                    let real: [bool; LANES] = core::array::from_fn(|l| b * LANES + l < r);
+            batches
+                .par_iter()
+                .map(|&(start, len)| {
                     let mut grad = vec![0.0; gl];
-                    let loss = with_work(wl, |work| {
-                        loss_grad_dispatch(
-                            &model,
-                            (
-                                idx.map(|i| &uu[i * n * nu..(i + 1) * n * nu]),
-                                idx.map(|i| &yy[i * n * ny..(i + 1) * n * ny]),
-                                idx.map(|i| &s0[i * ns..(i + 1) * ns]),
-                                skip,
-                                core::array::from_fn(|l| if real[l] { rw[idx[l]] } else { 0.0 }),
-                            ),
-                            &mut grad,
-                            work,
-                            &|| stop.stopped(),
-                        )
-                    });
-                    let kept = real.iter().filter(|k| **k).count();
+                    let stop = || stop.stopped();
+                    let loss = match len {
+                        1 => batch_loss_grad::<1>(&model, &records, start, len, &mut grad, wl, &stop),
+                        2 => batch_loss_grad::<2>(&model, &records, start, len, &mut grad, wl, &stop),
+                        _ => batch_loss_grad::<LANES>(&model, &records, start, len, &mut grad, wl, &stop),
+                    };
                     match loss {
-                        Some(l) => (l[..kept].to_vec(), grad),
-                        None => (vec![f64::INFINITY; kept], Vec::new()),
+                        Some(l) => (l, grad),
+                        None => (vec![f64::INFINITY; len], Vec::new()),
                     }
                 })
                 .collect()
@@ -261,49 +259,85 @@ thread_local! {
     /// Each worker thread's work buffer of [`lfr_loss_grad`], kept between calls: a fresh
     /// one of the FSM records' size (76 MB) cost 15 % of a call in page faults. It holds
     /// the largest trajectory a thread has stored.
-    static WORK: std::cell::RefCell<Vec<[f64; LANES]>> = const { std::cell::RefCell::new(Vec::new()) };
+    static WORK: std::cell::RefCell<Vec<f64>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
-/// `f` on this thread's work buffer of at least `len` lane vectors.
-fn with_work<T>(len: usize, f: impl FnOnce(&mut [[f64; LANES]]) -> T) -> T {
+/// `f` on this thread's work buffer of at least `len` lane vectors of `L` lanes.
+fn with_work<const L: usize, T>(len: usize, f: impl FnOnce(&mut [[f64; L]]) -> T) -> T {
     WORK.with(|w| {
         let mut w = w.borrow_mut();
-        if w.len() < len {
-            w.resize(len, [0.0; LANES]);
+        if w.len() < len * L {
+            w.resize(len * L, 0.0);
         }
-        f(&mut w[..len])
+        f(&mut w.as_chunks_mut::<L>().0[..len])
     })
 }
 
-/// One batch of [`loss_grad`].
-type Batch<'a> = ([&'a [f64]; LANES], [&'a [f64]; LANES], [&'a [f64]; LANES], usize, [f64; LANES]);
+/// The records of one [`lfr_loss_grad`] call: `u` `(R, n, nu)`, `y` `(R, n, ny)`, `state`
+/// `(R, state_len)` flat, the samples `skip`ped and the record `weights`.
+struct Records<'a> {
+    u: &'a [f64],
+    y: &'a [f64],
+    state: &'a [f64],
+    n: usize,
+    skip: usize,
+    weights: &'a [f64],
+}
 
-/// [`loss_grad`] compiled for AVX2: four lanes in one register; the same IEEE operations in
-/// the same order (never fused), so the same bits as the portable path.
+/// The losses of records `start .. start + len` (the gradient of their sum added to `grad`),
+/// stepped in lockstep in `L >= len` lanes (the others repeat the last record at weight 0:
+/// they add nothing); `None` when one diverged or `stop` said so.
+fn batch_loss_grad<const L: usize>(
+    model: &Lfr<'_>,
+    rec: &Records<'_>,
+    start: usize,
+    len: usize,
+    grad: &mut [f64],
+    work_len: usize,
+    stop: &dyn Fn() -> bool,
+) -> Option<Vec<f64>> {
+    let (n, nu, ny, ns) = (rec.n, model.nu, model.ny, model.state_len());
+    let idx: [usize; L] = core::array::from_fn(|l| start + l.min(len - 1));
+    let batch: Batch<'_, L> = (
+        idx.map(|i| &rec.u[i * n * nu..(i + 1) * n * nu]),
+        idx.map(|i| &rec.y[i * n * ny..(i + 1) * n * ny]),
+        idx.map(|i| &rec.state[i * ns..(i + 1) * ns]),
+        rec.skip,
+        core::array::from_fn(|l| if l < len { rec.weights[start + l] } else { 0.0 }),
+    );
+    with_work::<L, _>(work_len, |work| loss_grad_dispatch::<L>(model, batch, grad, work, stop))
+        .map(|l| l[..len].to_vec())
+}
+
+/// One batch of [`loss_grad`].
+type Batch<'a, const L: usize> = ([&'a [f64]; L], [&'a [f64]; L], [&'a [f64]; L], usize, [f64; L]);
+
+/// [`loss_grad`] compiled for AVX2 (four lanes fill one register); the same IEEE operations
+/// in the same order (never fused), so the same bits as the portable path.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn loss_grad_avx2(
+unsafe fn loss_grad_avx2<const L: usize>(
     m: &Lfr<'_>,
-    (u, y, s0, skip, w): Batch<'_>,
+    (u, y, s0, skip, w): Batch<'_, L>,
     grad: &mut [f64],
-    work: &mut [[f64; LANES]],
+    work: &mut [[f64; L]],
     stop: &dyn Fn() -> bool,
-) -> Option<[f64; LANES]> {
+) -> Option<[f64; L]> {
     loss_grad(m, u, y, s0, skip, w, grad, work, stop)
 }
 
-fn loss_grad_dispatch(
+fn loss_grad_dispatch<const L: usize>(
     m: &Lfr<'_>,
-    batch: Batch<'_>,
+    batch: Batch<'_, L>,
     grad: &mut [f64],
-    work: &mut [[f64; LANES]],
+    work: &mut [[f64; L]],
     stop: &dyn Fn() -> bool,
-) -> Option<[f64; LANES]> {
+) -> Option<[f64; L]> {
     #[cfg(target_arch = "x86_64")]
     {
         if use_avx2() {
             // SAFETY: the CPU has AVX2
-            return unsafe { loss_grad_avx2(m, batch, grad, work, stop) };
+            return unsafe { loss_grad_avx2::<L>(m, batch, grad, work, stop) };
         }
     }
     let (u, y, s0, skip, w) = batch;
