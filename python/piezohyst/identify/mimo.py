@@ -873,8 +873,12 @@ class MimoSettings:
     #: ``-oe_balance`` (FSM records, realization 6 held out, 360 s: 0.5 gave 0.0754 / 0.149 /
     #: 0.218 µm, 1 gave 0.0689 / 0.148 / 0.227: the largest level, furthest from its target,
     #: gains what the smallest, well within its own, gives up; 400 iterations: 0.5 gave 0.0732 /
-    #: 0.145 / 0.213, 0 gave 0.0815 / 0.149 / 0.207)
-    oe_balance: float = 0.5
+    #: 0.145 / 0.213, 0 gave 0.0815 / 0.149 / 0.207); at full length (static channels, 540 s,
+    #: bench/fsm.py's six leave-one-out folds, µm at 100 / 200 / 300 mV) 0.25 gave 0.0737 /
+    #: 0.1135 / 0.1651 against 0.5's 0.0714 / 0.1137 / 0.1675: 300 mV, the level nearest its
+    #: target, gains in five folds of six (-0.5 to -2.8 %, +1 % in one), 100 mV (15 % inside its
+    #: target) gives up 3 %; 0 of 50 new realizations per level failing at the level's amplitude
+    oe_balance: float = 0.25
     #: the LFR's static (saturating) feedback channels ``r tanh(z / r)`` on each output, ``r``
     #: these fractions of the output's RMS (after the play channels); empty: none
     static_scales: tuple[float, ...] = ()
