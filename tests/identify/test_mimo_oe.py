@@ -283,8 +283,11 @@ def test_held_back_realizations_join_the_fit_when_the_watch_has_not_fired() -> N
     rec = _levels(_true_lfr(), n=1024, realizations=4)
     hold = [i for i, lab in enumerate(rec.labels) if lab not in rec.labels[i + 1 :]]
     held = rec.select(hold)
-    # its held-back error rises for 40 iterations, then falls (0.86 of the start's at 80)
-    s = MimoSettings(order=4, iterations=1, oe_iterations=160, oe_seconds=300.0)
+    # its held-back error rises for 40 iterations, then falls (0.86 of the start's at 80); the
+    # path measured with the levels weighted at oe_balance 0.5 (at the default 0.25 its 80
+    # all-records iterations end at 0.0240 on the held-back records, the watched 160 at 0.0231:
+    # a path property of this toy fit, which is about the watch, not the weighting)
+    s = MimoSettings(order=4, iterations=1, oe_iterations=160, oe_seconds=300.0, oe_balance=0.5)
     runs = {w: identify_mimo(rec, "mimo-lfr", settings=replace(s, oe_watch=w)).model for w in (1.0, 0.5, 0.0)}
     watched, both, none = (runs[w].fit["output_error"] for w in (1.0, 0.5, 0.0))
     # 160 iterations all watched; 80 watched, the held-back error still falling, then 80 on all
