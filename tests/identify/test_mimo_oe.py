@@ -382,6 +382,10 @@ def test_bad_input_is_a_parameter_error() -> None:
         refine_output_error(m, rec, check_every=0)
     with pytest.raises(ParameterError, match="memory = 0"):
         refine_output_error(m, rec, memory=0)
+    with pytest.raises(ParameterError, match=r"sliding_radius = 1\.2 must be None or in \(0, 1\)"):
+        refine_output_error(m, rec, sliding_radius=1.2)
+    with pytest.raises(ParameterError, match="sliding_weight = nan must be a number > 0"):
+        refine_output_error(m, rec, sliding_radius=0.9, sliding_weight=float("nan"))
     for watch in (-0.1, 1.5, float("nan"), True):
         with pytest.raises(ParameterError, match=rf"oe_watch = {watch!r} must be a share in \[0, 1\]"):
             MimoSettings(oe_watch=watch)
@@ -764,3 +768,72 @@ def test_a_screen_refusal_does_not_stop_the_watched_fit_from_joining(monkeypatch
     assert oe["best_validation_score"] == oe["validation_score"] < 1, oe  # the lowest at the last check
     # the watched result is the check at 20: the fit on all records has the other 140 iterations
     assert oe["all_records_iterations"] == 140 and oe["iterations"] == 160, oe
+
+
+def test_the_sliding_penalty_gradient_matches_finite_differences() -> None:
+    """The penalty on the poles of the sliding loop (every play sliding, every static channel
+    saturated) outside a radius, by matrix, against central differences."""
+    rng = np.random.default_rng(5)
+    model = _random_lfr(rng, modal=True, static=True)
+    _, lam = mimo_oe.sliding_poles(model)
+    radius = 0.9 * float(np.abs(lam).max())
+    assert (np.abs(lam) > radius).sum() >= 1
+    value, grad = mimo_oe._sliding_penalty(model, radius, 1e3)
+    assert value > 0 and set(grad) == {"A", "E", "G", "weights"}
+    checked = 0
+    for name in ("A", "E", "G", "weights"):
+        base = np.array(getattr(model, name))
+        for idx in np.ndindex(base.shape):
+            h = 1e-5
+            vals = []
+            for sgn in (1, -1):
+                p = base.copy()
+                p[idx] += sgn * h
+                vals.append(mimo_oe._sliding_penalty(replace(model, **{name: p}), radius, 1e3)[0])
+            fd = (vals[0] - vals[1]) / (2 * h)
+            g = float(grad[name][idx])
+            assert abs(fd - g) <= 1e-5 * max(abs(fd), abs(g), 1e-3 * value), (name, idx, fd, g)
+            checked += 1
+    assert checked > 40
+    # a static channel's weights do not move the sliding loop (its slope there is 0)
+    assert np.all(grad["weights"][-1] == 0)
+    # inside the radius: no penalty, no gradient
+    assert mimo_oe._sliding_penalty(model, 1.01 * float(np.abs(lam).max()), 1e3) == (0.0, {})
+
+
+def test_the_sliding_radius_bounds_the_fitted_sliding_loop() -> None:
+    """A truth whose feedback takes damping away when its plays slide (the sliding loop's
+    radius 0.9912 against 0.9850 for the linear part), started with a third of that feedback
+    (0.9869): unbounded, the refinement finds the truth's sliding loop again; bounded at
+    0.988, it stays there (the penalty is quadratic: a hair beyond) and fits worse."""
+    true = _true_lfr()
+    rec = _levels(true, n=512, realizations=4)
+    folds = rec.folds()
+    fit, test = rec.select(folds[0]), rec.select(folds[1])
+    start = replace(true, E=true.E * 0.3)
+
+    def sliding(m: MimoModel) -> float:
+        return float(np.abs(mimo_oe.sliding_poles(m)[1]).max())
+
+    assert abs(sliding(true) - 0.99121) < 1e-5 and abs(sliding(start) - 0.98690) < 1e-5
+    free = refine_output_error(start, fit, validation=test, maxiter=60, warmup=256)
+    bound = refine_output_error(start, fit, validation=test, maxiter=60, warmup=256, sliding_radius=0.988)
+    assert abs(sliding(free.model) - sliding(true)) < 5e-4
+    assert 0.9875 < sliding(bound.model) < 0.988 + 2e-4
+    best = next(h["validation_score"] for h in free.history if h["iteration"] == free.best_iteration)
+    assert best < 0.1
+    assert bound.history[-1]["validation_score"] > 2 * best
+
+
+def test_sliding_radius_from_the_start_models_slowest_linear_pole() -> None:
+    from piezohyst.identify.mimo import sliding_radius
+
+    true = _true_lfr()
+    slowest = float(np.abs(np.linalg.eigvals(true.A)).max())
+    assert sliding_radius(true, 0.6) == pytest.approx(slowest**0.6)
+    assert sliding_radius(true, None) is None
+    assert sliding_radius(replace(true, structure="hammerstein"), 0.6) is None
+    with pytest.raises(ParameterError, match="oe_sliding_margin = 0"):
+        MimoSettings(oe_sliding_margin=0)
+    with pytest.raises(ParameterError, match="oe_sliding_margin = 1.5"):
+        MimoSettings(oe_sliding_margin=1.5)
