@@ -336,22 +336,24 @@ def sliding_poles(model: MimoModel) -> tuple[FloatArray, ComplexArray]:
     >>> float(sliding_poles(m)[1][0].real)
     0.8
     """
+    m = _sliding_matrix(model)
+    return m, np.linalg.eigvals(m)
+
+
+def _sliding_matrix(model: MimoModel) -> FloatArray:
     nw, nt = model.nw, model.static_channels
     if not nw:
-        a = np.array(model.A, dtype=np.float64)
-        return a, np.linalg.eigvals(a)
+        return np.array(model.A, dtype=np.float64)
     k = np.where(np.arange(nw) < nw - nt, model.weights.sum(axis=1), 0.0)
-    m = model.A + (model.E * k) @ model.G
-    return m, np.linalg.eigvals(m)
+    return np.asarray(model.A + (model.E * k) @ model.G, dtype=np.float64)
 
 
 def _sliding_penalty(model: MimoModel, radius: float, weight: float) -> tuple[float, dict[str, FloatArray]]:
     """``weight * sum (|p| - radius)^2`` over the poles ``p`` of :func:`sliding_poles` outside
     ``radius``, and its gradient by matrix (``A``, ``E``, ``G``, ``weights``)."""
-    m, lam = sliding_poles(model)
-    if not (np.abs(lam) > radius).any():
+    lam_all, v = np.linalg.eig(_sliding_matrix(model))  # one decomposition: poles and vectors
+    if not (np.abs(lam_all) > radius).any():
         return 0.0, {}
-    lam_all, v = np.linalg.eig(m)
     with np.errstate(all="ignore"):
         w = np.linalg.inv(v)  # rows: the left eigenvectors, w v = I
     idx = np.flatnonzero(np.abs(lam_all) > radius)
