@@ -337,7 +337,7 @@ def sliding_poles(model: MimoModel) -> tuple[FloatArray, ComplexArray]:
     0.8
     """
     m = _sliding_matrix(model)
-    return m, np.linalg.eigvals(m)
+    return m, np.asarray(np.linalg.eigvals(m), dtype=np.complex128)
 
 
 def _sliding_matrix(model: MimoModel) -> FloatArray:
