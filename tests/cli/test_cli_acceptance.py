@@ -58,8 +58,9 @@ def test_yan9a(tmp_path, train, validate, measured):
     assert report["input_delay"]["mode"] == "auto" and report["input_delay"]["samples"] in (3, 4)
 
 
-@pytest.mark.parametrize(("seed", "span", "measured"), [(1, 0, 0.105), (2, 1, 0.120)])
+@pytest.mark.parametrize(("seed", "span", "measured"), [(1, 0, 0.080), (2, 1, 0.120)])
 def test_5khz_record_with_a_time_column_and_a_lead_in(tmp_path, seed, span, measured):
+    # seed 1: a Preisach truth, 0.105 % before the finer (20-level) Preisach candidates
     rec = piezo_5khz(seed)
     path = write_5khz(rec, tmp_path / "scope.csv")
     train, validate = spans(rec)[span]
@@ -70,10 +71,11 @@ def test_5khz_record_with_a_time_column_and_a_lead_in(tmp_path, seed, span, meas
         assert report["structure"]["fit_start"] >= 0.9 * rec.meta["lead_in"]
 
 
-@pytest.mark.parametrize(("seed", "span", "measured"), [(0, 1, 0.188), (4, 0, 0.402)])
+@pytest.mark.parametrize(("seed", "span", "measured"), [(0, 1, 0.188), (4, 0, 0.234)])
 def test_10khz_two_column_record_with_drift(tmp_path, seed, span, measured):
-    # seed 4: a Preisach truth with a three-lag creep bank; 1.002 % (gpi+creep2, a 21-sample input
-    # delay standing in for the 50 ms lag) before the Preisach candidates with a creep bank
+    # seed 4: a Preisach truth with a three-lag creep bank under a decaying sine; 1.002 % (gpi+creep2,
+    # a 21-sample input delay standing in for the 50 ms lag) before the Preisach candidates with a
+    # creep bank, 0.402 % before the finer (20-level) ones (its validation's minor loops are smaller)
     rec = piezo_10khz(seed)
     path = write_10khz(rec, tmp_path / "daq.dat")
     train, validate = spans(rec)[span]

@@ -336,3 +336,35 @@ def test_identify_auto_stopped_by_a_signal_ranks_what_was_fitted(folder, capsys,
     assert len(stopped) == len(doc["fit"]["league"]) - 2
     assert "holds the best model found before SIGTERM" in err
     assert ph.load_model(out).kind == "pi"
+
+
+@pytest.mark.parametrize("levels", [12, 20])
+def test_identify_auto_fits_the_finer_preisach_grid_unless_levels_is_as_fine(folder, capsys, monkeypatch, levels):
+    """--model auto's finer Preisach candidates (AUTO_FINE_LEVELS, with and without two creep
+    lags) are fitted on their own grid; with --levels at least as fine they are listed as not
+    fitted, never chosen."""
+    from piezohyst.cli.identify import AUTO_FINE_LEVELS
+    from piezohyst.identify import dispatch
+
+    real = dispatch.identify
+    grids = []
+
+    def identify(*a, **k):
+        if k.get("model") == "preisach":
+            grids.append((k["levels"], k.get("creep", 0)))
+        return real(*a, **k)
+
+    monkeypatch.setattr(dispatch, "identify", identify)
+    out = folder / "auto.json"
+    argv = [a if a != "pi" else "auto" for a in _identify(folder, out)]
+    code, _, err = run_cli(capsys, *argv, "--validate", "400:", "--levels", levels)
+    assert code in (0, 3), err
+    rows = {row["name"]: row for row in json.loads(out.read_text())["fit"]["league"]}
+    fine = [f"preisach{AUTO_FINE_LEVELS}", f"preisach{AUTO_FINE_LEVELS}+creep2"]
+    if levels < AUTO_FINE_LEVELS:
+        assert sorted(grids)[-2:] == [(AUTO_FINE_LEVELS, 0), (AUTO_FINE_LEVELS, 2)]
+        assert all(rows[name]["rank"] is not None for name in fine)
+    else:
+        assert {g for g, _ in grids} == {levels}
+        assert all(rows[name]["rank"] is None and "as fine" in rows[name]["error"] for name in fine)
+        assert not any(rows[name]["chosen"] for name in fine)
