@@ -1052,12 +1052,12 @@ def _auto(
     results: list[tuple[str, int, IdentificationResult | None, str | None]] = []
     labels: list[str] = []
     choices: dict[int, StructureChoice] = {}
+    settings: dict[int, dict[str, Any]] = {}  # each fitted candidate's identify keywords (its grid)
     bar = Progress(len(_AUTO), "auto: candidates fitted") if common.get("progress") else None
     for kind, creep, horizon, levels in _AUTO:
         if bar is not None:
             bar.update(len(results))
         kw = dict(extra)
-        grid = common["levels"] if levels is None else levels
         labels.append(
             kind
             + (str(levels) if levels is not None else "")
@@ -1087,7 +1087,8 @@ def _auto(
                 else ("mpi" if kind == "gpi" else "gpi", creep, horizon, None)
             )
             choice = choices.get(_AUTO.index(same)) if same in _AUTO and kind in ("boucwen", "gpi", "mpi") else None
-            own = {**common, "levels": grid, "progress": False}
+            own = {**common, "levels": common["levels"] if levels is None else levels, "progress": False}
+            settings[len(results)] = own
             if choice is None:
                 choice = _decide(v, y, kind, own, kw, fs, model_lag, model_drift)
             choices[len(results)] = choice
@@ -1107,8 +1108,7 @@ def _auto(
         kw = {**extra, "creep": creep} if creep else dict(extra)
         if _AUTO[best][2] != 1.0:
             kw["creep_horizon"] = _AUTO[best][2]
-        own = {**common, "levels": _AUTO[best][3] or common["levels"], "progress": False}
-        res = identify(v, y, model=kind, **own, **kw, **_structure_options(chosen))
+        res = identify(v, y, model=kind, **settings[best], **kw, **_structure_options(chosen))
     for row in table:
         c = choices.get(labels.index(row["name"]))
         if c is not None and row["rank"] is not None:

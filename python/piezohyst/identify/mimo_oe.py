@@ -340,11 +340,17 @@ def sliding_poles(model: MimoModel) -> tuple[FloatArray, ComplexArray]:
     return m, np.asarray(np.linalg.eigvals(m), dtype=np.complex128)
 
 
+def _sliding_slopes(model: MimoModel) -> tuple[NDArray[np.bool_], FloatArray]:
+    """Which feedback channels are plays (they slide at large amplitude; the static channels
+    saturate), and each channel's slope there: its summed weights, 0 for a static one."""
+    sliding = np.arange(model.nw) < model.nw - model.static_channels
+    return sliding, np.where(sliding, model.weights.sum(axis=1), 0.0)
+
+
 def _sliding_matrix(model: MimoModel) -> FloatArray:
-    nw, nt = model.nw, model.static_channels
-    if not nw:
+    if not model.nw:
         return np.array(model.A, dtype=np.float64)
-    k = np.where(np.arange(nw) < nw - nt, model.weights.sum(axis=1), 0.0)
+    _, k = _sliding_slopes(model)
     return np.asarray(model.A + (model.E * k) @ model.G, dtype=np.float64)
 
 
@@ -352,11 +358,11 @@ def _sliding_penalty(model: MimoModel, radius: float, weight: float) -> tuple[fl
     """``weight * sum (|p| - radius)^2`` over the poles ``p`` of :func:`sliding_poles` outside
     ``radius``, and its gradient by matrix (``A``, ``E``, ``G``, ``weights``)."""
     lam_all, v = np.linalg.eig(_sliding_matrix(model))  # one decomposition: poles and vectors
-    if not (np.abs(lam_all) > radius).any():
+    idx = np.flatnonzero(np.abs(lam_all) > radius)
+    if not idx.size:
         return 0.0, {}
     with np.errstate(all="ignore"):
         w = np.linalg.inv(v)  # rows: the left eigenvectors, w v = I
-    idx = np.flatnonzero(np.abs(lam_all) > radius)
     mag = np.abs(lam_all[idx])
     value = float(weight * np.sum((mag - radius) ** 2))
     # d|l| = Re(conj(l) / |l| w_i dM v_i)
@@ -364,14 +370,13 @@ def _sliding_penalty(model: MimoModel, radius: float, weight: float) -> tuple[fl
     gm = np.real((w[idx].T * coef) @ v[:, idx].T)
     if not np.isfinite(gm).all():
         return value, {}
-    nw, nt = model.nw, model.static_channels
     grads: dict[str, FloatArray] = {"A": gm}
-    if nw:
-        k = np.where(np.arange(nw) < nw - nt, model.weights.sum(axis=1), 0.0)
+    if model.nw:
+        sliding, k = _sliding_slopes(model)
         grads["E"] = (gm @ model.G.T) * k
         grads["G"] = (model.E * k).T @ gm
         dk = np.einsum("ji,jk,ik->i", model.E, gm, model.G)
-        grads["weights"] = np.where(np.arange(nw) < nw - nt, dk, 0.0)[:, None] * np.ones_like(model.weights)
+        grads["weights"] = np.where(sliding, dk, 0.0)[:, None] * np.ones_like(model.weights)
     return value, grads
 
 
