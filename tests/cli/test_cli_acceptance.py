@@ -47,12 +47,19 @@ def acceptance(cwd: Path, path: Path, inp: str, out: str, fs: float, train: str,
 @pytest.mark.skipif(not YAN9A.exists(), reason="shared data not present")
 @pytest.mark.parametrize(
     ("train", "validate", "measured"),
-    [("3152:3352", "3352:4152", 0.184), ("3152:4152", "4152:5152", 0.185), ("3152:4152", "4152:8027", 0.192)],
+    [
+        ("3152:3352", "3352:4152", 0.184),
+        ("3152:4152", "4152:5152", 0.185),
+        ("3152:4152", "4152:8027", 0.192),
+        ("1000:2000", "2000:8027", 0.203),
+    ],
 )
 def test_yan9a(tmp_path, train, validate, measured):
     report = acceptance(tmp_path, YAN9A, "0", "4", 200.0, train, validate)
     # before the model held its input delay and drift: 0.256 %, 0.281 %, 0.366 %; the third 0.240 %
-    # before the Preisach candidates with a creep bank
+    # before the Preisach candidates with a creep bank; the fourth (a sensor settling over six
+    # times the training range's length) 0.338 % before the finalists' drift variants: the internal
+    # split kept no drift, the validation span ranks the Preisach grid with tau = 3 T first
     assert report["validation"]["rmse_percent"] <= 0.3
     assert report["validation"]["rmse_percent"] == pytest.approx(measured, abs=0.01)
     assert report["input_delay"]["mode"] == "auto" and report["input_delay"]["samples"] in (3, 4)

@@ -196,3 +196,38 @@ def test_text_output_says_what_was_done(records, tmp_path):
     assert "preprocessing: decimated by 2 to 250 Hz" in out.stdout
     # the delay is the model's, chosen on the decimated training range: 5 samples at 500 Hz are 2.5 at 250 Hz
     assert "input delay: 2 samples (0.008 s), held by the model, chosen on the training range" in out.stdout
+
+
+def test_auto_ranks_its_finalists_drift_variants_on_the_validation_span(records, tmp_path):
+    """--model auto refits its AUTO_DRIFT_FINALISTS best least-squares candidates with each drift
+    basis their internal split did not keep (same delay and fit start) and ranks them in the
+    league; the winner's drift says what chose it."""
+    from piezohyst.cli.identify import AUTO_DRIFT_FINALISTS
+    from piezohyst.identify.dispatch import LEAST_SQUARES_KINDS
+
+    out = run("identify", records["drift"], "--model", "auto", "--fs", FS, "--train", ":4000", "--validate", "4000:",
+              "--json", "--force", "--out", tmp_path / "m.json", cwd=tmp_path)  # fmt: skip
+    assert out.returncode in (0, 3), out.stderr
+    report = json.loads(out.stdout)
+    rows = {row["name"]: row for row in report["league"] if row["rank"] is not None}
+    names = {"none": "nodrift", "exp(4000)": "drift1T", "exp(12000)": "drift3T"}
+    variants = [name for name in rows if "/" in name]
+    bases = sorted({name.split("/")[0] for name in variants}, key=lambda name: rows[name]["rank"])
+    assert len(bases) == AUTO_DRIFT_FINALISTS
+    # the finalists: the best of the least-squares kinds (a Bouc-Wen refit is a population search)
+    best = sorted(
+        (row for row in rows.values() if "/" not in row["name"] and row["kind"] in LEAST_SQUARES_KINDS),
+        key=lambda row: row["rank"],
+    )
+    assert bases == [row["name"] for row in best[:AUTO_DRIFT_FINALISTS]]
+    for base in bases:
+        mine = {name.split("/")[1]: rows[name] for name in variants if name.split("/")[0] == base}
+        # each basis the internal split did not keep, at the base's delay and fit start
+        assert sorted(mine) == sorted(set(names.values()) - {names[rows[base]["drift"]]})
+        for tag, row in mine.items():
+            assert names[row["drift"]] == tag and row["drift_chosen_by"] == "validation"
+            assert (row["input_delay"], row["fit_start"]) == (rows[base]["input_delay"], rows[base]["fit_start"])
+        assert rows[base]["drift_chosen_by"] == "internal split"
+    chosen = next(row for row in rows.values() if row["chosen"])
+    assert report["drift"]["chosen_by"] == chosen["drift_chosen_by"]
+    assert report["drift"]["basis"] == chosen["drift"]

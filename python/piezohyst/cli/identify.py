@@ -135,7 +135,9 @@ def _identify_options(i: argparse.ArgumentParser) -> None:
         "preisach and boucwen (the PI family and preisach with and without --creep 2, mpi also with --creep 4, "
         "mpi and preisach with --creep 4 --creep-horizon 10, preisach also on a finer 20-level grid with and "
         "without --creep 2), each with its input delay, drift term and fit "
-        "start chosen on the training range (--lag auto, --drift auto), ranks them by validation "
+        "start chosen on the training range (--lag auto, --drift auto; with --validate the three best "
+        "least-squares ones are also fitted with each other drift basis, rows NAME/nodrift, /drift1T, "
+        "/drift3T), ranks them by validation "
         "error (state carried) and saves the winner: the simplest model within one standard error "
         "of the best (without --validate: by BIC on the training range); the league table is printed "
         'and put under "league" in --json. pi/gpi/mpi/rdpi/preisach: least '
@@ -958,6 +960,21 @@ _AUTO: tuple[tuple[str, int, float, int | None], ...] = (
     ("boucwen", 0, 1.0, None),
 )
 
+#: With a validation span, ``--model auto`` also fits its ``AUTO_DRIFT_FINALISTS`` best
+#: candidates of the least-squares kinds (one solve each; a Bouc-Wen refit is a population
+#: search) with each drift basis their internal split did not keep (none, or an exponential
+#: settling of ``tau = T`` or ``3 T``, :data:`~piezohyst.identify.structure.DRIFT_BASES`), at the
+#: same input delay and fit start, and ranks them beside the rest, as it ranks the families. The
+#: internal split judges a drift on the last part of the training range alone; whether it goes on,
+#: levels off or was creep shows over the span the model is scored on. bench/identify_auto.py
+#: (the acceptance command, state carried; AMD EPYC, 2 cores, against the league without them
+#: in the same session): yan9a 8 of 8 spans within 0.3 % (7: 1000:2000 -> 2000:8027, a settling
+#: six training lengths long, 0.338 -> 0.203 %); lookalike draws 0-5 the same counts (5 kHz 17,
+#: 10 kHz 16 of 18), four runs better, one worse by 0.002 %; draws 6-11, not used for the choice,
+#: the same counts, 10 kHz median 0.235 % (0.293), nine runs better, none worse. A 10 kHz record
+#: of 57,551 training samples: 35-39 s against 26-29 s.
+AUTO_DRIFT_FINALISTS = 3
+
 
 def _decide(
     v: FloatArray,
@@ -1024,6 +1041,7 @@ def _structure_report(
         "drift": {
             "mode": model_drift,
             "basis": None if structure is None else structure["drift"]["name"],
+            "chosen_by": None if structure is None else structure.get("drift_chosen_by"),
             "term": None if drift is None else drift.to_dict(),
             "time_origin": "the training range's first sample",
         },
@@ -1041,7 +1059,8 @@ def _auto(
     model_drift: str,
 ) -> tuple[str, IdentificationResult, list[dict[str, Any]], dict[str, Any] | None]:
     """``--model auto``: every candidate's structure decided on the training range (input delay,
-    drift, fit start), every candidate fitted, the league ranked, the winner's result and its
+    drift, fit start), every candidate fitted, with a validation span the finalists' drift
+    variants too (:func:`_drift_variants`), the league ranked, the winner's result and its
     structure decisions."""
     from ..identify.dispatch import identify
     from ..identify.validation import league_table
@@ -1054,10 +1073,11 @@ def _auto(
     choices: dict[int, StructureChoice] = {}
     settings: dict[int, dict[str, Any]] = {}  # each fitted candidate's identify keywords (its grid)
     bar = Progress(len(_AUTO), "auto: candidates fitted") if common.get("progress") else None
-    for kind, creep, horizon, levels in _AUTO:
+    for spec in _AUTO:
+        kind, creep, horizon, levels = spec
         if bar is not None:
             bar.update(len(results))
-        kw = dict(extra)
+        kw = _candidate_options(extra, spec)
         labels.append(
             kind
             + (str(levels) if levels is not None else "")
@@ -1070,14 +1090,10 @@ def _auto(
         if levels is not None and common["levels"] >= levels:
             results.append((kind, creep, None, f"--levels {common['levels']} is as fine as its {levels} levels"))
             continue
-        if creep:
-            kw["creep"] = creep
         signum = stops.received()
         if signum is not None:  # a stop signal: rank what was fitted before it
             results.append((kind, creep, None, f"stopped by {stops.describe(signum)}"))
             continue
-        if horizon != 1.0:
-            kw["creep_horizon"] = horizon
         try:
             # Bouc-Wen takes the decisions of the MPI (rate independent, no creep), and the GPI
             # and MPI of one creep structure share theirs: the same regressors, the same decisions
@@ -1100,38 +1116,98 @@ def _auto(
     if bar is not None:
         bar.update(len(results))
         bar.close()
+    specs = list(_AUTO)  # each row's (kind, creep, horizon, levels)
+    if model_drift == "auto" and common.get("validate") is not None:
+        _drift_variants(v, y, extra, results, labels, choices, settings, specs)
     table, best = league_table(results, v.size, labels=labels)
     kind, creep, res, _ = results[best]
     assert res is not None  # league_table picks a fitted one
     chosen = choices[best]
     if not getattr(res, "assessment", {}).get("trusted", True) and stops.received() is None:  # the winner's diagnosis
-        kw = {**extra, "creep": creep} if creep else dict(extra)
-        if _AUTO[best][2] != 1.0:
-            kw["creep_horizon"] = _AUTO[best][2]
-        res = identify(v, y, model=kind, **settings[best], **kw, **_structure_options(chosen))
+        opts = _candidate_options(extra, specs[best])
+        res = identify(v, y, model=kind, **settings[best], **opts, **_structure_options(chosen))
     for row in table:
         c = choices.get(labels.index(row["name"]))
         if c is not None and row["rank"] is not None:
             row["input_delay"] = c.delay
             row["drift"] = c.drift.name
+            row["drift_chosen_by"] = c.drift_by
             row["fit_start"] = c.start
-            row["creep_horizon"] = _AUTO[labels.index(row["name"])][2]
+            row["creep_horizon"] = specs[labels.index(row["name"])][2]
     return kind, res, table, chosen.to_dict()
+
+
+def _candidate_options(extra: dict[str, Any], spec: tuple[str, int, float, int | None]) -> dict[str, Any]:
+    """``identify`` keywords of a league candidate ``(kind, creep, horizon, levels)`` beside the
+    command's own (its grid is in its settings)."""
+    kw = dict(extra)
+    if spec[1]:
+        kw["creep"] = spec[1]
+    if spec[2] != 1.0:
+        kw["creep_horizon"] = spec[2]
+    return kw
+
+
+def _drift_variants(
+    v: FloatArray,
+    y: FloatArray,
+    extra: dict[str, Any],
+    results: list[tuple[str, int, IdentificationResult | None, str | None]],
+    labels: list[str],
+    choices: dict[int, StructureChoice],
+    settings: dict[int, dict[str, Any]],
+    specs: list[tuple[str, int, float, int | None]],
+) -> None:
+    """The league's :data:`AUTO_DRIFT_FINALISTS` best least-squares candidates (by validation
+    RMSE) fitted again with each drift basis their internal split did not keep, appended to the
+    league as rows ``NAME/nodrift``, ``NAME/drift1T``, ``NAME/drift3T`` (the settling's time
+    constant in training durations)."""
+    import dataclasses
+
+    from ..identify.dispatch import LEAST_SQUARES_KINDS, identify
+    from ..identify.structure import DRIFT_BASES, DriftBasis, drift_bases
+
+    tagged = [(b, f"drift{f:g}T") for b, (_, f) in zip(drift_bases(v.size), DRIFT_BASES, strict=True)]
+    bases = [(DriftBasis(), "nodrift"), *tagged]
+    scored = sorted(
+        (r.validation["rmse"], i)
+        for i, (kind, _, r, _) in enumerate(results)
+        if kind in LEAST_SQUARES_KINDS and r is not None and r.validation is not None
+    )
+    for _, i in scored[:AUTO_DRIFT_FINALISTS]:
+        for basis, tag in bases:
+            if basis.name == choices[i].drift.name or stops.received() is not None:
+                continue
+            choice = dataclasses.replace(choices[i], drift=basis, drift_by="validation")
+            kind, creep = results[i][0], results[i][1]
+            j = len(results)
+            labels.append(f"{labels[i]}/{tag}")
+            specs.append(specs[i])
+            settings[j] = settings[i]
+            choices[j] = choice
+            try:
+                opts = _candidate_options(extra, specs[i])
+                fitted = identify(
+                    v, y, model=kind, **settings[i], diagnosis=False, **opts, **_structure_options(choice)
+                )
+                results.append((kind, creep, fitted, None))
+            except ParameterError as e:
+                results.append((kind, creep, None, str(e)))
 
 
 def _print_league(league: list[dict[str, Any]]) -> None:
     print(
-        f"  {'rank':<5}{'model':<21}{'params':>7}{'delay':>6}  {'drift':<14}{'train %':>9}"
+        f"  {'rank':<5}{'model':<28}{'params':>7}{'delay':>6}  {'drift':<14}{'train %':>9}"
         f"{'validation %':>14}  ranked by"
     )
     for row in league:
         if row["rank"] is None:
-            print(f"  {'-':<5}{row['name']:<21}{'':>7}{'':>6}  {'':<14}{'':>9}{'':>14}  not fitted: {row['error']}")
+            print(f"  {'-':<5}{row['name']:<28}{'':>7}{'':>6}  {'':<14}{'':>9}{'':>14}  not fitted: {row['error']}")
             continue
         mark = "  <- saved" if row["chosen"] else ""
         val = "-" if row["validation_rmse_percent"] is None else f"{row['validation_rmse_percent']:.4g}"
         print(
-            f"  {row['rank']:<5}{row['name']:<21}{row['parameters']:>7}{row.get('input_delay', 0):>6}  "
+            f"  {row['rank']:<5}{row['name']:<28}{row['parameters']:>7}{row.get('input_delay', 0):>6}  "
             f"{row.get('drift', 'none'):<14}{row['train_rmse_percent']:>9.4g}{val:>14}  {row['criterion']}{mark}"
         )
 
@@ -1149,7 +1225,12 @@ def _print_structure(fit: dict[str, Any]) -> None:
     if drift["mode"] == "auto":
         term = drift["term"]
         what = "none" if term is None else f"{drift['basis']} (from the training range's first sample)"
-        print(f"  drift term: {what}, chosen by an internal split of the training range")
+        how = (
+            "ranked on the validation span (the league's drift variants)"
+            if drift.get("chosen_by") == "validation"
+            else "chosen by an internal split of the training range"
+        )
+        print(f"  drift term: {what}, {how}")
 
 
 def _print_whiteness(assessment: dict[str, Any]) -> None:

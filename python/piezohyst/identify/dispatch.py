@@ -60,7 +60,7 @@ from .validation import (
 )
 from .varpro import identify_vp
 
-__all__ = ["KINDS", "STRUCTURES", "identify"]
+__all__ = ["KINDS", "LEAST_SQUARES_KINDS", "STRUCTURES", "identify"]
 
 #: ``structure`` values of :func:`identify`: the default structure, or identified with it by
 #: variable projection.
@@ -981,6 +981,10 @@ del _k
 
 #: Model kinds :func:`identify` accepts.
 KINDS = tuple(_REGISTRY)
+
+#: Kinds linear in their parameters: fitted by one least-squares solve (no optimizer) with the
+#: default structure.
+LEAST_SQUARES_KINDS = tuple(k for k, spec in _REGISTRY.items() if spec.fit is _fit_linear_kind)
 
 #: Kinds whose structure variable projection identifies.
 _VP_KINDS = tuple(k for k, spec in _REGISTRY.items() if spec.structure)

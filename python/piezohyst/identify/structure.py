@@ -189,6 +189,9 @@ class StructureChoice:
         fitted output's slope (samples; :func:`residual_lag`). Near 0 when the delay is right
         (the residual carries no phase lag left); ``+k``: the fit runs ``k`` samples ahead of
         the data.
+    drift_by : str, optional
+        What chose ``drift``: ``"internal split"`` (:func:`choose_structure`, the default) or
+        ``"validation"`` (``identify --model auto`` ranking its finalists' drift variants).
 
     Examples
     --------
@@ -212,6 +215,9 @@ class StructureChoice:
     start_rmse: dict[int, float] = field(default_factory=dict)
     #: The training residual's coefficient on the fitted output's slope, samples.
     residual_lag: float | None = None
+    #: What chose the drift basis: ``"internal split"`` (this function), or ``"validation"``
+    #: (``identify --model auto`` ranking the league's drift variants on the validation span).
+    drift_by: str = "internal split"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready: the decisions and their evidence (delays as string keys).
@@ -220,7 +226,8 @@ class StructureChoice:
         -------
         dict
             ``delay``, ``drift`` (:meth:`DriftBasis.to_dict`), ``fit_start``, ``delay_rmse``,
-            ``drift_rmse``, ``split``, ``n_eff``, ``start_rmse`` and ``residual_lag``.
+            ``drift_rmse``, ``split``, ``n_eff``, ``start_rmse``, ``residual_lag`` and
+            ``drift_chosen_by``.
 
         Examples
         --------
@@ -238,6 +245,7 @@ class StructureChoice:
             "n_eff": self.n_eff,
             "start_rmse": {str(k): v for k, v in sorted(self.start_rmse.items())},
             "residual_lag": self.residual_lag,
+            "drift_chosen_by": self.drift_by,
         }
 
 
